@@ -1,0 +1,4 @@
+"""frenet-eot tracker: extended object tracking of vehicles in curvilinear road coordinates.
+
+numpy + scipy only; never imports ``sim``. A user with real data needs only this package.
+"""
