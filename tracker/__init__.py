@@ -2,3 +2,7 @@
 
 numpy + scipy only; never imports ``sim``. A user with real data needs only this package.
 """
+
+from tracker.road import Road
+
+__all__ = ["Road"]
