@@ -1,0 +1,41 @@
+"""Tests of tracker/clustering.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracker.clustering import associate_radar, distance_partition, points_in_rectangles
+
+
+def test_points_in_rectangles_geometry():
+    centres = np.array([[10.0, 0.0], [10.0, 3.5]])
+    yaw = np.array([0.0, np.pi / 2])
+    length, width = np.array([4.0, 4.0]), np.array([2.0, 2.0])
+    pts = np.array([[12.4, 0.0], [12.6, 0.0], [10.0, 0.9], [10.0, 6.1], [11.4, 3.5], [30.0, 0.0]])
+    idx = points_in_rectangles(pts, centres, yaw, length, width, margin=0.5)
+    # rectangle 1 is turned 90 deg: its length runs along y
+    np.testing.assert_array_equal(idx, [0, -1, 0, -1, 1, -1])
+    assert points_in_rectangles(pts, np.zeros((0, 2)), [], [], []).tolist() == [-1] * 6
+
+
+def test_distance_partition_components():
+    a = np.column_stack([np.linspace(0, 3, 7), np.zeros(7)])  # spacing 0.5
+    b = a + [10.0, 0.0]
+    c = np.array([[5.0, 5.0]])
+    labels = distance_partition(np.vstack([a, c, b]), threshold=0.6)
+    np.testing.assert_array_equal(labels, [0] * 7 + [1] + [2] * 7)
+    # a threshold below the spacing splits every point apart
+    assert len(set(distance_partition(a, 0.4).tolist())) == 7
+    assert distance_partition(np.zeros((0, 2)), 1.0).shape == (0,)
+    with pytest.raises(ValueError, match="threshold"):
+        distance_partition(a, -1.0)
+
+
+def test_associate_radar_greedy_within_gate():
+    clusters = [np.array([[10.0, 0.0], [10.0, 1.0]]), np.array([[20.0, 0.0]]), np.array([[40.0, 0.0]])]
+    radar = np.array([[10.5, 0.5], [19.0, 0.0], [10.2, 0.0], [45.0, 0.0]])
+    out = associate_radar(clusters, radar, gate=2.0)
+    # cluster 0 takes its nearest detection (2: 0.2 m), cluster 1 takes detection 1, cluster 2 none
+    np.testing.assert_array_equal(out, [2, 1, -1])
+    np.testing.assert_array_equal(associate_radar(clusters, np.zeros((0, 2))), [-1, -1, -1])
