@@ -1,0 +1,144 @@
+"""A 2-D ray-cast lidar at the origin of the vehicle frame E (a VLP-16 projected to the ground).
+
+One scan is instantaneous at the snapshot time (no motion distortion): ``RayGrid.full_circle`` rays
+(0.2 deg apart by default, bearings ``-180 + res .. 180`` deg in E) are cast against the other
+vehicles' rectangles and the roadside objects; the first hit wins (occlusion). Each ray that hits
+within ``max_range`` returns one point at the true range plus Gaussian noise (``range_noise_std``),
+unless it drops out (probability ``dropout_probability``, independently per ray) or the true range is
+below ``min_range``. Points are returned in E (m). Every scan draws the same number of random numbers
+(two per ray), so the random stream does not depend on the scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.raycast import CASTERS, RayGrid
+from sim.sensors.scene import scene_segments
+from sim.truth import Snapshot
+
+
+def _positive(owner: str, name: str, value: float, *, allow_zero: bool = False) -> None:
+    ok = isinstance(value, (int, float)) and math.isfinite(value) and (value >= 0.0 if allow_zero else value > 0.0)
+    if not ok:
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{owner}.{name} must be a finite number {bound}; got {value!r}")
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """Lidar settings (SI units; angles in degrees where the name says so).
+
+    - ``resolution_deg`` (0.2): azimuth step; must divide 360 into whole rays (0.2 -> 1800 rays);
+    - ``max_range`` (100 m) and ``min_range`` (0.5 m): returns beyond / nearer are not reported;
+    - ``range_noise_std`` (0.03 m): Gaussian noise on each range, along the ray;
+    - ``dropout_probability`` (0.01): chance that a ray which hits returns nothing;
+    - ``rate_hz`` (10 Hz) and ``phase_s`` (0 s): scans at ``t0 + phase_s + k / rate_hz``;
+    - ``caster`` ("numpy"): ``"numpy"`` (vectorised, the fast one) or ``"pymunk"`` (the oracle).
+    """
+
+    resolution_deg: float = 0.2
+    max_range: float = 100.0
+    min_range: float = 0.5
+    range_noise_std: float = 0.03
+    dropout_probability: float = 0.01
+    rate_hz: float = 10.0
+    phase_s: float = 0.0
+    caster: str = "numpy"
+
+    def __post_init__(self) -> None:
+        _positive("LidarConfig", "resolution_deg", self.resolution_deg)
+        _positive("LidarConfig", "max_range", self.max_range)
+        _positive("LidarConfig", "min_range", self.min_range, allow_zero=True)
+        _positive("LidarConfig", "range_noise_std", self.range_noise_std, allow_zero=True)
+        _positive("LidarConfig", "rate_hz", self.rate_hz)
+        _positive("LidarConfig", "phase_s", self.phase_s, allow_zero=True)
+        if self.min_range >= self.max_range:
+            raise ValueError(f"LidarConfig.min_range ({self.min_range}) must be below max_range ({self.max_range})")
+        p = self.dropout_probability
+        if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
+            raise ValueError(f"LidarConfig.dropout_probability must be in [0, 1]; got {p!r}")
+        if self.caster not in CASTERS:
+            raise ValueError(f"LidarConfig.caster must be one of {sorted(CASTERS)}; got {self.caster!r}")
+        RayGrid.full_circle(math.radians(self.resolution_deg))  # raises if 360 is not a whole number of rays
+
+    @property
+    def rays(self) -> int:
+        """Rays per scan."""
+        return round(360.0 / self.resolution_deg)
+
+
+@dataclass(frozen=True)
+class LidarScan:
+    """One scan at time ``t`` (s): ``M`` points, with per point the ray ``azimuth`` (rad, in E), the
+    measured ``range`` (m), the point ``points`` (M, 2) in E (m), and what it hit: ``vehicle_id``
+    (the snapshot's id, -1 for roadside objects) and ``roadside_index`` (-1 for vehicles).
+    ``rays`` is the number of rays cast."""
+
+    t: float
+    azimuth: np.ndarray
+    range: np.ndarray
+    points: np.ndarray
+    vehicle_id: np.ndarray
+    roadside_index: np.ndarray
+    rays: int
+
+    def __len__(self) -> int:
+        return int(self.range.shape[0])
+
+    def points_on(self, vehicle_id: int) -> np.ndarray:
+        """The points (K, 2) in E that hit the vehicle with this id."""
+        return self.points[self.vehicle_id == vehicle_id]
+
+
+class Lidar:
+    """The lidar of ``config`` (``LidarConfig()`` by default); ``scan`` makes one scan."""
+
+    def __init__(self, config: LidarConfig | None = None) -> None:
+        config = LidarConfig() if config is None else config
+        if not isinstance(config, LidarConfig):
+            raise ValueError(f"Lidar needs a LidarConfig; got {type(config).__name__}")
+        self.config = config
+
+    @cached_property
+    def grid(self) -> RayGrid:
+        """The scan's rays (E frame)."""
+        return RayGrid.full_circle(math.radians(self.config.resolution_deg))
+
+    def scan(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> LidarScan:
+        """One scan of ``snapshot`` (the other vehicles) and ``roadside`` from the ego pose, at the
+        snapshot time; noise and dropout from ``rng``."""
+        if not isinstance(snapshot, Snapshot):
+            raise ValueError(f"Lidar.scan needs a sim.truth.Snapshot; got {type(snapshot).__name__}")
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"Lidar.scan needs rng, a numpy.random.Generator; got {type(rng).__name__}")
+        cfg = self.config
+        ego = snapshot.ego
+        segments = scene_segments(snapshot, roadside, (ego.x, ego.y), ego.yaw, cfg.max_range)
+        cast = CASTERS[cfg.caster](segments, self.grid, cfg.max_range)
+        count = self.grid.count
+        noise = rng.standard_normal(count)
+        dropped = rng.random(count) < cfg.dropout_probability
+        keep = cast.hit & ~dropped & (cast.range >= cfg.min_range)
+        idx = np.flatnonzero(keep)
+        measured = cast.range[idx] + cfg.range_noise_std * noise[idx]
+        directions = self.grid.directions[idx]
+        owner = cast.owner[idx]
+        vehicles = len(snapshot)
+        is_vehicle = owner < vehicles
+        vehicle_id = np.full(idx.size, -1, dtype=np.int64)
+        vehicle_id[is_vehicle] = snapshot.ids[owner[is_vehicle]]
+        return LidarScan(
+            t=float(snapshot.t),
+            azimuth=self.grid.angles[idx],
+            range=measured,
+            points=directions * measured[:, None],
+            vehicle_id=vehicle_id,
+            roadside_index=np.where(is_vehicle, -1, owner - vehicles).astype(np.int64),
+            rays=count,
+        )

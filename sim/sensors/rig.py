@@ -1,0 +1,182 @@
+"""The sensor rig: lidar + radar units on the ego, producing the tracker's ``Frame``s over time.
+
+Timing (all relative to ``t0``): lidar scans at ``lidar.phase_s + k / lidar.rate_hz`` (10 Hz), each
+radar unit cycles at ``phase_s + j / rate_hz`` (14 Hz, phases 0.023 s and 0.059 s by default, so not in
+phase with the lidar). Every lidar time yields one ``SensorFrame``: a ``tracker.Frame`` with that scan
+and the radar detections of the cycles in ``(previous lidar time, this lidar time]`` (the first frame
+takes those from ``t0``), each keeping its own timestamp; positions and velocities are moved from E at
+the detection time into E at the frame time with the true ego poses (perfect odometry). Radar cycles
+after the last frame are not delivered. The truth ``Snapshot`` at the frame time travels beside the
+frame, never inside it.
+
+``truth_at(t)`` is called with non-decreasing times, once per distinct time, so a world that can
+only advance forward can serve it. Randomness: one ``numpy.random.SeedSequence(seed)`` spawns an
+independent generator for the lidar and for each radar unit, so the same seed gives identical
+output, and changing one sensor's settings leaves the other sensors' noise unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
+from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
+from sim.sensors.transforms import rotate, to_global, to_local
+from sim.truth import Snapshot
+from tracker.frame import EgoState, Frame, RadarDetections
+
+#: Slack (s) when comparing event times and the time of a snapshot returned by ``truth_at``.
+TIME_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """The rig's sensors: ``lidar`` (``LidarConfig()``: 10 Hz, 0.2 deg, 100 m) and ``radar``
+    (``RadarConfig()``: front and rear units at 14 Hz)."""
+
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    radar: RadarConfig = field(default_factory=RadarConfig)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.lidar, LidarConfig):
+            raise ValueError(f"RigConfig.lidar must be a LidarConfig; got {type(self.lidar).__name__}")
+        if not isinstance(self.radar, RadarConfig):
+            raise ValueError(f"RigConfig.radar must be a RadarConfig; got {type(self.radar).__name__}")
+
+
+@dataclass(frozen=True)
+class SensorFrame:
+    """One frame: ``frame`` (the tracker's input), ``truth`` (the snapshot at ``frame.t``), and the
+    labelled sensor data behind the frame: ``lidar`` (the scan, points in E) and ``radar`` (the
+    detections in ``frame.radar`` order, in E at the frame time, with truth ids and units)."""
+
+    frame: Frame
+    truth: Snapshot
+    lidar: LidarScan
+    radar: RadarScan
+
+
+def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer or a numpy.random.SeedSequence; got {seed!r}")
+    return np.random.SeedSequence(int(seed))
+
+
+class SensorRig:
+    """Lidar and radar units of ``config`` (``RigConfig()`` by default) seeing the vehicles of the
+    truth and the static ``roadside`` objects (may be ``None``)."""
+
+    def __init__(self, config: RigConfig | None = None, roadside: RoadsideObjects | None = None) -> None:
+        config = RigConfig() if config is None else config
+        if not isinstance(config, RigConfig):
+            raise ValueError(f"SensorRig needs a RigConfig; got {type(config).__name__}")
+        if roadside is not None and not isinstance(roadside, RoadsideObjects):
+            raise ValueError(f"SensorRig.roadside must be RoadsideObjects or None; got {type(roadside).__name__}")
+        self.config = config
+        self.roadside = roadside
+        self.lidar = Lidar(config.lidar)
+        self.radars = [RadarUnit(unit, index) for index, unit in enumerate(config.radar.units)]
+
+    def frame_times(self, duration: float, t0: float = 0.0) -> np.ndarray:
+        """The lidar (frame) times (s) in ``[t0, t0 + duration]``."""
+        cfg = self.config.lidar
+        count = math.floor((duration - cfg.phase_s) * cfg.rate_hz + 1e-9) + 1
+        return t0 + cfg.phase_s + np.arange(max(count, 0)) / cfg.rate_hz
+
+    def frames(
+        self,
+        truth_at: Callable[[float], Snapshot],
+        duration: float | None = None,
+        *,
+        seed: int | np.random.SeedSequence = 0,
+        t0: float = 0.0,
+    ) -> Iterator[SensorFrame]:
+        """Yield a ``SensorFrame`` at every lidar time from ``t0`` up to ``t0 + duration`` (s;
+        forever when ``None``), lazily: ``truth_at`` is called only as far as the frame being made."""
+        if not callable(truth_at):
+            raise ValueError("SensorRig.frames needs truth_at, a callable t -> sim.truth.Snapshot")
+        if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0):
+            raise ValueError(f"duration must be a finite number of seconds >= 0 (or None); got {duration!r}")
+        if not (isinstance(t0, (int, float)) and math.isfinite(t0)):
+            raise ValueError(f"t0 must be a finite time in s; got {t0!r}")
+        children = _seed_sequence(seed).spawn(1 + len(self.radars))
+        lidar_rng = np.random.default_rng(children[0])
+        radar_rngs = [np.random.default_rng(c) for c in children[1:]]
+        lidar_cfg = self.config.lidar
+        cycles = [0] * len(self.radars)
+        last: list = [None, None]  # time, snapshot of the latest truth_at call
+
+        def truth(t: float) -> Snapshot:
+            if last[0] is not None and t <= last[0]:
+                return last[1]
+            snap = truth_at(t)
+            if not isinstance(snap, Snapshot):
+                raise ValueError(f"truth_at({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
+            if abs(float(snap.t) - t) > 1e-6:
+                raise ValueError(f"truth_at({t!r}) returned a snapshot at t={snap.t!r}")
+            last[0], last[1] = t, snap
+            return snap
+
+        def radar_time(i: int) -> float:
+            unit = self.radars[i].config
+            return t0 + unit.phase_s + cycles[i] / unit.rate_hz
+
+        k = 0
+        while True:
+            t_frame = t0 + lidar_cfg.phase_s + k / lidar_cfg.rate_hz
+            if duration is not None and t_frame > t0 + duration + TIME_TOLERANCE:
+                return
+            pending: list[tuple[RadarScan, np.ndarray, np.ndarray]] = []  # scan, xy in G, velocity in G
+            while self.radars:
+                times = [radar_time(i) for i in range(len(self.radars))]
+                i = int(np.argmin(times))  # ties: the lower unit index first
+                if times[i] > t_frame + TIME_TOLERANCE:
+                    break
+                snap = truth(times[i])
+                scan = self.radars[i].detect(snap, self.roadside, rng=radar_rngs[i])
+                ego = snap.ego
+                pending.append((scan, to_global(scan.xy, (ego.x, ego.y), ego.yaw), rotate(scan.velocity, ego.yaw)))
+                cycles[i] += 1
+            snap = truth(t_frame)
+            lidar_scan = self.lidar.scan(snap, self.roadside, rng=lidar_rng)
+            ego = snap.ego
+            radar = RadarScan.concatenate(
+                [
+                    RadarScan(
+                        t=scan.t,
+                        xy=to_local(xy_g, (ego.x, ego.y), ego.yaw).reshape(-1, 2),
+                        velocity=rotate(vel_g, -ego.yaw).reshape(-1, 2),
+                        target_id=scan.target_id,
+                        unit=scan.unit,
+                    )
+                    for scan, xy_g, vel_g in pending
+                ]
+            )
+            frame = Frame(
+                t=t_frame,
+                ego=EgoState(ego.x, ego.y, ego.yaw, ego.v, ego.yaw_rate),
+                lidar=lidar_scan.points,
+                radar=RadarDetections(radar.t, radar.xy[:, 0], radar.xy[:, 1], radar.velocity[:, 0], radar.velocity[:, 1]),
+            )
+            yield SensorFrame(frame=frame, truth=snap, lidar=lidar_scan, radar=radar)
+            k += 1
+
+    def run(
+        self,
+        truth_at: Callable[[float], Snapshot],
+        duration: float,
+        *,
+        seed: int | np.random.SeedSequence = 0,
+        t0: float = 0.0,
+    ) -> list[SensorFrame]:
+        """All frames from ``t0`` to ``t0 + duration`` (s) as a list (see ``frames``)."""
+        if duration is None:
+            raise ValueError("SensorRig.run needs a finite duration; use SensorRig.frames for an endless stream")
+        return list(self.frames(truth_at, duration, seed=seed, t0=t0))

@@ -1,0 +1,70 @@
+"""The ray-casting scene seen from a sensor: vehicle rectangles and roadside polygons as segments.
+
+Owners: the vehicles of a ``Snapshot`` are owners ``0 .. V-1`` (their row in the snapshot); roadside
+object ``j`` is owner ``V + j``. The ego itself is not part of the scene. With ``max_range`` given,
+vehicles wholly beyond it (bounding circle) and roadside edges wholly beyond it are left out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.raycast import Segments
+from sim.truth import Snapshot
+
+# corner signs along (length, width) of the corners front-right, front-left, rear-left, rear-right
+# (counter-clockwise), and of each corner's successor (the edge's end point)
+_SIGN_L = np.array([1.0, 1.0, -1.0, -1.0])
+_SIGN_W = np.array([-1.0, 1.0, 1.0, -1.0])
+_NEXT = np.array([1, 2, 3, 0])
+
+
+def _vehicle_edges(snapshot: Snapshot, rows: np.ndarray) -> np.ndarray:
+    """Edges (4 V, 4) ``[ax, ay, bx, by]`` in G of the vehicles ``rows``, counter-clockwise."""
+    x, y = snapshot.xy[rows, 0], snapshot.xy[rows, 1]
+    c, s = np.cos(snapshot.yaw[rows])[:, None], np.sin(snapshot.yaw[rows])[:, None]
+    lx = (0.5 * snapshot.length[rows])[:, None] * _SIGN_L
+    ly = (0.5 * snapshot.width[rows])[:, None] * _SIGN_W
+    gx = x[:, None] + c * lx - s * ly
+    gy = y[:, None] + s * lx + c * ly
+    return np.stack([gx, gy, gx[:, _NEXT], gy[:, _NEXT]], axis=-1).reshape(-1, 4)
+
+
+def scene_segments(
+    snapshot: Snapshot,
+    roadside: RoadsideObjects | None,
+    origin: tuple[float, float],
+    yaw: float,
+    max_range: float | None = None,
+) -> Segments:
+    """Every edge of the snapshot's vehicles and of ``roadside`` (may be ``None``) within
+    ``max_range`` (m; all when ``None``) of the sensor, expressed in the sensor frame at ``origin``
+    (m, G) with heading ``yaw`` (rad); owners as in the module docstring."""
+    ox, oy = float(origin[0]), float(origin[1])
+    count = len(snapshot)
+    rows = np.arange(count, dtype=np.int64)
+    if max_range is not None and count:
+        dx, dy = snapshot.xy[:, 0] - ox, snapshot.xy[:, 1] - oy
+        reach = np.sqrt(dx * dx + dy * dy) - 0.5 * np.sqrt(snapshot.length**2 + snapshot.width**2)
+        rows = rows[reach <= max_range]
+    edges = [_vehicle_edges(snapshot, rows)]
+    owner = [np.repeat(rows, 4)]
+    if roadside is not None and len(roadside):
+        static_edges = roadside._edges
+        static_owner = roadside.segments.owner + count
+        if max_range is not None:
+            mid = roadside._edge_mid
+            dx, dy = mid[:, 0] - ox, mid[:, 1] - oy
+            keep = np.sqrt(dx * dx + dy * dy) - roadside._edge_half <= max_range
+            static_edges, static_owner = static_edges[keep], static_owner[keep]
+        edges.append(static_edges)
+        owner.append(static_owner)
+    all_edges = np.concatenate(edges) - np.array([ox, oy, ox, oy])
+    c, s = math.cos(yaw), math.sin(yaw)
+    # row vectors [x, y] @ [[c, -s], [s, c]] = rotation by -yaw, for both end points at once
+    rot = np.array([[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, c, -s], [0.0, 0.0, s, c]])
+    local = all_edges @ rot
+    return Segments(local[:, :2], local[:, 2:], np.concatenate(owner))

@@ -1,0 +1,76 @@
+"""tracker.frame: the tracker's input dataclasses and their validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tracker.frame import EgoState, Frame, RadarDetections
+
+
+def test_frame_holds_copies_as_readonly_float_arrays():
+    pts = np.array([[1.0, 2.0], [3.0, 4.0]])
+    radar = np.array([[0.05, 10.0, 1.0, 20.0, 0.5]])
+    frame = Frame(0.1, (1.0, 2.0, 0.3, 25.0, 0.01), pts, radar)
+    pts[0, 0] = 99.0  # the frame copied its input
+    assert frame.lidar[0, 0] == 1.0
+    assert frame.lidar.dtype == np.float64 and frame.lidar.shape == (2, 2)
+    assert not frame.lidar.flags.writeable and not frame.radar.x.flags.writeable
+    assert frame.ego == EgoState(1.0, 2.0, 0.3, 25.0, 0.01)
+    assert len(frame.radar) == 1
+    np.testing.assert_array_equal(frame.radar.as_array(), radar)
+    np.testing.assert_array_equal(frame.radar.xy, [[10.0, 1.0]])
+    np.testing.assert_array_equal(frame.radar.velocity, [[20.0, 0.5]])
+
+
+def test_frame_empty_parts_and_duck_typed_ego():
+    class Pose:  # e.g. sim.truth.EgoPose: extra attributes are ignored
+        x, y, yaw, v, yaw_rate, length = 1.0, 2.0, 3.0, 4.0, 0.5, 4.8
+
+    frame = Frame(2.0, Pose(), None, None)
+    assert frame.lidar.shape == (0, 2) and len(frame.radar) == 0
+    assert frame.ego == EgoState(1.0, 2.0, 3.0, 4.0, 0.5)
+    assert Frame(0.0, EgoState(0, 0, 0), np.zeros(0)).lidar.shape == (0, 2)
+
+
+def test_ego_yaw_is_wrapped():
+    assert EgoState(0, 0, 3 * math.pi / 2).yaw == pytest.approx(-math.pi / 2)
+    assert EgoState(0, 0, -math.pi).yaw == pytest.approx(math.pi)
+
+
+def test_non_finite_lidar_points_are_allowed_for_the_tracker_to_drop():
+    frame = Frame(0.0, EgoState(0, 0, 0), [[np.nan, 1.0], [2.0, 3.0]])
+    assert np.isnan(frame.lidar[0, 0])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"t": float("nan")}, "Frame.t must be finite"),
+        ({"t": "soon"}, "Frame.t must be a real number"),
+        ({"ego": (0.0, 0.0)}, "3 to 5 numbers"),
+        ({"ego": (0.0, float("inf"), 0.0)}, "EgoState.y must be finite"),
+        ({"ego": object()}, "Frame.ego must be"),
+        ({"lidar": np.zeros((3, 3))}, r"Frame.lidar must have shape \(N, 2\)"),
+        ({"lidar": [["a", "b"]]}, "Frame.lidar must be a numeric"),
+        ({"radar": np.zeros((2, 4))}, r"shape \(N, 5\)"),
+        ({"radar": [[1.5, 0, 0, 0, 0]]}, "after the frame time"),
+    ],
+)
+def test_frame_rejects_bad_input(kwargs, message):
+    args = {"t": 1.0, "ego": (0.0, 0.0, 0.0), "lidar": None, "radar": None} | kwargs
+    with pytest.raises(ValueError, match=message):
+        Frame(**args)
+
+
+def test_radar_detections_reject_bad_input():
+    with pytest.raises(ValueError, match=r"RadarDetections.x has 1 entries but RadarDetections.t has 2"):
+        RadarDetections([0.0, 0.1], [1.0], [1.0, 2.0], [0.0, 0.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match=r"RadarDetections.vy\[1\] must be finite"):
+        RadarDetections([0.0, 0.1], [1.0, 2.0], [1.0, 2.0], [0.0, 0.0], [0.0, np.nan])
+    with pytest.raises(ValueError, match="must be 1-D"):
+        RadarDetections(np.zeros((2, 2)), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2))
+    assert len(RadarDetections.empty()) == 0
+    assert RadarDetections.empty().as_array().shape == (0, 5)
