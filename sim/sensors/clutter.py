@@ -67,7 +67,9 @@ class RoadsideObjects:
                 f"(need kinds + 1)"
             )
         if count and (offsets[0] != 0 or offsets[-1] != vertices.shape[0] or np.any(np.diff(offsets) < 3)):
-            raise ValueError("RoadsideObjects: offsets must start at 0, end at the vertex count and give >= 3 vertices per polygon")
+            raise ValueError(
+                "RoadsideObjects: offsets must start at 0, end at the vertex count and give >= 3 vertices per polygon"
+            )
         if not np.all(np.isfinite(vertices)) or not np.all(np.isfinite(centre)):
             raise ValueError("RoadsideObjects: vertices and centres must be finite")
         unknown = sorted(set(kind.tolist()) - set(KINDS))
@@ -272,7 +274,9 @@ def _octagons(centre: np.ndarray, radius: np.ndarray, phase: np.ndarray) -> np.n
     )
 
 
-def generate_roadside(road: RoadLike, config: ClutterConfig | None = None, *, rng: np.random.Generator) -> RoadsideObjects:
+def generate_roadside(
+    road: RoadLike, config: ClutterConfig | None = None, *, rng: np.random.Generator
+) -> RoadsideObjects:
     """Roadside clutter along ``road`` (see ``RoadLike``), drawn from ``rng``: guard-rail posts,
     trees and parked cars outside the road bounds as described by ``config`` (``ClutterConfig()``
     by default). Objects are ordered posts, trees, parked cars; positions are in G (m). On a curved
