@@ -322,6 +322,18 @@ def test_clutter_on_a_curved_road_stays_outside_the_bounds():
     assert np.all((n > road.left_edge + 0.2) | (n < road.right_edge - 0.2))
 
 
+def test_clutter_along_the_real_road_is_off_road():
+    from tracker.road import Road
+
+    road = Road.from_curvature(
+        [(50, 0, 0), (40, 0, 1 / 60), (80, 1 / 60, 1 / 60), (40, 1 / 60, 0)], start=(0.0, 0.0, 0.0), lanes=3
+    )
+    config = ClutterConfig(tree_density=5.0, parked_car_density=3.0)
+    objects = generate_roadside(road, config, rng=np.random.default_rng(0))
+    assert len(objects) > 40
+    assert not road.on_road(objects.vertices, margin=config.clearance - 0.05).any()
+
+
 def test_lidar_sees_clutter_and_clutter_occludes():
     road = StraightRoad(length=200.0)
     objects = generate_roadside(road, ClutterConfig(post_spacing=2.0), rng=np.random.default_rng(0))

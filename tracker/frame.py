@@ -91,7 +91,7 @@ class EgoState:
 _RADAR_FIELDS = ("t", "x", "y", "vx", "vy")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RadarDetections:
     """Radar detections, one entry per detection, as 1-D float64 arrays of equal length ``N``:
     ``t`` timestamp (s), ``x, y`` position (m) in E at the frame time, ``vx, vy`` the target's
@@ -159,7 +159,7 @@ class RadarDetections:
         return np.stack([getattr(self, name) for name in _RADAR_FIELDS], axis=1).reshape(-1, 5)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Frame:
     """One tracker input at time ``t`` (s): the ego pose in G (``EgoState``, or anything
     ``EgoState.coerce`` accepts), the lidar scan as ``(N, 2)`` points in E (m; ``None`` or an empty

@@ -41,7 +41,7 @@ class RoadLike(Protocol):
     def heading(self, s: np.ndarray) -> np.ndarray: ...
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RoadsideObjects:
     """``K`` static convex polygons in G. Polygon ``k`` has the vertices
     ``vertices[offsets[k]:offsets[k + 1]]`` (m, counter-clockwise), kind ``kind[k]`` (one of

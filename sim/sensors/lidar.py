@@ -73,7 +73,7 @@ class LidarConfig:
         return round(360.0 / self.resolution_deg)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LidarScan:
     """One scan at time ``t`` (s): ``M`` points, with per point the ray ``azimuth`` (rad, in E), the
     measured ``range`` (m), the point ``points`` (M, 2) in E (m), and what it hit: ``vehicle_id``

@@ -120,7 +120,7 @@ class RadarConfig:
         object.__setattr__(self, "units", units)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RadarScan:
     """Radar detections, ``N`` rows: ``t`` (s), ``xy`` (N, 2) position (m) and ``velocity`` (N, 2)
     absolute velocity (m/s), both in E at the time ``frame_t`` (the detection time for a single unit's

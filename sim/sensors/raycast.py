@@ -111,7 +111,7 @@ class RayGrid:
         return abs(self.count * self.resolution - TWO_PI) <= 1e-9 * TWO_PI
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Segments:
     """Line segments from ``a`` (M, 2) to ``b`` (M, 2) in metres, each belonging to the object
     ``owner`` (M,) (int). Edges of a polygon run counter-clockwise (interior on the left)."""
@@ -162,7 +162,7 @@ class Segments:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CastResult:
     """Per ray of a ``RayGrid``: ``range`` (count,) to the first hit in m (``inf`` for none) and the
     hit segment's ``owner`` (count,) (-1 for none)."""

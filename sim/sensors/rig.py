@@ -49,7 +49,7 @@ class RigConfig:
             raise ValueError(f"RigConfig.radar must be a RadarConfig; got {type(self.radar).__name__}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SensorFrame:
     """One frame: ``frame`` (the tracker's input), ``truth`` (the snapshot at ``frame.t``), and the
     labelled sensor data behind the frame: ``lidar`` (the scan, points in E) and ``radar`` (the
