@@ -1,0 +1,182 @@
+"""Random scenarios: each seed draws a new road and/or new traffic from a scenario's ``[generator]``.
+
+``realize(spec, seed)`` returns a concrete ``ScenarioSpec`` (no generator section) named
+``"<name>-seed<seed>"``: the road is drawn when the file has no ``[road]``, the traffic (ego and
+vehicles) when it has neither ``[ego]`` nor ``[[vehicles]]``; everything else (duration, sensor and
+tracker overrides) is kept. The drawn scenario goes through the same validation as a file, so it is
+valid by construction or the call raises ``ScenarioError``. The ranges and rules are documented on
+``sim.scenario.GeneratorSpec``.
+
+Randomness: one ``numpy.random.Generator`` seeded from ``SeedSequence(seed, spawn_key=(GEN_STREAM,))``
+(kept apart from the world's and the sensors' streams); the same spec + seed gives the same scenario.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from sim.scenario import GeneratorSpec, ScenarioSpec, parse_scenario
+
+#: Stream tag mixed into the seed for the generator's random numbers.
+GEN_STREAM = 0x47454E  # "GEN"
+#: Bumper-to-bumper distance (m) kept between drawn vehicles in the same lane at the start.
+MIN_BUMPER_GAP = 10.0
+#: Draws per vehicle before a vehicle that finds no free spot is dropped.
+PLACEMENT_ATTEMPTS = 50
+#: Road beyond the ego's furthest reach (m), so that vehicles ahead have room too.
+ROAD_MARGIN = 150.0
+#: Range of drawn lane-change durations (s).
+LANE_CHANGE_DURATION = (3.0, 6.0)
+
+
+def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    lo, hi = bounds
+    return float(lo) if lo == hi else float(rng.uniform(lo, hi))
+
+
+def _integer(rng: np.random.Generator, bounds: tuple[int, int]) -> int:
+    return int(rng.integers(bounds[0], bounds[1] + 1))
+
+
+def draw_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, min_length: float) -> dict[str, Any]:
+    """A road table (``RoadSpec`` data): straights and curves until at least ``min_length`` m."""
+    segments: list[list[float]] = []
+    total = 0.0
+    k_lo, k_hi = 1.0 / gen.radius[1], 1.0 / gen.radius[0]
+    while True:
+        straight = _uniform(rng, gen.straight_length)
+        segments.append([straight, 0.0, 0.0])
+        total += straight
+        if total >= min_length:
+            break
+        kappa = float(rng.choice([-1.0, 1.0])) * _uniform(rng, (k_lo, k_hi))
+        ramp_in, arc, ramp_out = _uniform(rng, gen.ramp_length), _uniform(rng, gen.arc_length), _uniform(rng, gen.ramp_length)
+        segments += [[ramp_in, 0.0, kappa], [arc, kappa, kappa], [ramp_out, kappa, 0.0]]
+        total += ramp_in + arc + ramp_out
+    heading = _uniform(rng, (-math.pi, math.pi))
+    return {"lanes": lanes, "lane_width": gen.lane_width, "closed": False, "start": [0.0, 0.0, heading], "segments": segments}
+
+
+def _maneuvers(gen: GeneratorSpec, rng: np.random.Generator, lane: int, lanes: int, duration: float) -> list[dict[str, Any]]:
+    """Poisson-timed lane changes (to an adjacent lane, one at a time) and speed changes."""
+    out: list[dict[str, Any]] = []
+    t, current = 0.0, lane
+    if gen.lane_change_rate > 0 and lanes > 1:
+        while True:
+            t += float(rng.exponential(1.0 / gen.lane_change_rate))
+            length = _uniform(rng, LANE_CHANGE_DURATION)
+            if t + length >= duration:
+                break
+            options = [k for k in (current - 1, current + 1) if 0 <= k < lanes]
+            current = int(rng.choice(options))
+            out.append({"kind": "lane_change", "t": round(t, 3), "lane": current, "duration": round(length, 3), "wait_for_gap": True})
+            t += length + 1.0
+    t = 0.0
+    if gen.speed_change_rate > 0:
+        while True:
+            t += float(rng.exponential(1.0 / gen.speed_change_rate))
+            if t >= duration:
+                break
+            out.append({"kind": "speed", "t": round(t, 3), "speed": round(_uniform(rng, gen.speed), 3),
+                        "accel": round(_uniform(rng, (1.0, 3.0)), 3)})
+    return sorted(out, key=lambda m: m["t"])
+
+
+def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_length: float, closed: bool,
+                 duration: float, ego_s: float) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The ego (at ``ego_s``) and the other vehicles as scenario tables, without overlap."""
+    ego = {
+        "lane": _integer(rng, (0, lanes - 1)),
+        "s": round(ego_s, 3),
+        "speed": round(_uniform(rng, gen.ego_speed), 3),
+        "behaviour": "idm",
+        "length": 4.8,
+        "width": 2.0,
+    }
+    placed: list[tuple[int, float, float]] = [(ego["lane"], ego["s"], ego["length"])]
+    vehicles: list[dict[str, Any]] = []
+    for _ in range(_integer(rng, gen.vehicles)):
+        u = float(rng.uniform())
+        behaviour = "scripted" if u < gen.scripted_fraction else "constant" if u < gen.scripted_fraction + gen.constant_fraction else "idm"
+        length, width = round(_uniform(rng, gen.length), 3), round(_uniform(rng, gen.width), 3)
+        for _attempt in range(PLACEMENT_ATTEMPTS):
+            lane = _integer(rng, (0, lanes - 1))
+            s = ego_s + _uniform(rng, gen.spawn)
+            if closed:
+                s %= road_length
+            elif not 0.5 * length <= s <= road_length - 0.5 * length:
+                continue
+            clear = True
+            for other_lane, other_s, other_length in placed:
+                ds = s - other_s
+                if closed:
+                    ds = (ds + 0.5 * road_length) % road_length - 0.5 * road_length
+                if other_lane == lane and abs(ds) < 0.5 * (length + other_length) + MIN_BUMPER_GAP:
+                    clear = False
+                    break
+            if clear:
+                break
+        else:
+            continue  # no room: drop this vehicle
+        vehicle: dict[str, Any] = {
+            "lane": lane,
+            "s": round(s, 3),
+            "speed": round(_uniform(rng, gen.speed), 3),
+            "behaviour": behaviour,
+            "length": length,
+            "width": width,
+        }
+        if behaviour == "scripted":
+            vehicle["maneuvers"] = _maneuvers(gen, rng, lane, lanes, duration)
+        placed.append((lane, vehicle["s"], length))
+        vehicles.append(vehicle)
+    return ego, vehicles
+
+
+def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
+    """The concrete scenario that ``seed`` draws from ``spec``'s generator (``spec`` itself when it
+    has none). See the module notes."""
+    gen = spec.generator
+    if gen is None:
+        return spec
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(GEN_STREAM,)))
+    data: dict[str, Any] = {
+        "name": f"{spec.name}-seed{int(seed)}"[:64],
+        "description": spec.description,
+        "duration": spec.duration,
+        "sensors": spec.sensors,
+        "tracker": spec.tracker,
+    }
+    lanes = spec.road.lanes if spec.road is not None else _integer(rng, gen.lanes)
+    ego_s = max(0.0, -gen.spawn[0]) + 10.0
+    if spec.ego is not None:
+        ego_s = spec.ego.s
+        ego_speed = spec.ego.max_speed()
+    else:
+        ego_speed = gen.ego_speed[1]
+    if spec.road is None:
+        half = 0.5 * lanes * gen.lane_width
+        factor = 1.0 / (1.0 - half / gen.radius[0])
+        needed = ego_s + factor * ego_speed * spec.duration + ROAD_MARGIN
+        road = draw_road(gen, rng, lanes, needed)
+    else:
+        road = spec.road.to_config()
+    data["road"] = road
+    if spec.ego is None:
+        if spec.road is not None:
+            built = spec.build_road()
+            length, closed = built.length, built.closed
+        else:  # a curvature-profile road is exactly as long as its segments
+            length, closed = float(sum(seg[0] for seg in road["segments"])), False
+        ego, vehicles = draw_traffic(gen, rng, lanes, length, closed, spec.duration, ego_s)
+        data["ego"], data["vehicles"] = ego, vehicles
+    else:
+        data["ego"] = spec.ego.model_dump(exclude_none=True)
+        data["vehicles"] = [v.model_dump(exclude_none=True) for v in spec.vehicles]
+    where = f"{spec.source or spec.name} (generator, seed {seed})"
+    return parse_scenario(data, where)

@@ -1,0 +1,640 @@
+"""Scenario files: TOML read with ``tomllib``, validated by pydantic into a typed ``ScenarioSpec``.
+
+A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
+
+    name = "cut-in"                       # identifier (letters, digits, "-", "_")
+    description = "one line"              # shown by `eot scenarios`
+    duration = 20.0                       # s, simulated time
+
+    [road]                                # exactly one of `segments` / `waypoints`
+    lanes = 2                             # lane 0 is the rightmost
+    lane_width = 3.5                      # m
+    closed = false                        # closed roads wrap s
+    start = [0.0, 0.0, 0.0]               # x, y (m), heading (rad) of s = 0 (segments only)
+    segments = [[100, 0, 0], [40, 0, 0.01]]  # rows (length m, kappa_start 1/m, kappa_end 1/m)
+    # waypoints = [[0, 0], [50, 5]]       # or a cubic Hermite spline through points (m)
+    # headings = [0.0, 0.1]               # optional, rad, one per waypoint
+
+    [ego]                                 # the vehicle that carries the sensors
+    lane = 0
+    s = 30.0                              # m, arc length of the rectangle centre
+    speed = 20.0                          # m/s
+
+    [[vehicles]]                          # the other vehicles (ids 1, 2, ... in file order)
+    lane = 1
+    s = 50.0
+    speed = 22.0
+    behaviour = "scripted"                # "idm" (default) | "constant" | "scripted"
+    maneuvers = [{ t = 2.0, kind = "lane_change", lane = 0, duration = 4.0 }]
+
+    [sensors]                             # optional overrides, applied by the runner
+    [tracker]                             # optional overrides, applied by the runner
+    [generator]                           # optional: draw a new road and/or traffic per seed
+
+Every table rejects unknown keys (highway-env silently ignores typos; this does not). Errors raise
+``ScenarioError`` (a ``ValueError``) naming the file, the field, the value and what is allowed.
+
+Defaults (see the models below): lanes 2, lane_width 3.5 m, closed false, start (0, 0, 0);
+vehicle behaviour "idm", length 4.8 m and width 2.0 m (the paper's target), target_speed = speed,
+lane_changes (MOBIL, idm only) true for vehicles and false for the ego; lane change duration 4 s,
+speed change accel 2 m/s^2, brake to 0 m/s at 4 m/s^2.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import fields, is_dataclass, replace
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
+
+from tracker import Road
+
+StrictFloat = Annotated[float, Strict()]
+StrictInt = Annotated[int, Strict()]
+StrictBool = Annotated[bool, Strict()]
+StrictStr = Annotated[str, Strict()]
+
+#: Largest allowed road curvature magnitude (1/m): radius >= 20 m.
+MAX_CURVATURE = 0.05
+#: Clearance (m) required between vehicle rectangles at the start (beyond touching).
+START_CLEARANCE = 0.5
+#: Largest allowed speed (m/s) anywhere in a scenario (highway-env's Vehicle.MAX_SPEED).
+MAX_SPEED = 40.0
+#: Folder of the scenario files shipped with the repository.
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+class ScenarioError(ValueError):
+    """A scenario file (or spec) is invalid; the message names the file, field, value and fix."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# -- road ----------------------------------------------------------------------------------------
+class RoadSpec(_Model):
+    """The road: ``lanes`` lanes of ``lane_width`` m, from a curvature profile (``segments``: rows
+    ``(length m, kappa_start 1/m, kappa_end 1/m)`` starting at ``start = (x m, y m, heading rad)``)
+    or from ``waypoints`` (m, with optional ``headings`` rad). ``closed`` roads wrap ``s``. The
+    centerline runs down the middle of the carriageway. |curvature| <= 0.05 1/m and below
+    1 / (2 x half-width of the road), so the edges never fold over."""
+
+    lanes: StrictInt = Field(default=2, ge=1, le=6)
+    lane_width: StrictFloat = Field(default=3.5, ge=2.5, le=5.0)
+    closed: StrictBool = False
+    start: tuple[StrictFloat, StrictFloat, StrictFloat] | None = None
+    segments: list[tuple[StrictFloat, StrictFloat, StrictFloat]] | None = Field(default=None, min_length=1)
+    waypoints: list[tuple[StrictFloat, StrictFloat]] | None = Field(default=None, min_length=2)
+    headings: list[StrictFloat] | None = None
+
+    @model_validator(mode="after")
+    def _shape(self) -> RoadSpec:
+        if (self.segments is None) == (self.waypoints is None):
+            raise ValueError("road: give exactly one of `segments` (curvature profile) or `waypoints`")
+        if self.waypoints is not None and self.start is not None:
+            raise ValueError("road.start applies to `segments` only; a waypoint road starts at its first waypoint")
+        if self.headings is not None:
+            if self.waypoints is None:
+                raise ValueError("road.headings needs `waypoints`")
+            if len(self.headings) != len(self.waypoints):
+                raise ValueError(
+                    f"road.headings has {len(self.headings)} entries; it needs one per waypoint ({len(self.waypoints)})"
+                )
+        if self.segments is not None:
+            half = 0.5 * self.lanes * self.lane_width
+            limit = min(MAX_CURVATURE, 1.0 / (2.0 * half))
+            for i, (length, k0, k1) in enumerate(self.segments):
+                if not length > 0:
+                    raise ValueError(f"road.segments[{i}] length = {length!r}: must be > 0 m")
+                for name, k in (("kappa_start", k0), ("kappa_end", k1)):
+                    if abs(k) > limit:
+                        raise ValueError(
+                            f"road.segments[{i}] {name} = {k!r}: |curvature| must be <= {limit:.4g} 1/m "
+                            f"(radius >= {1 / limit:.1f} m for {self.lanes} lanes of {self.lane_width} m)"
+                        )
+        return self
+
+    def to_config(self) -> dict[str, Any]:
+        """Plain-data form (JSON-serialisable) from which ``RoadSpec.model_validate`` rebuilds it."""
+        return self.model_dump(exclude_none=True)
+
+    def build(self) -> Road:
+        """The ``tracker.Road`` this spec describes (raises ``ValueError`` if it cannot be built)."""
+        if self.segments is not None:
+            return Road.from_curvature(
+                self.segments,
+                start=self.start or (0.0, 0.0, 0.0),
+                lanes=self.lanes,
+                lane_width=self.lane_width,
+                closed=self.closed,
+            )
+        return Road.from_waypoints(
+            np.asarray(self.waypoints, dtype=float),
+            None if self.headings is None else np.asarray(self.headings, dtype=float),
+            lanes=self.lanes,
+            lane_width=self.lane_width,
+            closed=self.closed,
+        )
+
+
+# -- maneuvers -----------------------------------------------------------------------------------
+class LaneChange(_Model):
+    """At time ``t`` (s) start a lane change to ``lane``, completed within ``duration`` s (a smooth
+    quintic lateral profile). With ``wait_for_gap`` the start is delayed until the target lane is
+    clear (no rectangle alongside, and MOBIL's safe-braking test for the new follower passes)."""
+
+    kind: Literal["lane_change"]
+    t: StrictFloat = Field(ge=0.0)
+    lane: StrictInt = Field(ge=0)
+    duration: StrictFloat = Field(default=4.0, ge=1.0, le=20.0)
+    wait_for_gap: StrictBool = False
+
+
+class SpeedChange(_Model):
+    """At time ``t`` (s) set the target speed to ``speed`` (m/s), reached at up to ``accel`` m/s^2
+    (both speeding up and slowing down)."""
+
+    kind: Literal["speed"]
+    t: StrictFloat = Field(ge=0.0)
+    speed: StrictFloat = Field(ge=0.0, le=MAX_SPEED)
+    accel: StrictFloat = Field(default=2.0, gt=0.0, le=8.0)
+
+
+class Brake(_Model):
+    """At time ``t`` (s) brake at ``decel`` m/s^2 down to ``speed`` m/s (default 0: a stop)."""
+
+    kind: Literal["brake"]
+    t: StrictFloat = Field(ge=0.0)
+    speed: StrictFloat = Field(default=0.0, ge=0.0, le=MAX_SPEED)
+    decel: StrictFloat = Field(default=4.0, gt=0.0, le=9.0)
+
+
+Maneuver = Annotated[Union[LaneChange, SpeedChange, Brake], Field(discriminator="kind")]
+
+BEHAVIOURS = ("idm", "constant", "scripted")
+
+
+# -- vehicles ------------------------------------------------------------------------------------
+class VehicleSpec(_Model):
+    """One vehicle at the start: ``lane`` (0 = rightmost), ``s`` (m, rectangle centre), ``speed``
+    (m/s), ``behaviour``:
+
+    - ``"idm"``: highway-env ``IDMVehicle`` (IDM car following, MOBIL lane changes unless
+      ``lane_changes = false``), cruising at ``target_speed`` (default: ``speed``);
+    - ``"constant"``: keeps its lane at constant ``speed``, ignoring traffic;
+    - ``"scripted"``: keeps its lane and follows ``maneuvers`` (lane changes, speed changes,
+      braking) at their times; IDM car following keeps it from running into the vehicle ahead.
+
+    ``length`` (4.8 m) and ``width`` (2.0 m) size its rectangle."""
+
+    lane: StrictInt = Field(ge=0)
+    s: StrictFloat
+    speed: StrictFloat = Field(ge=0.0, le=MAX_SPEED)
+    behaviour: Literal["idm", "constant", "scripted"] = "idm"
+    target_speed: StrictFloat | None = Field(default=None, ge=0.0, le=MAX_SPEED)
+    lane_changes: StrictBool | None = None
+    length: StrictFloat = Field(default=4.8, ge=2.0, le=20.0)
+    width: StrictFloat = Field(default=2.0, ge=1.0, le=3.0)
+    maneuvers: list[Maneuver] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _behaviour_fields(self) -> VehicleSpec:
+        if self.maneuvers and self.behaviour != "scripted":
+            raise ValueError(f"maneuvers need behaviour = \"scripted\"; this vehicle's behaviour is {self.behaviour!r}")
+        if self.lane_changes and self.behaviour != "idm":
+            raise ValueError(f"lane_changes = true needs behaviour = \"idm\"; this vehicle's behaviour is {self.behaviour!r}")
+        if self.target_speed is not None and self.behaviour == "constant":
+            raise ValueError("target_speed does not apply to behaviour \"constant\" (it keeps `speed`)")
+        times = [m.t for m in self.maneuvers]
+        if times != sorted(times):
+            raise ValueError(f"maneuvers must be in time order; got t = {times}")
+        return self
+
+    @property
+    def cruise_speed(self) -> float:
+        """The speed (m/s) the vehicle initially aims for."""
+        return self.speed if self.target_speed is None else self.target_speed
+
+    @property
+    def mobil(self) -> bool:
+        """Whether MOBIL lane changes are on (idm only; default on for vehicles)."""
+        return self.behaviour == "idm" and (True if self.lane_changes is None else self.lane_changes)
+
+    def max_speed(self) -> float:
+        """An upper bound (m/s) on the speeds this vehicle will aim for."""
+        speeds = [self.speed, self.cruise_speed] + [m.speed for m in self.maneuvers if not isinstance(m, LaneChange)]
+        return max(speeds)
+
+
+class EgoSpec(VehicleSpec):
+    """The ego vehicle (id 0): like ``VehicleSpec`` but MOBIL lane changes are off by default."""
+
+    @property
+    def mobil(self) -> bool:
+        return self.behaviour == "idm" and bool(self.lane_changes)
+
+
+# -- generator -----------------------------------------------------------------------------------
+FloatRange = tuple[StrictFloat, StrictFloat]
+IntRange = tuple[StrictInt, StrictInt]
+
+
+class GeneratorSpec(_Model):
+    """Ranges ``[low, high]`` (drawn uniformly) from which each seed draws a new road and/or new
+    traffic (``sim.generator``); defaults in brackets.
+
+    Road (when the file has no ``[road]``): an open road of ``lanes`` [2, 3] lanes of ``lane_width``
+    [3.5 m], alternating straights (``straight_length`` [30, 150] m) and curves (clothoid ramp in of
+    ``ramp_length`` [20, 50] m, arc of ``arc_length`` [40, 160] m, ramp out), each curve turning left
+    or right with curvature uniform in ``[1/radius_high, 1/radius_low]`` (``radius`` [60, 400] m),
+    until it is long enough for the ego to drive the scenario's duration.
+    Traffic (when the file has no ``[ego]`` and no ``[[vehicles]]``): the ego (idm, no MOBIL,
+    ``ego_speed`` [14, 20] m/s) and ``vehicles`` [3, 8] others at ``spawn`` [-60, 120] m from the
+    ego along the road, ``speed`` [12, 25] m/s, ``length`` [4.2, 5.2] m, ``width`` [1.7, 2.1] m,
+    placed without overlap (10 m between bumpers in a lane; a vehicle that finds no room after 50
+    draws is dropped). A fraction ``scripted_fraction`` [0.4] is scripted, ``constant_fraction`` [0]
+    constant, the rest idm with MOBIL. Scripted vehicles get Poisson-timed lane changes to an
+    adjacent lane (``lane_change_rate`` [0.08] per second, 3-6 s long, waiting for a gap) and speed
+    changes (``speed_change_rate`` [0.04] per second, to a speed in ``speed``)."""
+
+    straight_length: FloatRange = (30.0, 150.0)
+    arc_length: FloatRange = (40.0, 160.0)
+    ramp_length: FloatRange = (20.0, 50.0)
+    radius: FloatRange = (60.0, 400.0)
+    lanes: IntRange = (2, 3)
+    lane_width: StrictFloat = Field(default=3.5, ge=2.5, le=5.0)
+    vehicles: IntRange = (3, 8)
+    speed: FloatRange = (12.0, 25.0)
+    ego_speed: FloatRange = (14.0, 20.0)
+    spawn: FloatRange = (-60.0, 120.0)
+    length: FloatRange = (4.2, 5.2)
+    width: FloatRange = (1.7, 2.1)
+    scripted_fraction: StrictFloat = Field(default=0.4, ge=0.0, le=1.0)
+    constant_fraction: StrictFloat = Field(default=0.0, ge=0.0, le=1.0)
+    lane_change_rate: StrictFloat = Field(default=0.08, ge=0.0, le=1.0)
+    speed_change_rate: StrictFloat = Field(default=0.04, ge=0.0, le=1.0)
+
+    @model_validator(mode="after")
+    def _ranges(self) -> GeneratorSpec:
+        positive = {"straight_length", "arc_length", "ramp_length", "radius", "length", "width"}
+        nonneg = {"speed", "ego_speed", "vehicles"}
+        for name in type(self).model_fields:
+            value = getattr(self, name)
+            if not isinstance(value, tuple):
+                continue
+            lo, hi = value
+            if lo > hi:
+                raise ValueError(f"generator.{name} = {list(value)}: low must be <= high")
+            if name in positive and lo <= 0:
+                raise ValueError(f"generator.{name} = {list(value)}: values must be > 0")
+            if name in nonneg and lo < 0:
+                raise ValueError(f"generator.{name} = {list(value)}: values must be >= 0")
+        if self.lanes[0] < 1 or self.lanes[1] > 6:
+            raise ValueError(f"generator.lanes = {list(self.lanes)}: lanes must be within 1..6")
+        if self.speed[1] > MAX_SPEED or self.ego_speed[1] > MAX_SPEED:
+            raise ValueError(f"generator speeds must be <= {MAX_SPEED} m/s")
+        if self.scripted_fraction + self.constant_fraction > 1.0:
+            raise ValueError("generator.scripted_fraction + constant_fraction must be <= 1")
+        if self.width[1] > self.lane_width - 0.5:
+            raise ValueError(f"generator.width = {list(self.width)}: widths must leave 0.5 m in a {self.lane_width} m lane")
+        half = 0.5 * self.lanes[1] * self.lane_width
+        if self.radius[0] < max(1.0 / MAX_CURVATURE, 2.0 * half):
+            raise ValueError(
+                f"generator.radius = {list(self.radius)}: radii must be >= {max(1.0 / MAX_CURVATURE, 2.0 * half):.1f} m"
+            )
+        if self.spawn[1] - self.spawn[0] < 20.0:
+            raise ValueError(f"generator.spawn = {list(self.spawn)}: the range must span at least 20 m")
+        return self
+
+
+# -- the scenario --------------------------------------------------------------------------------
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
+
+
+class ScenarioSpec(_Model):
+    """A validated scenario: ``name``, one-line ``description``, ``duration`` (s), ``road``, ``ego``,
+    ``vehicles``, optional ``sensors`` / ``tracker`` overrides (tables passed to the runner, applied
+    with ``apply_overrides``) and an optional ``generator``. With a generator the file may leave out
+    the road and/or the traffic (ego and vehicles together); ``sim.generator.realize(spec, seed)``
+    draws what is missing. A concrete spec (no generator) has a road and an ego.
+
+    Checks beyond types: lanes exist, vehicles fit in their lanes, start positions lie on the road
+    and rectangles do not overlap (0.5 m clearance), maneuvers fit in the duration and target
+    existing lanes, and on an open road the ego cannot reach the road's end within the duration."""
+
+    name: StrictStr = Field(min_length=1, max_length=64)
+    description: StrictStr = Field(min_length=1, max_length=200)
+    duration: StrictFloat = Field(gt=0.0, le=3600.0)
+    road: RoadSpec | None = None
+    ego: EgoSpec | None = None
+    vehicles: list[VehicleSpec] = Field(default_factory=list)
+    sensors: dict[str, Any] = Field(default_factory=dict)
+    tracker: dict[str, Any] = Field(default_factory=dict)
+    generator: GeneratorSpec | None = None
+
+    _road: Road | None = PrivateAttr(default=None)
+    _source: Path | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ScenarioSpec:
+        if not _NAME.match(self.name):
+            raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
+        if "\n" in self.description:
+            raise ValueError("description must be one line")
+        if self.generator is None:
+            if self.road is None:
+                raise ValueError("road: missing; a scenario without a [generator] needs a [road] table")
+            if self.ego is None:
+                raise ValueError("ego: missing; a scenario without a [generator] needs an [ego] table")
+        else:
+            if self.ego is None and self.vehicles:
+                raise ValueError("ego: missing; give [ego] and [[vehicles]] together, or neither (the generator draws both)")
+            if self.road is not None and self.ego is not None:
+                raise ValueError("generator: nothing to draw; the file already has a road and traffic (drop [generator] or one of them)")
+        if self.road is not None:
+            try:
+                road = self.road.build()
+            except ValueError as exc:
+                raise ValueError(f"road: cannot be built: {exc}") from None
+            self._road = road
+            if self.ego is not None:
+                self._check_traffic(road)
+        return self
+
+    # -- cross-field checks -------------------------------------------------------------------
+    def _all(self) -> list[tuple[str, VehicleSpec]]:
+        out: list[tuple[str, VehicleSpec]] = [("ego", self.ego)] if self.ego is not None else []
+        return out + [(f"vehicles[{i}]", v) for i, v in enumerate(self.vehicles)]
+
+    def _check_traffic(self, road: Road) -> None:
+        assert self.road is not None
+        lanes = self.road.lanes
+        allowed_lanes = f"this road has lanes 0..{lanes - 1} (0 is the rightmost)"
+        for where, v in self._all():
+            if v.lane >= lanes:
+                raise ValueError(f"{where}.lane = {v.lane}: lane {v.lane} does not exist; {allowed_lanes}")
+            if v.width > road.lane_width - 0.5:
+                raise ValueError(f"{where}.width = {v.width}: must be <= {road.lane_width - 0.5} m (lane width - 0.5 m)")
+            if not road.closed and not (0.5 * v.length <= v.s <= road.length - 0.5 * v.length):
+                raise ValueError(
+                    f"{where}.s = {v.s}: must be within [{0.5 * v.length:.2f}, {road.length - 0.5 * v.length:.2f}] m "
+                    f"(the vehicle must lie on this open road of length {road.length:.2f} m)"
+                )
+            if road.closed and not (0.0 <= v.s < road.length):
+                raise ValueError(f"{where}.s = {v.s}: must be within [0, {road.length:.2f}) m on this closed road")
+            for j, m in enumerate(v.maneuvers):
+                if m.t >= self.duration:
+                    raise ValueError(f"{where}.maneuvers[{j}].t = {m.t}: must be < duration ({self.duration} s)")
+                if isinstance(m, LaneChange):
+                    if m.lane >= lanes:
+                        raise ValueError(f"{where}.maneuvers[{j}].lane = {m.lane}: lane {m.lane} does not exist; {allowed_lanes}")
+        assert self.ego is not None
+        if not road.closed:
+            # s runs faster than the vehicle on the inside of a curve: s_dot = v / (1 - kappa n)
+            kappa = np.abs(road.curvature(np.linspace(0.0, road.length, max(2, int(road.length) + 1))))
+            edge = max(abs(road.right_edge), abs(road.left_edge))
+            factor = 1.0 / max(1.0 - float(kappa.max()) * edge, 0.1)
+            reach = self.ego.s + factor * self.ego.max_speed() * self.duration + 0.5 * self.ego.length
+            if reach > road.length:
+                raise ValueError(
+                    f"duration = {self.duration}: the ego (s = {self.ego.s} m, up to {self.ego.max_speed()} m/s) "
+                    f"could reach s = {reach:.1f} m, beyond the end of this open road ({road.length:.1f} m); "
+                    "lengthen the road, start the ego earlier or shorten the duration"
+                )
+        self._check_overlap(road)
+
+    def _check_overlap(self, road: Road) -> None:
+        items = self._all()
+        s = np.array([v.s for _, v in items])
+        n = np.array([road.lane_center(v.lane) for _, v in items])
+        xy = road.to_cartesian(s, n)
+        yaw = road.heading(s)
+        from sim.truth import rectangle_corners
+
+        corners = rectangle_corners(
+            xy, yaw, np.array([v.length for _, v in items]) + START_CLEARANCE, np.array([v.width for _, v in items]) + START_CLEARANCE
+        )
+        reach = 0.5 * np.hypot([v.length for _, v in items], [v.width for _, v in items]) + START_CLEARANCE
+        for i in range(len(items)):
+            for j in range(i + 1, len(items)):
+                if np.hypot(*(xy[i] - xy[j])) > reach[i] + reach[j]:
+                    continue
+                if polygons_overlap(corners[i], corners[j]):
+                    raise ValueError(
+                        f"{items[j][0]}.s = {items[j][1].s}: its rectangle overlaps {items[i][0]}'s "
+                        f"(s = {items[i][1].s}, lane {items[i][1].lane}) at the start; keep at least "
+                        f"{START_CLEARANCE} m between vehicles"
+                    )
+
+    # -- conveniences -------------------------------------------------------------------------
+    @property
+    def source(self) -> Path | None:
+        """The file this spec was loaded from (``None`` when built in code)."""
+        return self._source
+
+    @property
+    def concrete(self) -> bool:
+        """Whether the spec can be simulated as it is (no generator section)."""
+        return self.generator is None
+
+    def build_road(self) -> Road:
+        """The ``tracker.Road`` of this scenario (built once at validation and shared)."""
+        if self.road is None:
+            raise ValueError(f"scenario {self.name!r} has no road; draw one with sim.generator.realize(spec, seed)")
+        if self._road is None:
+            self._road = self.road.build()
+        return self._road
+
+
+def polygons_overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two convex polygons (K, 2) overlap (separating-axis test; touching counts as not)."""
+    for poly in (a, b):
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.column_stack([-edges[:, 1], edges[:, 0]])
+        pa, pb = a @ normals.T, b @ normals.T
+        if np.any((pa.max(axis=0) <= pb.min(axis=0)) | (pb.max(axis=0) <= pa.min(axis=0))):
+            return False
+    return True
+
+
+# -- loading and error messages ------------------------------------------------------------------
+def _loc_text(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("lane_change", "speed", "brake") and out.endswith("]") and "maneuvers" in out:
+            continue  # pydantic's discriminator tag, not a field
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
+    """The model class that holds the field at ``loc`` (for listing the allowed keys)."""
+    sub: dict[str, type[BaseModel]] = {"road": RoadSpec, "ego": EgoSpec, "vehicles": VehicleSpec, "generator": GeneratorSpec}
+    tags: dict[str, type[BaseModel]] = {"lane_change": LaneChange, "speed": SpeedChange, "brake": Brake}
+    model: type[BaseModel] | None = ScenarioSpec
+    parts = iter(p for p in loc[:-1] if not isinstance(p, int))
+    for part in parts:
+        if model is None:
+            return None
+        if part == "maneuvers":
+            model = tags.get(next(parts, None))  # type: ignore[arg-type]
+        else:
+            model = sub.get(part) if part in model.model_fields else None
+    return model
+
+
+def _describe(error: dict[str, Any]) -> str:
+    loc = tuple(error.get("loc", ()))
+    kind = error.get("type", "")
+    field = _loc_text(loc)
+    msg = str(error.get("msg", ""))
+    if kind == "value_error":
+        text = msg.removeprefix("Value error, ")
+        return text
+    value = error.get("input")
+    if kind == "missing":
+        return f"{field}: missing; this field is required"
+    if kind == "extra_forbidden":
+        model = _model_at(loc)
+        allowed = ", ".join(model.model_fields) if model is not None else "see the scenario format in sim/scenario.py"
+        return f"{field} = {value!r}: unknown key; allowed keys here: {allowed}"
+    if kind == "union_tag_invalid" or kind == "union_tag_not_found":
+        return f"{field}: maneuver kind must be one of 'lane_change', 'speed', 'brake'; got {value!r}"
+    if kind == "literal_error":
+        return f"{field} = {value!r}: {msg[0].lower() + msg[1:]}"
+    shown = value if not isinstance(value, dict) else "{...}"
+    return f"{field} = {shown!r}: {msg[0].lower() + msg[1:]}"
+
+
+def format_validation_error(exc: ValidationError, where: str) -> str:
+    """A readable message for a pydantic ``ValidationError`` of a scenario from ``where``."""
+    lines = [_describe(e) for e in exc.errors(include_url=False)]
+    if len(lines) == 1:
+        return f"{where}: {lines[0]}"
+    return f"{where}: {len(lines)} problems:\n" + "\n".join(f"  - {line}" for line in lines)
+
+
+def parse_scenario(data: dict[str, Any], where: str = "<scenario>") -> ScenarioSpec:
+    """Validate a scenario given as plain data (as read from TOML); errors name ``where``."""
+    try:
+        return ScenarioSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(format_validation_error(exc, where)) from None
+
+
+def resolve_scenario_path(path: str | Path) -> Path:
+    """``path`` if it exists; else a scenario of that name in the repository's ``scenarios/``
+    folder (``"cut-in"`` -> ``scenarios/cut-in.toml``)."""
+    p = Path(path)
+    if p.exists():
+        return p
+    candidate = SCENARIO_DIR / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
+    if candidate.exists():
+        return candidate
+    raise ScenarioError(f"{path}: no such scenario file (nor {candidate})")
+
+
+def load_scenario(path: str | Path) -> ScenarioSpec:
+    """Read and validate a scenario TOML file (or a shipped scenario's name, e.g. ``"cut-in"``).
+
+    Raises ``ScenarioError`` (a ``ValueError``) naming the file, the field, the value and what is
+    allowed; unknown keys are errors."""
+    p = resolve_scenario_path(path)
+    try:
+        with open(p, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    if "scenarios" in data and "road" not in data and "generator" not in data:
+        raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.scenario.load_suite")
+    spec = parse_scenario(data, str(p))
+    spec._source = p
+    return spec
+
+
+# -- suites --------------------------------------------------------------------------------------
+class SuiteSpec(_Model):
+    """A suite file: ``name``, ``description`` and ``scenarios`` (file names relative to the suite)."""
+
+    name: StrictStr = Field(min_length=1)
+    description: StrictStr = Field(min_length=1)
+    scenarios: list[StrictStr] = Field(min_length=1)
+
+
+class Suite:
+    """A loaded suite: ``name``, ``description`` and the ``paths`` of its scenario files."""
+
+    def __init__(self, name: str, description: str, paths: list[Path]) -> None:
+        self.name, self.description, self.paths = name, description, paths
+
+    def load(self) -> list[ScenarioSpec]:
+        """Every scenario of the suite, validated."""
+        return [load_scenario(p) for p in self.paths]
+
+
+def load_suite(path: str | Path) -> Suite:
+    """Read a suite file (``scenarios = ["cut-in.toml", ...]``); every listed file must exist."""
+    p = Path(path)
+    if not p.exists() and (SCENARIO_DIR / f"{p.name}.toml").exists():
+        p = SCENARIO_DIR / f"{p.name}.toml"
+    try:
+        with open(p, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such suite file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    try:
+        suite = SuiteSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(format_validation_error(exc, str(p))) from None
+    paths = []
+    for i, name in enumerate(suite.scenarios):
+        q = p.parent / (name if name.endswith(".toml") else f"{name}.toml")
+        if not q.exists():
+            raise ScenarioError(f"{p}: scenarios[{i}] = {name!r}: no such file {q}")
+        paths.append(q)
+    return Suite(suite.name, suite.description, paths)
+
+
+def is_suite_file(path: Path) -> bool:
+    """Whether a TOML file is a suite (has ``scenarios`` and no ``road``/``generator``)."""
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+    return "scenarios" in data and "road" not in data and "generator" not in data
+
+
+# -- overrides -----------------------------------------------------------------------------------
+def apply_overrides(config: Any, overrides: dict[str, Any], where: str) -> Any:
+    """A copy of the dataclass ``config`` with the fields in ``overrides`` replaced (nested
+    dataclass fields take nested tables). Unknown keys raise ``ScenarioError`` naming ``where``
+    (e.g. ``"scenarios/cut-in.toml: sensors.lidar"``) and the allowed keys; the config's own
+    checks (its ``__post_init__``) report bad values."""
+    if not is_dataclass(config):
+        raise TypeError(f"apply_overrides needs a dataclass instance; got {type(config).__name__}")
+    names = {f.name for f in fields(config)}
+    changes: dict[str, Any] = {}
+    for key, value in overrides.items():
+        if key not in names:
+            raise ScenarioError(f"{where}.{key} = {value!r}: unknown key; allowed keys here: {', '.join(sorted(names))}")
+        current = getattr(config, key)
+        if is_dataclass(current) and isinstance(value, dict):
+            changes[key] = apply_overrides(current, value, f"{where}.{key}")
+        else:
+            changes[key] = value
+    try:
+        return replace(config, **changes)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+

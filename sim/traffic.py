@@ -1,0 +1,302 @@
+"""highway-env traffic on our road: vehicle classes per behaviour and the highway-env ``Road`` they share.
+
+- ``idm`` -> ``IDMCar`` (highway-env ``IDMVehicle``: IDM car following, MOBIL lane changes when on);
+- ``constant`` -> ``ConstantCar`` (highway-env ``ControlledVehicle`` holding its lane and speed,
+  ignoring traffic);
+- ``scripted`` -> ``ScriptedCar`` (an ``IDMVehicle`` without MOBIL, steered through
+  ``target_lane_index`` / ``target_speed`` by its maneuvers: lane changes follow a quintic lateral
+  profile that completes within the maneuver's duration; speed changes and braking are rate-limited;
+  IDM's interaction term still keeps it from running into the vehicle ahead).
+
+All of them share ``_FrenetCar``: per-vehicle ``LENGTH``/``WIDTH``; after every step the vehicle's
+road coordinates ``frenet_s``, ``frenet_n`` are projected with a warm start and its lane is the one
+containing ``n`` (the same answer as highway-env's closest-lane search for parallel lanes, without
+projecting on every lane); distances along the road are differences of ``s``, wrapped on a closed road;
+speed never goes below 0 (a braking vehicle stops instead of reversing); the IDM jam distance is 5 m
+bumper to bumper whatever the vehicles' lengths (highway-env assumes 5 m cars).
+
+``TrafficRoad`` is highway-env's ``Road`` with a neighbour search on the stored ``(s, n)`` that wraps
+on closed roads, a ``time`` attribute (s, set by the world) for the scripts, and no collision physics:
+highway-env's impulses would move vehicles outside their kinematics; ``sim.world`` detects and
+records overlaps instead.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from highway_env import utils
+from highway_env.road.road import Road as HighwayRoad
+from highway_env.road.road import RoadNetwork
+from highway_env.vehicle.behavior import IDMVehicle
+from highway_env.vehicle.controller import ControlledVehicle
+
+from sim.lanes import NODE_FROM, NODE_TO, FrenetProjector, lane_index
+from sim.scenario import Brake, LaneChange, SpeedChange, VehicleSpec
+from tracker import Road
+
+#: IDM jam distance between bumpers (m); highway-env's is 10 m between centres of 5 m cars.
+JAM_GAP = 5.0
+#: Default acceleration / deceleration limits (m/s^2) of a scripted vehicle's speed tracking.
+SCRIPTED_ACCEL = 2.0
+SCRIPTED_DECEL = 3.0
+#: Extra bumper-to-bumper clearance (m) a ``wait_for_gap`` lane change needs in the target lane.
+GAP_CLEARANCE = 3.0
+
+
+class TrafficRoad(HighwayRoad):
+    """highway-env ``Road`` over ``FrenetLane``s: neighbour search on stored road coordinates
+    (wrapping on closed roads), no collision physics, and the simulated ``time`` (s)."""
+
+    def __init__(self, network: RoadNetwork, projector: FrenetProjector, road: Road, np_random: Any) -> None:
+        super().__init__(network=network, vehicles=[], np_random=np_random, record_history=False)
+        self.projector = projector
+        self.geometry = road
+        self.time = 0.0
+        self.closed = road.closed
+        self.period = road.length
+        self.centers = [float(c) for c in road.lane_centers]
+        self.lane_width = road.lane_width
+        self.right_edge = road.right_edge
+        self.lanes = network.graph[NODE_FROM][NODE_TO]
+
+    def wrap(self, ds: float) -> float:
+        """A difference of ``s`` (m) wrapped into ``[-length/2, length/2)`` on a closed road."""
+        if self.closed:
+            half = 0.5 * self.period
+            return (ds + half) % self.period - half
+        return ds
+
+    def lane_of(self, n: float) -> int:
+        """The lane (0..lanes-1) whose span contains lateral offset ``n`` (clamped at the edges)."""
+        k = math.floor((n - self.right_edge) / self.lane_width)
+        return min(max(k, 0), len(self.centers) - 1)
+
+    def step(self, dt: float) -> None:
+        """Move every vehicle by ``dt`` seconds (no collision handling; see the module notes)."""
+        self.projector.clear()
+        for vehicle in self.vehicles:
+            vehicle.step(dt)
+
+    def neighbour_vehicles(self, vehicle: Any, lane_index: tuple | None = None) -> tuple[Any, Any]:
+        """The vehicles just ahead and just behind ``vehicle`` in lane ``lane_index`` (default: its
+        own): highway-env's rule (a vehicle is in a lane within lane width / 2 + 1 m of its centre)
+        on stored ``(s, n)``, with wrapped distances on a closed road."""
+        lane_index = lane_index or vehicle.lane_index
+        if not lane_index:
+            return None, None
+        centre = self.centers[lane_index[2]]
+        reach = 0.5 * self.lane_width + 1.0
+        s = vehicle.frenet_s
+        front = rear = None
+        d_front = d_rear = math.inf
+        closed, period, half = self.closed, self.period, 0.5 * self.period
+        for other in self.vehicles:
+            if other is vehicle or abs(other.frenet_n - centre) > reach:
+                continue
+            ds = other.frenet_s - s
+            if closed:
+                ds = (ds + half) % period - half
+            if ds >= 0.0:
+                if ds < d_front:
+                    d_front, front = ds, other
+            elif -ds < d_rear:
+                d_rear, rear = -ds, other
+        return front, rear
+
+
+class _FrenetCar:
+    """Behaviour shared by our vehicle classes (mixed in before highway-env's class)."""
+
+    road: TrafficRoad
+    vid: int
+    frenet_s: float
+    frenet_n: float
+
+    def _setup(self, vid: int, length: float, width: float) -> None:
+        self.vid = int(vid)
+        self.LENGTH = float(length)
+        self.WIDTH = float(width)
+        self.diagonal = math.hypot(self.LENGTH, self.WIDTH)
+        self.frenet_s = math.nan
+        self._locate(None)
+
+    def _locate(self, hint: float | None) -> None:
+        road = self.road
+        s, n = road.projector.prime(float(self.position[0]), float(self.position[1]), hint)
+        self.frenet_s, self.frenet_n = s, n
+        k = road.lane_of(n)
+        self.lane_index = (NODE_FROM, NODE_TO, k)
+        self.lane = road.lanes[k]
+
+    def on_state_update(self) -> None:
+        """After a step: project the new position (warm start from the previous ``s``), set the lane."""
+        self._locate(self.frenet_s)
+
+    def step(self, dt: float) -> None:
+        super().step(dt)  # type: ignore[misc]
+        if self.speed < 0.0:
+            self.speed = 0.0
+
+    def lane_distance_to(self, other: Any, lane: Any = None) -> float:
+        """Signed distance along the road (m) from this vehicle's centre to ``other``'s (wrapped)."""
+        if not other:
+            return math.nan
+        return self.road.wrap(other.frenet_s - self.frenet_s)
+
+    def desired_gap(self, ego_vehicle: Any, front_vehicle: Any = None, projected: bool = True) -> float:
+        """IDM desired centre distance (m): jam gap between bumpers + half lengths + time gap term."""
+        tau = self.TIME_WANTED  # type: ignore[attr-defined]
+        ab = -self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN  # type: ignore[attr-defined]
+        dv = (
+            float(np.dot(ego_vehicle.velocity - front_vehicle.velocity, ego_vehicle.direction))
+            if projected
+            else ego_vehicle.speed - front_vehicle.speed
+        )
+        d0 = JAM_GAP + 0.5 * (ego_vehicle.LENGTH + front_vehicle.LENGTH)
+        return d0 + ego_vehicle.speed * tau + ego_vehicle.speed * dv / (2.0 * math.sqrt(ab))
+
+
+class IDMCar(_FrenetCar, IDMVehicle):
+    """highway-env ``IDMVehicle`` on our road (behaviour ``idm``)."""
+
+
+class ConstantCar(_FrenetCar, ControlledVehicle):
+    """Keeps its lane at constant speed, ignoring other vehicles (behaviour ``constant``)."""
+
+    TIME_WANTED = IDMVehicle.TIME_WANTED
+    COMFORT_ACC_MAX = IDMVehicle.COMFORT_ACC_MAX
+    COMFORT_ACC_MIN = IDMVehicle.COMFORT_ACC_MIN
+
+
+def _smoothstep(u: float) -> tuple[float, float]:
+    """Quintic 10u^3 - 15u^4 + 6u^5 on [0, 1] and its derivative (zero slope and curvature at ends)."""
+    if u >= 1.0:
+        return 1.0, 0.0
+    if u <= 0.0:
+        return 0.0, 0.0
+    return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)), 30.0 * u * u * (1.0 - u) ** 2
+
+
+class ScriptedCar(_FrenetCar, IDMVehicle):
+    """An ``IDMVehicle`` without MOBIL that follows timed maneuvers (behaviour ``scripted``).
+
+    ``maneuvers`` run when ``road.time`` reaches their ``t``: ``LaneChange`` sets
+    ``target_lane_index`` and steers along a quintic lateral profile from the current offset to the
+    target lane centre over ``duration`` s (feed-forward lateral speed + highway-env's cascaded
+    lateral/heading controller); ``SpeedChange``/``Brake`` set ``target_speed`` and the rate limit.
+    ``started`` records ``(maneuver index, start time)`` of every maneuver that ran."""
+
+    def configure(self, maneuvers: Sequence[LaneChange | SpeedChange | Brake]) -> None:
+        """Set the script (sorted by time) and the default speed-tracking limits."""
+        self.enable_lane_change = False
+        self.maneuvers = list(maneuvers)
+        self._next = 0
+        self.started: list[tuple[int, float]] = []
+        self.accel_limit = SCRIPTED_ACCEL
+        self.decel_limit = SCRIPTED_DECEL
+        self._profile: tuple[float, float, float] | None = None  # start time, duration, start offset
+
+    def act(self, action: Any = None) -> None:
+        self._run_script()
+        super().act(action)
+
+    def _run_script(self) -> None:
+        now = self.road.time + 1e-9
+        while self._next < len(self.maneuvers) and self.maneuvers[self._next].t <= now:
+            m = self.maneuvers[self._next]
+            if isinstance(m, LaneChange):
+                if m.wait_for_gap and not self.gap_is_clear(m.lane):
+                    return  # try again next step; later maneuvers wait behind this one
+                target = lane_index(m.lane)
+                lat0 = self.frenet_n - self.road.centers[m.lane]
+                self.target_lane_index = target
+                self._profile = (self.road.time, m.duration, lat0)
+            elif isinstance(m, SpeedChange):
+                self.target_speed = m.speed
+                self.accel_limit = self.decel_limit = m.accel
+            elif isinstance(m, Brake):
+                self.target_speed = m.speed
+                self.decel_limit = m.decel
+            self.started.append((self._next, self.road.time))
+            self._next += 1
+
+    def gap_is_clear(self, lane: int) -> bool:
+        """Whether lane ``lane`` has room alongside: no vehicle overlapping it within half lengths +
+        ``GAP_CLEARANCE`` m, and MOBIL's safe-braking test for this car and its new follower."""
+        road = self.road
+        centre = road.centers[lane]
+        for other in road.vehicles:
+            if other is self:
+                continue
+            if abs(other.frenet_n - centre) >= 0.5 * (road.lane_width + other.WIDTH):
+                continue
+            if abs(road.wrap(other.frenet_s - self.frenet_s)) < 0.5 * (self.LENGTH + other.LENGTH) + GAP_CLEARANCE:
+                return False
+        front, rear = road.neighbour_vehicles(self, lane_index(lane))
+        limit = -self.LANE_CHANGE_MAX_BRAKING_IMPOSED
+        if rear is not None and self.acceleration(ego_vehicle=rear, front_vehicle=self) < limit:
+            return False
+        if front is not None and self.acceleration(ego_vehicle=self, front_vehicle=front) < limit:
+            return False
+        return True
+
+    def steering_control(self, target_lane_index: tuple) -> float:
+        """highway-env's cascaded lateral controller, tracking the lane-change profile when one runs."""
+        target_lane = self.road.network.get_lane(target_lane_index)
+        s, lateral = target_lane.local_coordinates(self.position)
+        reference = reference_rate = 0.0
+        if self._profile is not None:
+            t0, duration, lat0 = self._profile
+            u = (self.road.time - t0) / duration
+            if u >= 1.0:
+                self._profile = None
+            else:
+                p, dp = _smoothstep(u)
+                reference = lat0 * (1.0 - p)
+                reference_rate = -lat0 * dp / duration
+        speed = utils.not_zero(self.speed)
+        lateral_speed_command = reference_rate - self.KP_LATERAL * (lateral - reference)
+        heading_command = math.asin(min(max(lateral_speed_command / speed, -1.0), 1.0))
+        heading_ref = target_lane.heading_at(s + self.speed * self.TAU_PURSUIT) + min(max(heading_command, -math.pi / 4), math.pi / 4)
+        heading_rate_command = self.KP_HEADING * utils.wrap_to_pi(heading_ref - self.heading)
+        slip = math.asin(min(max(self.LENGTH / 2 / speed * heading_rate_command, -1.0), 1.0))
+        steering = math.atan(2.0 * math.tan(slip))
+        return float(min(max(steering, -self.MAX_STEERING_ANGLE), self.MAX_STEERING_ANGLE))
+
+    def acceleration(self, ego_vehicle: Any, front_vehicle: Any = None, rear_vehicle: Any = None) -> float:
+        """For itself: rate-limited tracking of ``target_speed`` plus IDM's interaction term with the
+        vehicle ahead; for another vehicle (MOBIL's what-ifs): plain IDM."""
+        if ego_vehicle is not self:
+            return super().acceleration(ego_vehicle, front_vehicle, rear_vehicle)
+        free = self.KP_A * (self.target_speed - self.speed)
+        acc = min(max(free, -self.decel_limit), self.accel_limit)
+        if front_vehicle:
+            d = self.lane_distance_to(front_vehicle)
+            acc -= self.COMFORT_ACC_MAX * (self.desired_gap(self, front_vehicle) / utils.not_zero(d)) ** 2
+        return acc
+
+
+def make_vehicle(road: TrafficRoad, vid: int, spec: VehicleSpec, mobil: bool) -> _FrenetCar:
+    """Build the vehicle ``spec`` (id ``vid``) on ``road``: placed at its lane centre at ``s``,
+    heading along the road, at ``speed``; ``mobil`` switches MOBIL on for ``idm``."""
+    lane = road.lanes[spec.lane]
+    position = lane.position(spec.s, 0.0)
+    heading = lane.heading_at(spec.s)
+    index = lane_index(spec.lane)
+    vehicle: Any
+    if spec.behaviour == "idm":
+        vehicle = IDMCar(road, position, heading, spec.speed, target_lane_index=index,
+                         target_speed=spec.cruise_speed, enable_lane_change=mobil)
+    elif spec.behaviour == "constant":
+        vehicle = ConstantCar(road, position, heading, spec.speed, target_lane_index=index, target_speed=spec.speed)
+    else:
+        vehicle = ScriptedCar(road, position, heading, spec.speed, target_lane_index=index,
+                              target_speed=spec.cruise_speed, enable_lane_change=False)
+        vehicle.configure(spec.maneuvers)
+    vehicle.target_speed = spec.speed if spec.behaviour == "constant" else spec.cruise_speed  # 0 is a valid target
+    vehicle._setup(vid, spec.length, spec.width)
+    return vehicle

@@ -1,0 +1,250 @@
+"""The simulated world: highway-env traffic on our road, advanced to arbitrary times, giving truth.
+
+``World(spec, seed)`` builds the road, the highway-env ``RoadNetwork`` of ``FrenetLane``s and the
+vehicles (the ego is id 0, the file's vehicles 1, 2, ... in order). ``advance(t)`` moves the traffic
+forward on a fixed internal grid ``k * step`` (``step`` = 0.05 s by default): at each grid time every
+vehicle decides its action (IDM/MOBIL, scripts), then all move by ``step`` (highway-env's kinematic
+bicycle model, action held over the step). ``truth_at(t)`` returns a ``sim.truth.Snapshot`` at any
+``t`` between grid times too, by evaluating the same held-action kinematics from the last grid state
+over the remaining fraction of a step, without changing the simulation: so the traffic does not
+depend on when, or how often, it is observed (lidar at 10 Hz, radars at 14 Hz out of phase, or
+nothing), and the same scenario + seed gives bit-identical truth.
+
+Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped); ``v`` speed (m/s);
+``yaw_rate`` (rad/s) of the bicycle model over the current step; ``length``, ``width`` (m); ``s``, ``n``
+(``Road.to_frenet`` of the centre, warm-started); ``xi = yaw - theta(s)`` (wrapped) and
+``xi_dot = yaw_rate - kappa(s) * s_dot`` with ``s_dot = v cos(xi + beta) / (1 - kappa n)`` (``beta`` the
+model's slip angle; the centre moves along ``yaw + beta``).
+
+Open roads: a vehicle whose centre passes the end (``s > length``) leaves the world (its id no longer
+appears; ``removed`` records when). The ego never leaves: validation rejects scenarios where it could
+reach the end, and if it does anyway ``advance`` raises ``ValueError``. Closed roads: ``s`` wraps.
+Collisions: highway-env's collision impulses are off (they would move vehicles outside their
+kinematics); overlapping rectangles are recorded in ``collisions`` as ``(t, id_a, id_b)`` when an
+overlap starts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.lanes import build_network
+from sim.scenario import ScenarioSpec, polygons_overlap
+from sim.traffic import TrafficRoad, make_vehicle
+from sim.truth import EgoPose, Snapshot, rectangle_corners
+from tracker.angles import wrap_angle
+
+#: Default internal step (s).
+DEFAULT_STEP = 0.05
+#: Stream tag mixed into the seed for highway-env's random generator (kept apart from the sensors').
+WORLD_STREAM = 0x574F524C  # "WORL"
+#: Slack (s) when comparing times.
+TIME_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """Truth of one vehicle: ``vid``; centre ``x, y`` (m, G); ``yaw`` (rad); ``v`` (m/s);
+    ``yaw_rate`` (rad/s); ``length``, ``width`` (m); ``s``, ``n`` (m); ``xi`` (rad); ``xi_dot`` (rad/s);
+    ``lane`` (0 = rightmost)."""
+
+    vid: int
+    x: float
+    y: float
+    yaw: float
+    v: float
+    yaw_rate: float
+    length: float
+    width: float
+    s: float
+    n: float
+    xi: float
+    xi_dot: float
+    lane: int
+
+
+class World:
+    """highway-env traffic on the scenario's road; see the module notes.
+
+    ``spec`` must be concrete or carry a generator (then ``sim.generator.realize(spec, seed)`` draws
+    the road/traffic first; ``world.spec`` is the drawn scenario). ``seed`` also seeds highway-env's
+    ``np_random`` (``numpy.random.Generator``). ``step`` is the internal step (s, in (0, 0.1])."""
+
+    def __init__(self, spec: ScenarioSpec, seed: int = 0, *, step: float = DEFAULT_STEP) -> None:
+        if not isinstance(spec, ScenarioSpec):
+            raise ValueError(f"World needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
+        if not (isinstance(step, (int, float)) and 0.0 < step <= 0.1):
+            raise ValueError(f"World step must be in (0, 0.1] s; got {step!r}")
+        if spec.generator is not None:
+            from sim.generator import realize
+
+            spec = realize(spec, seed)
+        assert spec.road is not None and spec.ego is not None
+        self.spec = spec
+        self.seed = int(seed)
+        self.step = float(step)
+        self.road = spec.build_road()
+        network, projector = build_network(self.road, spec.road.to_config())
+        rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(WORLD_STREAM,)))
+        self.traffic = TrafficRoad(network, projector, self.road, np_random=rng)
+        ego = make_vehicle(self.traffic, 0, spec.ego, spec.ego.mobil)
+        others = [make_vehicle(self.traffic, i + 1, v, v.mobil) for i, v in enumerate(spec.vehicles)]
+        self.traffic.vehicles = [ego, *others]
+        self.ego = ego
+        self._k = 0
+        self.t = 0.0
+        self.removed: dict[int, float] = {}
+        self.collisions: list[tuple[float, int, int]] = []
+        self._overlapping: set[tuple[int, int]] = set()
+        self._check_collisions()
+        self.traffic.time = 0.0
+        self.traffic.act()
+
+    # -- time -----------------------------------------------------------------------------------
+    @property
+    def grid_time(self) -> float:
+        """Time (s) of the last internal grid state."""
+        return self._k * self.step
+
+    def advance(self, t: float) -> None:
+        """Move the world forward to time ``t`` (s); ``t`` must not be earlier than the last one."""
+        if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
+            raise ValueError(f"World.advance: t must be a finite number of seconds; got {t!r}")
+        t = float(t)
+        if t < self.t - TIME_TOLERANCE:
+            raise ValueError(f"World.advance: time only moves forward; asked for t = {t!r} s after t = {self.t!r} s")
+        while (self._k + 1) * self.step <= t + TIME_TOLERANCE:
+            self._grid_step()
+        self.t = max(t, self.t)
+
+    def _grid_step(self) -> None:
+        traffic = self.traffic
+        traffic.step(self.step)
+        self._k += 1
+        now = self._k * self.step
+        traffic.time = now
+        if not self.road.closed:
+            end = self.road.length
+            if self.ego.frenet_s > end:
+                name = self.spec.source or self.spec.name
+                raise ValueError(
+                    f"{name}: the ego reached the end of the open road (s = {self.ego.frenet_s:.1f} m > "
+                    f"{end:.1f} m) at t = {now:.2f} s; lengthen the road or shorten the duration"
+                )
+            leaving = [v for v in traffic.vehicles if v.frenet_s > end]
+            for v in leaving:
+                traffic.vehicles.remove(v)
+                self.removed[v.vid] = now
+        self._check_collisions()
+        traffic.act()
+
+    def _check_collisions(self) -> None:
+        vehicles = self.traffic.vehicles
+        count = len(vehicles)
+        if count < 2:
+            self._overlapping.clear()
+            return
+        xy = np.array([v.position for v in vehicles])
+        diag = np.array([v.diagonal for v in vehicles])
+        d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+        near = np.argwhere(np.triu(d < 0.5 * (diag[:, None] + diag[None, :]), k=1))
+        now_overlapping: set[tuple[int, int]] = set()
+        if len(near):
+            corners = rectangle_corners(
+                xy,
+                np.array([v.heading for v in vehicles]),
+                np.array([v.LENGTH for v in vehicles]),
+                np.array([v.WIDTH for v in vehicles]),
+            )
+            for i, j in near:
+                if polygons_overlap(corners[i], corners[j]):
+                    pair = tuple(sorted((vehicles[i].vid, vehicles[j].vid)))
+                    now_overlapping.add(pair)  # type: ignore[arg-type]
+                    if pair not in self._overlapping:
+                        self.collisions.append((self.grid_time, pair[0], pair[1]))
+        self._overlapping = now_overlapping
+
+    # -- truth ----------------------------------------------------------------------------------
+    def _state(self, vehicle: object, fraction: float) -> VehicleState:
+        """Truth of ``vehicle`` ``fraction`` s after the last grid time (held action, no mutation)."""
+        v = vehicle
+        action = v.action  # type: ignore[attr-defined]
+        steering = float(action["steering"])
+        acceleration = float(action["acceleration"])
+        speed = float(v.speed)  # type: ignore[attr-defined]
+        if speed > v.MAX_SPEED:  # type: ignore[attr-defined]  (highway-env's clip_actions)
+            acceleration = min(acceleration, v.MAX_SPEED - speed)  # type: ignore[attr-defined]
+        beta = math.atan(0.5 * math.tan(steering))
+        half_length = 0.5 * v.LENGTH  # type: ignore[attr-defined]
+        yaw_rate = speed * math.sin(beta) / half_length
+        heading = float(v.heading)  # type: ignore[attr-defined]
+        x, y = float(v.position[0]), float(v.position[1])  # type: ignore[attr-defined]
+        if fraction > 0.0:
+            x += speed * math.cos(heading + beta) * fraction
+            y += speed * math.sin(heading + beta) * fraction
+            heading += yaw_rate * fraction
+            speed = max(speed + acceleration * fraction, 0.0)
+            s, n = self.road.to_frenet((x, y), s_hint=v.frenet_s)  # type: ignore[attr-defined]
+        else:
+            s, n = v.frenet_s, v.frenet_n  # type: ignore[attr-defined]
+        _, _, c, sn, kappa = self.road._frame1(float(s))  # scalar fast path of tracker.Road
+        theta = math.atan2(sn, c)
+        yaw = float(wrap_angle(heading))
+        xi = float(wrap_angle(heading - theta))
+        s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
+        return VehicleState(
+            vid=v.vid,  # type: ignore[attr-defined]
+            x=x,
+            y=y,
+            yaw=yaw,
+            v=speed,
+            yaw_rate=yaw_rate,
+            length=half_length * 2.0,
+            width=float(v.WIDTH),  # type: ignore[attr-defined]
+            s=float(s),
+            n=float(n),
+            xi=xi,
+            xi_dot=yaw_rate - kappa * s_dot,
+            lane=self.traffic.lane_of(float(n)),
+        )
+
+    def states(self) -> list[VehicleState]:
+        """Truth of every vehicle in the world at the current time ``t``, the ego first."""
+        fraction = max(self.t - self.grid_time, 0.0)
+        return [self._state(v, fraction) for v in self.traffic.vehicles]
+
+    def snapshot(self) -> Snapshot:
+        """The truth ``Snapshot`` at the current time ``t``: the ego pose and the other vehicles."""
+        states = self.states()
+        ego, others = states[0], states[1:]
+        return Snapshot(
+            t=self.t,
+            ego=EgoPose(x=ego.x, y=ego.y, yaw=ego.yaw, v=ego.v, yaw_rate=ego.yaw_rate, length=ego.length, width=ego.width),
+            ids=np.array([o.vid for o in others], dtype=int),
+            xy=np.array([[o.x, o.y] for o in others], dtype=float).reshape(-1, 2),
+            yaw=np.array([o.yaw for o in others]),
+            v=np.array([o.v for o in others]),
+            yaw_rate=np.array([o.yaw_rate for o in others]),
+            length=np.array([o.length for o in others]),
+            width=np.array([o.width for o in others]),
+            s=np.array([o.s for o in others]),
+            n=np.array([o.n for o in others]),
+            xi=np.array([o.xi for o in others]),
+            xi_dot=np.array([o.xi_dot for o in others]),
+        )
+
+    def truth_at(self, t: float) -> Snapshot:
+        """Advance to ``t`` (s), then return the truth ``Snapshot`` there (what the sensor rig calls)."""
+        self.advance(t)
+        return self.snapshot()
+
+    def ego_state(self) -> VehicleState:
+        """The ego's truth at the current time, with its road coordinates."""
+        return self._state(self.ego, max(self.t - self.grid_time, 0.0))
+
+    def run(self, times: np.ndarray | list[float]) -> list[Snapshot]:
+        """Snapshots at increasing ``times`` (s)."""
+        return [self.truth_at(float(t)) for t in times]
