@@ -129,7 +129,12 @@ def test_numpy_caster_matches_pymunk_oracle(seed):
     segments = scene_segments(snap, objects, (0.0, 0.0), snap.ego.yaw)
     assert len(segments) > 300
     fan_centre = float(np.random.default_rng(seed).uniform(-3.0, 3.0))
-    grids = [RayGrid.full_circle(RES), RayGrid.fan(fan_centre, math.radians(60), RES)]
+    grids = [
+        RayGrid.full_circle(RES),
+        RayGrid(7.3 + fan_centre, RES, 1800),  # a full circle starting anywhere
+        RayGrid.fan(fan_centre, math.radians(60), RES),
+        RayGrid.fan(fan_centre, math.radians(150), RES),  # wider than a half turn
+    ]
     for grid in grids:
         fast = cast_numpy(segments, grid, 100.0)
         oracle = cast_pymunk(segments, grid, 100.0)
@@ -162,6 +167,14 @@ def test_ray_hits_exact_range_and_wraps_at_pi():
     assert res.hit[np.argmax(grid.angles)]  # the ray at exactly pi
     # beyond max_range: nothing
     assert not cast_numpy(wall, grid, 9.99).hit.any()
+    # a fan of +-150 deg leaves a 60 deg gap behind; a near wall spans the gap and both fan ends
+    near_wall = Segments([[-5.0, -10.0]], [[-5.0, 10.0]], [0])  # bearings 180 -+ 63.4 deg
+    fan = RayGrid.fan(0.0, math.radians(150), RES)
+    res = cast_numpy(near_wall, fan, 100.0)
+    expected = np.abs(fan.angles) >= math.pi - math.atan2(10.0, 5.0) + 1e-9
+    assert (fan.angles[expected] > 0).sum() == (fan.angles[expected] < 0).sum() > 100  # both ends of the fan
+    assert np.array_equal(res.hit, expected)
+    np.testing.assert_allclose(res.range[expected], 5.0 / np.abs(np.cos(fan.angles[expected])), rtol=1e-13)
 
 
 def test_caster_input_errors():

@@ -13,8 +13,8 @@ each with an integer ``owner`` (the object it belongs to). Both casters return, 
    wholly out of range); edges beyond ``max_range`` only cost a few rejected pairs;
 2. angular broad phase: each edge subtends the bearing interval between its end points (less than pi
    for an edge not through the origin); the rays inside it are a contiguous index range of the grid,
-   taken modulo the ray count where the interval wraps past +-pi on a full circle, or clipped to a
-   fan. One extra ray on each side guards rounding;
+   taken modulo the ray count on a full circle; on a fan, the interval and its copy one turn lower
+   are each clipped to the fan. One extra ray on each side guards rounding;
 3. narrow phase, batched over all (ray, edge) pairs: with ``d`` the ray direction,
    ``ca = d x a`` and ``cb = d x b``, the ray's line crosses the edge iff ``ca * cb <= 0``, at range
    ``t = (a x b) / (cb - ca)``; a hit needs ``0 < t <= max_range``;
@@ -201,8 +201,9 @@ def cast_numpy(segments: Segments, grid: RayGrid, max_range: float, *, cull_back
     ax, ay, bx, by = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
     # angular broad phase: the edge subtends [lo, hi] (rad, relative to the grid start), < pi wide;
     # with cr < 0 the end b is clockwise of a, so the interval runs from b to a
-    rel_a = np.arctan2(ay, ax) - grid.start
-    rel_b = np.arctan2(by, bx) - grid.start
+    start = math.remainder(grid.start, TWO_PI)  # in [-pi, pi]: the same rays modulo a turn
+    rel_a = np.arctan2(ay, ax) - start  # in (-2 pi, 2 pi]
+    rel_b = np.arctan2(by, bx) - start
     if cull_back_faces:
         lo, hi = rel_b, rel_a
     else:
@@ -211,20 +212,21 @@ def cast_numpy(segments: Segments, grid: RayGrid, max_range: float, *, cull_back
     hi[hi < lo] += TWO_PI
     inv_res = 1.0 / grid.resolution
     if grid.is_full_circle:
-        # lo + 2 pi > 0, so truncation is floor; the extra turn (count rays) goes with the modulo.
-        # One extra ray each side guards rounding.
+        # lo + 2 pi > 0, so truncation is floor; the extra turn (count rays) goes with the modulo,
+        # and so does the shift of the start by whole turns. One extra ray each side guards rounding.
         k0 = ((lo + TWO_PI) * inv_res).astype(np.int64)
         k1 = ((hi + TWO_PI) * inv_res).astype(np.int64) + 1
-    else:  # a fan: an interval lies either as is or one turn lower over the fan, never both
+        owner_of_range = np.arange(idx.size)
+    else:  # a fan: the interval as is and one turn lower, each clipped to the fan's rays
         span = hi - lo
         lo = np.mod(lo, TWO_PI)
-        hi = lo + span
-        width = (count - 1) * grid.resolution
-        shift = np.where(lo > width, TWO_PI, 0.0)
-        k0 = np.maximum(np.floor((lo - shift) * inv_res), 0.0).astype(np.int64)
-        k1 = np.minimum(np.floor((hi - shift) * inv_res) + 1.0, count - 1.0).astype(np.int64)
+        lo = np.concatenate([lo, lo - TWO_PI])
+        hi = lo + np.concatenate([span, span])
+        k0 = np.maximum(np.floor(lo * inv_res), 0.0).astype(np.int64)
+        k1 = np.minimum(np.floor(hi * inv_res) + 1.0, count - 1.0).astype(np.int64)
+        owner_of_range = np.tile(np.arange(idx.size), 2)
     sizes = np.maximum(k1 - k0 + 1, 0)
-    seg = np.repeat(np.arange(idx.size), sizes)
+    seg = np.repeat(owner_of_range, sizes)
     if seg.size == 0:
         return CastResult(ranges, owners)
     ray = np.arange(seg.size) + np.repeat(k0 - (np.cumsum(sizes) - sizes), sizes)
