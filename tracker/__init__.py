@@ -3,6 +3,7 @@
 numpy + scipy only; never imports ``sim``. A user with real data needs only this package.
 """
 
+from tracker.frame import EgoState, Frame, RadarDetections
 from tracker.road import Road
 
-__all__ = ["Road"]
+__all__ = ["EgoState", "Frame", "RadarDetections", "Road"]
