@@ -1,0 +1,419 @@
+"""Typed configuration of the tracker: every tunable number, with its unit and default, in one place.
+
+``TrackerConfig`` groups the parts (all frozen dataclasses, validated on construction; a bad value
+raises ``ValueError`` naming the field, the value and the allowed range):
+
+- ``ProcessNoise``: additive process noise, per state, as continuous-time densities (see
+  ``tracker.motion.process_noise`` for the exact discretisation);
+- ``UKFParams``: the unscented transform's ``alpha, beta, kappa`` and the covariance floor;
+- ``MotionConfig``: which motion model (``"frenet"`` exact kinematics, default, or ``"paper"`` flat
+  constant turn) and the RK4 sub-step;
+- ``MeasurementConfig``: lidar point noise, radar velocity noise, the rectangle model's rules
+  (one/two-side eigenvalue ratio 50, partial-visibility threshold 0.6, the cluster downsampling bound);
+- ``DetectionConfig``, ``BirthConfig``, ``GatingConfig``, ``ReductionConfig``, ``ClusteringConfig``:
+  the multi-target GM-PHD layer's numbers (P_D, clutter, birth, gating, pruning/merging/cap,
+  clustering). They are defined here with documented defaults so that one object configures a run;
+  ``tracker.Tracker`` (the multi-target layer) is their consumer.
+
+Study variants are configurations of the same machinery: ``TrackerConfig.for_variant(name)`` with
+``name`` like ``"curvilinear-fused"``, ``"cartesian-lidar"``, ``"point-fused"``.
+``TrackerConfig.from_dict`` builds one from nested dictionaries (e.g. a TOML table), rejecting unknown
+keys by name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+#: Dimension of the target state ``[s, n, v, xi, xi_dot, L, W]`` (or ``[x, y, v, psi, psi_dot, L, W]``).
+STATE_DIM = 7
+
+
+def _check(cls_name: str, name: str, value: Any, *, low: float | None = None, high: float | None = None,
+           low_open: bool = False, high_open: bool = False, unit: str = "") -> None:
+    """Raise ``ValueError`` unless ``value`` is a finite real within the given bounds."""
+    where = f"{cls_name}.{name}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where} must be a real number{(' in ' + unit) if unit else ''}; got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{where} must be finite; got {value!r}")
+    bad_low = low is not None and (value <= low if low_open else value < low)
+    bad_high = high is not None and (value >= high if high_open else value > high)
+    if bad_low or bad_high:
+        lo = "" if low is None else (f"> {low}" if low_open else f">= {low}")
+        hi = "" if high is None else (f"< {high}" if high_open else f"<= {high}")
+        rng = " and ".join(part for part in (lo, hi) if part)
+        raise ValueError(f"{where} must be {rng}{(' ' + unit) if unit else ''}; got {value!r}")
+
+
+def _check_int(cls_name: str, name: str, value: Any, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{cls_name}.{name} must be an integer >= {low}; got {value!r}")
+
+
+def _check_choice(cls_name: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ValueError(f"{cls_name}.{name} must be one of {', '.join(map(repr, choices))}; got {value!r}")
+
+
+@dataclass(frozen=True)
+class ProcessNoise:
+    """Additive process noise, continuous-time white-noise densities (discretised over ``dt``).
+
+    - ``accel`` (m/s^2/sqrt(Hz), i.e. m s^-1.5): white acceleration driving ``v`` and, through the
+      integrated (``dt^3/3``, ``dt^2/2``) terms, the position along the heading;
+    - ``yaw_accel`` (rad s^-1.5): white yaw acceleration driving ``xi_dot`` (``psi_dot``) and ``xi`` (``psi``);
+    - ``along``, ``lateral`` (m/sqrt(s)): direct random walk of the position along / across the
+      heading (absorbs model error, e.g. lane changes the constant-turn model does not predict);
+    - ``heading`` (rad/sqrt(s)): direct random walk of ``xi`` (``psi``);
+    - ``length``, ``width`` (m/sqrt(s)): random walk of the extent (0 freezes it after convergence).
+
+    Over ``dt`` the covariance added is ``Q = G diag(accel^2, yaw_accel^2) G^T + diag(...)^2 dt``;
+    see ``tracker.motion.process_noise``.
+    """
+
+    accel: float = 1.5
+    yaw_accel: float = 0.3
+    along: float = 0.05
+    lateral: float = 0.1
+    heading: float = 0.01
+    length: float = 0.02
+    width: float = 0.01
+
+    def __post_init__(self) -> None:
+        units = {"accel": "m/s^1.5", "yaw_accel": "rad/s^1.5", "along": "m/s^0.5", "lateral": "m/s^0.5",
+                 "heading": "rad/s^0.5", "length": "m/s^0.5", "width": "m/s^0.5"}
+        for name, unit in units.items():
+            _check("ProcessNoise", name, getattr(self, name), low=0.0, unit=unit)
+
+
+@dataclass(frozen=True)
+class UKFParams:
+    """Unscented transform parameters (Wan & van der Merwe scaling) and the covariance floor.
+
+    ``lambda = alpha^2 (n + kappa) - n``; sigma points ``mean +/- sqrt(n + lambda) * chol(P)`` columns;
+    weights ``Wm0 = lambda / (n + lambda)``, ``Wc0 = Wm0 + 1 - alpha^2 + beta``, ``Wi = 1 / (2 (n + lambda))``.
+    The default (``alpha = 1, beta = 2, kappa = 0``: ``Wm0 = 0``, ``Wc0 = 2``) keeps every covariance
+    weight non-negative, which the tracker requires: the innovation covariance is then positive
+    definite by construction and the update can use its low-rank form (``tracker.update``). Tiny
+    ``alpha`` (the textbook 1e-3) gives ``Wm0 ~ -1e6`` and is refused.
+    ``min_eigenvalue`` (state units squared) is the floor the SPD repair lifts eigenvalues to.
+    """
+
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+    min_eigenvalue: float = 1e-9
+
+    def __post_init__(self) -> None:
+        _check("UKFParams", "alpha", self.alpha, low=0.0, low_open=True)
+        _check("UKFParams", "beta", self.beta, low=0.0)
+        _check("UKFParams", "kappa", self.kappa)
+        _check("UKFParams", "min_eigenvalue", self.min_eigenvalue, low=0.0, low_open=True)
+        n = STATE_DIM
+        lam = self.alpha**2 * (n + self.kappa) - n
+        if n + lam <= 0:
+            raise ValueError(
+                f"UKFParams: alpha^2 (n + kappa) = {n + lam!r} must be > 0 (n = {n}); raise alpha or kappa"
+            )
+        wc0 = lam / (n + lam) + 1.0 - self.alpha**2 + self.beta
+        if wc0 < 0:
+            raise ValueError(
+                f"UKFParams: the central covariance weight Wc0 = {wc0!r} is negative (alpha={self.alpha}, "
+                f"beta={self.beta}, kappa={self.kappa}); the tracker needs Wc0 >= 0: use alpha near 1 "
+                "(default 1.0) or a larger beta"
+            )
+
+
+@dataclass(frozen=True)
+class MotionConfig:
+    """Motion model.
+
+    - ``model``: ``"frenet"`` (default) integrates the exact Frenet kinematics
+      ``s' = v cos(xi) / (1 - kappa(s) n)``, ``n' = v sin(xi)``, ``xi' = xi_dot`` with RK4;
+      ``"paper"`` is the paper's constant-turn model in (s, n), which treats the road frame as flat.
+      A Cartesian-state tracker always uses the Cartesian constant-turn model.
+    - ``max_step`` (s): largest RK4 sub-step of the exact model (``ceil(dt / max_step)`` sub-steps).
+    - ``min_denominator``: floor of ``1 - kappa n`` (points at or beyond the centre of curvature are
+      not on any road; the floor keeps a wild sigma point finite).
+    """
+
+    model: Literal["frenet", "paper"] = "frenet"
+    max_step: float = 0.1
+    min_denominator: float = 0.1
+
+    def __post_init__(self) -> None:
+        _check_choice("MotionConfig", "model", self.model, ("frenet", "paper"))
+        _check("MotionConfig", "max_step", self.max_step, low=0.0, low_open=True, unit="s")
+        _check("MotionConfig", "min_denominator", self.min_denominator, low=0.0, high=1.0, low_open=True)
+
+
+@dataclass(frozen=True)
+class MeasurementConfig:
+    """Rectangle measurement model (lidar) and radar velocity rows.
+
+    - ``lidar_sigma`` (m): std of a lidar point about its measurement generating point, per axis
+      (``R = lidar_sigma^2 I2`` per point); it also absorbs the model's approximation (points spread
+      along sides, corners rounded), so keep it above the sensor's range noise.
+    - ``radar_velocity_sigma`` (m/s): std of the radar's absolute velocity, per axis in E.
+    - ``two_side_eigen_ratio``: a cluster is two-sided when the eigenvalue ratio ``lambda_max /
+      lambda_min`` of its points' covariance is below this (MATLAB ``ctrectmeas``: 50) *and* the
+      predicted rectangle shows two sides to the sensor; otherwise one-sided.
+    - ``partial_visibility``: a side whose measured extent is at most this fraction of its predicted
+      length is "partially visible" (its generating points keep the measured spacing in metres, anchored
+      at the observed corner, and do not pull the length); above it the points are taken to span the
+      whole side (MATLAB: 0.6).
+    - ``max_cluster_points``: downsampling bound. A cluster with more points is thinned evenly in
+      bearing order to this many (its extreme points and the corner point are kept) before the update.
+      The update's cost is linear in the points (see ``tracker.update``); the bound mainly limits the
+      weight a single cluster gets when the points are not independent, as the model assumes.
+    - ``min_points_two_sided``: fewest points for which the two-sided model (corner split) is tried.
+    """
+
+    lidar_sigma: float = 0.1
+    radar_velocity_sigma: float = 0.5
+    two_side_eigen_ratio: float = 50.0
+    partial_visibility: float = 0.6
+    max_cluster_points: int = 60
+    min_points_two_sided: int = 4
+
+    def __post_init__(self) -> None:
+        _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
+        _check("MeasurementConfig", "radar_velocity_sigma", self.radar_velocity_sigma, low=0.0, low_open=True,
+               unit="m/s")
+        _check("MeasurementConfig", "two_side_eigen_ratio", self.two_side_eigen_ratio, low=1.0, low_open=True)
+        _check("MeasurementConfig", "partial_visibility", self.partial_visibility, low=0.0, high=1.0)
+        _check_int("MeasurementConfig", "max_cluster_points", self.max_cluster_points, 3)
+        _check_int("MeasurementConfig", "min_points_two_sided", self.min_points_two_sided, 3)
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Detection and clutter model of the GM-PHD update (DESIGN.md "GM-PHD update").
+
+    - ``p_detection``: probability that a target in the field of view yields a cluster (``P_D``);
+    - ``p_survival``: probability that a target survives one frame (``P_S``);
+    - ``expected_points`` (points): the mean number ``gamma`` of lidar points per detected target,
+      used when the state-dependent model of the multi-target layer has nothing better;
+    - ``clutter_rate`` (points per frame): mean number ``lambda`` of clutter points on the road;
+    - ``clutter_density`` (1/m^2): spatial density ``c(z)`` of a clutter point (uniform over
+      ``1 / clutter_density`` square metres of road in view).
+    """
+
+    p_detection: float = 0.9
+    p_survival: float = 0.99
+    expected_points: float = 20.0
+    clutter_rate: float = 1.0
+    clutter_density: float = 1.0 / 5000.0
+
+    def __post_init__(self) -> None:
+        _check("DetectionConfig", "p_detection", self.p_detection, low=0.0, high=1.0, low_open=True)
+        _check("DetectionConfig", "p_survival", self.p_survival, low=0.0, high=1.0, low_open=True)
+        _check("DetectionConfig", "expected_points", self.expected_points, low=0.0, low_open=True, unit="points")
+        _check("DetectionConfig", "clutter_rate", self.clutter_rate, low=0.0, low_open=True, unit="points/frame")
+        _check("DetectionConfig", "clutter_density", self.clutter_density, low=0.0, low_open=True, unit="1/m^2")
+
+
+@dataclass(frozen=True)
+class BirthConfig:
+    """Birth intensity: road-based components near the range limits, per lane, and components from the
+    previous frame's unexplained clusters (centre/heading/extent from an L-shape fit).
+
+    - ``weight``: weight of each birth component;
+    - ``range_margin`` (m): road births sit this far inside the lidar range, ahead and behind;
+    - ``speed`` (m/s) and ``speed_std`` (m/s): prior speed of road births (None: the ego's speed);
+    - ``length``, ``width`` (m) and ``length_std``, ``width_std`` (m): prior extent;
+    - ``position_std`` (m) along / ``lateral_std`` (m) across the road, ``heading_std`` (rad),
+      ``heading_rate_std`` (rad/s): prior spreads of a birth component.
+    """
+
+    weight: float = 0.05
+    range_margin: float = 5.0
+    speed: float | None = None
+    speed_std: float = 5.0
+    length: float = 4.5
+    width: float = 1.8
+    length_std: float = 1.0
+    width_std: float = 0.3
+    position_std: float = 2.0
+    lateral_std: float = 0.5
+    heading_std: float = 0.1
+    heading_rate_std: float = 0.05
+
+    def __post_init__(self) -> None:
+        _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)
+        _check("BirthConfig", "range_margin", self.range_margin, low=0.0, unit="m")
+        if self.speed is not None:
+            _check("BirthConfig", "speed", self.speed, unit="m/s")
+        for name in ("speed_std", "length", "width", "length_std", "width_std", "position_std", "lateral_std",
+                     "heading_std", "heading_rate_std"):
+            _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True)
+
+
+@dataclass(frozen=True)
+class GatingConfig:
+    """Which (component, cluster) pairs are updated at all.
+
+    - ``distance`` (m): a cluster is considered for a component only if its centroid is within this
+      distance of the component's predicted rectangle (cheap pre-gate in E);
+    - ``probability``: gate on the normalised innovation of the pair (chi-square quantile with the
+      measurement dimension); pairs outside it are not updated.
+    """
+
+    distance: float = 5.0
+    probability: float = 0.9999
+
+    def __post_init__(self) -> None:
+        _check("GatingConfig", "distance", self.distance, low=0.0, low_open=True, unit="m")
+        _check("GatingConfig", "probability", self.probability, low=0.0, high=1.0, low_open=True)
+
+
+@dataclass(frozen=True)
+class ReductionConfig:
+    """Mixture reduction and extraction (Vo & Ma GM-PHD).
+
+    - ``prune_threshold``: drop components with weight below this;
+    - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
+    - ``max_components``: cap, keeping the heaviest;
+    - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5).
+    """
+
+    prune_threshold: float = 1e-4
+    merge_threshold: float = 4.0
+    max_components: int = 100
+    extraction_threshold: float = 0.5
+
+    def __post_init__(self) -> None:
+        _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
+        _check("ReductionConfig", "merge_threshold", self.merge_threshold, low=0.0)
+        _check_int("ReductionConfig", "max_components", self.max_components, 1)
+        _check("ReductionConfig", "extraction_threshold", self.extraction_threshold, low=0.0, high=1.0)
+
+
+@dataclass(frozen=True)
+class ClusteringConfig:
+    """Lidar pre-processing and clustering, radar association.
+
+    - ``road_margin`` (m): keep points within the road bounds widened by this;
+    - ``bearing_bin`` (rad): the paper's bearing filter keeps the closest point per bin of this width;
+    - ``track_margin`` (m): points inside a predicted rectangle grown by this form its cluster;
+    - ``distance`` (m): the rest are partitioned into connected components under this distance;
+    - ``min_points``: smaller clusters are dropped (counted);
+    - ``radar_gate`` (m): a radar detection joins the nearest lidar cluster centroid within this.
+    """
+
+    road_margin: float = 1.0
+    bearing_bin: float = math.radians(0.2)
+    track_margin: float = 0.5
+    distance: float = 1.0
+    min_points: int = 1
+    radar_gate: float = 3.0
+
+    def __post_init__(self) -> None:
+        for name, unit in (("road_margin", "m"), ("track_margin", "m")):
+            _check("ClusteringConfig", name, getattr(self, name), low=0.0, unit=unit)
+        for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m")):
+            _check("ClusteringConfig", name, getattr(self, name), low=0.0, low_open=True, unit=unit)
+        _check_int("ClusteringConfig", "min_points", self.min_points, 1)
+
+
+_SECTIONS: dict[str, type] = {
+    "process_noise": ProcessNoise,
+    "ukf": UKFParams,
+    "motion": MotionConfig,
+    "measurement": MeasurementConfig,
+    "detection": DetectionConfig,
+    "birth": BirthConfig,
+    "gating": GatingConfig,
+    "reduction": ReductionConfig,
+    "clustering": ClusteringConfig,
+}
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """The whole tracker configuration.
+
+    - ``coordinates``: ``"curvilinear"`` (the paper: state ``[s, n, v, xi, xi_dot, L, W]``, default)
+      or ``"cartesian"`` (same EOT with state ``[x, y, v, psi, psi_dot, L, W]`` in G);
+    - ``object_model``: ``"extended"`` (rectangle EOT, default) or ``"point"`` (the point-object GNN
+      variant of the multi-target layer);
+    - ``use_radar``: fuse radar velocity rows into clusters with an associated radar detection;
+    - the sections (see their classes for units and defaults).
+    """
+
+    coordinates: Literal["curvilinear", "cartesian"] = "curvilinear"
+    object_model: Literal["extended", "point"] = "extended"
+    use_radar: bool = True
+    process_noise: ProcessNoise = field(default_factory=ProcessNoise)
+    ukf: UKFParams = field(default_factory=UKFParams)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    measurement: MeasurementConfig = field(default_factory=MeasurementConfig)
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    birth: BirthConfig = field(default_factory=BirthConfig)
+    gating: GatingConfig = field(default_factory=GatingConfig)
+    reduction: ReductionConfig = field(default_factory=ReductionConfig)
+    clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+
+    def __post_init__(self) -> None:
+        _check_choice("TrackerConfig", "coordinates", self.coordinates, ("curvilinear", "cartesian"))
+        _check_choice("TrackerConfig", "object_model", self.object_model, ("extended", "point"))
+        if not isinstance(self.use_radar, bool):
+            raise ValueError(f"TrackerConfig.use_radar must be true or false; got {self.use_radar!r}")
+        for name, cls in _SECTIONS.items():
+            if not isinstance(getattr(self, name), cls):
+                raise ValueError(
+                    f"TrackerConfig.{name} must be a {cls.__name__}; got {type(getattr(self, name)).__name__}"
+                )
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrackerConfig:
+        """A config from nested dictionaries (e.g. a parsed TOML table); unknown keys raise
+        ``ValueError`` naming the key and the accepted ones."""
+        if not isinstance(data, dict):
+            raise ValueError(f"tracker configuration must be a table/dict; got {type(data).__name__}")
+        top = {f.name for f in dataclasses.fields(cls)}
+        kwargs: dict[str, Any] = {}
+        for key, value in data.items():
+            if key not in top:
+                raise ValueError(f"unknown tracker configuration key {key!r}; accepted: {', '.join(sorted(top))}")
+            if key in _SECTIONS:
+                section = _SECTIONS[key]
+                if isinstance(value, section):
+                    kwargs[key] = value
+                    continue
+                if not isinstance(value, dict):
+                    raise ValueError(f"tracker configuration {key!r} must be a table/dict; got {value!r}")
+                names = {f.name for f in dataclasses.fields(section)}
+                unknown = sorted(set(value) - names)
+                if unknown:
+                    raise ValueError(
+                        f"unknown key(s) {', '.join(map(repr, unknown))} in tracker configuration {key!r}; "
+                        f"accepted: {', '.join(sorted(names))}"
+                    )
+                kwargs[key] = section(**value)
+            else:
+                kwargs[key] = value
+        return cls(**kwargs)
+
+    @classmethod
+    def for_variant(cls, name: str, **overrides: Any) -> TrackerConfig:
+        """The configuration of a study variant ``"<model>-<sensors>"``: model ``curvilinear``,
+        ``cartesian`` or ``point``; sensors ``fused`` (lidar + radar) or ``lidar``. A bare model name
+        means fused. ``overrides`` replace top-level fields."""
+        model, _, sensors = name.partition("-")
+        sensors = sensors or "fused"
+        if model not in ("curvilinear", "cartesian", "point") or sensors not in ("fused", "lidar"):
+            raise ValueError(
+                f"unknown tracker variant {name!r}; use '<curvilinear|cartesian|point>-<fused|lidar>', "
+                "e.g. 'curvilinear-fused'"
+            )
+        base = cls(
+            coordinates="cartesian" if model == "cartesian" else "curvilinear",
+            object_model="point" if model == "point" else "extended",
+            use_radar=sensors == "fused",
+        )
+        return dataclasses.replace(base, **overrides) if overrides else base

@@ -1,0 +1,548 @@
+"""The rectangle measurement model (lidar, after Granström 2011 / MATLAB ``ctrectmeas``) and the radar
+velocity rows, vectorised over sigma points and over (component, cluster) pairs.
+
+Geometry. A state goes to the vehicle frame E: curvilinear ``(s, n)`` -> G through the road
+(``c(s) + n (-sin theta, cos theta)``, heading ``psi = theta(s) + xi``), or a Cartesian state directly;
+then ``p_E = R(-yaw_ego) (p_G - p_ego)``, ``psi_E = psi - yaw_ego``. The rectangle's corners, counter-
+clockwise around the object, are ``K0`` front-right, ``K1`` front-left, ``K2`` rear-left, ``K3`` rear-right;
+side ``k`` runs ``K_k -> K_{k+1}`` (0 front, 1 left, 2 rear, 3 right) with outward normal at
+``psi + k pi/2``. A side is visible from the lidar (the E origin) when the origin lies on its outer side.
+
+Data (per cluster, once: ``prepare_cluster``). Points are sorted by bearing about the lidar,
+ascending (counter-clockwise seen from the sensor). Seen from outside, counter-clockwise around the
+sensor is clockwise around the object, so the points run along a visible side ``k`` from ``K_{k+1}`` to
+``K_k``, and a two-sided cluster covers side ``j`` then side ``j - 1`` through the corner ``K_j``. The
+cluster is two-sided in the data when it has at least ``min_points_two_sided`` points and the
+eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
+``two_side_eigen_ratio`` (50). Its corner index is the split minimising the total least-squares
+line-fit residual of the two parts (the paper: "least squares fitting lines"; the corner point belongs
+to both fits, computed for all splits at once from prefix sums). A part's *chord* runs from its first
+point to its last (the second part starts at the corner point); each point's position along its part
+is its projection on the chord, in metres (``proj``). Departure from MATLAB, which spaces points by
+cumulative polyline length: with noise that length grows with the number of points (zig-zag), the
+projection does not. Clusters above ``max_cluster_points`` are thinned evenly in bearing order,
+keeping the extreme points and the corner.
+
+Structure (per pair, from the component's predicted *mean*, shared by all its sigma points so the
+model is a smooth function of the state): two-sided only if the data say so *and* the predicted
+rectangle shows two sides; each part is matched to the side whose outward normal is closest to the
+part's chord direction turned by +90 deg (``argmax n_k . rot90(chord)``; the paper writes the test as
+``argmin |alpha_i - beta + pi/2|`` with its own normal convention); a two-sided cluster takes the best
+adjacent pair ``(j, j - 1)``. Visibility ``a = chord length / predicted side length``; a side with
+``a <= partial_visibility`` (0.6) is *partially visible*.
+
+Measurement generating points (one per point, in the same order, so no association is needed):
+
+- fully visible side from ``P = K_{k+1}`` to ``Q = K_k``: ``y_i = P + (proj_i / chord) (Q - P)``
+  (spread over the whole side, spacing proportional to the measured gaps);
+- partially visible, two-sided: anchored at the observed corner with the measured spacing in metres,
+  ``y_i = K_j - (chord_0 - proj_i) u`` on the first side, ``y_i = K_j + proj_i u`` on the second
+  (``u`` the unit side direction of the sigma point): the side's length is not pulled to the visible
+  extent (no shrinking);
+- partially visible, one-sided: anchored like MATLAB at whichever of (first point <-> ``P``, last
+  point <-> ``Q``, centroid <-> side centre) is closest in the predicted mean;
+- a single point (or a zero-length chord): on the nearest visible side of the mean, at the fraction of
+  that side where the point projects (fixed across sigma points).
+
+Radar (fused cluster): two rows ``v (cos psi_E, sin psi_E)``, the target's absolute velocity in E's
+axes, against the radar's ``(vx, vy)``. ``R = blockdiag(lidar_sigma^2 I2, ..., radar_velocity_sigma^2 I2)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from tracker.config import MeasurementConfig
+from tracker.frame import EgoState
+from tracker.road import Road
+
+Coordinates = Literal["curvilinear", "cartesian"]
+
+#: Smallest rectangle side (m) used when a sigma point carries a tiny or negative L or W.
+MIN_EXTENT = 1e-2
+#: Chords shorter than this (m) are treated as a single point.
+MIN_CHORD = 1e-6
+#: The corner of a two-sided cluster is the intersection of the two parts' fitted lines when they
+#: meet at least at this angle (rad) and within ``CORNER_MAX_SHIFT`` (m) of the corner point; else the
+#: corner point itself.
+CORNER_MIN_ANGLE = np.radians(30.0)
+CORNER_MAX_SHIFT = 0.5
+
+# structure modes of a part
+FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)
+
+
+# -- geometry ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Rectangles:
+    """Rectangles in E: ``center (..., 2)`` m, heading ``psi (...)`` rad, speed ``v (...)`` m/s, extent
+    ``length``, ``width`` (...) m (floored at ``MIN_EXTENT``)."""
+
+    center: np.ndarray
+    psi: np.ndarray
+    v: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+
+    def corners(self) -> np.ndarray:
+        """Corners ``(..., 4, 2)``: front-right, front-left, rear-left, rear-right (counter-clockwise)."""
+        return rectangle_corners(self.center, self.psi, self.length, self.width)
+
+    def velocity(self) -> np.ndarray:
+        """Absolute velocity in E's axes ``(..., 2)``: ``v (cos psi_E, sin psi_E)``."""
+        return self.v[..., None] * np.stack([np.cos(self.psi), np.sin(self.psi)], axis=-1)
+
+
+def rectangle_corners(center: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """Corners ``(..., 4, 2)`` of rectangles with centre ``(..., 2)``, heading ``psi`` and extent
+    ``length``, ``width`` (m): front-right, front-left, rear-left, rear-right."""
+    c, s = np.cos(psi), np.sin(psi)
+    hl, hw = 0.5 * np.asarray(length, dtype=float), 0.5 * np.asarray(width, dtype=float)
+    sx = np.array([1.0, 1.0, -1.0, -1.0])
+    sy = np.array([-1.0, 1.0, 1.0, -1.0])
+    lx = sx * hl[..., None]  # (..., 4) local x
+    ly = sy * hw[..., None]
+    x = center[..., None, 0] + c[..., None] * lx - s[..., None] * ly
+    y = center[..., None, 1] + s[..., None] * lx + c[..., None] * ly
+    return np.stack([x, y], axis=-1)
+
+
+def side_normals(corners: np.ndarray) -> np.ndarray:
+    """Unit outward normals ``(..., 4, 2)`` of sides ``K_k -> K_{k+1}`` (corners counter-clockwise)."""
+    d = np.roll(corners, -1, axis=-2) - corners
+    nrm = np.stack([d[..., 1], -d[..., 0]], axis=-1)  # direction turned by -90 deg
+    return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
+
+
+def visible_sides(corners: np.ndarray, sensor: np.ndarray | None = None) -> np.ndarray:
+    """Which sides ``(..., 4)`` of the rectangles face ``sensor`` (default: the E origin)."""
+    sensor = np.zeros(2) if sensor is None else np.asarray(sensor, dtype=float)
+    mid = 0.5 * (corners + np.roll(corners, -1, axis=-2))
+    return np.einsum("...kd,...kd->...k", sensor - mid, side_normals(corners)) > 0.0
+
+
+def to_vehicle(
+    states: np.ndarray, ego: EgoState | tuple, road: Road | None = None, coordinates: Coordinates = "curvilinear"
+) -> Rectangles:
+    """States ``(..., 7)`` as rectangles in E (module docstring). ``ego`` is an ``EgoState`` or
+    ``(x, y, yaw[, v, yaw_rate])`` in G. Curvilinear states need ``road`` (open roads extrapolate)."""
+    ego = EgoState.coerce(ego)
+    x = np.asarray(states, dtype=float)
+    if x.shape[-1] != 7:
+        raise ValueError(f"states must have shape (..., 7); got {x.shape}")
+    if coordinates == "curvilinear":
+        if road is None:
+            raise ValueError("curvilinear states need the road to go to E")
+        xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
+        n = x[..., 1]
+        gx = xy[..., 0] - n * np.sin(theta) - ego.x
+        gy = xy[..., 1] + n * np.cos(theta) - ego.y
+        psi = theta + x[..., 3] - ego.yaw
+    elif coordinates == "cartesian":
+        gx, gy = x[..., 0] - ego.x, x[..., 1] - ego.y
+        psi = x[..., 3] - ego.yaw
+    else:
+        raise ValueError(f"coordinates must be 'curvilinear' or 'cartesian'; got {coordinates!r}")
+    c, s = np.cos(ego.yaw), np.sin(ego.yaw)
+    center = np.stack([c * gx + s * gy, -s * gx + c * gy], axis=-1)
+    return Rectangles(center, psi, x[..., 2], np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
+
+
+def rectangle_scan(corners: np.ndarray, bearings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact lidar returns of one rectangle ``corners (4, 2)`` in E for rays from the E origin at
+    ``bearings (R,)`` rad: the nearest intersection of each ray with the rectangle's sides. Returns the
+    points ``(H, 2)`` of the rays that hit, in ray order, and the hit mask ``(R,)``. (For building
+    synthetic clusters without a simulator.)"""
+    corners = np.asarray(corners, dtype=float)
+    b = np.asarray(bearings, dtype=float).reshape(-1)
+    d = np.stack([np.cos(b), np.sin(b)], axis=-1)  # (R, 2)
+    a = corners  # side starts (4, 2)
+    e = np.roll(corners, -1, axis=0) - corners  # (4, 2)
+    cross = lambda p, q: p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]  # noqa: E731
+    de = cross(d[:, None, :], e[None, :, :])  # (R, 4)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = cross(a, e)[None, :] / de
+        u = cross(a[None, :, :], d[:, None, :]) / de
+    ok = (np.abs(de) > 1e-12) & (r > 0) & (u >= -1e-12) & (u <= 1 + 1e-12)
+    r = np.where(ok, r, np.inf)
+    best = r.min(axis=1)
+    hit = np.isfinite(best)
+    return best[hit, None] * d[hit], hit
+
+
+# -- clusters ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Cluster:
+    """A cluster of lidar points prepared for the rectangle model (see the module docstring).
+
+    ``points (M, 2)`` in E sorted by bearing (after downsampling). Chords, indexed by *slot*: 0 the
+    whole cluster (used when a pair is treated as one-sided), 1 and 2 the parts before and after the
+    corner of a two-sided split: ``chord_start (3, 2)``, ``chord_dir (3, 2)`` (unit), ``chord_len (3,)``,
+    ``chord_end (3, 2)`` (first and last point of each). ``part (M,)`` 0 or 1 (1: after the corner);
+    ``proj (2, M)`` metres along the chord from its start: row 0 on the whole-cluster chord, row 1 on the
+    point's part chord. ``two_sided`` is the data's verdict; ``corner`` the index of the corner point in
+    ``points`` (-1 if one-sided); ``eigen_ratio``; ``velocity (2,)`` the radar's absolute velocity in E
+    (m/s) or ``None``; ``raw_count`` points before downsampling; ``dropped`` non-finite points removed;
+    ``order`` the input index of each kept point.
+    """
+
+    points: np.ndarray
+    part: np.ndarray
+    proj: np.ndarray
+    chord_start: np.ndarray
+    chord_end: np.ndarray
+    chord_dir: np.ndarray
+    chord_len: np.ndarray
+    two_sided: bool
+    corner: int
+    eigen_ratio: float
+    velocity: np.ndarray | None = None
+    raw_count: int = 0
+    dropped: int = 0
+    order: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    @property
+    def size(self) -> int:
+        """Number of points used by the update."""
+        return int(self.points.shape[0])
+
+    @property
+    def fused(self) -> bool:
+        """Whether the cluster carries a radar velocity."""
+        return self.velocity is not None
+
+
+def _lambda_min(sxx: np.ndarray, syy: np.ndarray, sxy: np.ndarray) -> np.ndarray:
+    """Smallest eigenvalue of symmetric 2x2 matrices ``[[sxx, sxy], [sxy, syy]]``."""
+    return 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+
+
+def corner_index(points: np.ndarray) -> int:
+    """Corner index of bearing-sorted points ``(N, 2)``, ``N >= 3``: the split ``k`` in ``1..N-2``
+    minimising the summed total-least-squares residuals of lines fitted to ``points[:k+1]`` and
+    ``points[k:]`` (the corner point in both). All splits at once from prefix sums: O(N)."""
+    p = np.asarray(points, dtype=float)
+    n = len(p)
+    if n < 3:
+        raise ValueError(f"corner_index needs at least 3 points; got {n}")
+    p = p - p.mean(axis=0)
+    x, y = p[:, 0], p[:, 1]
+    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones(n), x, y, x * x, y * y, x * y)]
+    k = np.arange(1, n - 1)
+
+    def residual(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:  # points lo..hi inclusive
+        cnt, sx, sy, sxx, syy, sxy = (c[hi + 1] - c[lo] for c in cs)
+        return np.maximum(_lambda_min(sxx - sx * sx / cnt, syy - sy * sy / cnt, sxy - sx * sy / cnt), 0.0)
+
+    cost = residual(np.zeros_like(k), k) + residual(k, np.full_like(k, n - 1))
+    return int(k[np.argmin(cost)])
+
+
+def _even(lo: int, hi: int, count: int) -> np.ndarray:
+    """``count`` indices evenly spread over ``lo..hi`` inclusive (both ends kept)."""
+    return np.unique(np.round(np.linspace(lo, hi, max(count, 2))).astype(int))
+
+
+def _line_fit(pts: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Total-least-squares line through ``pts (K, 2)``: a point on it (the centroid) and its unit
+    direction, oriented from the first point towards the last; ``fallback`` direction if degenerate."""
+    c = pts.mean(axis=0)
+    d = pts[-1] - pts[0]
+    if len(pts) < 2 or float(np.hypot(*(pts.max(axis=0) - pts.min(axis=0)))) <= MIN_CHORD:
+        return c, fallback
+    if len(pts) == 2:
+        u = d
+    else:
+        _, vecs = np.linalg.eigh(np.cov(pts.T, bias=True))
+        u = vecs[:, 1]
+    u = u / np.hypot(*u)
+    return c, (u if float(u @ d) >= 0.0 else -u)
+
+
+def _intersect(o1: np.ndarray, u1: np.ndarray, o2: np.ndarray, u2: np.ndarray) -> np.ndarray | None:
+    """Intersection of the lines ``o1 + a u1`` and ``o2 + b u2``; ``None`` if they meet at less than
+    ``CORNER_MIN_ANGLE``."""
+    den = u1[0] * u2[1] - u1[1] * u2[0]
+    if abs(den) < np.sin(CORNER_MIN_ANGLE):
+        return None
+    w = o2 - o1
+    a = (w[0] * u2[1] - w[1] * u2[0]) / den
+    return o1 + a * u1
+
+
+def prepare_cluster(
+    points: np.ndarray, config: MeasurementConfig | None = None, velocity: np.ndarray | None = None
+) -> Cluster:
+    """Prepare lidar ``points (N, 2)`` in E (m) for the rectangle model: drop non-finite points
+    (counted in ``dropped``), sort by bearing, decide one/two-sided from the eigenvalue ratio, find the
+    corner, downsample to ``config.max_cluster_points`` and compute each point's chord coordinates.
+    ``velocity`` is an associated radar detection's absolute velocity ``(vx, vy)`` in E (m/s)."""
+    config = config if config is not None else MeasurementConfig()
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"cluster points must have shape (N, 2) (x, y in E, m); got {pts.shape}")
+    finite = np.isfinite(pts).all(axis=1)
+    dropped = int((~finite).sum())
+    index = np.flatnonzero(finite)
+    pts = pts[finite]
+    if len(pts) == 0:
+        raise ValueError(f"a cluster needs at least one finite point; got none ({dropped} non-finite dropped)")
+    if velocity is not None:
+        velocity = np.asarray(velocity, dtype=float).reshape(-1)
+        if velocity.shape != (2,) or not np.isfinite(velocity).all():
+            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
+    centroid = pts.mean(axis=0)
+    ref = np.arctan2(centroid[1], centroid[0]) if np.hypot(*centroid) > 1e-9 else 0.0
+    rel = np.angle(np.exp(1j * (np.arctan2(pts[:, 1], pts[:, 0]) - ref)))
+    order = np.argsort(rel, kind="stable")
+    pts, index = pts[order], index[order]
+    n = len(pts)
+    ratio = np.inf
+    if n >= 2:
+        lam = np.linalg.eigvalsh(np.cov(pts.T, bias=True))
+        ratio = float(lam[1] / lam[0]) if lam[0] > 1e-15 * max(lam[1], 1e-300) else np.inf
+    two = n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
+    keep = np.arange(n)
+    corner = -1
+    if two:
+        k = corner_index(pts)
+        if n > config.max_cluster_points:
+            m0 = max(2, int(round(config.max_cluster_points * (k + 1) / (n + 1))))
+            m1 = max(2, config.max_cluster_points + 1 - m0)
+            keep = np.unique(np.concatenate([_even(0, k, m0), _even(k, n - 1, m1)]))
+        corner = int(np.searchsorted(keep, k))
+    elif n > config.max_cluster_points:
+        keep = _even(0, n - 1, config.max_cluster_points)
+    # lines and extents from all the points, before downsampling
+    los = centroid / max(float(np.hypot(*centroid)), 1e-12)
+    fallback = np.array([-los[1], los[0]])  # no extent: the line-of-sight normal
+    corner_full = int(keep[corner]) if two else -1
+    # slot 0: the whole cluster; slots 1, 2: before / after the corner (the corner point in both fits)
+    members = [pts, pts[: corner_full + 1], pts[corner_full:]] if two else [pts, pts, pts]
+    fits = [_line_fit(q, fallback) for q in members]
+    lo, hi = np.zeros(3), np.zeros(3)
+    for i, (q, (o, u)) in enumerate(zip(members, fits)):
+        a = (q - o) @ u
+        lo[i], hi[i] = a.min(), a.max()
+    if two:  # the corner: where the two fitted lines meet, if they meet near the corner point
+        x = _intersect(fits[1][0], fits[1][1], fits[2][0], fits[2][1])
+        if x is None or np.hypot(*(x - pts[corner_full])) > CORNER_MAX_SHIFT:
+            x = pts[corner_full]
+        hi[1] = (x - fits[1][0]) @ fits[1][1]
+        lo[2] = (x - fits[2][0]) @ fits[2][1]
+        hi[1], lo[2] = max(hi[1], lo[1]), min(lo[2], hi[2])
+    origin = np.stack([o for o, _ in fits])
+    direction = np.stack([u for _, u in fits])
+    starts = origin + lo[:, None] * direction
+    ends = origin + hi[:, None] * direction
+    length = hi - lo
+    pts, index = pts[keep], index[keep]
+    m = len(pts)
+    part = np.zeros(m, dtype=np.intp)
+    if two:
+        part[corner + 1:] = 1
+    proj = np.stack([
+        (pts - starts[0]) @ direction[0],
+        np.einsum("md,md->m", pts - starts[1 + part], direction[1 + part]),
+    ])
+    return Cluster(
+        points=pts, part=part, proj=proj, chord_start=starts, chord_end=ends, chord_dir=direction,
+        chord_len=length, two_sided=bool(two), corner=corner, eigen_ratio=ratio, velocity=velocity,
+        raw_count=n, dropped=dropped, order=index,
+    )
+
+
+@dataclass(frozen=True)
+class ClusterBatch:
+    """Clusters padded to a common size ``M`` for batched pairs: ``points (K, M, 2)``, ``valid (K, M)``,
+    ``part (K, M)``, ``proj (K, 2, M)``, ``chord_start``, ``chord_end``, ``chord_dir (K, 3, 2)``,
+    ``chord_len (K, 3)`` (slots as in ``Cluster``), ``two_sided``, ``single``, ``fused (K,)``,
+    ``velocity (K, 2)``, ``centroid (K, 2)``."""
+
+    points: np.ndarray
+    valid: np.ndarray
+    part: np.ndarray
+    proj: np.ndarray
+    chord_start: np.ndarray
+    chord_end: np.ndarray
+    chord_dir: np.ndarray
+    chord_len: np.ndarray
+    two_sided: np.ndarray
+    single: np.ndarray
+    fused: np.ndarray
+    velocity: np.ndarray
+    centroid: np.ndarray
+
+    @classmethod
+    def of(cls, clusters: list[Cluster]) -> ClusterBatch:
+        """Pack ``clusters`` (at least one)."""
+        if not clusters:
+            raise ValueError("ClusterBatch needs at least one cluster")
+        k, m = len(clusters), max(c.size for c in clusters)
+        points = np.zeros((k, m, 2))
+        valid = np.zeros((k, m), dtype=bool)
+        part = np.zeros((k, m), dtype=np.intp)
+        proj = np.zeros((k, 2, m))
+        for i, c in enumerate(clusters):
+            points[i, : c.size] = c.points
+            valid[i, : c.size] = True
+            part[i, : c.size] = c.part
+            proj[i, :, : c.size] = c.proj
+        chord_len = np.stack([c.chord_len for c in clusters])
+        return cls(
+            points=points, valid=valid, part=part, proj=proj,
+            chord_start=np.stack([c.chord_start for c in clusters]),
+            chord_end=np.stack([c.chord_end for c in clusters]),
+            chord_dir=np.stack([c.chord_dir for c in clusters]),
+            chord_len=chord_len,
+            two_sided=np.array([c.two_sided for c in clusters]),
+            single=chord_len[:, 0] <= MIN_CHORD,
+            fused=np.array([c.fused for c in clusters]),
+            velocity=np.stack([c.velocity if c.fused else np.zeros(2) for c in clusters]),
+            centroid=np.stack([c.points.mean(axis=0) for c in clusters]),
+        )
+
+
+# -- structure and prediction --------------------------------------------------------------------
+@dataclass(frozen=True)
+class Structure:
+    """Per (pair, point) recipe ``y = K[a] + c1 (K[b] - K[a]) + c2 unit(K[b] - K[a])`` (corner indices
+    ``a``, ``b`` (P, M); coefficients ``c1``, ``c2`` (P, M)), the point mask ``valid (P, M)``, per pair
+    ``two_sided``, ``sides (P, 2)`` (side of each part), ``mode (P, 2)``, ``radar (P,)`` (velocity rows
+    on), the stacked measurement ``z (P, D)``, its noise variances ``r (P, D)`` and row mask ``mask (P, D)``
+    with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c1: np.ndarray
+    c2: np.ndarray
+    valid: np.ndarray
+    two_sided: np.ndarray
+    sides: np.ndarray
+    mode: np.ndarray
+    radar: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+    mask: np.ndarray
+
+
+def build_structure(
+    batch: ClusterBatch,
+    cluster_index: np.ndarray,
+    mean_corners: np.ndarray,
+    config: MeasurementConfig,
+    use_radar: bool = True,
+) -> Structure:
+    """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
+    ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
+    as in the module docstring. Vectorised over pairs."""
+    ci = np.asarray(cluster_index, dtype=np.intp)
+    p_count = len(ci)
+    rows = np.arange(p_count)
+    nrm = side_normals(mean_corners)  # (P, 4, 2)
+    vis = visible_sides(mean_corners)  # (P, 4)
+    side_len = np.linalg.norm(np.roll(mean_corners, -1, axis=-2) - mean_corners, axis=-1)  # (P, 4)
+    cdir = batch.chord_dir[ci]  # (P, 3, 2)
+    normal_of_chord = np.stack([-cdir[..., 1], cdir[..., 0]], axis=-1)  # chord turned by +90 deg
+    score = np.einsum("pkd,pqd->pqk", nrm, normal_of_chord)  # (P, slot, side)
+    two = batch.two_sided[ci] & (vis.sum(axis=1) == 2)
+    single = batch.single[ci] & ~two
+    k_one = np.argmax(score[:, 0, :], axis=1)
+    j_two = np.argmax(score[:, 1, :] + np.roll(score[:, 2, :], 1, axis=1), axis=1)  # sides j and j - 1
+    # single point: the visible side of the mean rectangle nearest to the point
+    z0 = batch.points[ci, 0]  # (P, 2)
+    e = np.roll(mean_corners, -1, axis=-2) - mean_corners
+    t_seg = np.clip(np.einsum("pkd,pkd->pk", z0[:, None, :] - mean_corners, e) / np.maximum(side_len**2, 1e-12), 0, 1)
+    dist = np.linalg.norm(mean_corners + t_seg[..., None] * e - z0[:, None, :], axis=-1)
+    dist = np.where(vis, dist, np.inf)
+    k_single = np.where(vis.any(axis=1), np.argmin(dist, axis=1), k_one)
+    side0 = np.where(two, j_two, np.where(single, k_single, k_one))
+    sides = np.stack([side0, np.where(two, (j_two - 1) % 4, side0)], axis=1)  # (P, 2) side of each part
+    start_c, end_c = (sides + 1) % 4, sides  # side k is traversed from K_{k+1} to K_k
+    # chords of the two parts as this pair sees them: slots 1, 2 if two-sided, else slot 0 twice
+    slots = np.where(two[:, None], np.array([1, 2]), np.array([0, 0]))  # (P, 2)
+    chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
+    alpha = chord_len / np.maximum(side_len[rows[:, None], sides], 1e-12)
+    partial = alpha <= config.partial_visibility
+    # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
+    p_start = mean_corners[rows, start_c[:, 0]]
+    q_end = mean_corners[rows, end_c[:, 0]]
+    d_a = np.linalg.norm(batch.chord_start[ci, 0] - p_start, axis=-1)
+    d_b = np.linalg.norm(batch.chord_end[ci, 0] - q_end, axis=-1)
+    d_c = np.linalg.norm(batch.centroid[ci] - 0.5 * (p_start + q_end), axis=-1)
+    anchor = np.array([FROM_A, FROM_B, CENTRE])[np.argmin(np.stack([d_a, d_b, d_c], axis=1), axis=1)]
+    mode_one = np.where(single, FIXED, np.where(partial[:, 0], anchor, FULL))
+    mode = np.stack([
+        np.where(two, np.where(partial[:, 0], FROM_B, FULL), mode_one),  # first part: anchored at the corner
+        np.where(two, np.where(partial[:, 1], FROM_A, FULL), mode_one),  # second part: starts at the corner
+    ], axis=1)
+    # per point
+    valid = batch.valid[ci]
+    part = np.where(two[:, None], batch.part[ci], 0)  # (P, M)
+    proj = np.where(two[:, None], batch.proj[ci, 1], batch.proj[ci, 0])
+    mp = np.take_along_axis(mode, part, axis=1)
+    sc = np.take_along_axis(start_c, part, axis=1)
+    ec = np.take_along_axis(end_c, part, axis=1)
+    ln = np.take_along_axis(chord_len, part, axis=1)
+    frac = proj / np.maximum(ln, MIN_CHORD)
+    pts = batch.points[ci]
+    p_m = mean_corners[rows[:, None], sc]  # (P, M, 2)
+    pq = mean_corners[rows[:, None], ec] - p_m
+    fixed_frac = np.clip(
+        np.einsum("pmd,pmd->pm", pts - p_m, pq) / np.maximum(np.einsum("pmd,pmd->pm", pq, pq), 1e-12), 0.0, 1.0
+    )
+    a = np.where(mp == FROM_B, ec, sc)
+    b = np.where(mp == FROM_B, sc, ec)
+    c1 = np.select([mp == FULL, mp == CENTRE, mp == FIXED], [frac, np.full_like(frac, 0.5), fixed_frac], 0.0)
+    c2 = np.select([mp == FROM_A, mp == FROM_B, mp == CENTRE], [proj, ln - proj, proj - 0.5 * ln], 0.0)
+    c1, c2 = np.where(valid, c1, 0.0), np.where(valid, c2, 0.0)
+    # stacked measurement: x0, y0, x1, y1, ..., vx, vy
+    m = pts.shape[1]
+    radar = batch.fused[ci] & bool(use_radar)
+    mask = np.concatenate([np.repeat(valid, 2, axis=1), np.repeat(radar[:, None], 2, axis=1)], axis=1)
+    z = np.concatenate([pts.reshape(p_count, 2 * m), batch.velocity[ci]], axis=1)
+    r = np.concatenate(
+        [np.full((p_count, 2 * m), config.lidar_sigma**2), np.full((p_count, 2), config.radar_velocity_sigma**2)],
+        axis=1,
+    )
+    return Structure(a=a, b=b, c1=c1, c2=c2, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
+                     z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask)
+
+
+def predict_measurements(corners: np.ndarray, velocity: np.ndarray, structure: Structure) -> np.ndarray:
+    """Predicted measurements ``(P, S, D)`` of pairs from sigma-point rectangles ``corners (P, S, 4, 2)``
+    and velocities in E ``velocity (P, S, 2)``: the generating points of ``structure`` stacked, then the
+    radar rows (zero where masked)."""
+    p_count, s_count = corners.shape[:2]
+    m = structure.a.shape[1]
+    ia = np.broadcast_to(structure.a[:, None, :, None], (p_count, s_count, m, 2))
+    ib = np.broadcast_to(structure.b[:, None, :, None], (p_count, s_count, m, 2))
+    ka = np.take_along_axis(corners, ia, axis=2)
+    kb = np.take_along_axis(corners, ib, axis=2)
+    d = kb - ka
+    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+    y = ka + structure.c1[:, None, :, None] * d + structure.c2[:, None, :, None] * u
+    y = np.where(structure.valid[:, None, :, None], y, 0.0).reshape(p_count, s_count, 2 * m)
+    vel = np.where(structure.radar[:, None, None], velocity, 0.0)
+    return np.concatenate([y, vel], axis=2)
+
+
+def generating_points(
+    state: np.ndarray,
+    cluster: Cluster,
+    ego: EgoState | tuple,
+    road: Road | None = None,
+    config: MeasurementConfig | None = None,
+    coordinates: Coordinates = "curvilinear",
+) -> np.ndarray:
+    """The measurement generating points ``(M, 2)`` in E of one state ``(7,)`` for ``cluster`` (the
+    state is its own predicted mean), in the cluster's point order. For inspection and tests."""
+    config = config if config is not None else MeasurementConfig()
+    rect = to_vehicle(np.asarray(state, dtype=float)[None], ego, road, coordinates)
+    corners = rect.corners()  # (1, 4, 2)
+    st = build_structure(ClusterBatch.of([cluster]), np.zeros(1, dtype=int), corners, config, use_radar=False)
+    y = predict_measurements(corners[:, None], rect.velocity()[:, None], st)
+    return y[0, 0, : 2 * cluster.size].reshape(-1, 2)

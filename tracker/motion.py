@@ -1,0 +1,219 @@
+"""Motion models of a target, vectorised over any leading axes (sigma points, components).
+
+Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``process_noise(mean, dt)``,
+``wrapping``), so the UKF prediction ``predict`` is the same for all:
+
+- ``FrenetMotion`` (default): the exact Frenet kinematics of a rigid body moving at speed ``v`` with
+  heading ``psi = theta(s) + xi`` along a road of curvature ``kappa(s)``::
+
+      s' = v cos(xi) / (1 - kappa(s) n),   n' = v sin(xi),   v' = 0,   xi' = xi_dot,   xi_dot' = 0
+
+  integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps, evaluating the road's
+  ``kappa(s)`` at every stage. Lane keeping is ``xi = xi_dot = 0``: ``n`` stays constant exactly.
+  ``1 - kappa n`` is floored at ``MotionConfig.min_denominator`` (only a point beyond the centre of
+  curvature reaches it).
+- ``PaperMotion``: the paper's constant turn in ``(s, n)``, which treats the road frame as flat::
+
+      s += 2 v / xi_dot sin(xi_dot dt / 2) cos(xi + xi_dot dt / 2),   n += ... sin(xi + xi_dot dt / 2)
+
+  written as ``v dt sinc(xi_dot dt / 2) cos(...)`` so ``xi_dot -> 0`` needs no division. On a curve it
+  advances ``s`` at ``v`` instead of ``v / (1 - kappa n)``: off the centerline it drifts along the lane.
+- ``CartesianMotion``: the constant-turn model of the Cartesian state ``[x, y, v, psi, psi_dot, L, W]``
+  in G (the same closed form with ``x, y, psi``; exact for a constant turn).
+
+``L`` and ``W`` are constant in all three. The additive process noise (``process_noise``) is the same
+construction in both coordinate systems (see ``process_noise``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
+from tracker.road import Road
+from tracker.ukf import UnscentedTransform, Wrapping
+
+# state indices (curvilinear names; the Cartesian state uses the same slots for x, y, psi, psi_dot)
+S, N, V, XI, XI_DOT, LENGTH, WIDTH = range(7)
+
+
+def curvilinear_wrapping(road: Road) -> Wrapping:
+    """Wrapped coordinates of the curvilinear state: ``xi`` always, ``s`` on a closed road."""
+    return Wrapping(angles=(XI,), periods=((S, road.length),) if road.closed else ())
+
+
+CARTESIAN_WRAPPING = Wrapping(angles=(XI,))
+
+
+def _check_dt(dt: float) -> float:
+    dt = float(dt)
+    if not math.isfinite(dt) or dt < 0:
+        raise ValueError(f"dt must be a finite time step >= 0 s; got {dt!r}")
+    return dt
+
+
+def _constant_turn(x: np.ndarray, dt: float) -> np.ndarray:
+    """Closed-form constant turn on slots (0, 1, 2, 3, 4) = (position a, position b, v, heading, rate)."""
+    out = np.array(x, dtype=float, copy=True)
+    v, h, w = x[..., V], x[..., XI], x[..., XI_DOT]
+    half = 0.5 * w * dt
+    chord = v * dt * np.sinc(half / np.pi)  # 2 v / w sin(w dt / 2), finite as w -> 0
+    out[..., S] += chord * np.cos(h + half)
+    out[..., N] += chord * np.sin(h + half)
+    out[..., XI] = h + w * dt
+    return out
+
+
+def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarray:
+    """Process noise covariance ``Q (..., 7, 7)`` over ``dt`` (s) about ``mean (..., 7)``.
+
+    With ``u = (cos h, sin h)`` the direction of motion in the position slots (``h = xi`` in road
+    coordinates, ``psi`` in Cartesian ones; the road metric ``1 - kappa n`` is ignored here) and ``u_perp``
+    its left normal::
+
+        Q[pos, pos] = accel^2 dt^3/3 u u^T + (along^2 u u^T + lateral^2 u_perp u_perp^T) dt
+        Q[pos, v]   = accel^2 dt^2/2 u,              Q[v, v] = accel^2 dt
+        Q[h, h]     = yaw_accel^2 dt^3/3 + heading^2 dt,  Q[h, h_dot] = yaw_accel^2 dt^2/2,
+        Q[h_dot, h_dot] = yaw_accel^2 dt,   Q[L, L] = length^2 dt,   Q[W, W] = width^2 dt
+
+    i.e. white acceleration and yaw acceleration integrated exactly over the step, plus direct random
+    walks. Units follow ``ProcessNoise``.
+    """
+    dt = _check_dt(dt)
+    mean = np.asarray(mean, dtype=float)
+    c, s = np.cos(mean[..., XI]), np.sin(mean[..., XI])
+    q = np.zeros(mean.shape[:-1] + (7, 7))
+    a2, y2 = noise.accel**2, noise.yaw_accel**2
+    d1, d2, d3 = dt, dt * dt / 2.0, dt**3 / 3.0
+    uu = np.stack([np.stack([c * c, c * s], -1), np.stack([c * s, s * s], -1)], -2)
+    pp = np.stack([np.stack([s * s, -c * s], -1), np.stack([-c * s, c * c], -1)], -2)
+    q[..., :2, :2] = (a2 * d3 + noise.along**2 * d1) * uu + noise.lateral**2 * d1 * pp
+    q[..., 0, V] = q[..., V, 0] = a2 * d2 * c
+    q[..., 1, V] = q[..., V, 1] = a2 * d2 * s
+    q[..., V, V] = a2 * d1
+    q[..., XI, XI] = y2 * d3 + noise.heading**2 * d1
+    q[..., XI, XI_DOT] = q[..., XI_DOT, XI] = y2 * d2
+    q[..., XI_DOT, XI_DOT] = y2 * d1
+    q[..., LENGTH, LENGTH] = noise.length**2 * d1
+    q[..., WIDTH, WIDTH] = noise.width**2 * d1
+    return q
+
+
+class MotionModel(Protocol):
+    """What ``predict`` needs from a motion model."""
+
+    wrapping: Wrapping
+    noise: ProcessNoise
+
+    def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """States ``x (..., 7)`` moved forward by ``dt`` seconds."""
+        ...
+
+    def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
+        """Additive noise covariance ``(..., 7, 7)`` over ``dt``."""
+        ...
+
+
+class FrenetMotion:
+    """Exact Frenet kinematics on ``road`` (see the module docstring), RK4 with sub-steps of at most
+    ``config.max_step`` seconds."""
+
+    def __init__(self, road: Road, config: MotionConfig | None = None, noise: ProcessNoise | None = None) -> None:
+        self.road = road
+        self.config = config if config is not None else MotionConfig()
+        self.noise = noise if noise is not None else ProcessNoise()
+        self.wrapping = curvilinear_wrapping(road)
+
+    def derivative(self, x: np.ndarray) -> np.ndarray:
+        """``dx/dt`` of states ``x (..., 7)``: ``[v cos xi / (1 - kappa n), v sin xi, 0, xi_dot, 0, 0, 0]``."""
+        kappa = self.road.curvature(x[..., S], extrapolate=True)
+        denom = np.maximum(1.0 - kappa * x[..., N], self.config.min_denominator)
+        d = np.zeros_like(x)
+        d[..., S] = x[..., V] * np.cos(x[..., XI]) / denom
+        d[..., N] = x[..., V] * np.sin(x[..., XI])
+        d[..., XI] = x[..., XI_DOT]
+        return d
+
+    def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """RK4 integration of ``derivative`` over ``dt`` seconds; ``s`` wrapped on a closed road and
+        ``xi`` to (-pi, pi]."""
+        dt = _check_dt(dt)
+        x = np.array(x, dtype=float, copy=True)
+        if dt == 0.0:
+            return x
+        steps = max(1, int(math.ceil(dt / self.config.max_step - 1e-9)))
+        h = dt / steps
+        for _ in range(steps):
+            k1 = self.derivative(x)
+            k2 = self.derivative(x + 0.5 * h * k1)
+            k3 = self.derivative(x + 0.5 * h * k2)
+            k4 = self.derivative(x + h * k3)
+            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        return self.wrapping.wrap(x)
+
+    def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
+        """See ``process_noise``."""
+        return process_noise(mean, dt, self.noise)
+
+
+class PaperMotion:
+    """The paper's flat constant-turn model in ``(s, n)`` (module docstring); ``road`` only sets the
+    wrapping of ``s`` on a closed road."""
+
+    def __init__(self, road: Road, noise: ProcessNoise | None = None) -> None:
+        self.road = road
+        self.noise = noise if noise is not None else ProcessNoise()
+        self.wrapping = curvilinear_wrapping(road)
+
+    def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """Closed-form constant turn in ``(s, n, xi)`` over ``dt`` seconds."""
+        return self.wrapping.wrap(_constant_turn(np.asarray(x, dtype=float), _check_dt(dt)))
+
+    def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
+        """See ``process_noise``."""
+        return process_noise(mean, dt, self.noise)
+
+
+class CartesianMotion:
+    """Constant turn of the Cartesian state ``[x, y, v, psi, psi_dot, L, W]`` in G::
+
+        x += 2 v / psi_dot sin(psi_dot dt / 2) cos(psi + psi_dot dt / 2),  y += ... sin(...),  psi += psi_dot dt
+    """
+
+    def __init__(self, noise: ProcessNoise | None = None) -> None:
+        self.noise = noise if noise is not None else ProcessNoise()
+        self.wrapping = CARTESIAN_WRAPPING
+
+    def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
+        """Closed-form constant turn over ``dt`` seconds; ``psi`` wrapped to (-pi, pi]."""
+        return self.wrapping.wrap(_constant_turn(np.asarray(x, dtype=float), _check_dt(dt)))
+
+    def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
+        """See ``process_noise``."""
+        return process_noise(mean, dt, self.noise)
+
+
+def make_motion(config: TrackerConfig, road: Road) -> FrenetMotion | PaperMotion | CartesianMotion:
+    """The motion model a ``TrackerConfig`` asks for: Cartesian constant turn for a Cartesian state,
+    else ``FrenetMotion`` (``motion.model = "frenet"``) or ``PaperMotion`` (``"paper"``)."""
+    if config.coordinates == "cartesian":
+        return CartesianMotion(config.process_noise)
+    if config.motion.model == "paper":
+        return PaperMotion(road, config.process_noise)
+    return FrenetMotion(road, config.motion, config.process_noise)
+
+
+def predict(
+    ut: UnscentedTransform, model: MotionModel, mean: np.ndarray, cov: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """UKF prediction of Gaussians ``mean (..., 7)``, ``cov (..., 7, 7)`` over ``dt`` seconds:
+    ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals)."""
+    pts = ut.sigma_points(mean, cov, model.wrapping)
+    moved = model.propagate(pts, dt)
+    m = ut.mean(moved, model.wrapping)
+    dev = ut.deviations(moved, m, model.wrapping)
+    p = ut.covariance(dev) + model.process_noise(m, dt)
+    return m, 0.5 * (p + np.swapaxes(p, -1, -2))

@@ -1,0 +1,179 @@
+"""The unscented transform, vectorised over a batch of Gaussians, with angle- and period-aware maths.
+
+Sigma points (Wan & van der Merwe scaling, ``n`` = state dimension, ``lambda = alpha^2 (n + kappa) - n``)::
+
+    X_0 = m,   X_i = m + sqrt(n + lambda) * col_i(chol(P)),   X_{n+i} = m - sqrt(n + lambda) * col_i(chol(P))
+    Wm_0 = lambda / (n + lambda),  Wc_0 = Wm_0 + 1 - alpha^2 + beta,  Wm_i = Wc_i = 1 / (2 (n + lambda))
+
+Every array carries leading batch axes: ``mean (..., n)``, ``cov (..., n, n)`` give sigma points
+``(..., 2n + 1, n)``. Wrapped coordinates (``Wrapping``): angles (the heading ``xi`` or ``psi``) live in
+(-pi, pi] and the arc length ``s`` of a closed road in [0, length). Their means are taken about the
+central sigma point, ``m = X_0 + sum_i Wm_i wrap(X_i - X_0)``, and their residuals are wrapped, so a
+spread across the +-pi cut (or across ``s = 0``) averages correctly.
+
+A covariance that is not numerically positive definite (a failed Cholesky factorisation) is repaired:
+symmetrised and its eigenvalues lifted to ``UKFParams.min_eigenvalue``; ``UnscentedTransform.repairs``
+counts the repaired matrices.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from tracker.angles import wrap_angle
+from tracker.config import STATE_DIM, UKFParams
+
+
+@dataclass(frozen=True)
+class Wrapping:
+    """Which coordinates of a vector wrap: ``angles`` (indices, wrapped to (-pi, pi]) and ``periods``
+    (``(index, period)`` pairs, wrapped to ``[0, period)``, e.g. ``s`` on a closed road)."""
+
+    angles: tuple[int, ...] = ()
+    periods: tuple[tuple[int, float], ...] = ()
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing wraps."""
+        return not self.angles and not self.periods
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        """Differences ``x`` with wrapped coordinates brought to the shortest representative
+        (angles to (-pi, pi], periodic ``d`` to ``[-P/2, P/2)``). Returns a new array."""
+        out = np.array(x, dtype=float, copy=True)
+        for i in self.angles:
+            out[..., i] = wrap_angle(out[..., i])
+        for i, period in self.periods:
+            out[..., i] -= period * np.floor(out[..., i] / period + 0.5)
+        return out
+
+    def wrap(self, x: np.ndarray) -> np.ndarray:
+        """Values ``x`` with wrapped coordinates brought into their range. Returns a new array."""
+        out = np.array(x, dtype=float, copy=True)
+        for i in self.angles:
+            out[..., i] = wrap_angle(out[..., i])
+        for i, period in self.periods:
+            out[..., i] = np.mod(out[..., i], period)
+        return out
+
+
+NO_WRAP = Wrapping()
+
+
+def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
+    """``cov`` (..., n, n) symmetrised, with the matrices whose smallest eigenvalue is below ``floor``
+    repaired by lifting their eigenvalues to ``floor`` (units of ``cov``). Returns the matrices and how
+    many were repaired."""
+    sym = 0.5 * (cov + np.swapaxes(cov, -1, -2))
+    flat = sym.reshape((-1,) + sym.shape[-2:])
+    vals, vecs = np.linalg.eigh(flat)
+    bad = vals[:, 0] < floor
+    count = int(bad.sum())
+    if count:
+        fixed_vals = np.maximum(vals[bad], floor)
+        flat = flat.copy()
+        flat[bad] = np.einsum("bij,bj,bkj->bik", vecs[bad], fixed_vals, vecs[bad])
+    return flat.reshape(sym.shape), count
+
+
+class UnscentedTransform:
+    """Sigma points and weights for an ``n``-dimensional state (default 7) with ``UKFParams``.
+
+    ``repairs`` counts covariances repaired before a Cholesky factorisation (see ``make_spd``).
+    All methods take leading batch axes.
+    """
+
+    def __init__(self, params: UKFParams | None = None, n: int = STATE_DIM) -> None:
+        self.params = params if params is not None else UKFParams()
+        if n < 1:
+            raise ValueError(f"state dimension n must be >= 1; got {n}")
+        self.n = n
+        a, b, k = self.params.alpha, self.params.beta, self.params.kappa
+        lam = a * a * (n + k) - n
+        if n + lam <= 0:
+            raise ValueError(f"UKF: n + lambda = {n + lam!r} must be > 0 for n = {n}; raise alpha or kappa")
+        self.scale = float(np.sqrt(n + lam))
+        self.wm = np.full(2 * n + 1, 0.5 / (n + lam))
+        self.wc = self.wm.copy()
+        self.wm[0] = lam / (n + lam)
+        self.wc[0] = self.wm[0] + 1.0 - a * a + b
+        if self.wc[0] < 0:
+            raise ValueError(f"UKF: central covariance weight Wc0 = {self.wc[0]!r} < 0; use alpha near 1")
+        self.repairs = 0
+
+    @property
+    def num_sigma(self) -> int:
+        """Number of sigma points, ``2n + 1``."""
+        return 2 * self.n + 1
+
+    def cholesky(self, cov: np.ndarray) -> np.ndarray:
+        """Lower Cholesky factors of ``cov`` (..., n, n); non-SPD matrices are repaired and counted."""
+        cov = np.asarray(cov, dtype=float)
+        try:
+            return np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            fixed, count = make_spd(cov, self.params.min_eigenvalue)
+            self.repairs += max(count, 1)
+            try:
+                return np.linalg.cholesky(fixed)
+            except np.linalg.LinAlgError:  # eigenvalues at the floor but rounding defeats Cholesky
+                bump = 10.0 * self.params.min_eigenvalue * np.eye(cov.shape[-1])
+                return np.linalg.cholesky(fixed + bump)
+
+    def sigma_points(self, mean: np.ndarray, cov: np.ndarray, wrapping: Wrapping = NO_WRAP) -> np.ndarray:
+        """Sigma points ``(..., 2n + 1, n)`` of ``N(mean (..., n), cov (..., n, n))``; wrapped
+        coordinates of the result are brought into range."""
+        mean = np.asarray(mean, dtype=float)
+        cov = np.asarray(cov, dtype=float)
+        if mean.shape[-1] != self.n or cov.shape[-2:] != (self.n, self.n) or cov.shape[:-2] != mean.shape[:-1]:
+            raise ValueError(
+                f"sigma_points needs mean (..., {self.n}) and cov (..., {self.n}, {self.n}) with equal batch "
+                f"shapes; got mean {mean.shape} and cov {cov.shape}"
+            )
+        if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
+            raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
+        chol = self.cholesky(cov)
+        spread = self.scale * np.swapaxes(chol, -1, -2)  # rows = scaled columns of chol
+        pts = np.concatenate([mean[..., None, :], mean[..., None, :] + spread, mean[..., None, :] - spread], axis=-2)
+        return pts if wrapping.empty else wrapping.wrap(pts)
+
+    def mean(self, points: np.ndarray, wrapping: Wrapping = NO_WRAP) -> np.ndarray:
+        """Weighted mean ``sum_i Wm_i X_i`` of points ``(..., 2n + 1, d)``; wrapped coordinates are
+        averaged as residuals about the central point ``X_0``."""
+        if wrapping.empty:
+            return np.einsum("i,...id->...d", self.wm, points)
+        ref = points[..., 0, :]
+        dev = wrapping.residual(points - ref[..., None, :])
+        return wrapping.wrap(ref + np.einsum("i,...id->...d", self.wm, dev))
+
+    def deviations(self, points: np.ndarray, mean: np.ndarray, wrapping: Wrapping = NO_WRAP) -> np.ndarray:
+        """Residuals ``X_i - m`` ``(..., 2n + 1, d)`` (wrapped coordinates wrapped)."""
+        dev = points - mean[..., None, :]
+        return dev if wrapping.empty else wrapping.residual(dev)
+
+    def covariance(self, dev_a: np.ndarray, dev_b: np.ndarray | None = None) -> np.ndarray:
+        """``sum_i Wc_i a_i b_i^T`` for deviations ``(..., 2n + 1, da)`` and ``(..., 2n + 1, db)``."""
+        dev_b = dev_a if dev_b is None else dev_b
+        return np.einsum("i,...ia,...ib->...ab", self.wc, dev_a, dev_b)
+
+    def transform(
+        self,
+        fn: Callable[[np.ndarray], np.ndarray],
+        mean: np.ndarray,
+        cov: np.ndarray,
+        wrapping_in: Wrapping = NO_WRAP,
+        wrapping_out: Wrapping = NO_WRAP,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unscented transform of ``N(mean, cov)`` through ``fn`` (maps ``(..., 2n+1, n)`` sigma points
+        to ``(..., 2n+1, d)``). Returns the mean ``(..., d)``, the covariance ``(..., d, d)`` and the
+        cross covariance ``(..., n, d)`` between input and output."""
+        pts = self.sigma_points(mean, cov, wrapping_in)
+        out = np.asarray(fn(pts), dtype=float)
+        m_out = self.mean(out, wrapping_out)
+        dev_out = self.deviations(out, m_out, wrapping_out)
+        dev_in = self.deviations(pts, np.asarray(mean, dtype=float), wrapping_in)
+        cov_out = self.covariance(dev_out)
+        return m_out, 0.5 * (cov_out + np.swapaxes(cov_out, -1, -2)), self.covariance(dev_in, dev_out)
