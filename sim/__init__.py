@@ -2,3 +2,7 @@
 
 ``sim`` imports ``tracker``; ``tracker`` never imports ``sim``.
 """
+
+from sim.scenario import ScenarioError, ScenarioSpec, load_scenario, load_suite
+
+__all__ = ["ScenarioError", "ScenarioSpec", "load_scenario", "load_suite"]

@@ -37,6 +37,46 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scenarios(args: argparse.Namespace) -> int:
+    """List the suites and the scenario files of a folder (name and one-line description)."""
+    from pathlib import Path
+
+    from sim.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
+
+    folder = Path(args.dir) if args.dir else SCENARIO_DIR
+    if not folder.is_dir():
+        print(f"eot scenarios: no such folder {folder}", file=sys.stderr)
+        return 1
+    files = sorted(folder.glob("*.toml"))
+    suites = [p for p in files if is_suite_file(p)]
+    status = 0
+    for path in suites:
+        try:
+            suite = load_suite(path)
+        except ScenarioError as exc:
+            print(f"suite {path.name}: INVALID: {exc}")
+            status = 1
+            continue
+        members = ", ".join(p.stem for p in suite.paths)
+        print(f"suite {suite.name} ({path.name}): {suite.description}\n  {members}")
+    if suites:
+        print()
+    rows = []
+    for path in files:
+        if path in suites:
+            continue
+        try:
+            spec = load_scenario(path)
+            rows.append((spec.name, spec.description))
+        except ScenarioError as exc:
+            rows.append((path.stem, f"INVALID: {exc}"))
+            status = 1
+    width = max((len(name) for name, _ in rows), default=0)
+    for name, description in rows:
+        print(f"{name:<{width}}  {description}")
+    return status
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``eot`` with one sub-parser per subcommand."""
     parser = argparse.ArgumentParser(
@@ -49,10 +89,12 @@ def build_parser() -> argparse.ArgumentParser:
         ("run", "run one scenario"),
         ("montecarlo", "Monte Carlo study over seeds"),
         ("compare", "the paper's comparison study and report"),
-        ("scenarios", "list the scenario files"),
     ]:
         p = sub.add_parser(name, help=help_text)
         p.set_defaults(func=_not_built(name))
+    p = sub.add_parser("scenarios", help="list the scenario suites and files (name and description)")
+    p.add_argument("--dir", help="folder of scenario files (default: the repository's scenarios/)")
+    p.set_defaults(func=_scenarios)
     from sim.benchmarks import targets
 
     bench = sub.add_parser("bench", help="micro-benchmarks (speed, never asserted in tests)")

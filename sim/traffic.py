@@ -136,10 +136,22 @@ class _FrenetCar:
         """After a step: project the new position (warm start from the previous ``s``), set the lane."""
         self._locate(self.frenet_s)
 
+    # -- the hot path, in plain Python (the same equations as highway-env's numpy code) --------
+    def _move(self, dt: float) -> None:
+        """highway-env's ``Vehicle.step``: kinematic bicycle model with the held action, then the
+        state update; speed is kept >= 0. (No collision impulses: see the module notes.)"""
+        self.clip_actions()  # type: ignore[attr-defined]
+        beta = math.atan(0.5 * math.tan(self.action["steering"]))  # type: ignore[attr-defined]
+        speed, heading = self.speed, self.heading  # type: ignore[attr-defined]
+        position = self.position  # type: ignore[attr-defined]
+        position[0] += speed * math.cos(heading + beta) * dt
+        position[1] += speed * math.sin(heading + beta) * dt
+        self.heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
+        self.speed = max(speed + self.action["acceleration"] * dt, 0.0)  # type: ignore[attr-defined]
+        self.on_state_update()
+
     def step(self, dt: float) -> None:
-        super().step(dt)  # type: ignore[misc]
-        if self.speed < 0.0:
-            self.speed = 0.0
+        self._move(dt)
 
     def lane_distance_to(self, other: Any, lane: Any = None) -> float:
         """Signed distance along the road (m) from this vehicle's centre to ``other``'s (wrapped)."""
@@ -149,27 +161,77 @@ class _FrenetCar:
 
     def desired_gap(self, ego_vehicle: Any, front_vehicle: Any = None, projected: bool = True) -> float:
         """IDM desired centre distance (m): jam gap between bumpers + half lengths + time gap term."""
-        tau = self.TIME_WANTED  # type: ignore[attr-defined]
-        ab = -self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN  # type: ignore[attr-defined]
-        dv = (
-            float(np.dot(ego_vehicle.velocity - front_vehicle.velocity, ego_vehicle.direction))
-            if projected
-            else ego_vehicle.speed - front_vehicle.speed
-        )
+        ab = -IDMVehicle.COMFORT_ACC_MAX * IDMVehicle.COMFORT_ACC_MIN
+        if projected:  # (v_ego - v_front) . direction_ego
+            dv = ego_vehicle.speed - front_vehicle.speed * math.cos(front_vehicle.heading - ego_vehicle.heading)
+        else:
+            dv = ego_vehicle.speed - front_vehicle.speed
         d0 = JAM_GAP + 0.5 * (ego_vehicle.LENGTH + front_vehicle.LENGTH)
-        return d0 + ego_vehicle.speed * tau + ego_vehicle.speed * dv / (2.0 * math.sqrt(ab))
+        return d0 + ego_vehicle.speed * IDMVehicle.TIME_WANTED + ego_vehicle.speed * dv / (2.0 * math.sqrt(ab))
+
+    def acceleration(self, ego_vehicle: Any, front_vehicle: Any = None, rear_vehicle: Any = None) -> float:
+        """IDM acceleration (m/s^2) of ``ego_vehicle`` behind ``front_vehicle`` (highway-env's model;
+        our lanes have no speed limit)."""
+        if not ego_vehicle:
+            return 0.0
+        target = getattr(ego_vehicle, "target_speed", 0.0)
+        acc = IDMVehicle.COMFORT_ACC_MAX * (1.0 - (max(ego_vehicle.speed, 0.0) / abs(utils.not_zero(target))) ** IDMVehicle.DELTA)
+        if front_vehicle:
+            d = ego_vehicle.lane_distance_to(front_vehicle)
+            acc -= IDMVehicle.COMFORT_ACC_MAX * (self.desired_gap(ego_vehicle, front_vehicle) / utils.not_zero(d)) ** 2
+        return acc
+
+    def lateral_reference(self) -> tuple[float, float]:
+        """Reference lateral offset from the target lane centre (m) and its rate (m/s): 0, 0."""
+        return 0.0, 0.0
+
+    def steering_control(self, target_lane_index: tuple) -> float:
+        """highway-env's cascaded lateral controller (lateral position -> lateral speed -> heading ->
+        steering), tracking ``lateral_reference()`` with its rate as feed-forward."""
+        target_lane = self.road.network.get_lane(target_lane_index)
+        s, lateral = target_lane.local_coordinates(self.position)  # type: ignore[attr-defined]
+        reference, reference_rate = self.lateral_reference()
+        speed = utils.not_zero(self.speed)  # type: ignore[attr-defined]
+        lateral_speed_command = reference_rate - ControlledVehicle.KP_LATERAL * (lateral - reference)
+        heading_command = math.asin(min(max(lateral_speed_command / speed, -1.0), 1.0))
+        future = s + self.speed * ControlledVehicle.TAU_PURSUIT  # type: ignore[attr-defined]
+        heading_ref = target_lane.heading_at(future) + min(max(heading_command, -math.pi / 4), math.pi / 4)
+        heading_rate_command = ControlledVehicle.KP_HEADING * utils.wrap_to_pi(heading_ref - self.heading)  # type: ignore[attr-defined]
+        slip = math.asin(min(max(self.LENGTH / 2 / speed * heading_rate_command, -1.0), 1.0))
+        steering = math.atan(2.0 * math.tan(slip))
+        limit = ControlledVehicle.MAX_STEERING_ANGLE
+        return float(min(max(steering, -limit), limit))
 
 
 class IDMCar(_FrenetCar, IDMVehicle):
     """highway-env ``IDMVehicle`` on our road (behaviour ``idm``)."""
 
+    def act(self, action: Any = None) -> None:
+        """``IDMVehicle.act`` without numpy scalars: MOBIL (when on), lane keeping, IDM in the current
+        lane and, while changing lanes, also in the target lane (the smaller acceleration wins)."""
+        self.follow_road()
+        if self.enable_lane_change:
+            self.change_lane_policy()
+        steering = self.steering_control(self.target_lane_index)
+        front, rear = self.road.neighbour_vehicles(self, self.lane_index)
+        acc = self.acceleration(ego_vehicle=self, front_vehicle=front, rear_vehicle=rear)
+        if self.lane_index != self.target_lane_index:
+            front, rear = self.road.neighbour_vehicles(self, self.target_lane_index)
+            acc = min(acc, self.acceleration(ego_vehicle=self, front_vehicle=front, rear_vehicle=rear))
+        self.action = {"steering": steering, "acceleration": min(max(acc, -self.ACC_MAX), self.ACC_MAX)}
+
+    def step(self, dt: float) -> None:
+        self.timer += dt
+        self._move(dt)
+
 
 class ConstantCar(_FrenetCar, ControlledVehicle):
     """Keeps its lane at constant speed, ignoring other vehicles (behaviour ``constant``)."""
 
-    TIME_WANTED = IDMVehicle.TIME_WANTED
-    COMFORT_ACC_MAX = IDMVehicle.COMFORT_ACC_MAX
-    COMFORT_ACC_MIN = IDMVehicle.COMFORT_ACC_MIN
+    def act(self, action: Any = None) -> None:
+        """Lane keeping (highway-env's controller) and no acceleration."""
+        self.follow_road()
+        self.action = {"steering": self.steering_control(self.target_lane_index), "acceleration": 0.0}
 
 
 def _smoothstep(u: float) -> tuple[float, float]:
@@ -181,10 +243,12 @@ def _smoothstep(u: float) -> tuple[float, float]:
     return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)), 30.0 * u * u * (1.0 - u) ** 2
 
 
-class ScriptedCar(_FrenetCar, IDMVehicle):
+class ScriptedCar(IDMCar):
     """An ``IDMVehicle`` without MOBIL that follows timed maneuvers (behaviour ``scripted``).
 
-    ``maneuvers`` run when ``road.time`` reaches their ``t``: ``LaneChange`` sets
+    ``maneuvers`` run in order when ``road.time`` reaches their ``t`` (a lane change also waits
+    for a running lane change to finish, and with ``wait_for_gap`` for a gap; later maneuvers wait
+    behind it): ``LaneChange`` sets
     ``target_lane_index`` and steers along a quintic lateral profile from the current offset to the
     target lane centre over ``duration`` s (feed-forward lateral speed + highway-env's cascaded
     lateral/heading controller); ``SpeedChange``/``Brake`` set ``target_speed`` and the rate limit.
@@ -209,6 +273,8 @@ class ScriptedCar(_FrenetCar, IDMVehicle):
         while self._next < len(self.maneuvers) and self.maneuvers[self._next].t <= now:
             m = self.maneuvers[self._next]
             if isinstance(m, LaneChange):
+                if self._profile is not None and self.road.time < self._profile[0] + self._profile[1] - 1e-9:
+                    return  # one lane change at a time: wait for the running one to finish
                 if m.wait_for_gap and not self.gap_is_clear(m.lane):
                     return  # try again next step; later maneuvers wait behind this one
                 target = lane_index(m.lane)
@@ -244,34 +310,23 @@ class ScriptedCar(_FrenetCar, IDMVehicle):
             return False
         return True
 
-    def steering_control(self, target_lane_index: tuple) -> float:
-        """highway-env's cascaded lateral controller, tracking the lane-change profile when one runs."""
-        target_lane = self.road.network.get_lane(target_lane_index)
-        s, lateral = target_lane.local_coordinates(self.position)
-        reference = reference_rate = 0.0
-        if self._profile is not None:
-            t0, duration, lat0 = self._profile
-            u = (self.road.time - t0) / duration
-            if u >= 1.0:
-                self._profile = None
-            else:
-                p, dp = _smoothstep(u)
-                reference = lat0 * (1.0 - p)
-                reference_rate = -lat0 * dp / duration
-        speed = utils.not_zero(self.speed)
-        lateral_speed_command = reference_rate - self.KP_LATERAL * (lateral - reference)
-        heading_command = math.asin(min(max(lateral_speed_command / speed, -1.0), 1.0))
-        heading_ref = target_lane.heading_at(s + self.speed * self.TAU_PURSUIT) + min(max(heading_command, -math.pi / 4), math.pi / 4)
-        heading_rate_command = self.KP_HEADING * utils.wrap_to_pi(heading_ref - self.heading)
-        slip = math.asin(min(max(self.LENGTH / 2 / speed * heading_rate_command, -1.0), 1.0))
-        steering = math.atan(2.0 * math.tan(slip))
-        return float(min(max(steering, -self.MAX_STEERING_ANGLE), self.MAX_STEERING_ANGLE))
+    def lateral_reference(self) -> tuple[float, float]:
+        """The lane-change profile: offset from the target lane centre (m) and its rate (m/s)."""
+        if self._profile is None:
+            return 0.0, 0.0
+        t0, duration, lat0 = self._profile
+        u = (self.road.time - t0) / duration
+        if u >= 1.0:
+            self._profile = None
+            return 0.0, 0.0
+        p, dp = _smoothstep(u)
+        return lat0 * (1.0 - p), -lat0 * dp / duration
 
     def acceleration(self, ego_vehicle: Any, front_vehicle: Any = None, rear_vehicle: Any = None) -> float:
         """For itself: rate-limited tracking of ``target_speed`` plus IDM's interaction term with the
         vehicle ahead; for another vehicle (MOBIL's what-ifs): plain IDM."""
         if ego_vehicle is not self:
-            return super().acceleration(ego_vehicle, front_vehicle, rear_vehicle)
+            return _FrenetCar.acceleration(self, ego_vehicle, front_vehicle, rear_vehicle)
         free = self.KP_A * (self.target_speed - self.speed)
         acc = min(max(free, -self.decel_limit), self.accel_limit)
         if front_vehicle:
