@@ -1,0 +1,132 @@
+"""Tests of sim/generator.py: valid, varied, reproducible random scenarios."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim import ScenarioSpec, load_scenario
+from sim.generator import MIN_BUMPER_GAP, realize
+from sim.scenario import LaneChange, ScenarioError, parse_scenario
+from sim.world import World
+
+SEEDS = range(50)
+
+
+@pytest.fixture(scope="module")
+def random_road() -> ScenarioSpec:
+    return load_scenario("random-road")
+
+
+@pytest.fixture(scope="module")
+def drawn(random_road: ScenarioSpec) -> list[ScenarioSpec]:
+    return [realize(random_road, seed) for seed in SEEDS]
+
+
+def test_fifty_seeds_give_valid_concrete_scenarios(random_road: ScenarioSpec, drawn: list[ScenarioSpec]) -> None:
+    gen = random_road.generator
+    assert gen is not None
+    for seed, spec in zip(SEEDS, drawn):
+        assert spec.concrete and spec.name == f"random-road-seed{seed}"
+        assert spec.duration == random_road.duration
+        # the plain-data form validates again (so the spec is what a file with that content gives)
+        again = parse_scenario(spec.model_dump(exclude_none=True))
+        assert again.model_dump() == spec.model_dump()
+        road = spec.build_road()
+        kappa = np.abs(road.curvature(np.linspace(0.0, road.length, 3000)))
+        assert kappa.max() <= 1.0 / gen.radius[0] + 1e-9
+        assert gen.lanes[0] <= spec.road.lanes <= gen.lanes[1]
+        assert len(spec.vehicles) <= gen.vehicles[1]
+        for v in spec.vehicles:
+            assert gen.speed[0] <= v.speed <= gen.speed[1]
+            assert gen.length[0] <= v.length <= gen.length[1] and gen.width[0] <= v.width <= gen.width[1]
+            assert gen.spawn[0] - 1e-6 <= v.s - spec.ego.s <= gen.spawn[1] + 1e-6
+            for m in v.maneuvers:
+                assert m.t < spec.duration
+                if isinstance(m, LaneChange):
+                    assert m.wait_for_gap
+        # same-lane neighbours keep MIN_BUMPER_GAP between bumpers
+        cars = [spec.ego, *spec.vehicles]
+        for i, a in enumerate(cars):
+            for b in cars[i + 1 :]:
+                if a.lane == b.lane:
+                    assert abs(a.s - b.s) >= 0.5 * (a.length + b.length) + MIN_BUMPER_GAP - 1e-3
+
+
+def test_the_seeds_are_varied(drawn: list[ScenarioSpec]) -> None:
+    lengths = {round(s.build_road().length, 3) for s in drawn}
+    assert len(lengths) == len(drawn)  # every seed draws a different road
+    assert {s.road.lanes for s in drawn} == {2, 3}
+    counts = [len(s.vehicles) for s in drawn]
+    assert min(counts) <= 4 and max(counts) == 8
+    behaviours = {v.behaviour for s in drawn for v in s.vehicles}
+    assert behaviours == {"idm", "scripted"}
+    kinds = {type(m).__name__ for s in drawn for v in s.vehicles for m in v.maneuvers}
+    assert kinds == {"LaneChange", "SpeedChange"}
+    signs = {np.sign(seg[1]) for s in drawn for seg in s.road.segments if seg[1] == seg[2] and seg[1] != 0}
+    assert signs == {-1.0, 1.0}  # left and right bends
+    headings = [s.road.start[2] for s in drawn]
+    assert np.std(headings) > 1.0
+
+
+def test_same_seed_same_scenario(random_road: ScenarioSpec, drawn: list[ScenarioSpec]) -> None:
+    assert realize(random_road, 3).model_dump() == drawn[3].model_dump()
+    assert realize(random_road, 4).model_dump() != drawn[3].model_dump()
+
+
+def test_a_few_drawn_scenarios_run_cleanly(drawn: list[ScenarioSpec]) -> None:
+    for spec in drawn[:4]:
+        world = World(spec)
+        for t in np.arange(0.5, 5.01, 0.5):
+            snap = world.truth_at(float(t))
+            assert np.all(world.road.on_road(snap.xy))
+        assert world.collisions == []
+
+
+def test_world_realizes_a_generator_spec(random_road: ScenarioSpec, drawn: list[ScenarioSpec]) -> None:
+    world = World(random_road, seed=5)
+    assert world.spec.model_dump() == drawn[5].model_dump()
+
+
+def test_fixed_road_random_traffic(tmp_path: Path) -> None:
+    path = tmp_path / "traffic.toml"
+    path.write_text(
+        'name = "t"\ndescription = "d"\nduration = 10.0\n'
+        "[road]\nlanes = 3\nsegments = [[800.0, 0.0, 0.0]]\n"
+        "[generator]\nvehicles = [5, 5]\n"
+    )
+    spec = load_scenario(path)
+    a, b = realize(spec, 0), realize(spec, 1)
+    assert a.road == spec.road == b.road
+    assert [v.s for v in a.vehicles] != [v.s for v in b.vehicles]
+
+
+def test_fixed_traffic_random_road(tmp_path: Path) -> None:
+    path = tmp_path / "road.toml"
+    path.write_text(
+        'name = "r"\ndescription = "d"\nduration = 10.0\n'
+        "[ego]\nlane = 0\ns = 30.0\nspeed = 20.0\n"
+        "[[vehicles]]\nlane = 1\ns = 50.0\nspeed = 20.0\n"
+        "[generator]\nlanes = [2, 2]\n"
+    )
+    spec = load_scenario(path)
+    a = realize(spec, 0)
+    assert a.ego == spec.ego and a.vehicles == spec.vehicles
+    assert a.road.segments != realize(spec, 1).road.segments
+
+
+def test_generator_errors(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text('name = "b"\ndescription = "d"\nduration = 10.0\n[generator]\nspeed = [30.0, 10.0]\n')
+    with pytest.raises(ScenarioError, match=r"bad.toml: generator.speed = \[30.0, 10.0\]: low must be <= high"):
+        load_scenario(path)
+    path.write_text('name = "b"\ndescription = "d"\nduration = 10.0\n[generator]\nradius = [10.0, 50.0]\n')
+    with pytest.raises(ScenarioError, match=r"generator.radius .* radii must be >= 20.0 m"):
+        load_scenario(path)
+    path.write_text('name = "b"\ndescription = "d"\nduration = 10.0\n[generator]\nvehicle = [1, 2]\n')
+    with pytest.raises(ScenarioError, match=r"generator.vehicle = \[1, 2\]: unknown key; allowed keys here: .*vehicles"):
+        load_scenario(path)
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        realize(load_scenario("random-road"), -1)

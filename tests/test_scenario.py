@@ -1,0 +1,275 @@
+"""Tests of sim/scenario.py: the shipped scenarios and suite, and clear errors for malformed files."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim import ScenarioSpec, load_scenario
+from sim.cli import main
+from sim.scenario import SCENARIO_DIR, ScenarioError, apply_overrides, load_suite, parse_scenario
+
+STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
+
+GOOD = """
+name = "tiny"
+description = "two cars on a bend"
+duration = 5.0
+
+[road]
+lanes = 2
+lane_width = 3.5
+segments = [[100.0, 0.0, 0.0], [50.0, 0.0, 0.01], [200.0, 0.01, 0.01]]
+
+[ego]
+lane = 0
+s = 30.0
+speed = 15.0
+
+[[vehicles]]
+lane = 1
+s = 60.0
+speed = 16.0
+behaviour = "scripted"
+maneuvers = [{ t = 1.0, kind = "lane_change", lane = 0, duration = 3.0 }]
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "case.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def load_error(tmp_path: Path, text: str) -> str:
+    path = write(tmp_path, text)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    message = str(info.value)
+    assert str(path) in message, f"the error must name the file: {message}"
+    return message
+
+
+# -- the shipped files ---------------------------------------------------------------------------
+@pytest.mark.parametrize("name", STANDARD)
+def test_shipped_scenarios_load(name: str) -> None:
+    spec = load_scenario(name)
+    assert isinstance(spec, ScenarioSpec)
+    assert spec.name == name
+    assert spec.source == SCENARIO_DIR / f"{name}.toml"
+    assert spec.description and "\n" not in spec.description
+    assert spec.concrete and spec.road is not None and spec.ego is not None
+
+
+def test_standard_suite_lists_the_seven_scenarios() -> None:
+    suite = load_suite(SCENARIO_DIR / "standard.toml")
+    assert suite.name == "standard"
+    assert [p.stem for p in suite.paths] == STANDARD
+    assert [s.name for s in suite.load()] == STANDARD
+
+
+def test_scenario_requirements_of_the_issue() -> None:
+    curvy = load_scenario("curvy-multi")
+    kappa = np.abs(curvy.build_road().curvature(np.linspace(0, curvy.build_road().length, 2000)))
+    assert 1 / kappa.max() == pytest.approx(60.0, rel=0.01)  # radius down to ~60 m
+    assert len(curvy.vehicles) == 5
+    dense = load_scenario("dense-highway")
+    assert len(dense.vehicles) >= 15 and dense.road.lanes == 3
+    assert load_scenario("circuit").build_road().closed
+    chicane = load_scenario("chicane-follow")
+    assert len(chicane.vehicles) == 1 and chicane.vehicles[0].speed == 18.0
+    assert len(load_scenario("curve-single").vehicles) == 1
+
+
+def test_eot_scenarios_lists_every_file(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out
+    for name in STANDARD:
+        spec = load_scenario(name)
+        assert f"{name}  " in out and spec.description in out
+    assert "suite standard" in out
+
+
+# -- a good file and its defaults ----------------------------------------------------------------
+def test_defaults_and_types(tmp_path: Path) -> None:
+    spec = load_scenario(write(tmp_path, GOOD))
+    ego, car = spec.ego, spec.vehicles[0]
+    assert (ego.behaviour, ego.length, ego.width, ego.mobil) == ("idm", 4.8, 2.0, False)
+    assert car.mobil is False and car.cruise_speed == 16.0
+    assert car.maneuvers[0].duration == 3.0 and car.maneuvers[0].wait_for_gap is False
+    assert spec.road.closed is False and spec.build_road().length == pytest.approx(350.0)
+    assert spec.build_road() is spec.build_road()  # built once
+
+
+def test_waypoint_road(tmp_path: Path) -> None:
+    text = GOOD.replace(
+        "segments = [[100.0, 0.0, 0.0], [50.0, 0.0, 0.01], [200.0, 0.01, 0.01]]",
+        "waypoints = [[0, 0], [100, 0], [200, 20], [300, 60]]",
+    )
+    spec = load_scenario(write(tmp_path, text))
+    assert spec.build_road().length > 300.0
+
+
+# -- malformed files -----------------------------------------------------------------------------
+def test_missing_field(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("duration = 5.0\n", ""))
+    assert "duration" in message and "missing" in message
+
+
+def test_missing_vehicle_field(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("speed = 16.0\n", ""))
+    assert "vehicles[0].speed" in message and "missing" in message
+
+
+def test_wrong_type(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("speed = 15.0", 'speed = "fast"'))
+    assert "ego.speed" in message and "'fast'" in message and "valid number" in message
+
+
+def test_wrong_type_bool_for_int(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("lanes = 2", "lanes = true"))
+    assert "road.lanes" in message and "True" in message and "integer" in message
+
+
+def test_unknown_key_lists_the_allowed_ones(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("speed = 16.0", "speed = 16.0\nspead = 3.0"))
+    assert "vehicles[0].spead" in message and "unknown key" in message
+    assert "behaviour" in message and "maneuvers" in message  # the allowed keys are listed
+
+
+def test_unknown_key_in_maneuver(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("duration = 3.0 }", "duration = 3.0, lanes = 1 }"))
+    assert "vehicles[0].maneuvers[0].lanes" in message and "unknown key" in message and "wait_for_gap" in message
+
+
+def test_unknown_top_level_key(tmp_path: Path) -> None:
+    message = load_error(tmp_path, "seed = 3\n" + GOOD)
+    assert "seed" in message and "unknown key" in message and "generator" in message
+
+
+def test_lane_out_of_range(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("lane = 1\ns = 60.0", "lane = 2\ns = 60.0"))
+    assert "vehicles[0].lane = 2" in message and "lanes 0..1" in message
+
+
+def test_maneuver_lane_out_of_range(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace('kind = "lane_change", lane = 0', 'kind = "lane_change", lane = 5'))
+    assert "vehicles[0].maneuvers[0].lane = 5" in message and "lanes 0..1" in message
+
+
+def test_vehicles_overlapping_at_start(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("lane = 1\ns = 60.0", "lane = 0\ns = 33.0"))
+    assert "vehicles[0].s = 33.0" in message and "overlaps ego" in message
+
+
+def test_start_clearance_is_half_a_metre(tmp_path: Path) -> None:
+    # side by side in adjacent lanes is fine; nose to tail needs 0.5 m between bumpers (4.8 m cars)
+    load_scenario(write(tmp_path, GOOD.replace("lane = 1\ns = 60.0", "lane = 1\ns = 30.0"), "side.toml"))
+    load_scenario(write(tmp_path, GOOD.replace("lane = 1\ns = 60.0", "lane = 0\ns = 35.35"), "gap.toml"))
+    message = load_error(tmp_path, GOOD.replace("lane = 1\ns = 60.0", "lane = 0\ns = 35.25"))
+    assert "vehicles[0].s = 35.25" in message and "0.5 m" in message
+
+
+def test_bad_maneuver_kind(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace('kind = "lane_change"', 'kind = "teleport"'))
+    assert "vehicles[0].maneuvers[0]" in message and "lane_change" in message and "teleport" in message
+
+
+def test_maneuvers_need_scripted(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace('behaviour = "scripted"', 'behaviour = "idm"'))
+    assert "scripted" in message
+
+
+def test_bad_behaviour(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace('behaviour = "scripted"', 'behaviour = "aggressive"'))
+    assert "vehicles[0].behaviour = 'aggressive'" in message and "'idm'" in message
+
+
+def test_maneuver_after_the_end(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("t = 1.0", "t = 9.0"))
+    assert "maneuvers[0].t = 9.0" in message and "duration" in message
+
+
+def test_negative_speed(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("speed = 15.0", "speed = -1.0"))
+    assert "ego.speed = -1.0" in message and "greater than or equal to 0" in message
+
+
+def test_off_the_road(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("s = 60.0", "s = 400.0"))
+    assert "vehicles[0].s = 400.0" in message and "open road" in message
+
+
+def test_ego_would_run_off_the_end(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("duration = 5.0", "duration = 30.0"))
+    assert "duration = 30.0" in message and "end of this open road" in message
+
+
+def test_road_needs_one_description(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("lane_width = 3.5", "lane_width = 3.5\nwaypoints = [[0, 0], [10, 0]]"))
+    assert "exactly one of" in message
+
+
+def test_too_tight_curvature(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("[50.0, 0.0, 0.01]", "[50.0, 0.0, 0.2]"))
+    assert "road.segments[1]" in message and "0.2" in message and "radius" in message
+
+
+def test_closed_road_that_does_not_close(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("lane_width = 3.5", "lane_width = 3.5\nclosed = true"))
+    assert "road" in message and "does not close" in message
+
+
+def test_toml_syntax_error(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("duration = 5.0", "duration = = 5.0"))
+    assert "not valid TOML" in message
+
+
+def test_several_problems_are_all_reported(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GOOD.replace("speed = 15.0", 'speed = "x"').replace("lanes = 2", "lanes = 0"))
+    assert "2 problems" in message and "ego.speed" in message and "road.lanes" in message
+
+
+def test_missing_file() -> None:
+    with pytest.raises(ScenarioError, match="no such scenario file"):
+        load_scenario("no-such-scenario")
+
+
+def test_suite_with_missing_member(tmp_path: Path) -> None:
+    path = write(tmp_path, 'name = "s"\ndescription = "d"\nscenarios = ["nope.toml"]\n', "suite.toml")
+    with pytest.raises(ScenarioError, match=r"scenarios\[0\] = 'nope.toml'"):
+        load_suite(path)
+
+
+def test_parse_scenario_names_where() -> None:
+    with pytest.raises(ScenarioError, match="^<here>: .*duration"):
+        parse_scenario({"name": "x", "description": "y"}, "<here>")
+
+
+# -- overrides ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Inner:
+    rate: float = 1.0
+
+
+@dataclass(frozen=True)
+class _Config:
+    noise: float = 0.1
+    inner: _Inner = _Inner()
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.noise, float) and math.isfinite(self.noise) and self.noise >= 0):
+            raise ValueError(f"noise must be >= 0; got {self.noise!r}")
+
+
+def test_apply_overrides() -> None:
+    cfg = apply_overrides(_Config(), {"noise": 0.5, "inner": {"rate": 2.0}}, "f.toml: sensors")
+    assert cfg == _Config(0.5, _Inner(2.0))
+    with pytest.raises(ScenarioError, match=r"f.toml: sensors.nois = 0.5: unknown key; allowed keys here: inner, noise"):
+        apply_overrides(_Config(), {"nois": 0.5}, "f.toml: sensors")
+    with pytest.raises(ScenarioError, match="noise must be >= 0"):
+        apply_overrides(_Config(), {"noise": -1.0}, "f.toml: sensors")
