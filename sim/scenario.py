@@ -51,6 +51,7 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
 
+from sim.truth import rectangle_corners
 from tracker import Road
 
 StrictFloat = Annotated[float, Strict()]
@@ -414,8 +415,6 @@ class ScenarioSpec(_Model):
         n = np.array([road.lane_center(v.lane) for _, v in items])
         xy = road.to_cartesian(s, n)
         yaw = road.heading(s)
-        from sim.truth import rectangle_corners
-
         corners = rectangle_corners(
             xy, yaw, np.array([v.length for _, v in items]) + START_CLEARANCE, np.array([v.width for _, v in items]) + START_CLEARANCE
         )

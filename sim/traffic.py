@@ -27,7 +27,6 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
 from highway_env import utils
 from highway_env.road.road import Road as HighwayRoad
 from highway_env.road.road import RoadNetwork
