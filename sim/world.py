@@ -13,8 +13,11 @@ nothing), and the same scenario + seed gives bit-identical truth.
 Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped); ``v`` speed (m/s);
 ``yaw_rate`` (rad/s) of the bicycle model over the current step; ``length``, ``width`` (m); ``s``, ``n``
 (``Road.to_frenet`` of the centre, warm-started); ``xi = yaw - theta(s)`` (wrapped) and
-``xi_dot = yaw_rate - kappa(s) * s_dot`` with ``s_dot = v cos(xi + beta) / (1 - kappa n)`` (``beta`` the
-model's slip angle; the centre moves along ``yaw + beta``).
+``xi_dot = yaw_rate - kappa(s) * s_dot`` with ``s_dot = v cos(xi + beta) / (1 - kappa n)``.
+``yaw`` is the body heading (the rectangle's orientation); highway-env's bicycle model moves the
+centre along ``yaw + beta``, ``beta = atan(tan(steering) / 2)`` the slip angle, so a car keeping its
+lane on a steady curve has ``xi ~ -beta ~ -L kappa / 2`` (-0.04 rad for a 4.8 m car at R 60 m),
+while ``Snapshot.velocity`` (speed along ``yaw``) differs from the centre's true velocity by ``beta``.
 
 Open roads: a vehicle whose centre passes the end (``s > length``) leaves the world (its id no longer
 appears; ``removed`` records when). The ego never leaves: validation rejects scenarios where it could
