@@ -118,7 +118,7 @@ class FrenetLane(AbstractLane):
 
     def heading_at(self, longitudinal: float) -> float:
         """Lane heading (rad) at arc length ``longitudinal`` (that of the centerline: lanes are parallel)."""
-        _, _, c, sn, _ = self.road._frame1(float(longitudinal))  # scalar fast path of tracker.Road
+        _, _, c, sn, _ = self.road.frame1(float(longitudinal))  # scalar fast path of tracker.Road
         return math.atan2(sn, c)
 
     def width_at(self, longitudinal: float) -> float:

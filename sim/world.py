@@ -193,7 +193,7 @@ class World:
             s, n = self.road.to_frenet((x, y), s_hint=v.frenet_s)  # type: ignore[attr-defined]
         else:
             s, n = v.frenet_s, v.frenet_n  # type: ignore[attr-defined]
-        _, _, c, sn, kappa = self.road._frame1(float(s))  # scalar fast path of tracker.Road
+        _, _, c, sn, kappa = self.road.frame1(float(s))  # scalar fast path of tracker.Road
         theta = math.atan2(sn, c)
         yaw = float(wrap_angle(heading))
         xi = float(wrap_angle(heading - theta))

@@ -280,8 +280,12 @@ class Road:
         """Centerline curvature kappa(s), 1/m, positive when the road turns left."""
         return self.frame(s, extrapolate=extrapolate)[2]
 
-    def _frame1(self, s: float) -> tuple[float, float, float, float, float]:
-        """One point, pure Python: ``(x, y, cos theta, sin theta, kappa)``; open ends extrapolate."""
+    def frame1(self, s: float) -> tuple[float, float, float, float, float]:
+        """The frame at one ``s`` (m) as plain floats: ``(x, y, cos theta, sin theta, kappa)``.
+
+        The pure-Python fast path for single queries (no numpy overhead, ~2-5 us); wraps on closed
+        roads and extrapolates open ends along the end tangents (no range check: callers that need
+        one use ``frame``)."""
         if self.closed:
             return self._curve.frame1(s % self.length)
         if s < 0.0:
@@ -318,7 +322,7 @@ class Road:
         if method == "exact" and isinstance(s, (float, int)) and isinstance(n, (float, int)):
             sf, nf = float(s), float(n)
             if math.isfinite(sf) and math.isfinite(nf) and (self.closed or extrapolate or 0.0 <= sf <= self.length):
-                x, y, c, sn, _ = self._frame1(sf)
+                x, y, c, sn, _ = self.frame1(sf)
                 return np.array([x - nf * sn, y + nf * c])
         s_arr = _as_float_array(s, "s")
         n_arr = _as_float_array(n, "n")
@@ -337,7 +341,7 @@ class Road:
         if method != "exact":
             raise ValueError(f"method must be 'exact' or 'euler'; got {method!r}")
         if s_arr.ndim == 0 and (self.closed or extrapolate or 0.0 <= s_arr <= self.length):
-            x, y, c, sn, _ = self._frame1(float(s_arr))
+            x, y, c, sn, _ = self.frame1(float(s_arr))
             nv = float(n_arr)
             return np.array([x - nv * sn, y + nv * c])
         xy, tangent, _ = self._frame_flat(s_arr.reshape(-1), extrapolate)
@@ -496,7 +500,7 @@ class Road:
             s = hint
         length = self.length
         for _ in range(PROJECTION_MAX_ITERATIONS):
-            px, py, c, sn, kappa = self._frame1(s)
+            px, py, c, sn, kappa = self.frame1(s)
             dx, dy = x - px, y - py
             along = dx * c + dy * sn
             lateral = dy * c - dx * sn
