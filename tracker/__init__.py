@@ -3,7 +3,9 @@
 numpy + scipy only; never imports ``sim``. A user with real data needs only this package.
 """
 
+from tracker.config import TrackerConfig
 from tracker.frame import EgoState, Frame, RadarDetections
 from tracker.road import Road
+from tracker.track import Track
 
-__all__ = ["EgoState", "Frame", "RadarDetections", "Road"]
+__all__ = ["EgoState", "Frame", "RadarDetections", "Road", "Track", "TrackerConfig"]

@@ -75,10 +75,10 @@ class ProcessNoise:
     see ``tracker.motion.process_noise``.
     """
 
-    accel: float = 1.5
-    yaw_accel: float = 0.3
-    along: float = 0.05
-    lateral: float = 0.1
+    accel: float = 0.5
+    yaw_accel: float = 0.2
+    along: float = 0.02
+    lateral: float = 0.05
     heading: float = 0.01
     length: float = 0.02
     width: float = 0.01
@@ -171,6 +171,12 @@ class MeasurementConfig:
       The update's cost is linear in the points (see ``tracker.update``); the bound mainly limits the
       weight a single cluster gets when the points are not independent, as the model assumes.
     - ``min_points_two_sided``: fewest points for which the two-sided model (corner split) is tried.
+    - ``end_gap_correction``: a scanning lidar's extreme return on a side lies somewhere within one ray
+      gap of the side's free end, on average half a gap inside. With the correction the generating
+      points span the measured extent plus half the expected gap at each free end (the gap from the
+      ray geometry: ``r^2 db / d`` for range ``r``, bearing step ``db``, line distance ``d``), which
+      removes the length bias of sparse (far or grazing) sides. Without it (MATLAB's model) the extreme
+      points are taken to be the corners themselves.
     """
 
     lidar_sigma: float = 0.1
@@ -179,6 +185,7 @@ class MeasurementConfig:
     partial_visibility: float = 0.6
     max_cluster_points: int = 60
     min_points_two_sided: int = 4
+    end_gap_correction: bool = True
 
     def __post_init__(self) -> None:
         _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
@@ -188,6 +195,8 @@ class MeasurementConfig:
         _check("MeasurementConfig", "partial_visibility", self.partial_visibility, low=0.0, high=1.0)
         _check_int("MeasurementConfig", "max_cluster_points", self.max_cluster_points, 3)
         _check_int("MeasurementConfig", "min_points_two_sided", self.min_points_two_sided, 3)
+        if not isinstance(self.end_gap_correction, bool):
+            raise ValueError(f"MeasurementConfig.end_gap_correction must be true or false; got {self.end_gap_correction!r}")
 
 
 @dataclass(frozen=True)

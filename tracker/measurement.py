@@ -70,6 +70,9 @@ MIN_CHORD = 1e-6
 #: corner point itself.
 CORNER_MIN_ANGLE = np.radians(30.0)
 CORNER_MAX_SHIFT = 0.5
+#: Largest end gap (m) the end-gap correction assumes (a side seen at a grazing angle can have metres
+#: between rays; beyond this the correction is capped).
+MAX_END_GAP = 2.0
 
 # structure modes of a part
 FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)
@@ -184,7 +187,9 @@ class Cluster:
     ``chord_end (3, 2)`` (first and last point of each). ``part (M,)`` 0 or 1 (1: after the corner);
     ``proj (2, M)`` metres along the chord from its start: row 0 on the whole-cluster chord, row 1 on the
     point's part chord. ``two_sided`` is the data's verdict; ``corner`` the index of the corner point in
-    ``points`` (-1 if one-sided); ``eigen_ratio``; ``velocity (2,)`` the radar's absolute velocity in E
+    ``points`` (-1 if one-sided); ``eigen_ratio``; ``end_margin (3, 2)`` per slot, the distance (m)
+    assumed between the chord's start / end and the side's corner (half the expected gap between rays
+    at a free end, 0 at the corner of a split; all 0 without ``end_gap_correction``); ``velocity (2,)`` the radar's absolute velocity in E
     (m/s) or ``None``; ``raw_count`` points before downsampling; ``dropped`` non-finite points removed;
     ``order`` the input index of each kept point.
     """
@@ -199,6 +204,7 @@ class Cluster:
     two_sided: bool
     corner: int
     eigen_ratio: float
+    end_margin: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
     velocity: np.ndarray | None = None
     raw_count: int = 0
     dropped: int = 0
@@ -339,6 +345,18 @@ def prepare_cluster(
     starts = origin + lo[:, None] * direction
     ends = origin + hi[:, None] * direction
     length = hi - lo
+    margin = np.zeros((3, 2))
+    if config.end_gap_correction and n >= 2:
+        # half the gap between rays at each free end: along a line at distance d from the sensor a
+        # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
+        db = float(np.median(np.diff(np.sort(rel))))
+        for i in range(3):
+            d = abs(float(origin[i, 0] * direction[i, 1] - origin[i, 1] * direction[i, 0]))
+            for j, end in enumerate((starts[i], ends[i])):
+                if two and (i, j) in ((1, 1), (2, 0)):
+                    continue  # the corner of a split is observed
+                gap = float(end @ end) * db / max(d, 1e-3)
+                margin[i, j] = 0.5 * min(gap, MAX_END_GAP, length[i])
     pts, index = pts[keep], index[keep]
     m = len(pts)
     part = np.zeros(m, dtype=np.intp)
@@ -350,7 +368,7 @@ def prepare_cluster(
     ])
     return Cluster(
         points=pts, part=part, proj=proj, chord_start=starts, chord_end=ends, chord_dir=direction,
-        chord_len=length, two_sided=bool(two), corner=corner, eigen_ratio=ratio, velocity=velocity,
+        chord_len=length, two_sided=bool(two), corner=corner, eigen_ratio=ratio, end_margin=margin, velocity=velocity,
         raw_count=n, dropped=dropped, order=index,
     )
 
@@ -359,7 +377,7 @@ def prepare_cluster(
 class ClusterBatch:
     """Clusters padded to a common size ``M`` for batched pairs: ``points (K, M, 2)``, ``valid (K, M)``,
     ``part (K, M)``, ``proj (K, 2, M)``, ``chord_start``, ``chord_end``, ``chord_dir (K, 3, 2)``,
-    ``chord_len (K, 3)`` (slots as in ``Cluster``), ``two_sided``, ``single``, ``fused (K,)``,
+    ``chord_len (K, 3)``, ``end_margin (K, 3, 2)`` (slots as in ``Cluster``), ``two_sided``, ``single``, ``fused (K,)``,
     ``velocity (K, 2)``, ``centroid (K, 2)``."""
 
     points: np.ndarray
@@ -370,6 +388,7 @@ class ClusterBatch:
     chord_end: np.ndarray
     chord_dir: np.ndarray
     chord_len: np.ndarray
+    end_margin: np.ndarray
     two_sided: np.ndarray
     single: np.ndarray
     fused: np.ndarray
@@ -398,6 +417,7 @@ class ClusterBatch:
             chord_end=np.stack([c.chord_end for c in clusters]),
             chord_dir=np.stack([c.chord_dir for c in clusters]),
             chord_len=chord_len,
+            end_margin=np.stack([c.end_margin for c in clusters]),
             two_sided=np.array([c.two_sided for c in clusters]),
             single=chord_len[:, 0] <= MIN_CHORD,
             fused=np.array([c.fused for c in clusters]),
@@ -413,7 +433,8 @@ class Structure:
     ``a``, ``b`` (P, M); coefficients ``c1``, ``c2`` (P, M)), the point mask ``valid (P, M)``, per pair
     ``two_sided``, ``sides (P, 2)`` (side of each part), ``mode (P, 2)``, ``radar (P,)`` (velocity rows
     on), the stacked measurement ``z (P, D)``, its noise variances ``r (P, D)`` and row mask ``mask (P, D)``
-    with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``)."""
+    with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``), and ``factors (P, 2, D)``:
+    the end-gap uncertainty as low-rank noise, ``R = diag(r) + sum_e f_e f_e^T`` (module docstring)."""
 
     a: np.ndarray
     b: np.ndarray
@@ -427,6 +448,7 @@ class Structure:
     z: np.ndarray
     r: np.ndarray
     mask: np.ndarray
+    factors: np.ndarray
 
 
 def build_structure(
@@ -465,7 +487,9 @@ def build_structure(
     # chords of the two parts as this pair sees them: slots 1, 2 if two-sided, else slot 0 twice
     slots = np.where(two[:, None], np.array([1, 2]), np.array([0, 0]))  # (P, 2)
     chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
-    alpha = chord_len / np.maximum(side_len[rows[:, None], sides], 1e-12)
+    margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
+    covered = chord_len + margin.sum(axis=2)
+    alpha = covered / np.maximum(side_len[rows[:, None], sides], 1e-12)
     partial = alpha <= config.partial_visibility
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
@@ -487,7 +511,9 @@ def build_structure(
     sc = np.take_along_axis(start_c, part, axis=1)
     ec = np.take_along_axis(end_c, part, axis=1)
     ln = np.take_along_axis(chord_len, part, axis=1)
-    frac = proj / np.maximum(ln, MIN_CHORD)
+    e_lo = np.take_along_axis(margin[..., 0], part, axis=1)
+    e_hi = np.take_along_axis(margin[..., 1], part, axis=1)
+    frac = (proj + e_lo) / np.maximum(ln + e_lo + e_hi, MIN_CHORD)
     pts = batch.points[ci]
     p_m = mean_corners[rows[:, None], sc]  # (P, M, 2)
     pq = mean_corners[rows[:, None], ec] - p_m
@@ -497,8 +523,25 @@ def build_structure(
     a = np.where(mp == FROM_B, ec, sc)
     b = np.where(mp == FROM_B, sc, ec)
     c1 = np.select([mp == FULL, mp == CENTRE, mp == FIXED], [frac, np.full_like(frac, 0.5), fixed_frac], 0.0)
-    c2 = np.select([mp == FROM_A, mp == FROM_B, mp == CENTRE], [proj, ln - proj, proj - 0.5 * ln], 0.0)
+    c2 = np.select(
+        [mp == FROM_A, mp == FROM_B, mp == CENTRE],
+        [proj + e_lo, ln - proj + e_hi, proj - 0.5 * ln + 0.5 * (e_lo - e_hi)],
+        0.0,
+    )
     c1, c2 = np.where(valid, c1, 0.0), np.where(valid, c2, 0.0)
+    # end-gap noise: the free ends' unknown offsets eps ~ U(-e, e) (var e^2 / 3) move the points along
+    # their side by k_lo eps_lo + k_hi eps_hi, with (k_lo, k_hi) = (1 - t, -t) spread over a fully
+    # visible side, (1, 0) / (0, -1) anchored at the start / end, (1/2, -1/2) centred, (0, 0) fixed
+    t = np.where(mp == FULL, c1, 0.0)
+    k_lo = np.select([mp == FULL, mp == FROM_A, mp == CENTRE], [1.0 - t, np.ones_like(t), np.full_like(t, 0.5)], 0.0)
+    k_hi = np.select([mp == FULL, mp == FROM_B, mp == CENTRE], [-t, -np.ones_like(t), np.full_like(t, -0.5)], 0.0)
+    unit = pq / np.maximum(np.linalg.norm(pq, axis=-1, keepdims=True), 1e-12)  # (P, M, 2) side direction P -> Q
+    last_part = np.where(two, 1, 0)[:, None]
+    std_lo = np.where(part == 0, e_lo, 0.0) / np.sqrt(3.0)  # the first part's free start
+    std_hi = np.where(part == last_part, e_hi, 0.0) / np.sqrt(3.0)  # the last part's free end
+    f_lo = np.where(valid[..., None], (k_lo * std_lo)[..., None] * unit, 0.0).reshape(p_count, -1)
+    f_hi = np.where(valid[..., None], (k_hi * std_hi)[..., None] * unit, 0.0).reshape(p_count, -1)
+    factors = np.stack([f_lo, f_hi], axis=1)  # (P, 2, 2M)
     # stacked measurement: x0, y0, x1, y1, ..., vx, vy
     m = pts.shape[1]
     radar = batch.fused[ci] & bool(use_radar)
@@ -508,8 +551,9 @@ def build_structure(
         [np.full((p_count, 2 * m), config.lidar_sigma**2), np.full((p_count, 2), config.radar_velocity_sigma**2)],
         axis=1,
     )
+    factors = np.concatenate([factors, np.zeros((p_count, 2, 2))], axis=2)  # no end noise on radar rows
     return Structure(a=a, b=b, c1=c1, c2=c2, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
-                     z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask)
+                     z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors)
 
 
 def predict_measurements(corners: np.ndarray, velocity: np.ndarray, structure: Structure) -> np.ndarray:

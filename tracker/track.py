@@ -16,7 +16,7 @@ import numpy as np
 
 from tracker.angles import wrap_angle
 from tracker.road import Road
-from tracker.ukf import NO_WRAP, UnscentedTransform, Wrapping
+from tracker.ukf import UnscentedTransform, Wrapping
 
 #: Floor of ``1 - kappa n`` in the yaw-rate conversion (a point at the centre of curvature has no
 #: well-defined ``s_dot``).
@@ -139,4 +139,4 @@ class Track:
         return cls(label, t, m, c, weight)
 
 
-__all__ = ["Track", "curvilinear_to_cartesian", "cartesian_to_curvilinear", "NO_WRAP"]
+__all__ = ["Track", "curvilinear_to_cartesian", "cartesian_to_curvilinear"]

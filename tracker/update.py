@@ -7,12 +7,14 @@ sigma points ``Z_i = h(X_i)`` (``tracker.measurement``, ``D`` rows, ``R = diag(r
     K = T S^-1,   m+ = m + K (z - y),   P+ = P - K S K^T = P - T S^-1 T^T
     log N(z; y, S) = -1/2 (D log 2 pi + log det S + (z - y)^T S^-1 (z - y))
 
-(the paper's equations Update_eq2..7). ``S`` is ``D x D`` with ``D = 2 |C| (+ 2 radar rows)`` but has
+(the paper's equations Update_eq2..7). The measurement noise may carry low-rank terms,
+``R = diag(r) + F^T F`` (the rectangle model's end-gap uncertainty, ``tracker.measurement``). ``S`` is ``D x D`` with ``D = 2 |C| (+ 2 radar rows)`` but has
 rank ``2n + 1 = 15`` above ``R``: with ``A = R^-1/2 [sqrt(Wc_i) (Z_i - y)]`` (``D x 15``, all ``Wc_i >= 0``,
 which ``UKFParams`` guarantees) and ``M = I + A^T A`` (15 x 15, SPD), the matrix inversion lemma gives
 ``S^-1 = R^-1/2 (I - A M^-1 A^T) R^-1/2`` and ``det S = det R det M``. Everything above is computed from
 the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` per pair instead of
-``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out.
+``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
+noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation).
 """
 
 from __future__ import annotations
@@ -62,11 +64,14 @@ def kalman_update(
     r: np.ndarray,
     mask: np.ndarray | None = None,
     wrapping: Wrapping = Wrapping(),
+    factors: np.ndarray | None = None,
 ) -> UpdateResult:
     """UKF update of ``P`` Gaussians (``mean (P, n)``, ``cov (P, n, n)``, their sigma points
     ``sigma (P, S, n)``) by measurements ``z (P, D)`` with predicted measurement sigma points
-    ``z_sigma (P, S, D)``, diagonal noise variances ``r (P, D)`` and row mask ``mask (P, D)`` (False rows
-    are padding and take no part). Low-rank form, see the module docstring."""
+    ``z_sigma (P, S, D)``, noise ``R = diag(r) + sum_e f_e f_e^T`` (variances ``r (P, D)``, optional
+    low-rank ``factors (P, E, D)``) and row mask ``mask (P, D)`` (False rows are padding and take no
+    part). Low-rank form, see the module docstring: the noise factors enter like extra sigma-point
+    columns with weight 1 and no state deviation."""
     sigma, mean, cov = (np.asarray(a, dtype=float) for a in (sigma, mean, cov))
     z_sigma, z, r = (np.asarray(a, dtype=float) for a in (z_sigma, z, r))
     mask = np.ones(z.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -76,12 +81,18 @@ def kalman_update(
         )
     if np.any(r[mask] <= 0):
         raise ValueError("kalman_update: measurement noise variances r must be > 0")
-    wm, wc = ut.wm, ut.wc
+    wm = ut.wm
     inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
     y = np.einsum("s,psd->pd", wm, z_sigma) * mask
     zt = (z_sigma - y[:, None, :]) * inv_sqrt_r[:, None, :]  # (P, S, D) whitened deviations
     nu = (z - y) * inv_sqrt_r  # whitened innovation
     xc = ut.deviations(sigma, mean, wrapping)  # (P, S, n)
+    wc = ut.wc
+    if factors is not None and factors.shape[1]:
+        f = np.asarray(factors, dtype=float) * inv_sqrt_r[:, None, :]
+        zt = np.concatenate([zt, f], axis=1)
+        xc = np.concatenate([xc, np.zeros((xc.shape[0], f.shape[1], xc.shape[2]))], axis=1)
+        wc = np.concatenate([wc, np.ones(f.shape[1])])
     gram = np.einsum("psd,pqd->psq", zt, zt)  # (P, S, S)
     g = np.einsum("psd,pd->ps", zt, nu)  # (P, S)
     sw = np.sqrt(wc)
@@ -153,7 +164,7 @@ def update_pairs(
     structure = build_structure(batch, clu, corners[inverse, 0], config.measurement, config.use_radar)
     z_sigma = predict_measurements(corners[inverse], velocity[inverse], structure)
     return kalman_update(ut, sigma[inverse], means[comp], covs[comp], z_sigma, structure.z, structure.r,
-                         structure.mask, wrapping)
+                         structure.mask, wrapping, structure.factors)
 
 
 def update(

@@ -1,0 +1,55 @@
+"""Tests of tracker/config.py: defaults, validation with clear errors, variants and dict loading."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from tracker.config import MeasurementConfig, ProcessNoise, TrackerConfig, UKFParams
+
+
+def test_defaults_are_the_documented_ones() -> None:
+    c = TrackerConfig()
+    assert c.coordinates == "curvilinear" and c.motion.model == "frenet" and c.use_radar
+    assert c.measurement.two_side_eigen_ratio == 50.0
+    assert c.measurement.partial_visibility == 0.6
+    assert c.reduction.extraction_threshold == 0.5
+    assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    "build, match",
+    [
+        (lambda: MeasurementConfig(lidar_sigma=-0.1), r"MeasurementConfig.lidar_sigma must be > 0"),
+        (lambda: MeasurementConfig(partial_visibility=1.5), r"partial_visibility must be >= 0.0 and <= 1.0"),
+        (lambda: MeasurementConfig(max_cluster_points=2), r"max_cluster_points must be an integer >= 3"),
+        (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
+        (lambda: UKFParams(alpha=1e-3), r"Wc0"),
+        (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),
+        (lambda: TrackerConfig(use_radar="yes"), r"use_radar must be true or false"),
+    ],
+)
+def test_bad_values_name_the_field(build, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        build()
+
+
+def test_variants() -> None:
+    assert TrackerConfig.for_variant("curvilinear-fused") == TrackerConfig()
+    lidar = TrackerConfig.for_variant("cartesian-lidar")
+    assert lidar.coordinates == "cartesian" and not lidar.use_radar
+    assert TrackerConfig.for_variant("point").object_model == "point"
+    with pytest.raises(ValueError, match="unknown tracker variant"):
+        TrackerConfig.for_variant("polar-fused")
+
+
+def test_from_dict() -> None:
+    c = TrackerConfig.from_dict({"coordinates": "cartesian", "measurement": {"lidar_sigma": 0.05}})
+    assert c.coordinates == "cartesian" and c.measurement.lidar_sigma == 0.05
+    assert c.measurement.partial_visibility == 0.6
+    with pytest.raises(ValueError, match="unknown key.*'lidar_sigm'.*accepted"):
+        TrackerConfig.from_dict({"measurement": {"lidar_sigm": 0.05}})
+    with pytest.raises(ValueError, match="unknown tracker configuration key 'noise'"):
+        TrackerConfig.from_dict({"noise": {}})
+    assert dataclasses.replace(c, use_radar=False).use_radar is False

@@ -1,0 +1,268 @@
+"""Tests of tracker/measurement.py: the rectangle measurement model against exact contour points."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracker import Road
+from tracker.config import MeasurementConfig, TrackerConfig
+from tracker.measurement import (
+    FROM_B,
+    FULL,
+    ClusterBatch,
+    build_structure,
+    corner_index,
+    generating_points,
+    predict_measurements,
+    prepare_cluster,
+    rectangle_corners,
+    rectangle_scan,
+    to_vehicle,
+    visible_sides,
+)
+from tracker.ukf import UnscentedTransform
+from tracker.update import update
+
+EXACT = MeasurementConfig(end_gap_correction=False)  # MATLAB's model: extreme points are the corners
+R80 = 80.0
+
+
+@pytest.fixture(scope="module")
+def circle80() -> Road:
+    return Road.from_curvature([(2 * np.pi * R80, 1 / R80, 1 / R80)], closed=True, lanes=2)
+
+
+def corners_of(state: np.ndarray) -> np.ndarray:
+    """Corners in E of a Cartesian state seen from an ego at the origin with yaw 0."""
+    return rectangle_corners(state[:2], np.asarray(state[3]), np.asarray(state[5]), np.asarray(state[6]))
+
+
+def bearing(p: np.ndarray) -> np.ndarray:
+    return np.arctan2(p[..., 1], p[..., 0])
+
+
+def two_sided_scan(k: np.ndarray, far_a: int, corner: int, far_b: int, n_a: int = 30, n_b: int = 20) -> np.ndarray:
+    """Exact contour points from far corner ``far_a`` to ``corner`` to ``far_b``, corners included."""
+    b = bearing(k)
+    rays = np.concatenate([np.linspace(b[far_a], b[corner], n_a), np.linspace(b[corner], b[far_b], n_b)[1:]])
+    pts, hit = rectangle_scan(k, rays)
+    assert hit.all()
+    return pts
+
+
+ORIGIN = (0.0, 0.0, 0.0)
+# a car ahead-left, heading +x: its rear (side 2) and right side (side 3) face the lidar; corner K3
+AHEAD_LEFT = np.array([12.0, 3.5, 10.0, 0.1, 0.0, 4.7, 1.9])
+
+
+def test_two_sided_exact_contour_generating_points_within_1cm() -> None:
+    k = corners_of(AHEAD_LEFT)
+    assert visible_sides(k).tolist() == [False, False, True, True]
+    pts = two_sided_scan(k, 0, 3, 2)
+    shuffled = pts[np.random.default_rng(0).permutation(len(pts))]
+    c = prepare_cluster(shuffled, EXACT)
+    assert c.two_sided and c.size == len(pts)
+    np.testing.assert_allclose(c.points[c.corner], k[3], atol=1e-9)  # the corner index is the corner
+    y = generating_points(AHEAD_LEFT, c, ORIGIN, config=EXACT, coordinates="cartesian")
+    assert np.abs(y - c.points).max() < 0.01
+    assert np.abs(y - c.points).max() < 1e-9  # in fact exact
+
+
+def test_one_sided_exact_contour_generating_points_within_1cm() -> None:
+    state = np.array([15.0, 0.2, 10.0, 0.0, 0.0, 4.5, 1.8])  # straight ahead: only its rear is visible
+    k = corners_of(state)
+    assert visible_sides(k).tolist() == [False, False, True, False]
+    b = bearing(k)
+    pts, _ = rectangle_scan(k, np.linspace(b[3], b[2], 25))
+    c = prepare_cluster(pts, EXACT)
+    assert not c.two_sided
+    y = generating_points(state, c, ORIGIN, config=EXACT, coordinates="cartesian")
+    assert np.abs(y - c.points).max() < 0.01
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), k[None], EXACT)
+    assert st.sides[0, 0] == 2 and st.mode[0, 0] == FULL
+
+
+def test_curvilinear_state_goes_through_road_and_ego_pose(circle80: Road) -> None:
+    """State (s, n, xi) on a radius-80 road, ego in the other lane with a yaw offset: the model's
+    rectangle matches one built by hand, and exact contour points are reproduced within 1 cm."""
+    state = np.array([40.0, 1.75, 15.0, 0.05, 0.0, 4.7, 1.9])
+    s_e = 28.0
+    ego_xy = circle80.to_cartesian(s_e, -1.75)
+    ego = (ego_xy[0], ego_xy[1], float(circle80.heading(s_e)) + 0.02)
+    # by hand: centre in G, heading theta + xi, into E
+    theta = float(circle80.heading(40.0))
+    centre_g = circle80.position(40.0) + 1.75 * np.array([-np.sin(theta), np.cos(theta)])
+    c, s = np.cos(ego[2]), np.sin(ego[2])
+    d = centre_g - ego_xy
+    centre_e = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+    k_hand = rectangle_corners(centre_e, np.asarray(theta + 0.05 - ego[2]), np.asarray(4.7), np.asarray(1.9))
+    rect = to_vehicle(state, ego, circle80)
+    np.testing.assert_allclose(rect.corners(), k_hand, atol=1e-9)
+    vis = visible_sides(k_hand)
+    assert vis.sum() == 2
+    j = int(np.flatnonzero(vis & np.roll(vis, 1))[0])  # sides j - 1 and j visible: corner K_j
+    pts = two_sided_scan(k_hand, (j + 1) % 4, j, (j - 1) % 4)
+    cl = prepare_cluster(pts, EXACT)
+    y = generating_points(state, cl, ego, circle80, EXACT)
+    assert np.abs(y - cl.points).max() < 0.01
+
+
+def test_corner_index_found_with_noise() -> None:
+    """Noise 2 cm: the corner split lands within two points of the true corner in 20 of 20 draws; and
+    the fitted-line corner (chord end) is within 5 cm of the true corner."""
+    k = corners_of(AHEAD_LEFT)
+    pts = two_sided_scan(k, 0, 3, 2, n_a=40, n_b=30)
+    true_index = 39
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        noisy = pts + 0.02 * rng.standard_normal(pts.shape)
+        order = np.argsort(bearing(noisy))
+        idx = corner_index(noisy[order])
+        assert abs(idx - true_index) <= 2
+        c = prepare_cluster(noisy, EXACT)
+        assert c.two_sided
+        assert np.hypot(*(c.chord_end[1] - k[3])) < 0.05
+    with pytest.raises(ValueError, match="3 points"):
+        corner_index(pts[:2])
+
+
+def test_partial_visibility_keeps_the_length_from_shrinking() -> None:
+    """The far 60 % of the long side is hidden (occluded). With the rule (0.6) the points are anchored
+    at the observed corner with their measured spacing and 10 updates leave L at 4.7 m; without it
+    (threshold 0) the generating points are spread over the whole side and L shrinks towards the
+    visible 1.9 m."""
+    state = AHEAD_LEFT.copy()
+    k = corners_of(state)
+    b = bearing(k)
+    visible_end = k[3] + 0.4 * (k[0] - k[3])  # only 40 % of the right side, next to the corner
+    rays = np.concatenate([np.linspace(bearing(visible_end), b[3], 15), np.linspace(b[3], b[2], 20)[1:]])
+    pts, _ = rectangle_scan(k, rays)
+    cfg = MeasurementConfig(lidar_sigma=0.05, end_gap_correction=False)  # the contour includes the corners
+    cl = prepare_cluster(pts, cfg)
+    st = build_structure(ClusterBatch.of([cl]), np.array([0]), k[None], cfg)
+    assert st.two_sided[0] and st.mode[0, 0] == FROM_B and st.mode[0, 1] == FULL
+    y = generating_points(state, cl, ORIGIN, config=cfg, coordinates="cartesian")
+    assert np.abs(y - cl.points).max() < 0.01  # anchored at the corner: exact for the true state
+    lengths = {}
+    for threshold in (0.6, 0.0):
+        tc = TrackerConfig(
+            coordinates="cartesian",
+            measurement=MeasurementConfig(lidar_sigma=0.05, partial_visibility=threshold, end_gap_correction=False),
+        )
+        ut = UnscentedTransform(tc.ukf)
+        mean, cov = state.copy(), np.diag([0.1, 0.1, 0.5, 0.02, 0.01, 0.5, 0.1]) ** 2
+        c2 = prepare_cluster(pts, tc.measurement)
+        for _ in range(10):
+            mean, cov, _ = update(mean, cov, c2, ORIGIN, None, tc, ut)
+            cov = cov + np.diag([1e-4, 1e-4, 1e-3, 1e-5, 1e-5, 1e-3, 1e-4])
+        lengths[threshold] = mean[5]
+    assert abs(lengths[0.6] - 4.7) < 0.1
+    assert lengths[0.0] < 4.7 - 1.0
+
+
+def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:
+    """Rays every 0.2 deg at random phase: the extreme returns lie inside the side's ends by up to one
+    gap. With the correction the covered extent (chord + margins) is unbiased to 1 cm; without it the
+    chord underestimates the side by about one gap (here the grazing right side has ~0.14 m gaps)."""
+    k = corners_of(AHEAD_LEFT)
+    b = bearing(k)
+    res = np.radians(0.2)
+    rng = np.random.default_rng(2)
+    raw, corrected = [], []
+    for _ in range(200):
+        phase = rng.uniform(0, res)
+        rays = np.arange(b[0] + phase, b[2], res)
+        pts, _ = rectangle_scan(k, rays)
+        c = prepare_cluster(pts, MeasurementConfig())
+        assert c.two_sided
+        raw.append(c.chord_len[1])
+        corrected.append(c.chord_len[1] + c.end_margin[1].sum())
+    true_side = 4.7
+    assert np.mean(raw) < true_side - 0.05
+    assert abs(np.mean(corrected) - true_side) < 0.01
+
+
+def test_downsampling_bound_keeps_extremes_and_corner() -> None:
+    k = corners_of(AHEAD_LEFT)
+    pts = two_sided_scan(k, 0, 3, 2, n_a=300, n_b=200)
+    cfg = MeasurementConfig(max_cluster_points=40, end_gap_correction=False)
+    c = prepare_cluster(pts, cfg)
+    assert c.raw_count == len(pts)
+    assert c.size <= 41
+    np.testing.assert_allclose(c.points[c.corner], k[3], atol=1e-9)
+    np.testing.assert_allclose(c.points[0], k[0], atol=1e-9)
+    np.testing.assert_allclose(c.points[-1], k[2], atol=1e-9)
+    # lines and extents come from all points: the same as without downsampling
+    full = prepare_cluster(pts, MeasurementConfig(max_cluster_points=10_000, end_gap_correction=False))
+    np.testing.assert_allclose(c.chord_len, full.chord_len, atol=1e-12)
+    y = generating_points(AHEAD_LEFT, c, ORIGIN, config=cfg, coordinates="cartesian")
+    assert np.abs(y - c.points).max() < 0.01
+
+
+def test_single_point_generating_point_on_nearest_visible_side() -> None:
+    k = corners_of(AHEAD_LEFT)
+    p = k[3] + 0.3 * (k[0] - k[3])  # on the right side
+    c = prepare_cluster(p[None], EXACT)
+    y = generating_points(AHEAD_LEFT, c, ORIGIN, config=EXACT, coordinates="cartesian")
+    np.testing.assert_allclose(y[0], p, atol=1e-9)
+
+
+def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
+    k = corners_of(AHEAD_LEFT)
+    pts = two_sided_scan(k, 0, 3, 2)
+    c = prepare_cluster(pts, EXACT)
+    assert c.two_sided and c.eigen_ratio < 50
+    line = prepare_cluster(np.column_stack([np.full(30, 10.0), np.linspace(-1, 1, 30)]), EXACT)
+    assert not line.two_sided and line.eigen_ratio > 50
+    # a prediction that shows only one side (straight ahead) overrules the data's L
+    ahead = corners_of(np.array([12.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]))
+    st = build_structure(ClusterBatch.of([c]), np.array([0, 0]), np.stack([k, ahead]), EXACT)
+    assert st.two_sided.tolist() == [True, False]
+
+
+def test_non_finite_points_are_dropped_and_counted() -> None:
+    k = corners_of(AHEAD_LEFT)
+    pts = two_sided_scan(k, 0, 3, 2)
+    bad = np.vstack([pts, [[np.nan, 1.0], [np.inf, 0.0]]])
+    c = prepare_cluster(bad, EXACT)
+    assert c.dropped == 2 and c.size == len(pts)
+    with pytest.raises(ValueError, match="at least one finite point"):
+        prepare_cluster(np.full((3, 2), np.nan))
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        prepare_cluster(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="velocity"):
+        prepare_cluster(pts, velocity=[1.0, np.nan])
+
+
+def test_radar_rows_predict_absolute_velocity_in_e() -> None:
+    k = corners_of(AHEAD_LEFT)
+    pts = two_sided_scan(k, 0, 3, 2)
+    c = prepare_cluster(pts, EXACT, velocity=[9.9, 1.0])
+    ego = (5.0, -2.0, 0.3)
+    state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])  # Cartesian, psi = 0.5 in G
+    rect = to_vehicle(state[None], ego, coordinates="cartesian")
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners(), EXACT, use_radar=True)
+    y = predict_measurements(rect.corners()[:, None], rect.velocity()[:, None], st)
+    np.testing.assert_allclose(y[0, 0, -2:], 12.0 * np.array([np.cos(0.2), np.sin(0.2)]), atol=1e-12)
+    np.testing.assert_allclose(st.z[0, -2:], [9.9, 1.0])
+    assert st.mask[0, -2:].all()
+    off = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners(), EXACT, use_radar=False)
+    assert not off.mask[0, -2:].any()
+
+
+def test_structure_batched_over_pairs_equals_one_by_one() -> None:
+    k = corners_of(AHEAD_LEFT)
+    c1 = prepare_cluster(two_sided_scan(k, 0, 3, 2), MeasurementConfig())
+    b = bearing(k)
+    c2 = prepare_cluster(rectangle_scan(k, np.linspace(b[0], b[3], 12))[0], MeasurementConfig())
+    rects = np.stack([k, corners_of(AHEAD_LEFT + np.array([0.3, -0.2, 0, 0.05, 0, 0.2, 0.1]))])
+    batch = ClusterBatch.of([c1, c2])
+    pairs = [(0, 0), (1, 0), (0, 1), (1, 1)]
+    together = build_structure(batch, np.array([c for _, c in pairs]), rects[[r for r, _ in pairs]], MeasurementConfig())
+    for i, (r, c) in enumerate(pairs):
+        alone = build_structure(ClusterBatch.of([[c1, c2][c]]), np.array([0]), rects[r][None], MeasurementConfig())
+        m = [c1, c2][c].size
+        for name in ("a", "b", "c1", "c2"):
+            np.testing.assert_array_equal(getattr(together, name)[i, :m], getattr(alone, name)[0, :m])
+        np.testing.assert_array_equal(together.factors[i, :, : 2 * m], alone.factors[0, :, : 2 * m])
