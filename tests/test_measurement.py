@@ -241,13 +241,13 @@ def test_radar_rows_predict_absolute_velocity_in_e() -> None:
     c = prepare_cluster(pts, EXACT, velocity=[9.9, 1.0])
     ego = (5.0, -2.0, 0.3)
     state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])  # Cartesian, psi = 0.5 in G
-    rect = to_vehicle(state[None], ego, coordinates="cartesian")
-    st = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners(), EXACT, use_radar=True)
-    y = predict_measurements(rect.corners()[:, None], rect.velocity()[:, None], st)
+    rect = to_vehicle(state[None, None], ego, coordinates="cartesian")  # one pair, one sigma point
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners()[:, 0], EXACT, use_radar=True)
+    y = predict_measurements(rect, st)
     np.testing.assert_allclose(y[0, 0, -2:], 12.0 * np.array([np.cos(0.2), np.sin(0.2)]), atol=1e-12)
     np.testing.assert_allclose(st.z[0, -2:], [9.9, 1.0])
     assert st.mask[0, -2:].all()
-    off = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners(), EXACT, use_radar=False)
+    off = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners()[:, 0], EXACT, use_radar=False)
     assert not off.mask[0, -2:].any()
 
 
@@ -266,3 +266,29 @@ def test_structure_batched_over_pairs_equals_one_by_one() -> None:
         for name in ("a", "b", "c1", "c2"):
             np.testing.assert_array_equal(getattr(together, name)[i, :m], getattr(alone, name)[0, :m])
         np.testing.assert_array_equal(together.factors[i, :, : 2 * m], alone.factors[0, :, : 2 * m])
+
+
+def test_rectangle_axes_recipe_equals_the_corner_recipe() -> None:
+    """predict_measurements evaluates y = centre + (ax L + gx) e_x + (ay W + gy) e_y; for perturbed
+    sigma-point rectangles this equals the corner recipe K[a] + c1 (K[b] - K[a]) + c2 unit(K[b] - K[a])."""
+    rng = np.random.default_rng(5)
+    k = corners_of(AHEAD_LEFT)
+    b = bearing(k)
+    visible_end = k[3] + 0.4 * (k[0] - k[3])
+    clusters = [
+        prepare_cluster(two_sided_scan(k, 0, 3, 2) + 0.02 * rng.standard_normal((49, 2))),
+        prepare_cluster(rectangle_scan(k, np.linspace(bearing(visible_end), b[3], 10))[0]),  # one side, partial
+        prepare_cluster(k[3][None] + 0.3 * (k[0] - k[3])),  # a single point
+    ]
+    st = build_structure(ClusterBatch.of(clusters), np.arange(3), np.stack([k] * 3), MeasurementConfig())
+    states = AHEAD_LEFT + rng.normal(0, [0.3, 0.3, 1.0, 0.1, 0.05, 0.4, 0.2], (3, 15, 7))
+    rect = to_vehicle(states, ORIGIN, coordinates="cartesian")
+    y = predict_measurements(rect, st)
+    corners = rect.corners()  # (3, 15, 4, 2)
+    for p, cl in enumerate(clusters):
+        for i in range(cl.size):
+            ka = corners[p, :, st.a[p, i]]
+            kb = corners[p, :, st.b[p, i]]
+            d = kb - ka
+            expect = ka + st.c1[p, i] * d + st.c2[p, i] * d / np.linalg.norm(d, axis=1, keepdims=True)
+            np.testing.assert_allclose(y[p, :, 2 * i: 2 * i + 2], expect, atol=1e-12)

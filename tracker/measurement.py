@@ -50,6 +50,7 @@ axes, against the radar's ``(vx, vy)``. ``R = blockdiag(lidar_sigma^2 I2, ..., r
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -76,6 +77,9 @@ MAX_END_GAP = 2.0
 
 # structure modes of a part
 FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)
+# corner k = centre + SX[k] L/2 e_x + SY[k] W/2 e_y (e_x the heading, e_y its left normal)
+SX = np.array([1.0, 1.0, -1.0, -1.0])
+SY = np.array([-1.0, 1.0, 1.0, -1.0])
 
 
 # -- geometry ------------------------------------------------------------------------------------
@@ -98,16 +102,18 @@ class Rectangles:
         """Absolute velocity in E's axes ``(..., 2)``: ``v (cos psi_E, sin psi_E)``."""
         return self.v[..., None] * np.stack([np.cos(self.psi), np.sin(self.psi)], axis=-1)
 
+    def take(self, index: np.ndarray) -> Rectangles:
+        """The rectangles at ``index`` along the first axis."""
+        return Rectangles(self.center[index], self.psi[index], self.v[index], self.length[index], self.width[index])
+
 
 def rectangle_corners(center: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
     """Corners ``(..., 4, 2)`` of rectangles with centre ``(..., 2)``, heading ``psi`` and extent
     ``length``, ``width`` (m): front-right, front-left, rear-left, rear-right."""
     c, s = np.cos(psi), np.sin(psi)
     hl, hw = 0.5 * np.asarray(length, dtype=float), 0.5 * np.asarray(width, dtype=float)
-    sx = np.array([1.0, 1.0, -1.0, -1.0])
-    sy = np.array([-1.0, 1.0, 1.0, -1.0])
-    lx = sx * hl[..., None]  # (..., 4) local x
-    ly = sy * hw[..., None]
+    lx = SX * hl[..., None]  # (..., 4) local x
+    ly = SY * hw[..., None]
     x = center[..., None, 0] + c[..., None] * lx - s[..., None] * ly
     y = center[..., None, 1] + s[..., None] * lx + c[..., None] * ly
     return np.stack([x, y], axis=-1)
@@ -252,20 +258,23 @@ def _even(lo: int, hi: int, count: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(lo, hi, max(count, 2))).astype(int))
 
 
-def _line_fit(pts: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Total-least-squares line through ``pts (K, 2)``: a point on it (the centroid) and its unit
-    direction, oriented from the first point towards the last; ``fallback`` direction if degenerate."""
+def _scatter(pts: np.ndarray) -> tuple[np.ndarray, float, float, float]:
+    """Centroid and the (biased) covariance entries ``sxx, syy, sxy`` of ``pts (K, 2)``."""
     c = pts.mean(axis=0)
-    d = pts[-1] - pts[0]
-    if len(pts) < 2 or float(np.hypot(*(pts.max(axis=0) - pts.min(axis=0)))) <= MIN_CHORD:
+    d = pts - c
+    return c, float(d[:, 0] @ d[:, 0]) / len(pts), float(d[:, 1] @ d[:, 1]) / len(pts), float(d[:, 0] @ d[:, 1]) / len(pts)
+
+
+def _line_fit(pts: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D401
+    """Total-least-squares line through ``pts (K, 2)``: a point on it (the centroid) and its unit
+    direction (the major axis of the scatter, angle ``atan2(2 sxy, sxx - syy) / 2``), oriented from the
+    first point towards the last; ``fallback`` direction if the points have no extent."""
+    c, sxx, syy, sxy = _scatter(pts)
+    if len(pts) < 2 or sxx + syy <= MIN_CHORD**2:
         return c, fallback
-    if len(pts) == 2:
-        u = d
-    else:
-        _, vecs = np.linalg.eigh(np.cov(pts.T, bias=True))
-        u = vecs[:, 1]
-    u = u / np.hypot(*u)
-    return c, (u if float(u @ d) >= 0.0 else -u)
+    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    u = np.array([np.cos(phi), np.sin(phi)])
+    return c, (u if float(u @ (pts[-1] - pts[0])) >= 0.0 else -u)
 
 
 def _intersect(o1: np.ndarray, u1: np.ndarray, o2: np.ndarray, u2: np.ndarray) -> np.ndarray | None:
@@ -300,16 +309,19 @@ def prepare_cluster(
         velocity = np.asarray(velocity, dtype=float).reshape(-1)
         if velocity.shape != (2,) or not np.isfinite(velocity).all():
             raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
-    centroid = pts.mean(axis=0)
-    ref = np.arctan2(centroid[1], centroid[0]) if np.hypot(*centroid) > 1e-9 else 0.0
-    rel = np.angle(np.exp(1j * (np.arctan2(pts[:, 1], pts[:, 0]) - ref)))
+    centroid, sxx, syy, sxy = _scatter(pts)
+    cx, cy = float(centroid[0]), float(centroid[1])
+    ref = math.atan2(cy, cx) if math.hypot(cx, cy) > 1e-9 else 0.0
+    rel = np.arctan2(pts[:, 1], pts[:, 0]) - ref
+    rel -= 2.0 * np.pi * np.round(rel / (2.0 * np.pi))
     order = np.argsort(rel, kind="stable")
-    pts, index = pts[order], index[order]
+    pts, index, rel = pts[order], index[order], rel[order]
     n = len(pts)
-    ratio = np.inf
+    ratio = math.inf
     if n >= 2:
-        lam = np.linalg.eigvalsh(np.cov(pts.T, bias=True))
-        ratio = float(lam[1] / lam[0]) if lam[0] > 1e-15 * max(lam[1], 1e-300) else np.inf
+        root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+        lam_min, lam_max = 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
+        ratio = lam_max / lam_min if lam_min > 1e-15 * max(lam_max, 1e-300) else math.inf
     two = n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
     keep = np.arange(n)
     corner = -1
@@ -323,16 +335,18 @@ def prepare_cluster(
     elif n > config.max_cluster_points:
         keep = _even(0, n - 1, config.max_cluster_points)
     # lines and extents from all the points, before downsampling
-    los = centroid / max(float(np.hypot(*centroid)), 1e-12)
-    fallback = np.array([-los[1], los[0]])  # no extent: the line-of-sight normal
+    norm = max(math.hypot(cx, cy), 1e-12)
+    fallback = np.array([-cy / norm, cx / norm])  # no extent: the line-of-sight normal
     corner_full = int(keep[corner]) if two else -1
     # slot 0: the whole cluster; slots 1, 2: before / after the corner (the corner point in both fits)
-    members = [pts, pts[: corner_full + 1], pts[corner_full:]] if two else [pts, pts, pts]
+    members = [pts, pts[: corner_full + 1], pts[corner_full:]] if two else [pts]
     fits = [_line_fit(q, fallback) for q in members]
-    lo, hi = np.zeros(3), np.zeros(3)
+    lo, hi = np.zeros(len(fits)), np.zeros(len(fits))
     for i, (q, (o, u)) in enumerate(zip(members, fits)):
         a = (q - o) @ u
         lo[i], hi[i] = a.min(), a.max()
+    if not two:  # one part: slots 1 and 2 repeat slot 0
+        fits, lo, hi = fits * 3, np.repeat(lo, 3), np.repeat(hi, 3)
     if two:  # the corner: where the two fitted lines meet, if they meet near the corner point
         x = _intersect(fits[1][0], fits[1][1], fits[2][0], fits[2][1])
         if x is None or np.hypot(*(x - pts[corner_full])) > CORNER_MAX_SHIFT:
@@ -349,14 +363,14 @@ def prepare_cluster(
     if config.end_gap_correction and n >= 2:
         # half the gap between rays at each free end: along a line at distance d from the sensor a
         # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
-        db = float(np.median(np.diff(np.sort(rel))))
-        for i in range(3):
-            d = abs(float(origin[i, 0] * direction[i, 1] - origin[i, 1] * direction[i, 0]))
-            for j, end in enumerate((starts[i], ends[i])):
-                if two and (i, j) in ((1, 1), (2, 0)):
-                    continue  # the corner of a split is observed
-                gap = float(end @ end) * db / max(d, 1e-3)
-                margin[i, j] = 0.5 * min(gap, MAX_END_GAP, length[i])
+        gaps = np.diff(rel)
+        db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])  # the median bearing step
+        dist = np.abs(origin[:, 0] * direction[:, 1] - origin[:, 1] * direction[:, 0])  # (3,) line to sensor
+        r2 = np.column_stack([(starts * starts).sum(axis=1), (ends * ends).sum(axis=1)])
+        gap = r2 * db / np.maximum(dist, 1e-3)[:, None]
+        margin = 0.5 * np.minimum(np.minimum(gap, MAX_END_GAP), length[:, None])
+        if two:
+            margin[1, 1] = margin[2, 0] = 0.0  # the corner of a split is observed
     pts, index = pts[keep], index[keep]
     m = len(pts)
     part = np.zeros(m, dtype=np.intp)
@@ -430,7 +444,10 @@ class ClusterBatch:
 @dataclass(frozen=True)
 class Structure:
     """Per (pair, point) recipe ``y = K[a] + c1 (K[b] - K[a]) + c2 unit(K[b] - K[a])`` (corner indices
-    ``a``, ``b`` (P, M); coefficients ``c1``, ``c2`` (P, M)), the point mask ``valid (P, M)``, per pair
+    ``a``, ``b`` (P, M); coefficients ``c1``, ``c2`` (P, M)), the same in the rectangle's own axes,
+    ``y = centre + (ax L + gx) e_x + (ay W + gy) e_y`` (``coef (P, M, 4)`` = ``ax, gx, ay, gy``; every
+    corner is ``centre +- L/2 e_x +- W/2 e_y`` and every side direction is ``+-e_x`` or ``+-e_y``, so the
+    recipe is linear in ``L``, ``W`` and needs no gather per sigma point), the point mask ``valid (P, M)``, per pair
     ``two_sided``, ``sides (P, 2)`` (side of each part), ``mode (P, 2)``, ``radar (P,)`` (velocity rows
     on), the stacked measurement ``z (P, D)``, its noise variances ``r (P, D)`` and row mask ``mask (P, D)``
     with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``), and ``factors (P, 2, D)``:
@@ -440,6 +457,7 @@ class Structure:
     b: np.ndarray
     c1: np.ndarray
     c2: np.ndarray
+    coef: np.ndarray
     valid: np.ndarray
     two_sided: np.ndarray
     sides: np.ndarray
@@ -529,6 +547,9 @@ def build_structure(
         0.0,
     )
     c1, c2 = np.where(valid, c1, 0.0), np.where(valid, c2, 0.0)
+    dx, dy = SX[b] - SX[a], SY[b] - SY[a]  # one of them is 0 (adjacent corners)
+    coef = np.stack([0.5 * (SX[a] + c1 * dx), c2 * np.sign(dx), 0.5 * (SY[a] + c1 * dy), c2 * np.sign(dy)], axis=-1)
+    coef = np.where(valid[..., None], coef, 0.0)
     # end-gap noise: the free ends' unknown offsets eps ~ U(-e, e) (var e^2 / 3) move the points along
     # their side by k_lo eps_lo + k_hi eps_hi, with (k_lo, k_hi) = (1 - t, -t) spread over a fully
     # visible side, (1, 0) / (0, -1) anchored at the start / end, (1/2, -1/2) centred, (0, 0) fixed
@@ -552,25 +573,24 @@ def build_structure(
         axis=1,
     )
     factors = np.concatenate([factors, np.zeros((p_count, 2, 2))], axis=2)  # no end noise on radar rows
-    return Structure(a=a, b=b, c1=c1, c2=c2, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
+    return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors)
 
 
-def predict_measurements(corners: np.ndarray, velocity: np.ndarray, structure: Structure) -> np.ndarray:
-    """Predicted measurements ``(P, S, D)`` of pairs from sigma-point rectangles ``corners (P, S, 4, 2)``
-    and velocities in E ``velocity (P, S, 2)``: the generating points of ``structure`` stacked, then the
-    radar rows (zero where masked)."""
-    p_count, s_count = corners.shape[:2]
-    m = structure.a.shape[1]
-    ia = np.broadcast_to(structure.a[:, None, :, None], (p_count, s_count, m, 2))
-    ib = np.broadcast_to(structure.b[:, None, :, None], (p_count, s_count, m, 2))
-    ka = np.take_along_axis(corners, ia, axis=2)
-    kb = np.take_along_axis(corners, ib, axis=2)
-    d = kb - ka
-    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-    y = ka + structure.c1[:, None, :, None] * d + structure.c2[:, None, :, None] * u
-    y = np.where(structure.valid[:, None, :, None], y, 0.0).reshape(p_count, s_count, 2 * m)
-    vel = np.where(structure.radar[:, None, None], velocity, 0.0)
+def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
+    """Predicted measurements ``(P, S, D)`` of pairs from sigma-point rectangles in E (``rect`` arrays of
+    shape ``(P, S)``): the generating points of ``structure`` stacked (``x0, y0, x1, y1, ...``; padding
+    0), then the radar rows ``v (cos psi_E, sin psi_E)`` (0 where masked)."""
+    p_count, s_count = rect.psi.shape
+    m = structure.coef.shape[1]
+    ex = np.stack([np.cos(rect.psi), np.sin(rect.psi)], axis=-1)  # (P, S, 2)
+    ey = np.stack([-ex[..., 1], ex[..., 0]], axis=-1)
+    co = structure.coef[:, None]  # (P, 1, M, 4)
+    along = co[..., 0] * rect.length[..., None] + co[..., 1]  # (P, S, M)
+    across = co[..., 2] * rect.width[..., None] + co[..., 3]
+    y = rect.center[:, :, None, :] + along[..., None] * ex[:, :, None, :] + across[..., None] * ey[:, :, None, :]
+    y = (y * structure.valid[:, None, :, None]).reshape(p_count, s_count, 2 * m)
+    vel = rect.velocity() * structure.radar[:, None, None]
     return np.concatenate([y, vel], axis=2)
 
 
@@ -585,8 +605,8 @@ def generating_points(
     """The measurement generating points ``(M, 2)`` in E of one state ``(7,)`` for ``cluster`` (the
     state is its own predicted mean), in the cluster's point order. For inspection and tests."""
     config = config if config is not None else MeasurementConfig()
-    rect = to_vehicle(np.asarray(state, dtype=float)[None], ego, road, coordinates)
-    corners = rect.corners()  # (1, 4, 2)
-    st = build_structure(ClusterBatch.of([cluster]), np.zeros(1, dtype=int), corners, config, use_radar=False)
-    y = predict_measurements(corners[:, None], rect.velocity()[:, None], st)
+    rect = to_vehicle(np.asarray(state, dtype=float)[None, None], ego, road, coordinates)  # (1, 1)
+    st = build_structure(ClusterBatch.of([cluster]), np.zeros(1, dtype=int), rect.corners()[:, 0], config,
+                         use_radar=False)
+    y = predict_measurements(rect, st)
     return y[0, 0, : 2 * cluster.size].reshape(-1, 2)

@@ -144,10 +144,10 @@ class UnscentedTransform:
         """Weighted mean ``sum_i Wm_i X_i`` of points ``(..., 2n + 1, d)``; wrapped coordinates are
         averaged as residuals about the central point ``X_0``."""
         if wrapping.empty:
-            return np.einsum("i,...id->...d", self.wm, points)
+            return self.wm @ points
         ref = points[..., 0, :]
         dev = wrapping.residual(points - ref[..., None, :])
-        return wrapping.wrap(ref + np.einsum("i,...id->...d", self.wm, dev))
+        return wrapping.wrap(ref + self.wm @ dev)
 
     def deviations(self, points: np.ndarray, mean: np.ndarray, wrapping: Wrapping = NO_WRAP) -> np.ndarray:
         """Residuals ``X_i - m`` ``(..., 2n + 1, d)`` (wrapped coordinates wrapped)."""
@@ -157,7 +157,7 @@ class UnscentedTransform:
     def covariance(self, dev_a: np.ndarray, dev_b: np.ndarray | None = None) -> np.ndarray:
         """``sum_i Wc_i a_i b_i^T`` for deviations ``(..., 2n + 1, da)`` and ``(..., 2n + 1, db)``."""
         dev_b = dev_a if dev_b is None else dev_b
-        return np.einsum("i,...ia,...ib->...ab", self.wc, dev_a, dev_b)
+        return np.swapaxes(dev_a * self.wc[:, None], -1, -2) @ dev_b
 
     def transform(
         self,

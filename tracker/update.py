@@ -83,7 +83,7 @@ def kalman_update(
         raise ValueError("kalman_update: measurement noise variances r must be > 0")
     wm = ut.wm
     inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
-    y = np.einsum("s,psd->pd", wm, z_sigma) * mask
+    y = (wm @ z_sigma) * mask  # (P, D)
     zt = (z_sigma - y[:, None, :]) * inv_sqrt_r[:, None, :]  # (P, S, D) whitened deviations
     nu = (z - y) * inv_sqrt_r  # whitened innovation
     xc = ut.deviations(sigma, mean, wrapping)  # (P, S, n)
@@ -93,22 +93,23 @@ def kalman_update(
         zt = np.concatenate([zt, f], axis=1)
         xc = np.concatenate([xc, np.zeros((xc.shape[0], f.shape[1], xc.shape[2]))], axis=1)
         wc = np.concatenate([wc, np.ones(f.shape[1])])
-    gram = np.einsum("psd,pqd->psq", zt, zt)  # (P, S, S)
-    g = np.einsum("psd,pd->ps", zt, nu)  # (P, S)
+    gram = zt @ np.swapaxes(zt, 1, 2)  # (P, S, S)
+    g = (zt @ nu[..., None])[..., 0]  # (P, S)
     sw = np.sqrt(wc)
-    eye = np.eye(len(wc))
-    m_mat = eye + sw[:, None] * gram * sw[None, :]
+    m_mat = np.eye(len(wc)) + sw[:, None] * gram * sw[None, :]
     a_vec = sw * g
-    b_mat = np.einsum("s,psi,psq,q->piq", wc, xc, gram, sw)  # T~ A (P, n, S)
+    xw = np.swapaxes(xc * wc[:, None], 1, 2)  # (P, n, S): X^T W
+    xwg = xw @ gram  # (P, n, S)
+    b_mat = xwg * sw  # T~ A (P, n, S)
     rhs = np.concatenate([a_vec[..., None], np.swapaxes(b_mat, 1, 2)], axis=2)  # (P, S, 1 + n)
     sol = np.linalg.solve(m_mat, rhs)
     m_inv_a, m_inv_bt = sol[..., 0], sol[..., 1:]
     nis = np.einsum("pd,pd->p", nu, nu) - np.einsum("ps,ps->p", a_vec, m_inv_a)
     _, logdet_m = np.linalg.slogdet(m_mat)
-    logdet = logdet_m + np.sum(np.where(mask, np.log(np.where(mask, r, 1.0)), 0.0), axis=1)
+    logdet = logdet_m + np.sum(np.log(np.where(mask, r, 1.0)), axis=1)
     dim = mask.sum(axis=1)
-    k_nu = np.einsum("s,psi,ps->pi", wc, xc, g) - np.einsum("piq,pq->pi", b_mat, m_inv_a)
-    t_st = np.einsum("s,psi,psq,q,pqj->pij", wc, xc, gram, wc, xc) - np.einsum("piq,pqj->pij", b_mat, m_inv_bt)
+    k_nu = (xw @ g[..., None])[..., 0] - (b_mat @ m_inv_a[..., None])[..., 0]
+    t_st = xwg @ np.swapaxes(xw, 1, 2) - b_mat @ m_inv_bt
     post_mean = mean + k_nu
     if not wrapping.empty:
         post_mean = wrapping.wrap(post_mean)
@@ -157,12 +158,11 @@ def update_pairs(
     wrapping = state_wrapping(road, config.coordinates)
     used, inverse = np.unique(comp, return_inverse=True)
     sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
-    rect = to_vehicle(sigma, ego, road, config.coordinates)
-    corners = rect.corners()  # (U, S, 4, 2)
-    velocity = rect.velocity()  # (U, S, 2)
+    rect = to_vehicle(sigma, ego, road, config.coordinates)  # (U, S) rectangles in E
+    mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
     batch = ClusterBatch.of(clusters)
-    structure = build_structure(batch, clu, corners[inverse, 0], config.measurement, config.use_radar)
-    z_sigma = predict_measurements(corners[inverse], velocity[inverse], structure)
+    structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
+    z_sigma = predict_measurements(rect.take(inverse), structure)
     return kalman_update(ut, sigma[inverse], means[comp], covs[comp], z_sigma, structure.z, structure.r,
                          structure.mask, wrapping, structure.factors)
 
