@@ -209,3 +209,13 @@ def test_radar_velocity_rows_lower_the_speed_error(circle80: Road) -> None:
     rms = lambda e: float(np.sqrt(np.mean(e**2)))  # noqa: E731
     assert rms(fused[:, 10]) < rms(lidar[:, 10])
     assert rms(fused[:, 5:]) < rms(lidar[:, 5:])
+
+
+def test_no_pairs_gives_an_empty_result(circle80: Road) -> None:
+    scn = CurveScenario(circle80, 1)
+    cluster = prepare_cluster(scn.scan(0, np.random.default_rng(0), 0.0))
+    res = update_pairs(scn.truth(0)[None], np.eye(7)[None], [cluster], np.zeros(0, int), np.zeros(0, int),
+                       scn.ego(0), circle80)
+    assert res.mean.shape == (0, 7) and res.log_likelihood.shape == (0,)
+    with pytest.raises(ValueError, match="does not exist"):
+        update_pairs(scn.truth(0)[None], np.eye(7)[None], [cluster], np.array([1]), np.array([0]), scn.ego(0), circle80)

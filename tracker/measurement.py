@@ -16,36 +16,54 @@ cluster is two-sided in the data when it has at least ``min_points_two_sided`` p
 eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
 ``two_side_eigen_ratio`` (50). Its corner index is the split minimising the total least-squares
 line-fit residual of the two parts (the paper: "least squares fitting lines"; the corner point belongs
-to both fits, computed for all splits at once from prefix sums). A part's *chord* runs from its first
-point to its last (the second part starts at the corner point); each point's position along its part
-is its projection on the chord, in metres (``proj``). Departure from MATLAB, which spaces points by
-cumulative polyline length: with noise that length grows with the number of points (zig-zag), the
-projection does not. Clusters above ``max_cluster_points`` are thinned evenly in bearing order,
-keeping the extreme points and the corner.
+to both fits; all splits at once from prefix sums). Each part (or the whole cluster) gets a
+total-least-squares line; its *chord* is the extent of the points' projections on that line, and
+for a two-sided cluster the chords meet at the intersection of the two lines (the corner, less noisy
+than any single point). A point's position along its part is its projection on the line, in metres
+from the chord's start (``proj``). Departures from MATLAB, which spaces points by cumulative polyline
+length between the first and last points: with noise that length grows with the number of points
+(zig-zag), and a single noisy extreme point shifts every generating point of the side; fitted lines,
+projections and a fitted corner do not. Lines and extents use all points; then clusters above
+``max_cluster_points`` are thinned evenly in bearing order, keeping the extreme points and the corner.
+
+End gaps (``end_gap_correction``, default on). A scanning lidar's extreme return on a side lies
+somewhere within one ray gap of the side's free end (uniformly, for a random ray phase). The gap is
+``g = r^2 db / d`` (range ``r`` of the end, median bearing step ``db`` of the cluster, distance ``d`` of
+the line from the sensor), large on far or grazing sides. With the correction the chord is extended
+by ``e = g / 2`` at each free end (never at a fitted corner), which removes the length bias, and the
+remaining uncertainty ``eps ~ U(-e, e)`` (variance ``e^2 / 3``) enters the measurement noise as one
+rank-one term per free end, ``f f^T`` with ``f`` the points' displacement per unit end shift (e.g.
+``(1 - t_i) u`` over a fully visible side): the filter does not take the extreme points for the corners.
+Without it the extreme points are taken to be the corners, as in MATLAB.
 
 Structure (per pair, from the component's predicted *mean*, shared by all its sigma points so the
 model is a smooth function of the state): two-sided only if the data say so *and* the predicted
 rectangle shows two sides; each part is matched to the side whose outward normal is closest to the
-part's chord direction turned by +90 deg (``argmax n_k . rot90(chord)``; the paper writes the test as
+part's line direction turned by +90 deg (``argmax n_k . rot90(u)``; the paper writes the test as
 ``argmin |alpha_i - beta + pi/2|`` with its own normal convention); a two-sided cluster takes the best
-adjacent pair ``(j, j - 1)``. Visibility ``a = chord length / predicted side length``; a side with
-``a <= partial_visibility`` (0.6) is *partially visible*.
+adjacent pair ``(j, j - 1)``. Visibility ``a = (chord + end margins) / predicted side length``; a side
+with ``a <= partial_visibility`` (0.6) is *partially visible*.
 
-Measurement generating points (one per point, in the same order, so no association is needed):
+Measurement generating points (one per point, in the same order, so no association is needed), with
+``e_lo``, ``e_hi`` the end margins of the part (0 without the correction or at a fitted corner):
 
-- fully visible side from ``P = K_{k+1}`` to ``Q = K_k``: ``y_i = P + (proj_i / chord) (Q - P)``
-  (spread over the whole side, spacing proportional to the measured gaps);
+- fully visible side from ``P = K_{k+1}`` to ``Q = K_k``:
+  ``y_i = P + (proj_i + e_lo) / (chord + e_lo + e_hi) (Q - P)`` (spread over the whole side, spacing
+  proportional to the measured gaps);
 - partially visible, two-sided: anchored at the observed corner with the measured spacing in metres,
   ``y_i = K_j - (chord_0 - proj_i) u`` on the first side, ``y_i = K_j + proj_i u`` on the second
   (``u`` the unit side direction of the sigma point): the side's length is not pulled to the visible
   extent (no shrinking);
 - partially visible, one-sided: anchored like MATLAB at whichever of (first point <-> ``P``, last
-  point <-> ``Q``, centroid <-> side centre) is closest in the predicted mean;
+  point <-> ``Q``, centroid <-> side centre) is closest in the predicted mean, spacing in metres;
 - a single point (or a zero-length chord): on the nearest visible side of the mean, at the fraction of
-  that side where the point projects (fixed across sigma points).
+  that side where the point projects (fixed across sigma points). MATLAB uses the nearest side's
+  midpoint, which pulls the target along the side by up to half its length.
 
 Radar (fused cluster): two rows ``v (cos psi_E, sin psi_E)``, the target's absolute velocity in E's
-axes, against the radar's ``(vx, vy)``. ``R = blockdiag(lidar_sigma^2 I2, ..., radar_velocity_sigma^2 I2)``.
+axes, against the radar's ``(vx, vy)``, with ``radar_velocity_sigma^2 I2``; the lidar rows have
+``lidar_sigma^2 I2`` per point. The radar's timestamp is not used: the velocity of a vehicle changes
+little within one lidar period.
 """
 
 from __future__ import annotations

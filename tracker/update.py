@@ -156,6 +156,10 @@ def update_pairs(
     if len(comp) and (comp.min() < 0 or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(clusters)):
         raise ValueError("update_pairs: a pair refers to a component or cluster that does not exist")
     wrapping = state_wrapping(road, config.coordinates)
+    if len(comp) == 0:
+        d = 2 * max((c.size for c in clusters), default=0) + 2
+        return UpdateResult(np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
+                            np.zeros((0, d)), np.zeros((0, d)))
     used, inverse = np.unique(comp, return_inverse=True)
     sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
     rect = to_vehicle(sigma, ego, road, config.coordinates)  # (U, S) rectangles in E
