@@ -9,7 +9,9 @@ side ``k`` runs ``K_k -> K_{k+1}`` (0 front, 1 left, 2 rear, 3 right) with outwa
 ``psi + k pi/2``. A side is visible from the lidar (the E origin) when the origin lies on its outer side.
 
 Data (per cluster, once: ``prepare_cluster``). Points are sorted by bearing about the lidar,
-ascending (counter-clockwise seen from the sensor). Seen from outside, counter-clockwise around the
+ascending (counter-clockwise seen from the sensor), as the paper says; MATLAB sorts a two-sided cell
+by azimuth about its bounding-box centre and rotates the circular order to start at an extreme point,
+which for the visible (convex) contour of a rectangle is the same scan order. Seen from outside, counter-clockwise around the
 sensor is clockwise around the object, so the points run along a visible side ``k`` from ``K_{k+1}`` to
 ``K_k``, and a two-sided cluster covers side ``j`` then side ``j - 1`` through the corner ``K_j``. The
 cluster is two-sided in the data when it has at least ``min_points_two_sided`` points and the
@@ -155,7 +157,10 @@ def to_vehicle(
     states: np.ndarray, ego: EgoState | tuple, road: Road | None = None, coordinates: Coordinates = "curvilinear"
 ) -> Rectangles:
     """States ``(..., 7)`` as rectangles in E (module docstring). ``ego`` is an ``EgoState`` or
-    ``(x, y, yaw[, v, yaw_rate])`` in G. Curvilinear states need ``road`` (open roads extrapolate)."""
+    ``(x, y, yaw[, v, yaw_rate])`` in G. Curvilinear states need ``road`` (open roads extrapolate along
+    their end tangents) and use the exact conversion ``c(s) + n (-sin theta, cos theta)``: ``n`` positive
+    to the left (the paper's Algorithm 1 writes the normal as ``(cos(pi/2 - theta), sin(pi/2 - theta))``,
+    which points right; ``Road.to_cartesian(method="euler")`` has the paper's integration if wanted)."""
     ego = EgoState.coerce(ego)
     x = np.asarray(states, dtype=float)
     if x.shape[-1] != 7:
@@ -465,7 +470,9 @@ class Structure:
     ``a``, ``b`` (P, M); coefficients ``c1``, ``c2`` (P, M)), the same in the rectangle's own axes,
     ``y = centre + (ax L + gx) e_x + (ay W + gy) e_y`` (``coef (P, M, 4)`` = ``ax, gx, ay, gy``; every
     corner is ``centre +- L/2 e_x +- W/2 e_y`` and every side direction is ``+-e_x`` or ``+-e_y``, so the
-    recipe is linear in ``L``, ``W`` and needs no gather per sigma point), the point mask ``valid (P, M)``, per pair
+    recipe is linear in ``L``, ``W`` and needs no gather per sigma point), and the whole predicted
+    measurement as ``features(sigma) @ matrix`` (``matrix (P, 10, D)``, see ``predict_measurements``),
+    the point mask ``valid (P, M)``, per pair
     ``two_sided``, ``sides (P, 2)`` (side of each part), ``mode (P, 2)``, ``radar (P,)`` (velocity rows
     on), the stacked measurement ``z (P, D)``, its noise variances ``r (P, D)`` and row mask ``mask (P, D)``
     with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``), and ``factors (P, 2, D)``:
@@ -476,6 +483,7 @@ class Structure:
     c1: np.ndarray
     c2: np.ndarray
     coef: np.ndarray
+    matrix: np.ndarray
     valid: np.ndarray
     two_sided: np.ndarray
     sides: np.ndarray
@@ -591,25 +599,34 @@ def build_structure(
         axis=1,
     )
     factors = np.concatenate([factors, np.zeros((p_count, 2, 2))], axis=2)  # no end noise on radar rows
-    return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
+    # features (cx, cy, L cos, L sin, cos, sin, W sin, W cos, v cos, v sin) -> stacked measurement
+    ax, gx, ay, gy = (coef[..., i] for i in range(4))
+    vf = valid.astype(float)
+    matrix = np.zeros((p_count, 10, 2 * m + 2))
+    xs, ys = matrix[:, :, 0 : 2 * m : 2], matrix[:, :, 1 : 2 * m : 2]
+    xs[:, 0], xs[:, 2], xs[:, 4], xs[:, 5], xs[:, 6] = vf, ax, gx, -gy, -ay
+    ys[:, 1], ys[:, 3], ys[:, 5], ys[:, 4], ys[:, 7] = vf, ax, gx, gy, ay
+    matrix[:, 8, -2] = matrix[:, 9, -1] = radar
+    return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors)
 
 
 def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
     """Predicted measurements ``(P, S, D)`` of pairs from sigma-point rectangles in E (``rect`` arrays of
     shape ``(P, S)``): the generating points of ``structure`` stacked (``x0, y0, x1, y1, ...``; padding
-    0), then the radar rows ``v (cos psi_E, sin psi_E)`` (0 where masked)."""
-    p_count, s_count = rect.psi.shape
-    m = structure.coef.shape[1]
-    ex = np.stack([np.cos(rect.psi), np.sin(rect.psi)], axis=-1)  # (P, S, 2)
-    ey = np.stack([-ex[..., 1], ex[..., 0]], axis=-1)
-    co = structure.coef[:, None]  # (P, 1, M, 4)
-    along = co[..., 0] * rect.length[..., None] + co[..., 1]  # (P, S, M)
-    across = co[..., 2] * rect.width[..., None] + co[..., 3]
-    y = rect.center[:, :, None, :] + along[..., None] * ex[:, :, None, :] + across[..., None] * ey[:, :, None, :]
-    y = (y * structure.valid[:, None, :, None]).reshape(p_count, s_count, 2 * m)
-    vel = rect.velocity() * structure.radar[:, None, None]
-    return np.concatenate([y, vel], axis=2)
+    0), then the radar rows ``v (cos psi_E, sin psi_E)`` (0 where masked).
+
+    Every generating point is ``centre + (ax L + gx) e_x + (ay W + gy) e_y`` (``Structure.coef``), i.e.
+    linear in the per-sigma-point features ``(cx, cy, L cos psi, L sin psi, cos psi, sin psi, W sin psi,
+    W cos psi, v cos psi, v sin psi)``: the whole prediction is one batched product
+    ``features (P, S, 10) @ Structure.matrix (P, 10, D)``."""
+    c, s = np.cos(rect.psi), np.sin(rect.psi)
+    feats = np.stack(
+        [rect.center[..., 0], rect.center[..., 1], rect.length * c, rect.length * s, c, s,
+         rect.width * s, rect.width * c, rect.v * c, rect.v * s],
+        axis=-1,
+    )
+    return feats @ structure.matrix
 
 
 def generating_points(

@@ -84,17 +84,23 @@ def kalman_update(
     wm = ut.wm
     inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
     y = (wm @ z_sigma) * mask  # (P, D)
-    zt = (z_sigma - y[:, None, :]) * inv_sqrt_r[:, None, :]  # (P, S, D) whitened deviations
+    zt = z_sigma * inv_sqrt_r[:, None, :]  # (P, S, D) whitened deviations (one temporary, then in place)
+    zt -= (y * inv_sqrt_r)[:, None, :]
     nu = (z - y) * inv_sqrt_r  # whitened innovation
     xc = ut.deviations(sigma, mean, wrapping)  # (P, S, n)
     wc = ut.wc
-    if factors is not None and factors.shape[1]:
-        f = np.asarray(factors, dtype=float) * inv_sqrt_r[:, None, :]
-        zt = np.concatenate([zt, f], axis=1)
-        xc = np.concatenate([xc, np.zeros((xc.shape[0], f.shape[1], xc.shape[2]))], axis=1)
-        wc = np.concatenate([wc, np.ones(f.shape[1])])
     gram = zt @ np.swapaxes(zt, 1, 2)  # (P, S, S)
     g = (zt @ nu[..., None])[..., 0]  # (P, S)
+    if factors is not None and factors.shape[1]:  # extra columns: weight 1, no state deviation
+        f = np.asarray(factors, dtype=float) * inv_sqrt_r[:, None, :]  # (P, E, D)
+        g_zf = zt @ np.swapaxes(f, 1, 2)  # (P, S, E)
+        g_ff = f @ np.swapaxes(f, 1, 2)
+        gram = np.concatenate(
+            [np.concatenate([gram, g_zf], axis=2), np.concatenate([np.swapaxes(g_zf, 1, 2), g_ff], axis=2)], axis=1
+        )
+        g = np.concatenate([g, (f @ nu[..., None])[..., 0]], axis=1)
+        xc = np.concatenate([xc, np.zeros((xc.shape[0], f.shape[1], xc.shape[2]))], axis=1)
+        wc = np.concatenate([wc, np.ones(f.shape[1])])
     sw = np.sqrt(wc)
     m_mat = np.eye(len(wc)) + sw[:, None] * gram * sw[None, :]
     a_vec = sw * g
@@ -105,7 +111,7 @@ def kalman_update(
     sol = np.linalg.solve(m_mat, rhs)
     m_inv_a, m_inv_bt = sol[..., 0], sol[..., 1:]
     nis = np.einsum("pd,pd->p", nu, nu) - np.einsum("ps,ps->p", a_vec, m_inv_a)
-    _, logdet_m = np.linalg.slogdet(m_mat)
+    logdet_m = 2.0 * np.log(np.diagonal(np.linalg.cholesky(m_mat), axis1=1, axis2=2)).sum(axis=1)  # M = I + A^T A is SPD
     logdet = logdet_m + np.sum(np.log(np.where(mask, r, 1.0)), axis=1)
     dim = mask.sum(axis=1)
     k_nu = (xw @ g[..., None])[..., 0] - (b_mat @ m_inv_a[..., None])[..., 0]
