@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tracker import Road
-from tracker.preprocess import bearing_filter, drop_nonfinite, ego_to_global, global_to_ego, road_bound_mask
+from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
+from tracker.transforms import to_global, to_local
 
 
 def test_drop_nonfinite_counts():
@@ -19,10 +20,10 @@ def test_drop_nonfinite_counts():
 def test_frame_transforms_round_trip():
     rng = np.random.default_rng(0)
     pts = rng.normal(size=(50, 2)) * 20
-    g = ego_to_global(pts, 10.0, -3.0, 0.7)
-    np.testing.assert_allclose(global_to_ego(g, 10.0, -3.0, 0.7), pts, atol=1e-12)
+    g = to_global(pts, (10.0, -3.0), 0.7)
+    np.testing.assert_allclose(to_local(g, (10.0, -3.0), 0.7), pts, atol=1e-12)
     # a point 1 m ahead of an ego heading +y is 1 m north of it
-    np.testing.assert_allclose(ego_to_global([[1.0, 0.0]], 0.0, 0.0, np.pi / 2), [[0.0, 1.0]], atol=1e-12)
+    np.testing.assert_allclose(to_global(np.array([[1.0, 0.0]]), (0.0, 0.0), np.pi / 2), [[0.0, 1.0]], atol=1e-12)
 
 
 def test_road_bound_mask_keeps_road_points_only():

@@ -28,13 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from tracker.angles import wrap_angle
+
 #: Slack (s) allowed when checking that radar detections are not later than their frame.
 TIME_TOLERANCE = 1e-9
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` (rad) wrapped to (-pi, pi]."""
-    return float(np.pi - np.mod(np.pi - angle, 2.0 * np.pi))
 
 
 def _finite_scalar(value: Any, name: str) -> float:
@@ -66,7 +63,7 @@ class EgoState:
     def __post_init__(self) -> None:
         for name in ("x", "y", "yaw", "v", "yaw_rate"):
             object.__setattr__(self, name, _finite_scalar(getattr(self, name), f"EgoState.{name}"))
-        object.__setattr__(self, "yaw", _wrap(self.yaw))
+        object.__setattr__(self, "yaw", float(wrap_angle(self.yaw)))
 
     @classmethod
     def coerce(cls, ego: Any) -> EgoState:

@@ -34,21 +34,6 @@ def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
     return pts[keep], int(len(pts) - keep.sum())
 
 
-def ego_to_global(points_e: np.ndarray, x: float, y: float, yaw: float) -> np.ndarray:
-    """Points (N, 2) from the vehicle frame E of an ego at ``(x, y, yaw)`` to the global frame G."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    pts = np.asarray(points_e, dtype=float).reshape(-1, 2)
-    return np.column_stack([x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]])
-
-
-def global_to_ego(points_g: np.ndarray, x: float, y: float, yaw: float) -> np.ndarray:
-    """Points (..., 2) from G to the vehicle frame E of an ego at ``(x, y, yaw)``."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    pts = np.asarray(points_g, dtype=float)
-    dx, dy = pts[..., 0] - x, pts[..., 1] - y
-    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
-
-
 def road_bound_mask(points_g: np.ndarray, road: Road, margin: float = 0.5) -> np.ndarray:
     """Which points (N, 2) in G lie within the road bounds widened by ``margin`` metres."""
     if len(points_g) == 0:

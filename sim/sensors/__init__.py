@@ -2,8 +2,8 @@
 the rig that turns truth over time into the tracker's ``Frame``s.
 
 Modules: ``raycast`` (numpy caster + pymunk oracle), ``scene`` (vehicles and roadside objects as
-segments in a sensor frame), ``lidar``, ``radar``, ``clutter`` (roadside objects), ``rig`` (timing
-and frames), ``transforms`` (G <-> sensor frames). Conventions: DESIGN.md (SI units, E = ego frame,
+segments in a sensor frame), ``lidar``, ``radar``, ``clutter`` (roadside objects) and ``rig`` (timing
+and frames); frame transforms G <-> sensor frames are ``tracker.transforms``. Conventions: DESIGN.md (SI units, E = ego frame,
 x forward, y left; angles wrapped to (-pi, pi]).
 """
 

@@ -31,7 +31,7 @@ import numpy as np
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import RayGrid, cast_numpy
 from sim.sensors.scene import scene_segments
-from sim.sensors.transforms import rotate, to_global
+from tracker.transforms import rotate, to_global
 from sim.truth import Snapshot
 
 MOUNTS = ("front", "rear")

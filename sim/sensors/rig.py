@@ -26,7 +26,7 @@ import numpy as np
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
-from sim.sensors.transforms import rotate, to_global, to_local
+from tracker.transforms import rotate, to_global, to_local
 from sim.truth import Snapshot
 from tracker.frame import EgoState, Frame, RadarDetections
 

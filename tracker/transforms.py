@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker.angles import wrap_angle
 
-def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
-    """``angle`` (rad) wrapped to (-pi, pi], element-wise."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
+__all__ = ["rotate", "to_global", "to_local", "wrap_angle"]
 
 
 def rotate(vectors: np.ndarray, angle: float) -> np.ndarray:
