@@ -6,6 +6,7 @@ numpy + scipy only; never imports ``sim``. A user with real data needs only this
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState, Frame, RadarDetections
 from tracker.road import Road
+from tracker.tracker import Tracker
 from tracker.track import Track
 
-__all__ = ["EgoState", "Frame", "RadarDetections", "Road", "Track", "TrackerConfig"]
+__all__ = ["EgoState", "Frame", "RadarDetections", "Road", "Track", "Tracker", "TrackerConfig"]

@@ -209,7 +209,12 @@ class DetectionConfig:
       used when the state-dependent model of the multi-target layer has nothing better;
     - ``clutter_rate`` (points per frame): mean number ``lambda`` of clutter points on the road;
     - ``clutter_density`` (1/m^2): spatial density ``c(z)`` of a clutter point (uniform over
-      ``1 / clutter_density`` square metres of road in view).
+      ``1 / clutter_density`` square metres of road in view);
+    - ``lidar_resolution`` (rad) and ``lidar_range`` (m): the state-dependent model expects
+      ``gamma(x) = (visible bearing span of the rectangle) / lidar_resolution`` points, and
+      ``P_D(x) = 0`` for a rectangle centre beyond ``lidar_range``;
+    - ``occlusion``: whether ``P_D`` and ``gamma`` are scaled by the fraction of the target's bearing
+      span not hidden by a nearer track.
     """
 
     p_detection: float = 0.9
@@ -217,6 +222,9 @@ class DetectionConfig:
     expected_points: float = 20.0
     clutter_rate: float = 1.0
     clutter_density: float = 1.0 / 5000.0
+    lidar_resolution: float = math.radians(0.2)
+    lidar_range: float = 100.0
+    occlusion: bool = True
 
     def __post_init__(self) -> None:
         _check("DetectionConfig", "p_detection", self.p_detection, low=0.0, high=1.0, low_open=True)
@@ -224,6 +232,10 @@ class DetectionConfig:
         _check("DetectionConfig", "expected_points", self.expected_points, low=0.0, low_open=True, unit="points")
         _check("DetectionConfig", "clutter_rate", self.clutter_rate, low=0.0, low_open=True, unit="points/frame")
         _check("DetectionConfig", "clutter_density", self.clutter_density, low=0.0, low_open=True, unit="1/m^2")
+        _check("DetectionConfig", "lidar_resolution", self.lidar_resolution, low=0.0, low_open=True, unit="rad")
+        _check("DetectionConfig", "lidar_range", self.lidar_range, low=0.0, low_open=True, unit="m")
+        if not isinstance(self.occlusion, bool):
+            raise ValueError(f"DetectionConfig.occlusion must be true or false; got {self.occlusion!r}")
 
 
 @dataclass(frozen=True)
@@ -236,7 +248,10 @@ class BirthConfig:
     - ``speed`` (m/s) and ``speed_std`` (m/s): prior speed of road births (None: the ego's speed);
     - ``length``, ``width`` (m) and ``length_std``, ``width_std`` (m): prior extent;
     - ``position_std`` (m) along / ``lateral_std`` (m) across the road, ``heading_std`` (rad),
-      ``heading_rate_std`` (rad/s): prior spreads of a birth component.
+      ``heading_rate_std`` (rad/s): prior spreads of a birth component;
+    - ``min_cluster_points``: an unexplained cluster needs at least this many points to seed a birth
+      (single clutter points do not);
+    - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used.
     """
 
     weight: float = 0.05
@@ -251,8 +266,13 @@ class BirthConfig:
     lateral_std: float = 0.5
     heading_std: float = 0.1
     heading_rate_std: float = 0.05
+    min_cluster_points: int = 3
+    road: bool = True
 
     def __post_init__(self) -> None:
+        _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
+        if not isinstance(self.road, bool):
+            raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)
         _check("BirthConfig", "range_margin", self.range_margin, low=0.0, unit="m")
         if self.speed is not None:
@@ -287,19 +307,23 @@ class ReductionConfig:
     - ``prune_threshold``: drop components with weight below this;
     - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
     - ``max_components``: cap, keeping the heaviest;
-    - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5).
+    - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5);
+    - ``fov_margin`` (m): components whose centre is farther than the lidar range plus this are
+      dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever).
     """
 
     prune_threshold: float = 1e-4
     merge_threshold: float = 4.0
     max_components: int = 100
     extraction_threshold: float = 0.5
+    fov_margin: float = 2.0
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
         _check("ReductionConfig", "merge_threshold", self.merge_threshold, low=0.0)
         _check_int("ReductionConfig", "max_components", self.max_components, 1)
         _check("ReductionConfig", "extraction_threshold", self.extraction_threshold, low=0.0, high=1.0)
+        _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
 
 
 @dataclass(frozen=True)

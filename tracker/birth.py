@@ -1,0 +1,122 @@
+"""Birth intensity of the GM-PHD filter (the paper's equation Prediction_eq3):
+``lambda_b = lambda_R(x_ego) + lambda(Z_{k-1})``.
+
+- ``road_births``: per lane, a component near the lidar's range limit ahead of and behind the ego
+  (where vehicles enter the field of view), in road coordinates;
+- ``cluster_births``: one component per cluster of the previous frame that no track explained, from
+  an L-shape rectangle fit (centre, heading, extent; a side that was not seen takes the prior extent and
+  the centre moves away from the sensor by the missing half), the fit's axes turned by the quarter
+  turn that puts the heading closest to the road direction (``|xi| <= pi/4``: vehicles drive along the
+  road), and the speed from an associated radar detection when fused.
+
+Both return curvilinear means (B, 7) and covariances (B, 7, 7); ``to_cartesian_gaussians`` maps them to
+the Cartesian variant's state by linearisation at the mean.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.angles import wrap_angle
+from tracker.config import BirthConfig
+from tracker.frame import EgoState
+from tracker.road import Road
+from tracker.shape_fit import fit_rectangle
+from tracker.transforms import to_global
+
+
+def birth_covariance(config: BirthConfig, count: int, speed_std: float | None = None) -> np.ndarray:
+    """Diagonal prior covariances (count, 7, 7) of birth components (``BirthConfig`` spreads)."""
+    std = np.array([
+        config.position_std, config.lateral_std, config.speed_std if speed_std is None else speed_std,
+        config.heading_std, config.heading_rate_std, config.length_std, config.width_std,
+    ])
+    return np.broadcast_to(np.diag(std**2), (count, 7, 7)).copy()
+
+
+def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, config: BirthConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Components per lane at ``s_ego +- (lidar_range - range_margin)`` (m); on an open road only those
+    on the road. Speed: ``config.speed`` or the ego's."""
+    reach = max(lidar_range - config.range_margin, 0.0)
+    s = np.array([s_ego + reach, s_ego - reach])
+    if road.closed:
+        s = np.mod(s, road.length)
+    else:
+        s = s[(s >= 0.0) & (s <= road.length)]
+    lanes = road.lane_centers
+    ss, nn = np.repeat(s, len(lanes)), np.tile(lanes, len(s))
+    speed = ego_speed if config.speed is None else config.speed
+    means = np.zeros((len(ss), 7))
+    means[:, 0], means[:, 1], means[:, 2] = ss, nn, speed
+    means[:, 5], means[:, 6] = config.length, config.width
+    return means, birth_covariance(config, len(ss))
+
+
+def cluster_births(
+    clusters: list[np.ndarray],
+    velocities: list[np.ndarray | None],
+    ego: EgoState,
+    road: Road,
+    config: BirthConfig,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
+    optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
+    ``config.min_cluster_points`` points are skipped."""
+    means, stds = [], []
+    for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
+        if len(pts) < config.min_cluster_points:
+            continue
+        fit = fit_rectangle(pts)
+        # the fit's axes are ambiguous by quarter turns: take the one closest to the road direction
+        # (vehicles drive along the road), swapping length and width for an odd quarter turn
+        probe = to_global(fit.center[None, :], (ego.x, ego.y), ego.yaw)[0]
+        s_fit, _ = road.to_frenet(probe)
+        theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
+        turns = np.arange(4)
+        xi_k = wrap_angle(fit.heading + ego.yaw + 0.5 * np.pi * turns - theta_fit)
+        k = int(np.argmin(np.abs(xi_k)))
+        psi_e = fit.heading + 0.5 * np.pi * k
+        fit_len, fit_wid = (fit.length, fit.width) if k % 2 == 0 else (fit.width, fit.length)
+        axis = np.array([np.cos(psi_e), np.sin(psi_e)])
+        lateral = np.array([-axis[1], axis[0]])
+        length, width = max(fit_len, config.length), max(fit_wid, config.width)
+        centre = fit.center.copy()
+        for direction, missing in ((axis, length - fit_len), (lateral, width - fit_wid)):
+            away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
+            centre += away * 0.5 * missing * direction
+        centre_g = to_global(centre[None, :], (ego.x, ego.y), ego.yaw)[0]
+        s, n = road.to_frenet(centre_g, s_hint=s_fit)
+        _, theta, _ = road.frame(np.array([s]), extrapolate=True)
+        xi = float(wrap_angle(psi_e + ego.yaw - theta[0]))
+        if vel is not None:
+            speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
+        else:
+            speed, speed_std = ego.v if config.speed is None else config.speed, config.speed_std
+        means.append([s, n, speed, xi, 0.0, length, width])
+        stds.append(speed_std if speed_std is not None else 1.0)
+    if not means:
+        return np.zeros((0, 7)), np.zeros((0, 7, 7))
+    covs = birth_covariance(config, len(means))
+    covs[:, 2, 2] = np.array(stds) ** 2
+    covs[:, 0, 0] = covs[:, 1, 1] = 0.5**2  # the fit locates a cluster's rectangle to a few decimetres
+    return np.array(means), covs
+
+
+def to_cartesian_gaussians(road: Road, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Curvilinear Gaussians (B, 7) / (B, 7, 7) to Cartesian ``[x, y, v, psi, psi_dot, L, W]`` ones,
+    linearised at the mean: ``dx/ds = t (1 - kappa n)``, ``dx/dn = normal``, ``dpsi/ds = kappa``."""
+    if len(means) == 0:
+        return means.copy(), covs.copy()
+    xy, theta, kappa = road.frame(means[:, 0], extrapolate=True)
+    t = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
+    n = means[:, 1]
+    out = means.copy()
+    out[:, :2] = xy + n[:, None] * nrm
+    out[:, 3] = wrap_angle(theta + means[:, 3])
+    out[:, 4] = means[:, 4] + kappa * means[:, 2]
+    jac = np.broadcast_to(np.eye(7), (len(means), 7, 7)).copy()
+    jac[:, :2, 0] = t * (1.0 - kappa * n)[:, None]
+    jac[:, :2, 1] = nrm
+    jac[:, 3, 0] = kappa
+    return out, jac @ covs @ np.swapaxes(jac, 1, 2)

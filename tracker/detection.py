@@ -1,0 +1,70 @@
+"""State-dependent detection model of the GM-PHD update: expected points ``gamma(x)`` and ``P_D(x)``.
+
+For a component's predicted rectangle in E (the lidar at the origin):
+
+- its bearing span ``[b_lo, b_hi]`` is that of its four corners (unwrapped around the centre's
+  bearing); ``gamma = span / lidar_resolution`` points, at least 1;
+- ``P_D = p_detection`` inside the lidar range, 0 beyond it;
+- occlusion: the fraction ``f`` of the span covered by a nearer *occluder* (the reported tracks of
+  the previous frame, other than the component's own label) scales both, ``P_D (1 - f)`` and
+  ``gamma (1 - f)``. A fully hidden target then keeps its weight through the missed-detection term
+  ``w (1 - (1 - e^-gamma) P_D)`` instead of fading, so it keeps its label when it reappears.
+
+``f`` is the largest single overlap (not the union of several occluders), vectorised over
+(component, occluder) pairs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.angles import wrap_angle
+from tracker.config import DetectionConfig
+from tracker.measurement import Rectangles
+
+
+def bearing_spans(rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bearing interval ``(lo, hi)`` (rad, ``hi - lo < pi``, ``lo`` in (-pi, pi]) of each rectangle
+    seen from the E origin, and the range (m) of its centre."""
+    corners = rect.corners()  # (C, 4, 2)
+    centre_bearing = np.arctan2(rect.center[:, 1], rect.center[:, 0])
+    rel = wrap_angle(np.arctan2(corners[..., 1], corners[..., 0]) - centre_bearing[:, None])
+    lo = centre_bearing + rel.min(axis=1)
+    hi = centre_bearing + rel.max(axis=1)
+    return lo, hi, np.hypot(rect.center[:, 0], rect.center[:, 1])
+
+
+def occluded_fraction(
+    rect: Rectangles, labels: np.ndarray, occluders: Rectangles, occluder_labels: np.ndarray
+) -> np.ndarray:
+    """Fraction (C,) of each rectangle's bearing span hidden by a nearer occluder of another label."""
+    if len(occluder_labels) == 0 or len(labels) == 0:
+        return np.zeros(len(labels))
+    lo, hi, rng = bearing_spans(rect)
+    olo, ohi, orng = bearing_spans(occluders)
+    # overlap of [lo, hi] and [olo, ohi] on the circle: shift the occluder by the nearest turn
+    shift = 2.0 * np.pi * np.round((0.5 * (lo + hi))[:, None] / (2.0 * np.pi) - (0.5 * (olo + ohi))[None, :] / (2.0 * np.pi))
+    overlap = np.minimum(hi[:, None], ohi[None, :] + shift) - np.maximum(lo[:, None], olo[None, :] + shift)
+    span = np.maximum(hi - lo, 1e-9)
+    nearer = orng[None, :] < rng[:, None]
+    other = occluder_labels[None, :] != labels[:, None]
+    frac = np.where(nearer & other, np.clip(overlap, 0.0, None) / span[:, None], 0.0)
+    return np.clip(frac.max(axis=1), 0.0, 1.0)
+
+
+def detection_model(
+    rect: Rectangles,
+    labels: np.ndarray,
+    config: DetectionConfig,
+    occluders: Rectangles | None = None,
+    occluder_labels: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(gamma, p_d)`` per component (C,) from its predicted rectangle in E (module docstring)."""
+    lo, hi, rng = bearing_spans(rect)
+    gamma = np.maximum((hi - lo) / config.lidar_resolution, 1.0)
+    p_d = np.where(rng <= config.lidar_range, config.p_detection, 0.0)
+    if config.occlusion and occluders is not None and occluder_labels is not None:
+        visible = 1.0 - occluded_fraction(rect, labels, occluders, occluder_labels)
+        p_d = p_d * visible
+        gamma = np.maximum(gamma * visible, 1.0)
+    return gamma, p_d

@@ -1,0 +1,319 @@
+"""The multi-target tracker: the paper's GM-PHD extended-target filter around the single-target UKF.
+
+``Tracker(road, config).step(frame) -> list[Track]``. One step:
+
+1. **Predict** the mixture over ``dt`` (UKF through the motion model), weights times ``P_S``;
+   add the births: road components (per lane near the range limits) and the previous frame's
+   unexplained clusters (``tracker.birth``). A frame older than the last raises ``ValueError``;
+   ``dt = 0`` predicts nothing.
+2. **Preprocess** the lidar (``tracker.preprocess``): non-finite points dropped, points off the road
+   (plus ``clustering.road_margin``) dropped, the bearing filter. Every drop is counted in ``stats``.
+   Lidar is the primary sensor: a frame without lidar points only predicts.
+3. **Cluster** (``tracker.clustering``): points inside a reported track's predicted rectangle (plus
+   ``clustering.track_margin``) form its cluster; the rest by distance partitioning. Radar detections,
+   moved to the frame time with their own velocity, join clusters by greedy nearest neighbour within
+   ``clustering.radar_gate``; such clusters are *fused* (their absolute velocity enters the update).
+4. **Update** (Granstrom et al. 2012 with one partition, the paper's weights). With the state-dependent
+   ``gamma(x)`` and ``P_D(x)`` of ``tracker.detection``:
+
+   - missed detection: ``w (1 - (1 - e^-gamma) P_D)``;
+   - cluster ``W`` and component ``i`` (only gated pairs: centroid within ``gating.distance`` of the
+     predicted rectangle, then the normalised innovation inside the chi-square ``gating.probability``
+     quantile): ``w_i^W = P_D w_i Gamma_i L_i^W / (delta_{|W|,1} + sum_j P_D w_j Gamma_j L_j^W)`` with
+     ``Gamma = e^-gamma gamma^|W|`` and ``L = N(z_W; y, S) prod_z 1 / (lambda c(z))``, in the log domain.
+
+5. **Reduce**: drop components whose centre left the field of view (farther than
+   ``detection.lidar_range + reduction.fov_margin``), prune, angle-aware merge, cap
+   (``tracker.reduction``); and **extract**: components with
+   weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
+   updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
+   component with the same label above the threshold gets a new label: the target split).
+
+The Cartesian variant (``coordinates="cartesian"``) runs the same machinery on
+``[x, y, v, psi, psi_dot, L, W]`` in G and reports tracks converted to road coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+from scipy.special import logsumexp
+from scipy.stats import chi2
+
+from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
+from tracker.clustering import associate_radar, distance_partition, points_in_rectangles
+from tracker.config import TrackerConfig
+from tracker.detection import detection_model, occluded_fraction
+from tracker.frame import EgoState, Frame
+from tracker.measurement import ClusterBatch, prepare_cluster, to_vehicle
+from tracker.motion import make_motion, predict
+from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
+from tracker.reduction import Mixture, reduce
+from tracker.road import Road
+from tracker.track import Track
+from tracker.transforms import to_global
+from tracker.ukf import UnscentedTransform
+from tracker.update import state_wrapping, update_pairs
+
+#: Frames whose time precedes the last one by more than this (s) are rejected.
+TIME_TOLERANCE = 1e-9
+
+
+class Tracker:
+    """GM-PHD extended-object tracker on ``road`` configured by ``config`` (module docstring).
+
+    ``stats`` counts, over the tracker's life: ``frames``, ``predict_only_frames``,
+    ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
+    ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated``, ``pairs_updated``,
+    ``births_road``, ``births_cluster``, ``label_splits``.
+    """
+
+    def __init__(self, road: Road, config: TrackerConfig | None = None) -> None:
+        if not isinstance(road, Road):
+            raise ValueError(f"Tracker needs a tracker.Road; got {type(road).__name__}")
+        config = TrackerConfig() if config is None else config
+        if not isinstance(config, TrackerConfig):
+            raise ValueError(f"Tracker config must be a TrackerConfig; got {type(config).__name__}")
+        if config.object_model != "extended":
+            raise ValueError("object_model='point' (the point-object GNN variant) is not built yet; use 'extended'")
+        self.road = road
+        self.config = config
+        self.cartesian = config.coordinates == "cartesian"
+        self.ut = UnscentedTransform(config.ukf)
+        self.motion = make_motion(config, road)
+        self.wrapping = state_wrapping(road, config.coordinates)
+        self.angle_indices = (3,)
+        self.mixture = Mixture(np.zeros(0), np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0, dtype=int))
+        self.t: float | None = None
+        self.stats: Counter[str] = Counter()
+        self._next_label = 1
+        self._s_ego: float | None = None
+        self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
+        self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))  # cluster births for the next frame
+        max_dim = 2 * config.measurement.max_cluster_points + 2
+        self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
+
+    # -- public -----------------------------------------------------------------------------------
+    def step(self, frame: Frame) -> list[Track]:
+        """Process one frame (its lidar points, radar detections and ego pose); returns the tracks."""
+        if not isinstance(frame, Frame):
+            raise ValueError(f"Tracker.step needs a tracker.Frame; got {type(frame).__name__}")
+        if self.t is not None and frame.t < self.t - TIME_TOLERANCE:
+            raise ValueError(f"frame at t={frame.t!r} s is older than the last one (t={self.t!r} s); frames must not go back in time")
+        dt = 0.0 if self.t is None else max(frame.t - self.t, 0.0)
+        self.t = frame.t
+        self.stats["frames"] += 1
+        ego = frame.ego
+        s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
+        self._s_ego = s_ego
+        self._predict(dt)
+        self._add_births(ego, s_ego)
+        points, scanned = self._preprocess(frame)
+        if not scanned:
+            self.stats["predict_only_frames"] += 1  # no lidar points at all: predict only
+        else:
+            clusters, velocities = self._cluster(points, frame)
+            explained = self._update(ego, clusters, velocities)
+            self._plan_cluster_births(ego, clusters, velocities, explained)
+        self._reduce(ego)
+        return self._extract(frame.t)
+
+    # -- steps ------------------------------------------------------------------------------------
+    def _predict(self, dt: float) -> None:
+        mix = self.mixture
+        pending_m, pending_p = self._pending
+        if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
+            labels = self._new_labels(len(pending_m))
+            weights = np.full(len(pending_m), self.config.birth.weight)
+            mix = Mixture(np.concatenate([mix.weights, weights]), np.concatenate([mix.means, pending_m]),
+                          np.concatenate([mix.covs, pending_p]), np.concatenate([mix.labels, labels]))
+            self.stats["births_cluster"] += len(pending_m)
+            self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))
+        if dt > 0.0 and len(mix):
+            means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt)
+            mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
+        self.mixture = mix
+
+    def _add_births(self, ego: EgoState, s_ego: float) -> None:
+        cfg = self.config
+        if not cfg.birth.road:
+            return
+        means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
+        if self.cartesian:
+            means, covs = to_cartesian_gaussians(self.road, means, covs)
+        occ = self._reported
+        if len(means) and len(occ):  # a vehicle can enter the view only where the view is not blocked
+            rect = to_vehicle(means, ego, self.road, cfg.coordinates)
+            labels = np.full(len(means), -1)
+            gone = occluded_fraction(rect, labels, to_vehicle(self.mixture.means[occ], ego, self.road, cfg.coordinates),
+                                     self.mixture.labels[occ])
+            means, covs = means[gone < 0.5], covs[gone < 0.5]
+        mix = self.mixture
+        self.mixture = Mixture(
+            np.concatenate([mix.weights, np.full(len(means), cfg.birth.weight)]),
+            np.concatenate([mix.means, means]), np.concatenate([mix.covs, covs]),
+            np.concatenate([mix.labels, self._new_labels(len(means))]),
+        )
+        self.stats["births_road"] += len(means)
+
+    def _preprocess(self, frame: Frame) -> tuple[np.ndarray, bool]:
+        """Points kept for clustering, and whether the frame had any finite lidar point at all."""
+        cfg = self.config.clustering
+        ego = frame.ego
+        pts, dropped = drop_nonfinite(frame.lidar)
+        self.stats["points_nonfinite"] += dropped
+        if len(pts) == 0:
+            return pts, False
+        on_road = road_bound_mask(to_global(pts, (ego.x, ego.y), ego.yaw), self.road, cfg.road_margin)
+        self.stats["points_off_road"] += int((~on_road).sum())
+        pts = pts[on_road]
+        keep = bearing_filter(pts, cfg.bearing_bin)
+        self.stats["points_bearing_filtered"] += len(pts) - len(keep)
+        return pts[keep], True
+
+    def _cluster(self, points: np.ndarray, frame: Frame) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+        cfg = self.config.clustering
+        clusters: list[np.ndarray] = []
+        if len(points):
+            owner = np.full(len(points), -1)
+            tracks = self._reported
+            if len(tracks):
+                rect = to_vehicle(self.mixture.means[tracks], frame.ego, self.road, self.config.coordinates)
+                owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
+            component = distance_partition(points, cfg.distance)
+            owner = _adopt_strays(component, owner)
+            # a cluster is a connected component, split where it spans several tracks' rectangles
+            key = component * (len(tracks) + 1) + (owner + 1)
+            order = np.argsort(key, kind="stable")
+            bounds = np.flatnonzero(np.diff(key[order])) + 1
+            clusters = np.split(points[order], bounds)
+        small = [c for c in clusters if len(c) < cfg.min_points]
+        self.stats["clusters_too_small"] += len(small)
+        clusters = [c for c in clusters if len(c) >= cfg.min_points]
+        velocities: list[np.ndarray | None] = [None] * len(clusters)
+        radar = frame.radar
+        if self.config.use_radar and len(radar) and clusters:
+            lag = frame.t - radar.t  # move each detection to the frame time with its own velocity
+            radar_xy = np.column_stack([radar.x + radar.vx * lag, radar.y + radar.vy * lag])
+            match = associate_radar(clusters, radar_xy, cfg.radar_gate)
+            for k, r in enumerate(match):
+                if r >= 0:
+                    velocities[k] = np.array([radar.vx[r], radar.vy[r]])
+        self.stats["clusters"] += len(clusters)
+        self.stats["clusters_fused"] += sum(v is not None for v in velocities)
+        return clusters, velocities
+
+    def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
+        """GM-PHD update; returns which clusters some component explained (a gated pair)."""
+        cfg = self.config
+        mix = self.mixture
+        explained = np.zeros(len(clusters), dtype=bool)
+        if len(mix) == 0:
+            return explained
+        rect = to_vehicle(mix.means, ego, self.road, cfg.coordinates)
+        occ = self._reported
+        gamma, p_d = detection_model(
+            rect, mix.labels, cfg.detection,
+            rect.take(occ) if len(occ) else None, mix.labels[occ] if len(occ) else None,
+        )
+        missed_w = mix.weights * (1.0 - (1.0 - np.exp(-gamma)) * p_d)
+        new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
+        if clusters:
+            prepared = [prepare_cluster(c, cfg.measurement, v if cfg.use_radar else None) for c, v in zip(clusters, velocities)]
+            centroid = np.stack([c.mean(axis=0) for c in clusters])
+            reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
+            dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
+            comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0))
+            self.stats["pairs_pre_gated"] += len(comp)
+            if len(comp):
+                res = update_pairs(mix.means, mix.covs, prepared, comp, clu, ego, self.road, cfg, self.ut)
+                inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
+                comp, clu = comp[inside], clu[inside]
+                self.stats["pairs_updated"] += len(comp)
+                if len(comp):
+                    size = np.array([len(c) for c in clusters])[clu]
+                    lam_c = cfg.detection.clutter_rate * cfg.detection.clutter_density
+                    log_num = (
+                        np.log(np.maximum(p_d[comp], 1e-300)) + np.log(np.maximum(mix.weights[comp], 1e-300))
+                        - gamma[comp] + size * np.log(gamma[comp])
+                        + res.log_likelihood[inside] - size * math.log(lam_c)
+                    )
+                    explained[np.unique(clu)] = True
+                    weights = np.empty(len(comp))
+                    for k in np.unique(clu):  # normalise per cluster (a handful of clusters)
+                        sel = clu == k
+                        terms = log_num[sel]
+                        if len(clusters[k]) == 1:  # delta_{|W|,1}: the clutter alternative for a single point
+                            terms_all = np.concatenate([[0.0], terms])
+                        else:
+                            terms_all = terms
+                        weights[sel] = np.exp(terms - logsumexp(terms_all))
+                    new_w.append(weights)
+                    new_m.append(res.mean[inside])
+                    new_p.append(res.cov[inside])
+                    new_l.append(mix.labels[comp])
+        self.mixture = Mixture(np.concatenate(new_w), np.concatenate(new_m), np.concatenate(new_p), np.concatenate(new_l))
+        return explained
+
+    def _plan_cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None], explained: np.ndarray) -> None:
+        idle = [k for k in range(len(clusters)) if not explained[k]]
+        means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
+                                     ego, self.road, self.config.birth)
+        if self.cartesian:
+            means, covs = to_cartesian_gaussians(self.road, means, covs)
+        self._pending = (means, covs)
+
+    def _reduce(self, ego: EgoState) -> None:
+        red = self.config.reduction
+        if len(self.mixture):  # targets that left the field of view are no longer tracked
+            rect = to_vehicle(self.mixture.means, ego, self.road, self.config.coordinates)
+            reach = np.hypot(rect.center[:, 0], rect.center[:, 1])
+            inside = reach <= self.config.detection.lidar_range + red.fov_margin
+            self.stats["components_left_view"] += int((~inside).sum())
+            self.mixture = self.mixture.take(inside)
+        self.mixture = reduce(self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
+                              max_components=red.max_components, angle_indices=self.angle_indices)
+        if self.road.closed and not self.cartesian and len(self.mixture):
+            self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
+
+    def _extract(self, t: float) -> list[Track]:
+        mix = self.mixture
+        above = np.flatnonzero(mix.weights > self.config.reduction.extraction_threshold)
+        above = above[np.argsort(-mix.weights[above], kind="stable")]
+        seen: set[int] = set()
+        for i in above:  # one label per frame: a second component with a label is a split target
+            if int(mix.labels[i]) in seen:
+                mix.labels[i] = self._new_labels(1)[0]
+                self.stats["label_splits"] += 1
+            seen.add(int(mix.labels[i]))
+        self._reported = above
+        tracks = []
+        for i in above:
+            if self.cartesian:
+                tracks.append(Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road,
+                                                   float(mix.weights[i]), self.ut))
+            else:
+                tracks.append(Track(int(mix.labels[i]), t, mix.means[i], mix.covs[i], float(mix.weights[i])))
+        return tracks
+
+    def _new_labels(self, count: int) -> np.ndarray:
+        labels = np.arange(self._next_label, self._next_label + count)
+        self._next_label += count
+        return labels
+
+
+def _adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """Points outside every predicted rectangle (``owner == -1``) join the track that owns most of
+    their connected component's points, so a track whose prediction is a little off keeps one cluster."""
+    owned = owner >= 0
+    if not owned.any() or owned.all():
+        return owner
+    n_comp, n_own = int(component.max()) + 1, int(owner.max()) + 1
+    votes = np.zeros((n_comp, n_own), dtype=int)
+    np.add.at(votes, (component[owned], owner[owned]), 1)
+    majority = np.where(votes.any(axis=1), votes.argmax(axis=1), -1)
+    out = owner.copy()
+    out[~owned] = majority[component[~owned]]
+    return out
