@@ -340,7 +340,7 @@ class ClusteringConfig:
 
     road_margin: float = 1.0
     bearing_bin: float = math.radians(0.2)
-    track_margin: float = 0.5
+    track_margin: float = 1.0
     distance: float = 1.0
     min_points: int = 1
     radar_gate: float = 3.0

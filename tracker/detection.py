@@ -4,10 +4,11 @@ For a component's predicted rectangle in E (the lidar at the origin):
 
 - its bearing span ``[b_lo, b_hi]`` is that of its four corners (unwrapped around the centre's
   bearing); ``gamma = span / lidar_resolution`` points, at least 1;
-- ``P_D = p_detection`` inside the lidar range, 0 beyond it;
+- ``P_D = p_detection`` when the rectangle's nearest corner is inside the lidar range, 0 beyond it;
 - occlusion: the fraction ``f`` of the span covered by a nearer *occluder* (the reported tracks of
-  the previous frame, other than the component's own label) scales both, ``P_D (1 - f)`` and
-  ``gamma (1 - f)``. A fully hidden target then keeps its weight through the missed-detection term
+  the previous frame, other than the component's own label) scales the expected points,
+  ``gamma (1 - f)``, and the detection probability, ``P_D min(1, (1 - f) / VISIBLE_FOR_DETECTION)``: a
+  partly hidden car is still detected; only a (nearly) hidden one is not. A fully hidden target then keeps its weight through the missed-detection term
   ``w (1 - (1 - e^-gamma) P_D)`` instead of fading, so it keeps its label when it reappears.
 
 ``f`` is the largest single overlap (not the union of several occluders), vectorised over
@@ -21,6 +22,15 @@ import numpy as np
 from tracker.angles import wrap_angle
 from tracker.config import DetectionConfig
 from tracker.measurement import Rectangles
+
+#: Visible fraction of a target's bearing span above which occlusion no longer lowers ``P_D``.
+VISIBLE_FOR_DETECTION = 0.25
+
+
+def nearest_range(rect: Rectangles) -> np.ndarray:
+    """Range (m) of each rectangle's nearest corner from the E origin (the lidar)."""
+    corners = rect.corners()
+    return np.hypot(corners[..., 0], corners[..., 1]).min(axis=-1)
 
 
 def bearing_spans(rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -62,9 +72,9 @@ def detection_model(
     """``(gamma, p_d)`` per component (C,) from its predicted rectangle in E (module docstring)."""
     lo, hi, rng = bearing_spans(rect)
     gamma = np.maximum((hi - lo) / config.lidar_resolution, 1.0)
-    p_d = np.where(rng <= config.lidar_range, config.p_detection, 0.0)
+    p_d = np.where(nearest_range(rect) <= config.lidar_range, config.p_detection, 0.0)
     if config.occlusion and occluders is not None and occluder_labels is not None:
         visible = 1.0 - occluded_fraction(rect, labels, occluders, occluder_labels)
-        p_d = p_d * visible
+        p_d = p_d * np.clip(visible / VISIBLE_FOR_DETECTION, 0.0, 1.0)
         gamma = np.maximum(gamma * visible, 1.0)
     return gamma, p_d

@@ -3,26 +3,31 @@
 ``Tracker(road, config).step(frame) -> list[Track]``. One step:
 
 1. **Predict** the mixture over ``dt`` (UKF through the motion model), weights times ``P_S``;
-   add the births: road components (per lane near the range limits) and the previous frame's
-   unexplained clusters (``tracker.birth``). A frame older than the last raises ``ValueError``;
+   add the births: road components (per lane near the range limits, where the view is not blocked and
+   no track is within ``gating.distance``) and the previous frame's unexplained clusters
+   (``tracker.birth``). A frame older than the last raises ``ValueError``;
    ``dt = 0`` predicts nothing.
 2. **Preprocess** the lidar (``tracker.preprocess``): non-finite points dropped, points off the road
    (plus ``clustering.road_margin``) dropped, the bearing filter. Every drop is counted in ``stats``.
    Lidar is the primary sensor: a frame without lidar points only predicts.
 3. **Cluster** (``tracker.clustering``): points inside a reported track's predicted rectangle (plus
-   ``clustering.track_margin``) form its cluster; the rest by distance partitioning. Radar detections,
+   ``clustering.track_margin``) form its cluster, even in fragments; overlapping track rectangles (duplicate
+   hypotheses of one vehicle) share one; a connected component (distance partitioning) that a track
+   owns in part joins it entirely; the rest are clusters by distance partitioning. Radar detections,
    moved to the frame time with their own velocity, join clusters by greedy nearest neighbour within
    ``clustering.radar_gate``; such clusters are *fused* (their absolute velocity enters the update).
+   Clusters that no component explains and that lie outside every track's rectangle seed births.
 4. **Update** (Granstrom et al. 2012 with one partition, the paper's weights). With the state-dependent
    ``gamma(x)`` and ``P_D(x)`` of ``tracker.detection``:
 
-   - missed detection: ``w (1 - (1 - e^-gamma) P_D)``;
+   - missed detection: ``w (1 - (1 - e^-gamma) P_D)``, except for a component whose own cluster
+     (inside its track's rectangle) failed every gate: it was seen, not missed, so it keeps ``w``;
    - cluster ``W`` and component ``i`` (only gated pairs: centroid within ``gating.distance`` of the
      predicted rectangle, then the normalised innovation inside the chi-square ``gating.probability``
      quantile): ``w_i^W = P_D w_i Gamma_i L_i^W / (delta_{|W|,1} + sum_j P_D w_j Gamma_j L_j^W)`` with
      ``Gamma = e^-gamma gamma^|W|`` and ``L = N(z_W; y, S) prod_z 1 / (lambda c(z))``, in the log domain.
 
-5. **Reduce**: drop components whose centre left the field of view (farther than
+5. **Reduce**: drop components that left the field of view (nearest corner farther than
    ``detection.lidar_range + reduction.fov_margin``), prune, angle-aware merge, cap
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
@@ -39,15 +44,17 @@ import math
 from collections import Counter
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.special import logsumexp
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.clustering import associate_radar, distance_partition, points_in_rectangles
 from tracker.config import TrackerConfig
-from tracker.detection import detection_model, occluded_fraction
+from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
-from tracker.measurement import ClusterBatch, prepare_cluster, to_vehicle
+from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
 from tracker.reduction import Mixture, reduce
@@ -92,6 +99,7 @@ class Tracker:
         self._s_ego: float | None = None
         self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
         self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))  # cluster births for the next frame
+        self._owned = np.zeros(0, dtype=bool)  # this frame's clusters inside a reported track's rectangle
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
 
@@ -144,12 +152,15 @@ class Tracker:
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs)
         occ = self._reported
-        if len(means) and len(occ):  # a vehicle can enter the view only where the view is not blocked
+        if len(means) and len(occ):
+            # a vehicle can enter the view only where the view is not blocked and no track already is
             rect = to_vehicle(means, ego, self.road, cfg.coordinates)
+            tracks = to_vehicle(self.mixture.means[occ], ego, self.road, cfg.coordinates)
             labels = np.full(len(means), -1)
-            gone = occluded_fraction(rect, labels, to_vehicle(self.mixture.means[occ], ego, self.road, cfg.coordinates),
-                                     self.mixture.labels[occ])
-            means, covs = means[gone < 0.5], covs[gone < 0.5]
+            hidden = occluded_fraction(rect, labels, tracks, self.mixture.labels[occ])
+            gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
+            keep = (hidden < 0.5) & (gap > cfg.gating.distance)
+            means, covs = means[keep], covs[keep]
         mix = self.mixture
         self.mixture = Mixture(
             np.concatenate([mix.weights, np.full(len(means), cfg.birth.weight)]),
@@ -176,22 +187,27 @@ class Tracker:
     def _cluster(self, points: np.ndarray, frame: Frame) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
         cfg = self.config.clustering
         clusters: list[np.ndarray] = []
+        owned = np.zeros(0, dtype=bool)
         if len(points):
             owner = np.full(len(points), -1)
             tracks = self._reported
             if len(tracks):
                 rect = to_vehicle(self.mixture.means[tracks], frame.ego, self.road, self.config.coordinates)
                 owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
+                owner = np.where(owner >= 0, _duplicate_groups(rect)[np.maximum(owner, 0)], -1)
             component = distance_partition(points, cfg.distance)
             owner = _adopt_strays(component, owner)
-            # a cluster is a connected component, split where it spans several tracks' rectangles
-            key = component * (len(tracks) + 1) + (owner + 1)
+            # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
+            # the other points form one cluster per connected component
+            key = np.where(owner >= 0, owner, len(tracks) + component)
             order = np.argsort(key, kind="stable")
             bounds = np.flatnonzero(np.diff(key[order])) + 1
             clusters = np.split(points[order], bounds)
-        small = [c for c in clusters if len(c) < cfg.min_points]
-        self.stats["clusters_too_small"] += len(small)
-        clusters = [c for c in clusters if len(c) >= cfg.min_points]
+            owned = (owner[order][np.concatenate([[0], bounds])] >= 0) if len(points) else np.zeros(0, bool)
+        big = np.array([len(c) >= cfg.min_points for c in clusters], dtype=bool)
+        self.stats["clusters_too_small"] += int((~big).sum())
+        clusters = [c for c, keep in zip(clusters, big) if keep]
+        self._owned = owned[big] if len(big) else np.zeros(0, dtype=bool)
         velocities: list[np.ndarray | None] = [None] * len(clusters)
         radar = frame.radar
         if self.config.use_radar and len(radar) and clusters:
@@ -230,6 +246,11 @@ class Tracker:
             if len(comp):
                 res = update_pairs(mix.means, mix.covs, prepared, comp, clu, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
+                # a component whose own cluster (inside its track's rectangle) fails the gate was seen
+                # but not explained by the model (e.g. partly occluded): no missed-detection penalty
+                unexplained = np.setdiff1d(comp[self._owned[clu]], comp[inside])
+                missed_w[unexplained] = mix.weights[unexplained]
+                self.stats["owned_gate_failures"] += len(unexplained)
                 comp, clu = comp[inside], clu[inside]
                 self.stats["pairs_updated"] += len(comp)
                 if len(comp):
@@ -258,7 +279,10 @@ class Tracker:
         return explained
 
     def _plan_cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None], explained: np.ndarray) -> None:
-        idle = [k for k in range(len(clusters)) if not explained[k]]
+        """Clusters that no component explained and that lie outside every reported track's rectangle
+        seed births for the next frame (a cluster inside a track's rectangle that failed its gate is
+        that track's, badly predicted, not a new vehicle)."""
+        idle = [k for k in range(len(clusters)) if not explained[k] and not self._owned[k]]
         means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
                                      ego, self.road, self.config.birth)
         if self.cartesian:
@@ -269,8 +293,7 @@ class Tracker:
         red = self.config.reduction
         if len(self.mixture):  # targets that left the field of view are no longer tracked
             rect = to_vehicle(self.mixture.means, ego, self.road, self.config.coordinates)
-            reach = np.hypot(rect.center[:, 0], rect.center[:, 1])
-            inside = reach <= self.config.detection.lidar_range + red.fov_margin
+            inside = nearest_range(rect) <= self.config.detection.lidar_range + red.fov_margin
             self.stats["components_left_view"] += int((~inside).sum())
             self.mixture = self.mixture.take(inside)
         self.mixture = reduce(self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
@@ -317,3 +340,20 @@ def _adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
     out = owner.copy()
     out[~owned] = majority[component[~owned]]
     return out
+
+
+def _duplicate_groups(rect: Rectangles) -> np.ndarray:
+    """Group index (T,) of track rectangles: overlapping rectangles (separating-axis test) are one
+    group, so duplicate hypotheses of one vehicle do not split its points between them."""
+    count = len(rect.center)
+    if count <= 1:
+        return np.zeros(count, dtype=int)
+    corners = rect.corners()  # (T, 4, 2)
+    axes = np.concatenate([np.stack([np.cos(rect.psi), np.sin(rect.psi)], -1),
+                           np.stack([-np.sin(rect.psi), np.cos(rect.psi)], -1)], axis=0)  # (2T, 2)
+    proj = np.einsum("tkd,ad->tak", corners, axes)  # (T, 2T, 4): every rectangle on every axis
+    lo, hi = proj.min(axis=2), proj.max(axis=2)
+    separated = (hi[:, None, :] < lo[None, :, :]) | (hi[None, :, :] < lo[:, None, :])  # (T, T, 2T)
+    overlap = ~separated.any(axis=2)
+    _, groups = connected_components(csr_matrix(overlap), directed=False)
+    return groups

@@ -1,0 +1,170 @@
+"""Tests of tracker/tracker.py (the GM-PHD layer) on synthetic frames from rectangles (tests/scenes.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scenes import Car, Scene
+
+from tracker import Frame, Road, Tracker, TrackerConfig
+from tracker.frame import EgoState, RadarDetections
+
+DT = 0.1
+
+
+def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, extra=None):
+    """Run the tracker over the scene; returns the per-frame tracks and the tracker."""
+    rng = np.random.default_rng(seed)
+    tracker = Tracker(scene.road, config)
+    out = []
+    for k in range(int(round(duration / DT)) + 1):
+        t = k * DT
+        points = extra(t, rng) if extra is not None else None
+        out.append(tracker.step(scene.frame(t, rng, points)))
+    return out, tracker
+
+
+def nearest(tracks, road, xy):
+    """The track whose centre is nearest ``xy`` and that distance (m)."""
+    if not tracks:
+        return None, np.inf
+    centres = np.array([tr.cartesian(road)[:2] for tr in tracks])
+    d = np.linalg.norm(centres - xy, axis=1)
+    k = int(np.argmin(d))
+    return tracks[k], float(d[k])
+
+
+@pytest.fixture(scope="module")
+def curve() -> Road:
+    return Road.from_curvature([(2 * np.pi * 150.0, 1 / 150.0, 1 / 150.0)], closed=True, lanes=3, lane_width=3.5)
+
+
+def test_two_cars_side_by_side_on_a_curve(curve):
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, -3.5, 16.0), Car(20.0, 3.5, 16.0)])
+    frames, tracker = run(scene, TrackerConfig(), 10.0)
+    labels = []
+    for k, tracks in enumerate(frames[10:], start=10):  # after the first second
+        truth = scene.truth(k * DT)
+        assert len(tracks) == 2, (k, [(t.label, t.s, t.n) for t in tracks])
+        frame_labels = []
+        for row in truth:
+            tr, dist = nearest(tracks, curve, row[:2])
+            assert dist < 0.3, (k, dist)
+            frame_labels.append(tr.label)
+        labels.append(frame_labels)
+    assert len({tuple(x) for x in labels}) == 1  # the same two labels for 9 s
+    assert tracker.stats["label_splits"] == 0
+
+
+def test_entering_car_confirmed_and_leaving_car_dropped_within_1s():
+    road = Road.from_curvature([(2 * np.pi * 300.0, 1 / 300.0, 1 / 300.0)], closed=True, lanes=2, lane_width=3.5)
+    config = TrackerConfig()
+    config = dataclasses.replace(config, detection=dataclasses.replace(config.detection, lidar_range=40.0))
+    # car A closes in from 45 m ahead at 5 m/s: its centre enters the 40 m range at t = 1 s;
+    # car B pulls away from 30 m at 10 m/s: its centre leaves the range at t = 1 s
+    scene = Scene(road, Car(0.0, -1.75, 20.0), [Car(45.0 + 2.4, 1.75, 15.0), Car(30.0, -1.75, 30.0)], max_range=40.0)
+    frames, _ = run(scene, config, 4.0)
+    def near(k, car_index):
+        return nearest(frames[k], road, scene.truth(k * DT)[car_index, :2])[1] < 1.0
+    enter = 1.0  # the first time A's nearest point is within range is a little earlier
+    assert any(near(k, 0) for k in range(int(enter / DT), int((enter + 1.0) / DT) + 1))
+    assert all(near(k, 0) for k in range(int((enter + 1.0) / DT), len(frames)))
+    leave = 1.0
+    assert near(int(leave / DT) - 3, 1)
+    assert not any(near(k, 1) for k in range(int((leave + 1.0) / DT), len(frames)))
+    assert all(len(tr) <= 2 for tr in frames)
+
+
+def test_clutter_off_road_never_becomes_a_track_and_on_road_rarely(curve):
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [])
+    rng_cl = np.random.default_rng(3)
+
+    def off_road(t, rng):  # 200 static points 6-30 m beside the road, on both sides
+        s = rng_cl.uniform(-60, 60, 200) + 15.0 * t
+        n = np.where(rng_cl.random(200) < 0.5, 1, -1) * rng_cl.uniform(7.0, 30.0, 200)
+        return curve.to_cartesian(curve.wrap_s(s), n)
+
+    frames, tracker = run(scene, TrackerConfig(), 5.0, extra=off_road)
+    assert all(len(tr) == 0 for tr in frames)
+    assert tracker.stats["points_off_road"] >= 200 * len(frames) * 0.95
+
+    def on_road(t, rng):  # 5 random clutter points per frame on the road within 60 m
+        s = rng_cl.uniform(-60, 60, 5) + 15.0 * t
+        return curve.to_cartesian(curve.wrap_s(s), rng_cl.uniform(-5.0, 5.0, 5))
+
+    frames, tracker = run(scene, TrackerConfig(), 10.0, extra=on_road)
+    false_frames = sum(len(tr) > 0 for tr in frames)
+    # documented rate: 5 uniform clutter points per frame on ~1260 m^2 of road in view
+    assert false_frames <= 0.02 * len(frames), false_frames
+
+
+def test_car_hidden_for_two_seconds_keeps_its_label():
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    # ego in lane 0; car A in lane 1 10 m ahead at the ego's speed hides car B in lane 2, which the
+    # ego overtakes at 9 m/s: B is fully behind A for about 2 s (relative 32 m -> 14 m)
+    ego = Car(100.0, -3.5, 20.0)
+    scene = Scene(road, ego, [Car(110.0, 0.0, 20.0), Car(150.0, 3.5, 11.0)])
+    frames, tracker = run(scene, TrackerConfig(), 6.5)
+    def label_of_b(k):
+        tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
+        return tr.label if d < 1.0 else None
+    before = label_of_b(int(1.5 / DT))
+    after = label_of_b(int(6.0 / DT))
+    assert before is not None and before == after
+    visible = [len(scene.frame(k * DT, np.random.default_rng(0)).lidar) for k in range(0, 66)]
+    assert min(visible) < max(visible)  # B really disappeared from the scan for a while
+
+
+def test_fused_speed_error_below_lidar_only(curve):
+    errs = {}
+    for use_radar in (True, False):
+        scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(25.0, -3.5, 18.0), Car(30.0, 3.5, 12.0)], radar=True)
+        config = TrackerConfig.for_variant("curvilinear-fused" if use_radar else "curvilinear-lidar")
+        frames, tracker = run(scene, config, 3.0, seed=1)
+        e = []
+        for k in range(5, len(frames)):
+            for row in scene.truth(k * DT):
+                tr, d = nearest(frames[k], curve, row[:2])
+                if d < 2.0:
+                    e.append(tr.v - row[3])
+        errs[use_radar] = float(np.sqrt(np.mean(np.square(e))))
+        if use_radar:
+            assert tracker.stats["clusters_fused"] > 0
+    assert errs[True] < errs[False], errs
+
+
+def test_cartesian_variant_tracks_the_same_cars(curve):
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, -3.5, 16.0), Car(20.0, 3.5, 16.0)])
+    frames, _ = run(scene, TrackerConfig.for_variant("cartesian-fused"), 3.0)
+    truth = scene.truth(3.0)
+    assert len(frames[-1]) == 2
+    for row in truth:
+        assert nearest(frames[-1], curve, row[:2])[1] < 0.5
+
+
+def test_bad_and_degenerate_input(curve):
+    tracker = Tracker(curve, TrackerConfig())
+    ego = EgoState(*curve.position(0.0), float(curve.heading(0.0)), 15.0)
+    assert tracker.step(Frame(0.0, ego)) == []  # empty frame: predict only
+    assert tracker.stats["predict_only_frames"] == 1
+    nan_pts = np.array([[np.nan, 1.0], [20.0, np.inf]])
+    assert tracker.step(Frame(0.1, ego, nan_pts)) == []
+    assert tracker.stats["points_nonfinite"] == 2
+    radar_only = Frame(0.2, ego, None, RadarDetections(t=[0.15], x=[20.0], y=[0.0], vx=[10.0], vy=[0.0]))
+    assert tracker.step(radar_only) == []
+    assert tracker.stats["predict_only_frames"] == 3
+    # dt = 0: the same time again is accepted and predicts nothing
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, 0.0, 15.0)])
+    rng = np.random.default_rng(0)
+    fr = scene.frame(0.3, rng)
+    tracker.step(fr)
+    tracks = tracker.step(fr)
+    assert all(np.isfinite(t.mean).all() for t in tracks)
+    with pytest.raises(ValueError, match="older than the last one"):
+        tracker.step(scene.frame(0.2, rng))
+    with pytest.raises(ValueError, match="needs a tracker.Frame"):
+        tracker.step("not a frame")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="not built yet"):
+        Tracker(curve, TrackerConfig(object_model="point"))
