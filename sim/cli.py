@@ -1,7 +1,10 @@
-"""The ``eot`` command line.
+"""The ``eot`` command line: ``demo``, ``run``, ``montecarlo``, ``scenarios``, ``bench`` (and
+``compare``, not built yet).
 
-Subcommands that are not built yet say so plainly and exit with status 2; nothing here prints
-output that looks like results unless it computed them.
+Exit status: 0 on success; 2 for a usage error (unknown scenario, suite or variant -- one line that
+lists the choices --, an invalid scenario file, a missing optional dependency) and for subcommands
+that are not built yet, which say so plainly; nothing here prints output that looks like results
+unless it computed them.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 NOT_BUILT_EXIT = 2
+USAGE_EXIT = 2
 
 
 def _not_built(name: str) -> Callable[[argparse.Namespace], int]:
@@ -77,6 +81,196 @@ def _scenarios(args: argparse.Namespace) -> int:
     return status
 
 
+# -- scenario and variant names -------------------------------------------------------------------
+class UsageError(Exception):
+    """A bad scenario, suite or variant name on the command line (one line, exit status 2)."""
+
+
+def _shipped() -> tuple[list[str], list[str]]:
+    """Names of the shipped scenarios and suites (``scenarios/``)."""
+    from sim.scenario import SCENARIO_DIR, is_suite_file
+
+    files = sorted(SCENARIO_DIR.glob("*.toml"))
+    suites = [p.stem for p in files if is_suite_file(p)]
+    return [p.stem for p in files if p.stem not in suites], suites
+
+
+def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
+    """Scenario file paths for ``name``: a scenario file or shipped name, or (``allow_suite``) a suite
+    file or shipped suite name. Unknown names raise ``UsageError`` listing the choices."""
+    from pathlib import Path
+
+    from sim.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
+
+    path = Path(name)
+    candidates = [path] if path.exists() else [SCENARIO_DIR / (path.name if path.suffix == ".toml" else f"{path.name}.toml")]
+    found = next((p for p in candidates if p.exists()), None)
+    scenarios, suites = _shipped()
+    if found is None:
+        what = "scenario or suite" if allow_suite else "scenario"
+        choices = ", ".join(scenarios + ([f"suite {s}" for s in suites] if allow_suite else []))
+        raise UsageError(f"unknown {what} {name!r}; choose one of: {choices} (or give a .toml file)")
+    try:
+        if is_suite_file(found):
+            if not allow_suite:
+                raise UsageError(f"{name!r} is a suite; `eot run` takes one scenario: {', '.join(scenarios)}")
+            return [str(p) for p in load_suite(found).paths]
+        load_scenario(found)
+    except ScenarioError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    return [str(found)]
+
+
+def _check_variants(names: list[str]) -> list[str]:
+    from sim.variants import UnknownVariantError, check_variant
+
+    try:
+        return [check_variant(v) for v in names]
+    except UnknownVariantError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _fmt_value(value: object, digits: int = 3) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def summary_table(metrics: dict) -> str:
+    """A short text table of a run's main metrics."""
+    m = metrics
+    rows = [
+        ("frames", _fmt_value(m.get("frames"))),
+        ("GOSPA mean (m)", _fmt_value(m.get("gospa_mean"))),
+        ("  localisation / missed / false (m^2, p-th-power sums)",
+         " / ".join(_fmt_value(m.get(k), 2) for k in ("gospa_localization_mean", "gospa_missed_mean", "gospa_false_mean"))),
+        ("GOSPA mean, visible vehicles only (m)", _fmt_value(m.get("gospa_visible_mean"))),
+        ("true / estimated count (mean)",
+         f"{_fmt_value(m.get('truth_count_mean'), 2)} / {_fmt_value(m.get('track_count_mean'), 2)}"),
+        ("cardinality error mean |N_est - N_true|", _fmt_value(m.get("cardinality_error_mean"))),
+        ("position RMSE (m)", _fmt_value(m.get("pos_rmse_m"))),
+        ("yaw RMSE (deg)", _fmt_value(m.get("yaw_rmse_deg"))),
+        ("speed RMSE (m/s)", _fmt_value(m.get("speed_rmse_mps"))),
+        ("length / width RMSE (m)", f"{_fmt_value(m.get('length_rmse_m'))} / {_fmt_value(m.get('width_rmse_m'))}"),
+        ("ID switches", _fmt_value(m.get("id_switches"))),
+        ("tracker ms per frame (median / p95)",
+         f"{_fmt_value(m.get('tracker_ms_median'), 1)} / {_fmt_value(m.get('tracker_ms_p95'), 1)}"),
+    ]
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: bool, duration: float | None,
+                   roadside: bool | None, quiet: bool) -> int:
+    import time
+    from pathlib import Path
+
+    from sim.plots import write_figures
+    from sim.progress import ProgressBar
+    from sim.results import write_results
+    from sim.runner import run_scenario
+    from sim.scenario import load_scenario
+
+    spec = load_scenario(scenario)
+    start = time.perf_counter()
+    with ProgressBar(0, f"{spec.name} / {variant} / seed {seed}", enabled=not quiet) as bar:
+        try:
+            result = run_scenario(spec, seed, variant, duration=duration, roadside=roadside, keep_sensor_data=gif,
+                                  progress=bar)
+        except ValueError as exc:
+            bar.close()
+            print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
+            return 2
+    paths = write_results(result, out)
+    with ProgressBar(0, "figures" + (" + GIF" if gif else ""), enabled=not quiet) as bar:
+        paths.update(write_figures(result, out, gif=gif, progress=bar))
+    wall = time.perf_counter() - start
+    print(f"{spec.name} / {variant} / seed {seed}: {result.duration:g} s simulated in {wall:.1f} s wall "
+          f"(GOSPA: alpha 2, p 2, c 5 m; parts are p-th-power sums)")
+    print(summary_table(result.metrics))
+    print(f"wrote {len(paths)} files to {Path(out)}/: " + ", ".join(sorted(p.name for p in paths.values())))
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    """``eot demo``: curvy-multi with defaults into results/demo/ with figures and the GIF."""
+    return _run_and_write("curvy-multi", seed=args.seed, variant="curvilinear-fused", out=args.out, gif=not args.no_gif,
+                          duration=None, roadside=None, quiet=args.quiet)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """``eot run SCENARIO``."""
+    paths = _resolve_scenarios(args.scenario, allow_suite=False)
+    variant = _check_variants([args.variant])[0]
+    from pathlib import Path
+
+    name = Path(paths[0]).stem
+    out = args.out or f"out/{name}-{variant}-seed{args.seed}"
+    return _run_and_write(paths[0], seed=args.seed, variant=variant, out=out, gif=args.gif, duration=args.duration,
+                          roadside=False if args.no_roadside else None, quiet=args.quiet)
+
+
+def _split_variants(values: list[str] | None) -> list[str]:
+    from sim.variants import DEFAULT_VARIANT
+
+    names = [v.strip() for value in (values or [DEFAULT_VARIANT]) for v in value.split(",") if v.strip()]
+    return list(dict.fromkeys(names))
+
+
+def _montecarlo(args: argparse.Namespace) -> int:
+    """``eot montecarlo SCENARIO_OR_SUITE --runs N``."""
+    from sim.montecarlo import import_ray, plan, run_study, summarize_runs, write_study
+    from sim.progress import ProgressBar
+
+    paths = _resolve_scenarios(args.target, allow_suite=True)
+    variants = _check_variants(_split_variants(args.variant))
+    if args.runs < 1:
+        raise UsageError(f"--runs must be >= 1; got {args.runs}")
+    if args.workers < 1:
+        raise UsageError(f"--workers must be >= 1; got {args.workers}")
+    if args.backend == "ray":
+        try:
+            import_ray()
+        except RuntimeError as exc:
+            raise UsageError(str(exc)) from None
+    elif args.address:
+        raise UsageError("--address applies to --backend ray only")
+    try:
+        tasks = plan(paths, args.runs, variants, seed0=args.seed, duration=args.duration,
+                     roadside=False if args.no_roadside else None)
+    except ValueError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    label = f"{len(tasks)} runs on {args.backend} ({args.workers} worker{'s' if args.workers > 1 else ''})"
+    with ProgressBar(len(tasks), label, enabled=not args.quiet) as bar:
+        study = run_study(tasks, workers=args.workers, backend=args.backend, address=args.address, progress=bar)
+    files = write_study(study, args.out)
+    summary = summarize_runs(study.rows)
+    shown = ["gospa_mean", "cardinality_error_mean", "pos_rmse_m", "yaw_rmse_deg", "id_switches"]
+    print(f"{len(study.rows)} runs, {study.simulated_s:g} s simulated in {study.wall_s:.1f} s wall: "
+          f"{study.throughput:.2f} simulated s per wall s per worker")
+    header = f"{'scenario':<16} {'variant':<18} " + " ".join(f"{m:>24}" for m in shown)
+    print(header)
+    by_key = {(r["scenario"], r["variant"], r["metric"]): r for r in summary}
+    for scenario in dict.fromkeys(r["scenario"] for r in study.rows):
+        for variant in variants:
+            cells = []
+            for metric in shown:
+                item = by_key.get((scenario, variant, metric))
+                if item is None or item["mean"] is None:
+                    cells.append(f"{'-':>24}")
+                elif item["ci95_low"] is None:
+                    cells.append(f"{item['mean']:>24.3f}")
+                else:
+                    half = 0.5 * (item["ci95_high"] - item["ci95_low"])
+                    cells.append(f"{item['mean']:>14.3f} +- {half:<7.3f}")
+            print(f"{scenario:<16} {variant:<18} " + " ".join(cells))
+    print("(mean +- 95 % CI half-width over seeds; GOSPA alpha 2, p 2, c 5 m)")
+    print(f"wrote {', '.join(str(p) for p in files.values())}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``eot`` with one sub-parser per subcommand."""
     parser = argparse.ArgumentParser(
@@ -84,14 +278,42 @@ def build_parser() -> argparse.ArgumentParser:
         description="frenet-eot: extended object tracking in Frenet road coordinates.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    for name, help_text in [
-        ("demo", "run the main demo scenario and write its results"),
-        ("run", "run one scenario"),
-        ("montecarlo", "Monte Carlo study over seeds"),
-        ("compare", "the paper's comparison study and report"),
-    ]:
-        p = sub.add_parser(name, help=help_text)
-        p.set_defaults(func=_not_built(name))
+    from sim.variants import DEFAULT_VARIANT, VARIANTS
+
+    p = sub.add_parser("demo", help="run curvy-multi with defaults; figures, GIF and a summary in results/demo/")
+    p.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--no-gif", action="store_true", help="skip the animated GIF")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_demo)
+
+    p = sub.add_parser("run", help="run one scenario: metrics.json, CSVs and figures")
+    p.add_argument("scenario", help="scenario name (see `eot scenarios`) or a .toml file")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
+    p.add_argument("--out", help="output folder (default: out/SCENARIO-VARIANT-seedN)")
+    p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
+    p.add_argument("--duration", type=float, help="simulate only this many seconds (default: the scenario's)")
+    p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run)
+
+    p = sub.add_parser("montecarlo", help="Monte Carlo study over seeds (local processes or Ray)")
+    p.add_argument("target", metavar="SCENARIO_OR_SUITE", help="scenario or suite name, or a .toml file")
+    p.add_argument("--runs", type=int, required=True, help="seeds per scenario and variant")
+    p.add_argument("--out", required=True, help="output folder (runs.csv, summary.csv, summary.json)")
+    p.add_argument("--workers", type=int, default=1, help="parallel workers (default 1)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes or Ray")
+    p.add_argument("--address", help="Ray cluster address (e.g. auto); default: a local Ray with --workers CPUs")
+    p.add_argument("--variant", action="append", help=f"tracker variant(s), repeat or comma-separate: {', '.join(VARIANTS)}")
+    p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
+    p.add_argument("--duration", type=float, help="simulate only this many seconds per run")
+    p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_montecarlo)
+
+    p = sub.add_parser("compare", help="the paper's comparison study and report")
+    p.set_defaults(func=_not_built("compare"))
     p = sub.add_parser("scenarios", help="list the scenario suites and files (name and description)")
     p.add_argument("--dir", help="folder of scenario files (default: the repository's scenarios/)")
     p.set_defaults(func=_scenarios)
@@ -112,7 +334,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``eot`` console script; returns the process exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except UsageError as exc:
+        print(f"eot {args.command}: {exc}", file=sys.stderr)
+        return USAGE_EXIT
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,333 @@
+"""Monte Carlo studies: many runs (scenario x variant x seed), locally in processes or on Ray.
+
+A study is a list of ``RunTask``s (``plan``): every scenario with every variant for the seeds
+``seed0 .. seed0 + runs - 1`` (the same seeds for every variant: common random numbers, so variant
+differences are not drowned in scenario noise). ``run_task`` runs one and returns one CSV row: the
+scenario, variant, seed, simulated seconds and every scalar metric of ``sim.runner`` (metrics.json
+keys). Runs are independent and deterministic, so the rows do not depend on the backend, the number
+of workers or the order in which runs finish (only the wall-clock keys, ``sim.runner.TIMING_KEYS``,
+differ):
+
+- ``backend="local"``: ``workers`` processes (``concurrent.futures.ProcessPoolExecutor``; 1 runs in
+  this process);
+- ``backend="ray"``: one Ray task per run (``num_cpus=1``) on ``ray.init(address=...)`` (an existing
+  cluster, e.g. ``"auto"``) or, without an address, a local Ray started with ``workers`` CPUs. Ray is
+  an optional extra: ``pip install "frenet-eot[distributed]"``. Tasks carry the scenario's content
+  (not its path), so remote workers need only the installed package.
+
+``summarize_runs`` gives per scenario, variant and metric the number of runs with a value, the mean,
+the standard deviation and the 95 % confidence interval of the mean (Student t, ``n - 1`` degrees of
+freedom; none for a single run). ``write_study`` writes ``runs.csv`` (one row per run),
+``summary.csv`` and ``summary.json`` (with the throughput: simulated seconds per wall second per
+worker).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import time
+import tomllib
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.runner import TIMING_KEYS, run_scenario
+from sim.scenario import ScenarioError, parse_scenario, resolve_scenario_path
+from sim.variants import DEFAULT_VARIANT, check_variant
+
+BACKENDS = ("local", "ray")
+#: Columns of runs.csv that identify a run (the metrics follow).
+ID_COLUMNS = ("scenario", "variant", "seed", "sim_s")
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One run of a study: the scenario (its parsed TOML ``data`` and where it came from, ``source``),
+    the ``variant``, the ``seed``, an optional shorter ``duration`` (s), a ``roadside`` override
+    (``None``: the scenario's) and an optional ``tracker_factory(road, config)`` (default
+    ``tracker.Tracker``; a custom tracker must be picklable by reference for process workers)."""
+
+    name: str
+    source: str
+    data: dict[str, Any]
+    variant: str
+    seed: int
+    duration: float | None = None
+    roadside: bool | None = None
+    tracker_factory: Callable[..., Any] | None = None
+
+
+def scenario_task_data(path: str | Path) -> tuple[str, str, dict[str, Any]]:
+    """``(name, source, data)`` of a scenario file (or shipped name), validated once here."""
+    p = resolve_scenario_path(path)
+    with open(p, "rb") as fh:
+        try:
+            data = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    spec = parse_scenario(data, str(p))
+    return spec.name, str(p), data
+
+
+def plan(
+    scenarios: Sequence[str | Path],
+    runs: int,
+    variants: Sequence[str] = (DEFAULT_VARIANT,),
+    *,
+    seed0: int = 0,
+    duration: float | None = None,
+    roadside: bool | None = None,
+    tracker_factory: Callable[..., Any] | None = None,
+) -> list[RunTask]:
+    """The tasks of a study: every scenario x variant x seed in ``seed0 .. seed0 + runs - 1``."""
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise ValueError(f"runs must be an integer >= 1; got {runs!r}")
+    if isinstance(seed0, bool) or not isinstance(seed0, int) or seed0 < 0:
+        raise ValueError(f"seed0 must be a non-negative integer; got {seed0!r}")
+    for v in variants:
+        check_variant(v)
+    loaded = [scenario_task_data(s) for s in scenarios]
+    return [
+        RunTask(name, source, data, variant, seed0 + k, duration, roadside, tracker_factory)
+        for name, source, data in loaded
+        for variant in variants
+        for k in range(runs)
+    ]
+
+
+def _scalar(value: Any) -> bool:
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
+def run_task(task: RunTask) -> dict[str, Any]:
+    """Run one task and return its row: ``scenario``, ``variant``, ``seed``, ``sim_s`` and the scalar
+    metrics of ``sim.runner`` (``None`` where undefined)."""
+    spec = parse_scenario(task.data, task.source)
+    result = run_scenario(spec, task.seed, task.variant, duration=task.duration, roadside=task.roadside,
+                          tracker_factory=task.tracker_factory)
+    row: dict[str, Any] = {"scenario": task.name, "variant": task.variant, "seed": task.seed, "sim_s": result.duration}
+    for key, value in result.metrics.items():
+        if _scalar(value):
+            row[key] = None if isinstance(value, float) and not math.isfinite(value) else value
+    return row
+
+
+def _run_local(tasks: list[RunTask], workers: int, progress: Callable[[int, int], None] | None) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any] | None] = [None] * len(tasks)
+    if workers <= 1:
+        for i, task in enumerate(tasks):
+            rows[i] = run_task(task)
+            if progress is not None:
+                progress(i + 1, len(tasks))
+        return rows  # type: ignore[return-value]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
+        for done, future in enumerate(as_completed(futures), start=1):
+            rows[futures[future]] = future.result()
+            if progress is not None:
+                progress(done, len(tasks))
+    return rows  # type: ignore[return-value]
+
+
+def import_ray() -> Any:
+    """The ``ray`` module, or a ``RuntimeError`` saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise RuntimeError(
+            "the Ray backend needs Ray, which is an optional extra: pip install \"frenet-eot[distributed]\" "
+            "(or use --backend local)"
+        ) from None
+    return ray
+
+
+def _run_ray(
+    tasks: list[RunTask], workers: int, address: str | None, progress: Callable[[int, int], None] | None
+) -> list[dict[str, Any]]:
+    ray = import_ray()
+    started = False
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address, logging_level="WARNING")
+        else:
+            ray.init(num_cpus=max(1, workers), include_dashboard=False, logging_level="WARNING")
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1)(run_task)
+        refs = [remote.remote(task) for task in tasks]
+        index = {ref: i for i, ref in enumerate(refs)}
+        rows: list[dict[str, Any] | None] = [None] * len(tasks)
+        pending = list(refs)
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            for ref in ready:
+                rows[index[ref]] = ray.get(ref)
+            if progress is not None:
+                progress(len(tasks) - len(pending), len(tasks))
+        return rows  # type: ignore[return-value]
+    finally:
+        if started:
+            ray.shutdown()
+
+
+@dataclass(frozen=True)
+class Study:
+    """The rows of a study (task order), the backend, the workers and the wall time (s)."""
+
+    rows: list[dict[str, Any]]
+    backend: str
+    workers: int
+    wall_s: float
+
+    @property
+    def simulated_s(self) -> float:
+        """Total simulated seconds over all runs."""
+        return float(sum(r["sim_s"] for r in self.rows))
+
+    @property
+    def throughput(self) -> float:
+        """Simulated seconds per wall second per worker."""
+        return self.simulated_s / (self.wall_s * max(1, self.workers)) if self.wall_s > 0 else float("nan")
+
+
+def run_study(
+    tasks: Sequence[RunTask],
+    *,
+    workers: int = 1,
+    backend: str = "local",
+    address: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Study:
+    """Run every task on ``backend`` (``"local"`` or ``"ray"``) with ``workers`` workers; rows in
+    task order. ``address`` is the Ray cluster address (Ray only)."""
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of: {', '.join(BACKENDS)}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+    if address and backend != "ray":
+        raise ValueError("address applies to the Ray backend only")
+    tasks = list(tasks)
+    start = time.perf_counter()
+    if backend == "local":
+        rows = _run_local(tasks, workers, progress)
+    else:
+        rows = _run_ray(tasks, workers, address, progress)
+    return Study(rows, backend, workers, time.perf_counter() - start)
+
+
+# -- summary ---------------------------------------------------------------------------------------
+def metric_columns(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The metric columns of ``rows`` (every key but the identifying ones), in first-seen order."""
+    seen: dict[str, None] = {}
+    for row in rows:
+        for key in row:
+            if key not in ID_COLUMNS:
+                seen.setdefault(key, None)
+    return list(seen)
+
+
+def _t_quantile(df: int) -> float:
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, df))
+
+
+def summarize_runs(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per scenario, variant and metric: ``n`` (runs with a value), ``mean``, ``std`` (sample),
+    ``ci95_low``, ``ci95_high`` (Student t interval of the mean; ``None`` for n < 2)."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for row in rows:
+        groups.setdefault((row["scenario"], row["variant"]), []).append(row)
+    out = []
+    for (scenario, variant), members in groups.items():
+        for metric in metric_columns(members):
+            values = np.array([r[metric] for r in members if r.get(metric) is not None], dtype=float)
+            n = int(values.size)
+            mean = float(values.mean()) if n else None
+            std = float(values.std(ddof=1)) if n > 1 else None
+            half = _t_quantile(n - 1) * std / math.sqrt(n) if n > 1 and std is not None else None
+            out.append({
+                "scenario": scenario,
+                "variant": variant,
+                "metric": metric,
+                "n": n,
+                "mean": mean,
+                "std": std,
+                "ci95_low": None if half is None or mean is None else mean - half,
+                "ci95_high": None if half is None or mean is None else mean + half,
+            })
+    return out
+
+
+def _fmt(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return value
+
+
+def write_study(study: Study, out: str | Path) -> dict[str, Path]:
+    """Write ``runs.csv``, ``summary.csv`` and ``summary.json`` into the folder ``out``."""
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = {"runs": folder / "runs.csv", "summary": folder / "summary.csv", "summary_json": folder / "summary.json"}
+    columns = list(ID_COLUMNS) + metric_columns(study.rows)
+    with open(paths["runs"], "w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(columns)
+        for row in study.rows:
+            writer.writerow([_fmt(row.get(c)) for c in columns])
+    summary = summarize_runs(study.rows)
+    keys = ["scenario", "variant", "metric", "n", "mean", "std", "ci95_low", "ci95_high"]
+    with open(paths["summary"], "w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(keys)
+        for item in summary:
+            writer.writerow([_fmt(item[k]) for k in keys])
+    doc = {
+        "runs": len(study.rows),
+        "backend": study.backend,
+        "workers": study.workers,
+        "wall_s": study.wall_s,
+        "simulated_s": study.simulated_s,
+        "sim_s_per_wall_s_per_worker": study.throughput,
+        "timing_metrics": sorted(TIMING_KEYS),
+        "note": "mean and 95 % CI of the mean (Student t) per scenario, variant and metric; "
+                "GOSPA parts are p-th-power sums (see metrics.json of a run)",
+        "summary": summary,
+    }
+    with open(paths["summary_json"], "w", encoding="utf-8") as fh:
+        json.dump(doc, fh, indent=2)
+        fh.write("\n")
+    return paths
+
+
+def default_workers() -> int:
+    """Workers when none are asked for: the CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover (not Linux)
+        return max(1, os.cpu_count() or 1)
+
+
+__all__ = [
+    "BACKENDS",
+    "RunTask",
+    "Study",
+    "default_workers",
+    "import_ray",
+    "plan",
+    "run_study",
+    "run_task",
+    "scenario_task_data",
+    "summarize_runs",
+    "write_study",
+]

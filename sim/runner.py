@@ -1,0 +1,451 @@
+"""Run one scenario closed-loop: world -> sensors -> tracker -> metrics, and collect a ``Result``.
+
+``run_scenario(spec, seed, variant)`` builds the ``World`` (traffic), the ``SensorRig`` (lidar +
+radars, with roadside clutter), the ``tracker.Tracker`` of the variant (``sim.variants``), steps the
+tracker through every lidar frame and scores its tracks against the truth at each frame time.
+
+**Scenario overrides.** The scenario's ``[sensors]`` table overrides ``RigConfig`` fields (``lidar``,
+``radar`` sub-tables) plus one runner key, ``roadside``: ``false`` turns roadside clutter off,
+``true`` (the default) uses ``ClutterConfig()``, a table overrides ``ClutterConfig`` fields. The
+``[tracker]`` table overrides the variant's ``TrackerConfig`` fields (nested tables for sections);
+before it, the tracker is told the lidar's range and resolution (``detection.lidar_range``,
+``detection.lidar_resolution``) from the sensor configuration.
+Unknown keys are errors naming the file and the allowed keys (``sim.scenario.apply_overrides``).
+
+**Truth set scored at time t** (DESIGN.md): the other vehicles whose centre is within the lidar range
+(``LidarConfig.max_range``, Euclidean from the ego's centre, where the lidar sits) and on the road
+(lateral offset within the road bounds; on an open road, ``0 <= s <= length``), occluded ones
+included (a tracker should keep them). A second scoring uses only the *visible* ones: those of the
+truth set with at least ``min_visible_points`` lidar points in the frame's scan. Both score all the
+tracks the tracker reports.
+
+**Metrics** (``sim.metrics``; GOSPA with alpha = 2, p = 2, c = 5 m on the rectangle centres in G;
+its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` per frame; the
+``*_mean`` keys average the per-frame values over frames). ``cardinality_error_mean`` is the mean of
+``|N_est - N_true|``, ``cardinality_bias_mean`` the mean of ``N_est - N_true``. RMSEs are over every
+GOSPA-assigned (truth, track) pair of every frame (``None`` when there was none); ``yaw`` errors are
+wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
+Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
+run to run; every other metric is bit-identical for the same scenario, seed and variant).
+
+Randomness: ``World(spec, seed)`` seeds the traffic; the sensors and the clutter draw from their own
+``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all three are independent and fixed
+by the seed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
+
+import numpy as np
+
+from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
+from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
+from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
+from sim.truth import Snapshot
+from sim.variants import DEFAULT_VARIANT, check_variant, variant_config
+from sim.world import World
+from tracker import Frame, Road, Track, TrackerConfig
+from tracker.track import curvilinear_to_cartesian
+
+#: Stream tags mixed into the seed for the sensors' and the clutter's random generators.
+SENSOR_STREAM = 0x53454E53  # "SENS"
+CLUTTER_STREAM = 0x434C5554  # "CLUT"
+#: Metrics that are wall-clock measurements (they differ between identical runs).
+TIMING_KEYS = frozenset({"tracker_ms_median", "tracker_ms_p95", "tracker_ms_mean", "wall_s"})
+#: Default fewest lidar points on a vehicle for it to count as visible in the second scoring.
+MIN_VISIBLE_POINTS = 1
+
+
+class TrackerLike(Protocol):
+    """What the runner needs of a tracker: ``step(frame) -> list[Track]`` (``stats`` optional)."""
+
+    def step(self, frame: Frame) -> list[Track]: ...
+
+
+TrackerFactory = Callable[[Road, TrackerConfig], TrackerLike]
+
+
+def default_tracker_factory(road: Road, config: TrackerConfig) -> TrackerLike:
+    """``tracker.Tracker(road, config)``: the multi-target tracker of the package."""
+    try:
+        from tracker import Tracker  # type: ignore[attr-defined]
+    except ImportError:
+        raise RuntimeError(
+            "tracker.Tracker (the multi-target tracker) is not available in this installation; "
+            "no run can be made without it"
+        ) from None
+    return Tracker(road, config)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameRecord:
+    """One scored frame at time ``t`` (s).
+
+    - ``truth``: the snapshot (all other vehicles); ``scored`` (bool per truth row): the truth set of
+      the module docstring; ``visible``: scored and seen by at least ``min_visible_points`` lidar
+      points; ``lidar_points`` (int per truth row): points on each vehicle in this scan;
+    - ``truth_state`` (N, 7): truth rows ``[x, y, v, yaw, yaw_rate, L, W]`` in G;
+    - ``tracks``: the tracker's output; ``track_state`` (K, 7): their ``Track.cartesian`` views;
+    - ``gospa`` / ``gospa_visible``: ``GospaResult`` against the scored / visible truth (indices into
+      ``np.flatnonzero(scored)`` / ``np.flatnonzero(visible)`` and into ``tracks``);
+    - ``track_truth_id`` (K,): the truth id each track is assigned to in ``gospa`` (-1: none);
+    - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
+    - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF)."""
+
+    t: float
+    truth: Snapshot
+    scored: np.ndarray
+    visible: np.ndarray
+    lidar_points: np.ndarray
+    truth_state: np.ndarray
+    tracks: list[Track]
+    track_state: np.ndarray
+    gospa: GospaResult
+    gospa_visible: GospaResult
+    track_truth_id: np.ndarray
+    tracker_ms: float
+    ego_s: float
+    frame: Frame | None = None
+
+    @property
+    def n_truth(self) -> int:
+        """Size of the scored truth set."""
+        return int(self.scored.sum())
+
+    @property
+    def n_visible(self) -> int:
+        """Size of the visible truth set."""
+        return int(self.visible.sum())
+
+    @property
+    def n_tracks(self) -> int:
+        """Number of reported tracks."""
+        return len(self.tracks)
+
+
+@dataclass(eq=False)
+class Result:
+    """The outcome of ``run_scenario``: the (realised) ``spec``, ``seed``, ``variant``, the tracker
+    ``config``, the ``road``, the ``roadside`` objects (or ``None``), the per-frame ``frames``, the
+    summary ``metrics`` (metrics.json keys, DESIGN.md), the tracker's ``tracker_stats`` counters and
+    the simulated ``duration`` (s); ``settings``: the scoring settings (``gospa_c`` m, ``gospa_p``,
+    ``min_visible_points``) and ``roadside_objects`` (count)."""
+
+    spec: ScenarioSpec
+    seed: int
+    variant: str
+    config: TrackerConfig
+    road: Road
+    roadside: RoadsideObjects | None
+    frames: list[FrameRecord]
+    metrics: dict[str, Any]
+    tracker_stats: dict[str, Any] = field(default_factory=dict)
+    duration: float = 0.0
+    rig_config: RigConfig | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def times(self) -> np.ndarray:
+        """Frame times (s)."""
+        return np.array([f.t for f in self.frames])
+
+
+# -- configuration -------------------------------------------------------------------------------
+def _where(spec: ScenarioSpec) -> str:
+    return str(spec.source) if spec.source is not None else spec.name
+
+
+def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]:
+    """The sensor rig configuration and the clutter configuration (``None``: no clutter) of ``spec``
+    after its ``[sensors]`` overrides (module docstring)."""
+    overrides = dict(spec.sensors)
+    roadside = overrides.pop("roadside", True)
+    rig = apply_overrides(RigConfig(), overrides, f"{_where(spec)}: sensors")
+    if roadside is True:
+        clutter: ClutterConfig | None = ClutterConfig()
+    elif roadside is False:
+        clutter = None
+    elif isinstance(roadside, dict):
+        clutter = apply_overrides(ClutterConfig(), roadside, f"{_where(spec)}: sensors.roadside")
+    else:
+        raise ScenarioError(
+            f"{_where(spec)}: sensors.roadside = {roadside!r}: use true, false or a table of ClutterConfig fields"
+        )
+    return rig, clutter
+
+
+def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None = None) -> TrackerConfig:
+    """The variant's ``TrackerConfig``, told the lidar's range and angular resolution of ``rig`` (as a
+    user configures a tracker for their sensor), then the scenario's ``[tracker]`` overrides."""
+    config = variant_config(variant)
+    if rig is not None:
+        detection = replace(
+            config.detection,
+            lidar_range=float(rig.lidar.max_range),
+            lidar_resolution=math.radians(rig.lidar.resolution_deg),
+        )
+        config = replace(config, detection=detection)
+    if spec.tracker:
+        config = apply_overrides(config, dict(spec.tracker), f"{_where(spec)}: tracker")
+    return config
+
+
+# -- scoring -------------------------------------------------------------------------------------
+def truth_state(snap: Snapshot) -> np.ndarray:
+    """Truth rows ``[x, y, v, yaw, yaw_rate, L, W]`` (N, 7) in G, the ``Track.cartesian`` order."""
+    return np.column_stack([snap.xy, snap.v, snap.yaw, snap.yaw_rate, snap.length, snap.width]).reshape(-1, 7)
+
+
+def truth_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
+    """Boolean mask of the vehicles scored at ``snap.t``: centre within ``max_range`` (m) of the ego
+    centre and on the road (``road.right_edge <= n <= road.left_edge``; open roads also
+    ``0 <= s <= length``)."""
+    if len(snap) == 0:
+        return np.zeros(0, dtype=bool)
+    d = np.hypot(snap.xy[:, 0] - snap.ego.x, snap.xy[:, 1] - snap.ego.y)
+    s, n = snap.s, snap.n
+    if np.isnan(s).any() or np.isnan(n).any():
+        s, n = road.to_frenet(snap.xy)
+        s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
+    on_road = (n >= road.right_edge) & (n <= road.left_edge)
+    if not road.closed:
+        on_road &= (s >= 0.0) & (s <= road.length)
+    return (d <= max_range) & on_road
+
+
+def track_states(tracks: list[Track], road: Road) -> np.ndarray:
+    """Cartesian views ``[x, y, v, psi, psi_dot, L, W]`` (K, 7) of ``tracks``."""
+    if not tracks:
+        return np.zeros((0, 7))
+    return curvilinear_to_cartesian(road, np.stack([tr.mean for tr in tracks])).reshape(-1, 7)
+
+
+def _lidar_counts(snap: Snapshot, vehicle_id: np.ndarray) -> np.ndarray:
+    if len(snap) == 0:
+        return np.zeros(0, dtype=int)
+    hit = vehicle_id[vehicle_id >= 0]
+    return np.array([int(np.count_nonzero(hit == i)) for i in snap.ids], dtype=int)
+
+
+def _mean(values: list[float] | np.ndarray) -> float | None:
+    arr = np.asarray(values, dtype=float)
+    return float(arr.mean()) if arr.size else None
+
+
+def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
+    arr = np.concatenate(values) if values else np.zeros(0)
+    return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
+
+
+def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None) -> dict[str, Any]:
+    """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames."""
+    pos: list[np.ndarray] = []
+    yaw: list[np.ndarray] = []
+    speed: list[np.ndarray] = []
+    length: list[np.ndarray] = []
+    width: list[np.ndarray] = []
+    for f in frames:
+        scored_state = f.truth_state[f.scored]
+        err = matched_errors(scored_state, f.track_state, f.gospa)
+        pos.append(err.position)
+        yaw.append(err.yaw)
+        speed.append(err.speed)
+        length.append(err.length)
+        width.append(err.width)
+    ms = np.array([f.tracker_ms for f in frames])
+    n_truth = np.array([f.n_truth for f in frames])
+    n_vis = np.array([f.n_visible for f in frames])
+    n_est = np.array([f.n_tracks for f in frames])
+    labels = {tr.label for f in frames for tr in f.tracks}
+    out: dict[str, Any] = {
+        "frames": len(frames),
+        "gospa_mean": _mean([f.gospa.gospa for f in frames]),
+        "gospa_localization_mean": _mean([f.gospa.localization for f in frames]),
+        "gospa_missed_mean": _mean([f.gospa.missed for f in frames]),
+        "gospa_false_mean": _mean([f.gospa.false for f in frames]),
+        "cardinality_error_mean": _mean(np.abs(n_est - n_truth)),
+        "cardinality_bias_mean": _mean(n_est - n_truth),
+        "pos_rmse_m": _rmse(pos),
+        "yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
+        "length_rmse_m": _rmse(length),
+        "width_rmse_m": _rmse(width),
+        "speed_rmse_mps": _rmse(speed),
+        "id_switches": int(id_switches),
+        "gospa_visible_mean": _mean([f.gospa_visible.gospa for f in frames]),
+        "gospa_visible_localization_mean": _mean([f.gospa_visible.localization for f in frames]),
+        "gospa_visible_missed_mean": _mean([f.gospa_visible.missed for f in frames]),
+        "gospa_visible_false_mean": _mean([f.gospa_visible.false for f in frames]),
+        "cardinality_error_visible_mean": _mean(np.abs(n_est - n_vis)),
+        "truth_count_mean": _mean(n_truth),
+        "visible_count_mean": _mean(n_vis),
+        "track_count_mean": _mean(n_est),
+        "matched_pairs": int(sum(len(p) for p in pos)),
+        "track_labels": len(labels),
+        "tracker_ms_median": float(np.median(ms)) if ms.size else None,
+        "tracker_ms_p95": float(np.percentile(ms, 95)) if ms.size else None,
+        "tracker_ms_mean": float(ms.mean()) if ms.size else None,
+    }
+    if wall_s is not None:
+        out["wall_s"] = float(wall_s)
+    return out
+
+
+# -- the run -------------------------------------------------------------------------------------
+def run_scenario(
+    spec: ScenarioSpec,
+    seed: int = 0,
+    variant: str = DEFAULT_VARIANT,
+    *,
+    duration: float | None = None,
+    roadside: bool | None = None,
+    keep_sensor_data: bool = False,
+    min_visible_points: int = MIN_VISIBLE_POINTS,
+    gospa_c: float = GOSPA_C,
+    gospa_p: float = GOSPA_P,
+    progress: Callable[[int, int], None] | None = None,
+    tracker_factory: TrackerFactory | None = None,
+) -> Result:
+    """Run ``spec`` with ``seed`` through the tracker of ``variant`` and score it (module docstring).
+
+    ``duration`` (s) shortens the run (default: the scenario's; it may not be longer);
+    ``roadside`` forces roadside clutter on or off (default: the scenario's ``sensors.roadside``,
+    on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
+    ``progress(done, total)`` is called after every frame; ``tracker_factory(road, config)`` builds
+    the tracker (default ``tracker.Tracker``). Raises ``ValueError`` (``UnknownVariantError``,
+    ``ScenarioError``) for a bad variant, override or duration."""
+    if not isinstance(spec, ScenarioSpec):
+        raise ValueError(f"run_scenario needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    seed = int(seed)
+    check_variant(variant)
+    if duration is None:
+        duration = float(spec.duration)
+    elif not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= spec.duration):
+        raise ValueError(f"duration must be in (0, {spec.duration}] s (the scenario's duration); got {duration!r}")
+    if not (isinstance(min_visible_points, int) and min_visible_points >= 1):
+        raise ValueError(f"min_visible_points must be an integer >= 1; got {min_visible_points!r}")
+
+    start = time.perf_counter()
+    rig_cfg, clutter_cfg = rig_config_for(spec)  # the file's overrides; errors name the file
+    config = tracker_config_for(spec, variant, rig_cfg)
+    world = World(spec, seed)
+    spec = world.spec  # the realised scenario when a generator drew it
+    road = world.road
+    if roadside is False:
+        clutter_cfg = None
+    elif roadside is True and clutter_cfg is None:
+        clutter_cfg = ClutterConfig()
+    objects = None
+    if clutter_cfg is not None:
+        clutter_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
+        objects = generate_roadside(road, clutter_cfg, rng=clutter_rng)
+    rig = SensorRig(rig_cfg, objects)
+    tracker = (tracker_factory or default_tracker_factory)(road, config)
+    max_range = rig_cfg.lidar.max_range
+    total = len(rig.frame_times(duration))
+
+    records: list[FrameRecord] = []
+    switches = IdSwitchCounter()
+    sensor_seed = np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,))
+    for k, sf in enumerate(rig.frames(world.truth_at, duration, seed=sensor_seed)):
+        t0 = time.perf_counter()
+        tracks = list(tracker.step(sf.frame))
+        ms = 1e3 * (time.perf_counter() - t0)
+        snap = sf.truth
+        t_state = truth_state(snap)
+        scored = truth_set(snap, road, max_range)
+        counts = _lidar_counts(snap, sf.lidar.vehicle_id)
+        visible = scored & (counts >= min_visible_points)
+        est = track_states(tracks, road)
+        g = gospa(t_state[scored, :2], est[:, :2], gospa_c, gospa_p)
+        gv = gospa(t_state[visible, :2], est[:, :2], gospa_c, gospa_p)
+        scored_ids = snap.ids[scored]
+        labels = np.array([tr.label for tr in tracks], dtype=int)
+        switches.update(scored_ids[g.truth_index], labels[g.estimate_index])
+        assigned = np.full(len(tracks), -1, dtype=int)
+        assigned[g.estimate_index] = scored_ids[g.truth_index]
+        ego_s = float(np.asarray(road.to_frenet((snap.ego.x, snap.ego.y))[0]).reshape(-1)[0])
+        records.append(
+            FrameRecord(
+                t=float(sf.frame.t),
+                truth=snap,
+                scored=scored,
+                visible=visible,
+                lidar_points=counts,
+                truth_state=t_state,
+                tracks=tracks,
+                track_state=est,
+                gospa=g,
+                gospa_visible=gv,
+                track_truth_id=assigned,
+                tracker_ms=ms,
+                ego_s=ego_s,
+                frame=sf.frame if keep_sensor_data else None,
+            )
+        )
+        if progress is not None:
+            progress(k + 1, total)
+    wall = time.perf_counter() - start
+    metrics = summarize(records, switches.switches, wall_s=wall)
+    stats = dict(getattr(tracker, "stats", {}) or {})
+    return Result(
+        spec=spec,
+        seed=seed,
+        variant=variant,
+        config=config,
+        road=road,
+        roadside=objects,
+        frames=records,
+        metrics=metrics,
+        tracker_stats=_plain(stats),
+        duration=float(duration),
+        rig_config=rig_cfg,
+        settings={
+            "gospa_c": float(gospa_c),
+            "gospa_p": float(gospa_p),
+            "min_visible_points": int(min_visible_points),
+            "roadside_objects": 0 if objects is None else len(objects),
+        },
+    )
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy scalars/arrays turned into JSON-serialisable Python values."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def deterministic_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """``metrics`` without the wall-clock keys (``TIMING_KEYS``): equal for equal scenario, seed and
+    variant."""
+    return {k: v for k, v in metrics.items() if k not in TIMING_KEYS}
+
+
+__all__ = [
+    "FrameRecord",
+    "MIN_VISIBLE_POINTS",
+    "Result",
+    "TIMING_KEYS",
+    "deterministic_metrics",
+    "default_tracker_factory",
+    "rig_config_for",
+    "run_scenario",
+    "summarize",
+    "tracker_config_for",
+    "track_states",
+    "truth_set",
+    "truth_state",
+]

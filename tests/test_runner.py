@@ -1,0 +1,207 @@
+"""The runner and its evaluator: oracle trackers with known answers, the truth set, overrides, variants,
+determinism, and end-to-end runs of the real tracker on short scenarios."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from oracle_tracker import OracleFactory, SilentTracker
+
+from sim import load_scenario
+from sim.runner import TIMING_KEYS, deterministic_metrics, run_scenario, truth_set
+from sim.scenario import ScenarioError, parse_scenario
+from sim.truth import EgoPose, Snapshot
+from sim.variants import VARIANTS, UnknownVariantError, variant_config
+from tracker import Road
+
+DESIGN_KEYS = (
+    "frames", "gospa_mean", "gospa_localization_mean", "gospa_missed_mean", "gospa_false_mean",
+    "cardinality_error_mean", "pos_rmse_m", "yaw_rmse_deg", "length_rmse_m", "width_rmse_m",
+    "speed_rmse_mps", "id_switches", "tracker_ms_median", "tracker_ms_p95",
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def curvy():
+    return load_scenario("curvy-multi")
+
+
+def _oracle_run(spec, duration=3.0, seed=0, **kwargs):
+    return run_scenario(spec, seed, duration=duration, tracker_factory=OracleFactory(spec, seed, kwargs))
+
+
+def test_oracle_tracker_scores_zero(curvy):
+    result = _oracle_run(curvy)
+    m = result.metrics
+    assert m["frames"] == 31 == len(result.frames)
+    assert all(k in m for k in DESIGN_KEYS)
+    assert m["gospa_mean"] < 1e-9
+    assert m["gospa_missed_mean"] == 0.0 and m["gospa_false_mean"] == 0.0
+    assert m["cardinality_error_mean"] == 0.0 and m["id_switches"] == 0
+    assert m["pos_rmse_m"] < 1e-9 and m["yaw_rmse_deg"] < 1e-9 and m["speed_rmse_mps"] < 1e-12
+    # curvy-multi: 4 of its 5 vehicles are within 100 m of the ego at the start; the 5th is 240 m ahead
+    assert result.frames[0].n_truth == 4 and len(result.frames[0].truth) == 5
+    assert m["matched_pairs"] == sum(f.n_truth for f in result.frames)
+    for f in result.frames:
+        # every track is assigned to the truth vehicle it came from
+        assert [tr.label for tr in f.tracks] == f.track_truth_id.tolist()
+
+
+def test_fixed_offsets_give_known_errors(curvy):
+    # n + 0.5 m moves the centre 0.5 m along the road normal: position error exactly 0.5 m
+    offset = np.array([0.0, 0.5, 0.2, 0.05, 0.0, 0.3, -0.1])
+    result = _oracle_run(curvy, offset=offset)
+    m = result.metrics
+    assert m["pos_rmse_m"] == pytest.approx(0.5, abs=1e-9)
+    assert m["speed_rmse_mps"] == pytest.approx(0.2, abs=1e-12)
+    assert m["yaw_rmse_deg"] == pytest.approx(math.degrees(0.05), abs=1e-9)
+    assert m["length_rmse_m"] == pytest.approx(0.3, abs=1e-12)
+    assert m["width_rmse_m"] == pytest.approx(0.1, abs=1e-12)
+    for f in result.frames:
+        assert f.gospa.gospa == pytest.approx(math.sqrt(f.n_truth * 0.25), abs=1e-9)
+        assert f.gospa.localization == pytest.approx(f.n_truth * 0.25, abs=1e-9)
+
+
+def test_tracks_beyond_the_truth_set_are_false(curvy):
+    # reporting every vehicle: the ones outside the truth set cost c^p / 2 = 12.5 m^2 each
+    result = _oracle_run(curvy, everyone=True)
+    extra = np.array([len(f.truth) - f.n_truth for f in result.frames])
+    assert extra.min() >= 1
+    false = np.array([f.gospa.false for f in result.frames])
+    np.testing.assert_allclose(false, 12.5 * extra)
+    assert result.metrics["cardinality_bias_mean"] == pytest.approx(extra.mean())
+    assert result.metrics["cardinality_error_mean"] == pytest.approx(extra.mean())
+    assert result.metrics["gospa_mean"] == pytest.approx(np.mean(np.sqrt(12.5 * extra)))
+
+
+def test_no_tracks_are_all_missed(curvy):
+    result = run_scenario(curvy, 0, duration=1.0, tracker_factory=SilentTracker)
+    m = result.metrics
+    assert m["gospa_missed_mean"] == pytest.approx(12.5 * m["truth_count_mean"])
+    assert m["pos_rmse_m"] is None and m["matched_pairs"] == 0
+    assert m["cardinality_bias_mean"] == -m["truth_count_mean"]
+
+
+def test_relabelled_track_counts_one_id_switch(curvy):
+    result = _oracle_run(curvy, duration=2.0, relabel=lambda vid, t: vid + 100 if (vid == 2 and t > 1.0) else vid)
+    assert result.metrics["id_switches"] == 1
+    assert result.metrics["track_labels"] == 5
+
+
+def test_visible_scoring_drops_hidden_vehicles():
+    # occlusion: a car straight ahead hides another; the oracle reports both
+    spec = load_scenario("occlusion")
+    result = _oracle_run(spec, duration=4.0)
+    hidden = [f for f in result.frames if f.n_visible < f.n_truth]
+    assert hidden, "the occlusion scenario should hide a vehicle within 4 s"
+    for f in result.frames:
+        assert f.gospa.gospa < 1e-9
+        assert f.gospa_visible.false == pytest.approx(12.5 * (f.n_truth - f.n_visible))
+        assert np.array_equal(f.visible, f.scored & (f.lidar_points >= 1))
+
+
+def _snapshot(xy, s, n):
+    k = len(xy)
+    return Snapshot(t=0.0, ego=EgoPose(0.0, 0.0, 0.0), ids=np.arange(1, k + 1), xy=np.array(xy, dtype=float),
+                    yaw=np.zeros(k), v=np.zeros(k), yaw_rate=np.zeros(k), length=np.full(k, 4.8),
+                    width=np.full(k, 2.0), s=np.array(s, dtype=float), n=np.array(n, dtype=float))
+
+
+def test_truth_set_is_range_and_road():
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], start=(-100.0, 0.0, 0.0), lanes=2, lane_width=3.5)
+    # ego at x = 0 (s = 100); road bounds n in [-3.5, 3.5]
+    snap = _snapshot([[99.0, 0.0], [101.0, 0.0], [10.0, 3.6], [10.0, -3.4], [-60.0, 3.4]],
+                     [199.0, 201.0, 110.0, 110.0, 40.0], [0.0, 0.0, 3.6, -3.4, 3.4])
+    assert truth_set(snap, road, 100.0).tolist() == [True, False, False, True, True]
+    # without road coordinates the mask projects the centres itself
+    bare = Snapshot(t=0.0, ego=snap.ego, ids=snap.ids, xy=snap.xy, yaw=snap.yaw, v=snap.v, yaw_rate=snap.yaw_rate,
+                    length=snap.length, width=snap.width)
+    assert truth_set(bare, road, 100.0).tolist() == [True, False, False, True, True]
+
+
+def _spec_with(**tables):
+    import tomllib
+
+    from sim.scenario import resolve_scenario_path
+
+    with open(resolve_scenario_path("curve-single"), "rb") as fh:
+        data = tomllib.load(fh)
+    data.update(tables)
+    return parse_scenario(data, "test-scenario.toml")
+
+
+def test_scenario_overrides_reach_sensors_and_tracker():
+    spec = _spec_with(sensors={"lidar": {"max_range": 20.0}, "roadside": False},
+                      tracker={"detection": {"p_detection": 0.8}})
+    result = run_scenario(spec, 0, duration=0.5, tracker_factory=SilentTracker)
+    assert result.rig_config.lidar.max_range == 20.0
+    assert result.roadside is None and result.settings["roadside_objects"] == 0
+    assert result.config.detection.p_detection == 0.8
+    assert result.config.detection.lidar_range == 20.0  # told the sensor's range
+    # the one car starts 30 m ahead: outside a 20 m lidar, so nothing is scored
+    assert all(f.n_truth == 0 for f in result.frames)
+    default = run_scenario(load_scenario("curve-single"), 0, duration=0.5, tracker_factory=SilentTracker)
+    assert default.settings["roadside_objects"] > 0 and default.frames[0].n_truth == 1
+
+
+def test_bad_overrides_name_the_file_and_key():
+    with pytest.raises(ScenarioError, match=r"curve-single: sensors.lidar.range = .*allowed keys.*max_range"):
+        run_scenario(_spec_with(sensors={"lidar": {"range": 20.0}}), 0, duration=0.5, tracker_factory=SilentTracker)
+    with pytest.raises(ScenarioError, match=r"curve-single: tracker.detections"):
+        run_scenario(_spec_with(tracker={"detections": {}}), 0, duration=0.5, tracker_factory=SilentTracker)
+    with pytest.raises(ScenarioError, match="sensors.roadside"):
+        run_scenario(_spec_with(sensors={"roadside": "yes"}), 0, duration=0.5, tracker_factory=SilentTracker)
+
+
+def test_bad_arguments_are_clear_errors(curvy):
+    with pytest.raises(UnknownVariantError, match="curvilinear-fused, curvilinear-lidar, cartesian-fused, paper-motion"):
+        run_scenario(curvy, 0, "polar-fused")
+    with pytest.raises(ValueError, match="duration"):
+        run_scenario(curvy, 0, duration=25.0)
+    with pytest.raises(ValueError, match="seed"):
+        run_scenario(curvy, -1)
+
+
+def test_variants_configure_the_tracker():
+    assert VARIANTS[0] == "curvilinear-fused"
+    cfg = {name: variant_config(name) for name in VARIANTS}
+    assert cfg["curvilinear-fused"].use_radar and cfg["curvilinear-fused"].coordinates == "curvilinear"
+    assert not cfg["curvilinear-lidar"].use_radar
+    assert cfg["cartesian-fused"].coordinates == "cartesian" and cfg["cartesian-fused"].use_radar
+    assert cfg["paper-motion"].motion.model == "paper" and cfg["curvilinear-fused"].motion.model == "frenet"
+
+
+# -- the real tracker ------------------------------------------------------------------------------
+def test_real_tracker_follows_one_car():
+    # one car on a curve, no roadside clutter: the runner with the real tracker must give sane numbers
+    spec = load_scenario("curve-single")
+    result = run_scenario(spec, 0, duration=3.0, roadside=False)
+    m = result.metrics
+    assert m["frames"] == 31
+    assert m["truth_count_mean"] == 1.0
+    assert m["cardinality_error_mean"] < 0.2
+    assert m["pos_rmse_m"] < 1.0 and m["yaw_rmse_deg"] < 5.0 and m["speed_rmse_mps"] < 2.0
+    assert m["gospa_mean"] < 2.0 and m["id_switches"] == 0
+    assert m["tracker_ms_median"] > 0.0 and result.tracker_stats["frames"] == 31
+
+
+def test_real_runs_are_deterministic():
+    spec = load_scenario("curvy-multi")
+    a = run_scenario(spec, 3, duration=1.5)
+    b = run_scenario(spec, 3, duration=1.5)
+    assert deterministic_metrics(a.metrics) == deterministic_metrics(b.metrics)
+    assert set(a.metrics) - set(deterministic_metrics(a.metrics)) <= TIMING_KEYS
+    for fa, fb in zip(a.frames, b.frames):
+        assert [t.label for t in fa.tracks] == [t.label for t in fb.tracks]
+        np.testing.assert_array_equal(fa.track_state, fb.track_state)
+    c = run_scenario(spec, 4, duration=1.5)
+    assert not np.array_equal(a.frames[-1].track_state, c.frames[-1].track_state)
+
+
+@pytest.mark.parametrize("variant", VARIANTS[1:])
+def test_every_variant_runs(variant):
+    result = run_scenario(load_scenario("curve-single"), 0, variant, duration=1.0, roadside=False)
+    assert result.variant == variant and result.metrics["frames"] == 11
+    assert result.metrics["gospa_mean"] is not None and result.metrics["gospa_mean"] >= 0.0
