@@ -76,10 +76,13 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
     out = np.full(len(cluster_points), -1, dtype=int)
     if len(radar) == 0 or len(cluster_points) == 0:
         return out
+    sizes = np.array([len(p) for p in cluster_points])
     dist = np.full((len(cluster_points), len(radar)), np.inf)
-    for k, pts in enumerate(cluster_points):  # one KD query per cluster (tens), vectorised over radar
-        if len(pts):
-            dist[k] = cKDTree(pts).query(radar)[0]
+    if sizes.sum():
+        pts = np.concatenate([p for p in cluster_points if len(p)])
+        d = np.linalg.norm(pts[:, None, :] - radar[None, :, :], axis=2)  # (points, detections)
+        starts = np.concatenate([[0], np.cumsum(sizes[sizes > 0])[:-1]])
+        dist[sizes > 0] = np.minimum.reduceat(d, starts, axis=0)
     flat = np.argsort(dist, axis=None)
     rows, cols = np.unravel_index(flat, dist.shape)
     ok = dist[rows, cols] <= gate

@@ -46,7 +46,6 @@ from collections import Counter
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.special import logsumexp
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
@@ -262,15 +261,15 @@ class Tracker:
                         + res.log_likelihood[inside] - size * math.log(lam_c)
                     )
                     explained[np.unique(clu)] = True
-                    weights = np.empty(len(comp))
-                    for k in np.unique(clu):  # normalise per cluster (a handful of clusters)
-                        sel = clu == k
-                        terms = log_num[sel]
-                        if len(clusters[k]) == 1:  # delta_{|W|,1}: the clutter alternative for a single point
-                            terms_all = np.concatenate([[0.0], terms])
-                        else:
-                            terms_all = terms
-                        weights[sel] = np.exp(terms - logsumexp(terms_all))
+                    # normalise per cluster in the log domain; a single-point cluster's denominator
+                    # also holds delta_{|W|,1} = 1 (log 0), the clutter alternative
+                    single = np.array([len(c) == 1 for c in clusters])
+                    peak = np.full(len(clusters), -np.inf)
+                    peak[single] = 0.0
+                    np.maximum.at(peak, clu, log_num)
+                    total = np.bincount(clu, weights=np.exp(log_num - peak[clu]), minlength=len(clusters))
+                    total += np.where(single, np.exp(-peak), 0.0)
+                    weights = np.exp(log_num - peak[clu]) / total[clu]
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
                     new_p.append(res.cov[inside])
