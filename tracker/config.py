@@ -308,8 +308,10 @@ class ReductionConfig:
     - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
     - ``max_components``: cap, keeping the heaviest;
     - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5);
-    - ``fov_margin`` (m): components whose centre is farther than the lidar range plus this are
-      dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever).
+    - ``fov_margin`` (m): components whose nearest corner is farther than the lidar range plus this
+      are dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever);
+    - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
+      dropped (only objects on the road are tracked).
     """
 
     prune_threshold: float = 1e-4
@@ -317,6 +319,7 @@ class ReductionConfig:
     max_components: int = 100
     extraction_threshold: float = 0.5
     fov_margin: float = 2.0
+    road_margin: float = 1.0
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
@@ -324,6 +327,7 @@ class ReductionConfig:
         _check_int("ReductionConfig", "max_components", self.max_components, 1)
         _check("ReductionConfig", "extraction_threshold", self.extraction_threshold, low=0.0, high=1.0)
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
+        _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
 
 
 @dataclass(frozen=True)
@@ -338,7 +342,7 @@ class ClusteringConfig:
     - ``radar_gate`` (m): a radar detection joins the nearest lidar cluster centroid within this.
     """
 
-    road_margin: float = 1.0
+    road_margin: float = 0.5
     bearing_bin: float = math.radians(0.2)
     track_margin: float = 1.0
     distance: float = 1.0

@@ -28,7 +28,8 @@
      ``Gamma = e^-gamma gamma^|W|`` and ``L = N(z_W; y, S) prod_z 1 / (lambda c(z))``, in the log domain.
 
 5. **Reduce**: drop components that left the field of view (nearest corner farther than
-   ``detection.lidar_range + reduction.fov_margin``), prune, angle-aware merge, cap
+   ``detection.lidar_range + reduction.fov_margin``) or the road (centre beyond the road edges by more
+   than ``reduction.road_margin``), prune, angle-aware merge, cap
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
@@ -268,7 +269,7 @@ class Tracker:
                     peak[single] = 0.0
                     np.maximum.at(peak, clu, log_num)
                     total = np.bincount(clu, weights=np.exp(log_num - peak[clu]), minlength=len(clusters))
-                    total += np.where(single, np.exp(-peak), 0.0)
+                    total += np.where(single, np.exp(-np.minimum(peak, 700.0)), 0.0)
                     weights = np.exp(log_num - peak[clu]) / total[clu]
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
@@ -294,11 +295,21 @@ class Tracker:
             rect = to_vehicle(self.mixture.means, ego, self.road, self.config.coordinates)
             inside = nearest_range(rect) <= self.config.detection.lidar_range + red.fov_margin
             self.stats["components_left_view"] += int((~inside).sum())
-            self.mixture = self.mixture.take(inside)
+            # only objects on the road are tracked (the paper): drop components whose centre left it
+            n = self._lateral(self.mixture.means)
+            on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
+            self.stats["components_off_road"] += int((inside & ~on_road).sum())
+            self.mixture = self.mixture.take(inside & on_road)
         self.mixture = reduce(self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
                               max_components=red.max_components, angle_indices=self.angle_indices)
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
+
+    def _lateral(self, means: np.ndarray) -> np.ndarray:
+        """Lateral road offset ``n`` (m) of state means (projected for the Cartesian state)."""
+        if not self.cartesian:
+            return means[:, 1]
+        return np.asarray(self.road.to_frenet(means[:, :2])[1]).reshape(-1)
 
     def _extract(self, t: float) -> list[Track]:
         mix = self.mixture
