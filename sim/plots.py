@@ -150,7 +150,7 @@ def plot_birdseye(result: Result, path: str | Path, *, snapshots: int = 3, half_
     for vid in ids:
         pts = np.array([f.truth.xy[list(f.truth.ids).index(vid)] if vid in f.truth.ids and f.scored[list(f.truth.ids).index(vid)]
                         else (np.nan, np.nan) for f in frames])
-        ax.plot(pts[:, 0], pts[:, 1], color="0.25", lw=1.0, alpha=0.8)
+        ax.plot(pts[:, 0], pts[:, 1], color="0.2", lw=2.5, alpha=0.35, solid_capstyle="round")
     ax.plot(ego[:, 0], ego[:, 1], color="k", lw=2.0, ls="--", label="ego")
     # track trajectories per label
     by_label: dict[int, list[tuple[float, float, float]]] = {}
@@ -160,7 +160,7 @@ def plot_birdseye(result: Result, path: str | Path, *, snapshots: int = 3, half_
     for label, rows in by_label.items():
         arr = np.array(rows)
         ax.plot(arr[:, 1], arr[:, 2], ".", ms=2.0, color=label_color(label))
-    ax.plot([], [], color="0.25", label="truth (scored)")
+    ax.plot([], [], color="0.2", lw=2.5, alpha=0.35, label="truth (while scored)")
     ax.plot([], [], ".", color=label_color(0), label="tracks (colour = label)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
@@ -259,9 +259,9 @@ def write_gif(
     result: Result,
     path: str | Path,
     *,
-    half_window: float = 40.0,
+    half_window: float = 55.0,
     stride: int = 2,
-    dpi: int = 72,
+    dpi: int = 80,
     progress: Callable[[int, int], None] | None = None,
 ) -> Path:
     """An animated GIF of the run (every ``stride``-th frame, real-time playback speed), the view
@@ -275,13 +275,13 @@ def write_gif(
         raise ValueError("write_gif: the result has no frames")
     if frames[0].frame is None:
         raise ValueError("write_gif needs the sensor data: run with run_scenario(..., keep_sensor_data=True)")
-    fig = _figure(6.0, 6.0, dpi=dpi)
-    ax = fig.add_axes((0.08, 0.07, 0.9, 0.86))
+    fig = _figure(7.0, 7.4, dpi=dpi)
+    ax = fig.add_axes((0.08, 0.1, 0.9, 0.84))
     edges, lanes = _road_lines(result, -1e9, 1e9, step=2.0)
     _draw_road(ax, edges, lanes)
     ax.set_aspect("equal")
     ax.tick_params(labelsize=7)
-    lidar = ax.scatter([], [], s=1.0, c="#2ca02c", label="lidar", zorder=3)
+    lidar = ax.scatter([], [], s=1.5, c="#2ca02c", label="lidar", zorder=7)
     radar = ax.scatter([], [], s=18.0, marker="x", c="#d62728", label="radar", zorder=4)
     arrows = LineCollection([], colors="#d62728", linewidths=1.0, zorder=4)
     ax.add_collection(arrows)
@@ -290,7 +290,15 @@ def write_gif(
     track_poly = PolyCollection([], alpha=0.45, linewidths=1.0, zorder=6)
     for coll in (ego_poly, truth_poly, track_poly):
         ax.add_collection(coll)
-    ax.legend(loc="upper right", fontsize=7)
+    from matplotlib.patches import Patch
+
+    proxies = [
+        lidar, radar,
+        Patch(facecolor="k", alpha=0.75, label="ego"),
+        Patch(facecolor="none", edgecolor="0.3", label="truth"),
+        Patch(facecolor=label_color(0), alpha=0.45, label="tracks (label)"),
+    ]  # fmt: skip
+    fig.legend(handles=proxies, loc="lower center", ncol=5, fontsize=8, frameon=False)
     title = ax.set_title("", fontsize=9)
     texts: list = []
     frame_dt = (frames[1].t - frames[0].t) if len(frames) > 1 else 0.1

@@ -1,0 +1,139 @@
+"""The ``eot`` command: run writes every file with sane values (subprocess), Monte Carlo, the demo's
+defaults, and one-line errors with exit status 2 for unknown scenarios and variants."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sim import cli
+
+DESIGN_KEYS = (
+    "frames", "gospa_mean", "gospa_localization_mean", "gospa_missed_mean", "gospa_false_mean",
+    "cardinality_error_mean", "pos_rmse_m", "yaw_rmse_deg", "length_rmse_m", "width_rmse_m",
+    "speed_rmse_mps", "id_switches", "tracker_ms_median", "tracker_ms_p95",
+)  # fmt: skip
+
+
+def test_eot_run_writes_every_file(tmp_path):
+    out = tmp_path / "run"
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", "curve-single", "--duration", "2", "--seed", "1", "--out", str(out),
+         "--gif", "--no-roadside", "--quiet"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "GOSPA mean (m)" in proc.stdout and "wrote 9 files" in proc.stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    for key in DESIGN_KEYS:
+        assert key in metrics, key
+    assert metrics["scenario"] == "curve-single" and metrics["seed"] == 1 and metrics["variant"] == "curvilinear-fused"
+    assert metrics["frames"] == 21 and metrics["truth_count_mean"] == 1.0
+    assert 0.0 <= metrics["gospa_mean"] < 5.0 and metrics["pos_rmse_m"] < 1.5
+    parts = sum(metrics[k] for k in ("gospa_localization_mean", "gospa_missed_mean", "gospa_false_mean"))
+    assert metrics["gospa_mean"] ** 2 <= parts + 1e-9  # mean of sqrt <= sqrt of mean
+    with open(out / "timeseries.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 21 and float(rows[-1]["t"]) == pytest.approx(2.0)
+    for row in rows:
+        total = float(row["gospa_localization"]) + float(row["gospa_missed"]) + float(row["gospa_false"])
+        assert float(row["gospa"]) == pytest.approx(total**0.5, abs=1e-12)
+        assert row["n_truth"] == "1"
+    with open(out / "tracks.csv", newline="") as fh:
+        tracks = list(csv.DictReader(fh))
+    assert tracks and {"label", "s", "n", "x", "y", "psi", "truth_id", "s_rel"} <= set(tracks[0])
+    assert sum(r["truth_id"] == "1" for r in tracks) >= 15  # the car is tracked most of the time
+    with open(out / "truth.csv", newline="") as fh:
+        assert len(list(csv.DictReader(fh))) == 21
+    for name in ("gospa.png", "gospa_visible.png", "birdseye.png", "targets.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    assert (out / "run.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+
+
+def _main(capsys, *argv):
+    code = cli.main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_unknown_scenario_is_one_line_with_choices(capsys):
+    code, out, err = _main(capsys, "run", "no-such-scenario")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "curvy-multi" in err and "no-such-scenario" in err
+    code, _, err = _main(capsys, "montecarlo", "no-such-suite", "--runs", "1", "--out", "x")
+    assert code == 2 and err.count("\n") == 1 and "suite standard" in err
+
+
+def test_unknown_variant_is_one_line_with_choices(capsys):
+    code, _, err = _main(capsys, "run", "curve-single", "--variant", "polar")
+    assert code == 2 and err.count("\n") == 1
+    assert "curvilinear-fused, curvilinear-lidar, cartesian-fused, paper-motion" in err
+    code, _, err = _main(capsys, "montecarlo", "curve-single", "--runs", "1", "--out", "x", "--variant", "curvilinear-fused,bad")
+    assert code == 2 and "'bad'" in err
+
+
+def test_a_suite_is_not_one_scenario(capsys):
+    code, _, err = _main(capsys, "run", "standard")
+    assert code == 2 and "suite" in err
+
+
+def test_invalid_scenario_file_is_exit_2(capsys, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "bad"\ndescription = "x"\nduration = -1.0\n')
+    code, _, err = _main(capsys, "run", str(bad))
+    assert code == 2 and "duration" in err and err.count("\n") == 1
+
+
+def test_ray_backend_without_ray(capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if not installed
+    code, _, err = _main(capsys, "montecarlo", "curve-single", "--runs", "1", "--out", "x", "--backend", "ray")
+    assert code == 2 and "frenet-eot[distributed]" in err
+
+
+def test_montecarlo_writes_runs_and_summary(capsys, tmp_path):
+    code, out, _ = _main(capsys, "montecarlo", "curve-single", "--runs", "2", "--duration", "0.5", "--out",
+                         str(tmp_path), "--variant", "curvilinear-fused", "--variant", "curvilinear-lidar", "--quiet")
+    assert code == 0
+    assert "simulated s per wall s per worker" in out and "curvilinear-lidar" in out
+    with open(tmp_path / "runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["variant"], r["seed"]) for r in rows] == [
+        ("curvilinear-fused", "0"), ("curvilinear-fused", "1"), ("curvilinear-lidar", "0"), ("curvilinear-lidar", "1")]
+    assert all(r["frames"] == "6" for r in rows)
+    doc = json.loads((tmp_path / "summary.json").read_text())
+    gospa = [s for s in doc["summary"] if s["metric"] == "gospa_mean"]
+    assert len(gospa) == 2 and all(s["n"] == 2 for s in gospa)
+
+
+def test_demo_runs_curvy_multi_into_results_demo(monkeypatch):
+    calls = []
+    monkeypatch.setattr(cli, "_run_and_write", lambda scenario, **kw: calls.append((scenario, kw)) or 0)
+    assert cli.main(["demo"]) == 0
+    scenario, kw = calls[0]
+    assert scenario == "curvy-multi" and kw["out"] == "results/demo" and kw["gif"] is True
+    assert kw["variant"] == "curvilinear-fused" and kw["seed"] == 0 and kw["duration"] is None
+
+
+def test_compare_is_not_built_yet(capsys):
+    code, out, err = _main(capsys, "compare")
+    assert code == 2 and out == "" and "not built yet" in err
+
+
+def test_scenarios_still_lists(capsys):
+    code, out, _ = _main(capsys, "scenarios")
+    assert code == 0 and "curvy-multi" in out and "suite standard" in out
+
+
+def test_run_default_output_folder(monkeypatch):
+    calls = []
+    monkeypatch.setattr(cli, "_run_and_write", lambda scenario, **kw: calls.append((scenario, kw)) or 0)
+    assert cli.main(["run", "cut-in", "--seed", "4", "--variant", "paper-motion"]) == 0
+    scenario, kw = calls[0]
+    assert Path(scenario).name == "cut-in.toml" and kw["out"] == "out/cut-in-paper-motion-seed4"
