@@ -205,3 +205,9 @@ def test_every_variant_runs(variant):
     result = run_scenario(load_scenario("curve-single"), 0, variant, duration=1.0, roadside=False)
     assert result.variant == variant and result.metrics["frames"] == 11
     assert result.metrics["gospa_mean"] is not None and result.metrics["gospa_mean"] >= 0.0
+
+
+def test_sim_exports_run_scenario():
+    import sim
+
+    assert sim.run_scenario is run_scenario and "run_scenario" in sim.__all__
