@@ -3,7 +3,7 @@
 ``ProgressBar(total, label)`` is called as ``bar(done)`` or ``bar(done, total)`` (the runner's and
 the Monte Carlo's ``progress`` callback signature) and redraws at most every ``min_interval``
 seconds. On a terminal it redraws one line in place (carriage return); elsewhere (logs, CI, pipes) it
-prints a plain line only at every 10 % so logs stay short. ``enabled=False`` silences it.
+prints a plain line only at the first step and every 10 % so logs stay short. ``enabled=False`` silences it.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ class ProgressBar:
         self._last_decile = -1
         self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self._closed = False
+        self._drawn = False
 
     def __call__(self, done: int, total: int | None = None) -> None:
         if total is not None:
@@ -71,13 +72,14 @@ class ProgressBar:
 
     def _draw(self, now: float, end: str) -> None:
         self._last_draw = now
+        self._drawn = True
         prefix = "\r" if self._tty else ""
         self.stream.write(prefix + self._text(now) + end)
         self.stream.flush()
 
     def close(self) -> None:
         """End the line on a terminal if the bar did not reach its total."""
-        if self.enabled and self._tty and not self._closed:
+        if self.enabled and self._tty and self._drawn and not self._closed:
             self.stream.write("\n")
             self.stream.flush()
         self._closed = True

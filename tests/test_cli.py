@@ -137,3 +137,20 @@ def test_run_default_output_folder(monkeypatch):
     assert cli.main(["run", "cut-in", "--seed", "4", "--variant", "paper-motion"]) == 0
     scenario, kw = calls[0]
     assert Path(scenario).name == "cut-in.toml" and kw["out"] == "out/cut-in-paper-motion-seed4"
+
+
+def test_progress_bar_lines():
+    import io
+
+    from sim.progress import ProgressBar
+
+    stream = io.StringIO()  # not a terminal: one line per 10 %
+    bar = ProgressBar(20, "runs", stream=stream)
+    for i in range(1, 21):
+        bar(i)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 11 and lines[-1].startswith("runs [" + "#" * 30 + "] 20/20")
+    quiet = io.StringIO()
+    with ProgressBar(5, stream=quiet, enabled=False) as off:
+        off(5)
+    assert quiet.getvalue() == ""
