@@ -2,8 +2,9 @@
 
 ``ProgressBar(total, label)`` is called as ``bar(done)`` or ``bar(done, total)`` (the runner's and
 the Monte Carlo's ``progress`` callback signature) and redraws at most every ``min_interval``
-seconds. On a terminal it redraws one line in place (carriage return); elsewhere (logs, CI, pipes) it
-prints a plain line only at the first step and every 10 % so logs stay short. ``enabled=False`` silences it.
+seconds. On a terminal it redraws one line in place (carriage return); elsewhere (logs, CI, pipes)
+it prints a plain line only at the first step and every 10 % so logs stay short. ``enabled=False``
+silences it.
 """
 
 from __future__ import annotations
