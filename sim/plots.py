@@ -14,7 +14,8 @@ backend of an interactive session. Colours: one per track label (tab10 cycle); t
 - ``targets.png``: yaw (deg), speed (m/s), length and width (m) over time per truth vehicle (lines)
   with the estimates of the tracks assigned to it by GOSPA (dots);
 - ``run.gif`` (``gif=True``): the run seen from above, following the ego: road, lidar points, radar
-  detections with velocity arrows, truth outlines, track rectangles with labels (PillowWriter).
+  detections with velocity arrows, truth outlines, track rectangles with labels (Pillow, which
+  comes with matplotlib).
 """
 
 from __future__ import annotations
@@ -268,7 +269,7 @@ def write_gif(
     following the ego (``half_window`` m each way, north up): road, lidar points, radar detections
     with 0.5 s velocity arrows, truth outlines (grey), the ego (black) and track rectangles with
     labels. Needs ``run_scenario(..., keep_sensor_data=True)``."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
+    from PIL import Image
 
     frames = result.frames[:: max(1, int(stride))]
     if not frames:
@@ -337,10 +338,19 @@ def write_gif(
                        f"{f.n_truth} true / {f.n_tracks} tracks")
         return []
 
-    anim = FuncAnimation(fig, update, frames=len(frames), blit=False)
-    fps = 1.0 / frame_dt if frame_dt > 0 else 5.0
-    callback = (lambda i, n: progress(i + 1, n)) if progress is not None else None
-    anim.save(str(path), writer=PillowWriter(fps=fps), dpi=dpi, progress_callback=callback)
+    # Each frame is drawn once on the Agg canvas and kept as a palette image (a quarter of the
+    # memory of RGBA); Pillow writes the GIF. (matplotlib's FuncAnimation + PillowWriter draws
+    # every frame twice and keeps RGBA copies.)
+    images = []
+    for i in range(len(frames)):
+        update(i)
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[..., :3]).quantize(colors=255, method=Image.Quantize.FASTOCTREE))
+        if progress is not None:
+            progress(i + 1, len(frames))
+    duration_ms = int(round(1000.0 * frame_dt)) if frame_dt > 0 else 200
+    images[0].save(str(path), format="GIF", save_all=True, append_images=images[1:], duration=duration_ms, loop=0)
     return Path(path)
 
 
