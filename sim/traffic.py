@@ -42,6 +42,10 @@ JAM_GAP = 5.0
 #: Default acceleration / deceleration limits (m/s^2) of a scripted vehicle's speed tracking.
 SCRIPTED_ACCEL = 2.0
 SCRIPTED_DECEL = 3.0
+#: Largest lateral speed (m/s) the lane-keeping controller commands. highway-env's gain alone asks
+#: for ~6 m/s at the start of a MOBIL lane change (a 1.6 rad/s yaw rate at 20 m/s); drivers change
+#: lanes at ~1 m/s over 3-4 s. Scripted lane changes add their profile's rate as feed-forward.
+MAX_LATERAL_SPEED = 1.5
 #: Extra bumper-to-bumper clearance (m) a ``wait_for_gap`` lane change needs in the target lane.
 GAP_CLEARANCE = 3.0
 
@@ -186,12 +190,14 @@ class _FrenetCar:
 
     def steering_control(self, target_lane_index: tuple) -> float:
         """highway-env's cascaded lateral controller (lateral position -> lateral speed -> heading ->
-        steering), tracking ``lateral_reference()`` with its rate as feed-forward."""
+        steering), tracking ``lateral_reference()`` with its rate as feed-forward; the feedback part of
+        the lateral speed command is limited to ``MAX_LATERAL_SPEED``."""
         target_lane = self.road.network.get_lane(target_lane_index)
         s, lateral = target_lane.local_coordinates(self.position)  # type: ignore[attr-defined]
         reference, reference_rate = self.lateral_reference()
         speed = utils.not_zero(self.speed)  # type: ignore[attr-defined]
-        lateral_speed_command = reference_rate - ControlledVehicle.KP_LATERAL * (lateral - reference)
+        feedback = -ControlledVehicle.KP_LATERAL * (lateral - reference)
+        lateral_speed_command = reference_rate + min(max(feedback, -MAX_LATERAL_SPEED), MAX_LATERAL_SPEED)
         heading_command = math.asin(min(max(lateral_speed_command / speed, -1.0), 1.0))
         future = s + self.speed * ControlledVehicle.TAU_PURSUIT  # type: ignore[attr-defined]
         heading_ref = target_lane.heading_at(future) + min(max(heading_command, -math.pi / 4), math.pi / 4)
