@@ -44,3 +44,23 @@ def test_prune_and_cap():
     out = reduce(mix, prune_threshold=0.01, merge_gate=4.0, max_components=2)
     assert out.labels.tolist() == [4, 2]
     assert out.weights.sum() == pytest.approx(1.4)
+
+
+def test_merge_same_label_joins_close_heavy_fragments_only():
+    from tracker.reduction import merge_same_label
+
+    # label 3: two heavy posteriors 0.8 m apart (fragments) and a light missed-detection copy;
+    # label 4: a heavy component far away with the same label is kept apart
+    mix = mixture(
+        [1.0, 0.9, 0.1, 1.0, 1.0],
+        [[10.0, 0.0], [10.8, 0.0], [10.4, 0.0], [50.0, 0.0], [10.0, 3.5]],
+        [0.01, 0.01, 0.01, 0.01, 0.01],
+        [3, 3, 3, 4, 4],
+    )
+    out = merge_same_label(mix, distance=2.0, min_weight=0.5)
+    assert sorted(out.labels.tolist()) == [3, 3, 4, 4]
+    heavy3 = (out.labels == 3) & (out.weights > 0.5)
+    assert out.weights[heavy3][0] == pytest.approx(1.9)
+    assert out.means[heavy3][0, 0] == pytest.approx((10.0 * 1.0 + 10.8 * 0.9) / 1.9)
+    assert np.any((out.labels == 3) & np.isclose(out.weights, 0.1))  # the light copy is untouched
+    assert np.count_nonzero(out.labels == 4) == 2  # 40 m apart: not merged

@@ -311,7 +311,9 @@ class ReductionConfig:
     - ``fov_margin`` (m): components whose nearest corner is farther than the lidar range plus this
       are dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever);
     - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
-      dropped (only objects on the road are tracked).
+      dropped (only objects on the road are tracked);
+    - ``same_label_distance`` (m): components sharing a label whose positions lie this close are
+      merged (one track updated by several fragments of a vehicle's points).
     """
 
     prune_threshold: float = 1e-4
@@ -320,6 +322,7 @@ class ReductionConfig:
     extraction_threshold: float = 0.5
     fov_margin: float = 2.0
     road_margin: float = 1.0
+    same_label_distance: float = 2.0
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
@@ -328,6 +331,7 @@ class ReductionConfig:
         _check("ReductionConfig", "extraction_threshold", self.extraction_threshold, low=0.0, high=1.0)
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
+        _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
 
 
 @dataclass(frozen=True)

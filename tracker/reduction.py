@@ -57,6 +57,55 @@ def cap(mix: Mixture, max_components: int) -> Mixture:
     return mix.take(order)
 
 
+def _moment_match(mix: Mixture, group: np.ndarray, anchor: int, angle_indices: tuple[int, ...]) -> tuple[float, np.ndarray, np.ndarray]:
+    """Weight, mean and covariance of one Gaussian matching the moments of components ``group``;
+    residuals are taken about component ``anchor`` (so angles average on the circle)."""
+    w = mix.weights[group]
+    w_sum = float(w.sum())
+    dev = _residual(mix.means[group], mix.means[anchor][None, :], angle_indices)
+    mean_dev = (w[:, None] * dev).sum(axis=0) / w_sum
+    mean = mix.means[anchor] + mean_dev
+    for k in angle_indices:
+        mean[k] = wrap_angle(mean[k])
+    spread = dev - mean_dev
+    cov = (w[:, None, None] * (mix.covs[group] + spread[:, :, None] * spread[:, None, :])).sum(axis=0) / w_sum
+    return w_sum, mean, 0.5 * (cov + cov.T)
+
+
+def merge_same_label(
+    mix: Mixture,
+    distance: float,
+    min_weight: float = 0.5,
+    position: tuple[int, int] = (0, 1),
+    angle_indices: tuple[int, ...] = (),
+) -> Mixture:
+    """Merge components of weight >= ``min_weight`` that share a label and whose positions (state
+    entries ``position``) lie within ``distance`` metres of the heaviest of them: posteriors of one
+    track updated by fragments of one vehicle's points (split clusters), which the Mahalanobis gate
+    keeps apart when they are tight. Light components (e.g. the missed-detection copy) are left alone."""
+    heavy = mix.weights >= min_weight
+    labels, counts = np.unique(mix.labels[heavy], return_counts=True)
+    shared = labels[counts > 1]
+    if len(shared) == 0:
+        return mix
+    keep = ~(np.isin(mix.labels, shared) & heavy)
+    w_out, m_out, p_out, l_out = [mix.weights[keep]], [mix.means[keep]], [mix.covs[keep]], [mix.labels[keep]]
+    pos = list(position)
+    for label in shared:  # labels with several components: a few per frame
+        idx = np.flatnonzero((mix.labels == label) & heavy)
+        idx = idx[np.argsort(-mix.weights[idx], kind="stable")]
+        while len(idx):
+            j = idx[0]
+            near = np.linalg.norm(mix.means[idx][:, pos] - mix.means[j, pos], axis=1) <= distance
+            w_sum, mean, cov = _moment_match(mix, idx[near], j, angle_indices)
+            w_out.append(np.array([w_sum]))
+            m_out.append(mean[None, :])
+            p_out.append(cov[None, :, :])
+            l_out.append(np.array([label]))
+            idx = idx[~near]
+    return Mixture(np.concatenate(w_out), np.concatenate(m_out), np.concatenate(p_out), np.concatenate(l_out))
+
+
 def merge(mix: Mixture, gate: float, angle_indices: tuple[int, ...] = ()) -> Mixture:
     """Merge components within Mahalanobis distance^2 ``gate`` of the heaviest remaining one.
 
@@ -78,18 +127,10 @@ def merge(mix: Mixture, gate: float, angle_indices: tuple[int, ...] = ()) -> Mix
         d = _residual(mix.means[idx], mix.means[j][None, :], angle_indices)
         maha = np.einsum("ni,nij,nj->n", d, inv[idx], d)
         group = idx[maha <= gate]
-        w = mix.weights[group]
-        w_sum = float(w.sum())
-        dev = _residual(mix.means[group], mix.means[j][None, :], angle_indices)
-        mean_dev = (w[:, None] * dev).sum(axis=0) / w_sum
-        mean = mix.means[j] + mean_dev
-        for k in angle_indices:
-            mean[k] = wrap_angle(mean[k])
-        spread = dev - mean_dev
-        cov = (w[:, None, None] * (mix.covs[group] + spread[:, :, None] * spread[:, None, :])).sum(axis=0) / w_sum
+        w_sum, mean, cov = _moment_match(mix, group, j, angle_indices)
         w_out.append(w_sum)
         m_out.append(mean)
-        p_out.append(0.5 * (cov + cov.T))
+        p_out.append(cov)
         l_out.append(mix.labels[j])
         remaining[group] = False
     return Mixture(np.array(w_out), np.array(m_out), np.array(p_out), np.array(l_out))

@@ -29,7 +29,8 @@
 
 5. **Reduce**: drop components that left the field of view (nearest corner farther than
    ``detection.lidar_range + reduction.fov_margin``) or the road (centre beyond the road edges by more
-   than ``reduction.road_margin``), prune, angle-aware merge, cap
+   than ``reduction.road_margin``), merge reportable components (weight above the extraction threshold) of one label within
+   ``reduction.same_label_distance`` (a track updated by fragments of one vehicle's points), prune, angle-aware merge, cap
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
@@ -57,7 +58,7 @@ from tracker.frame import EgoState, Frame
 from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
-from tracker.reduction import Mixture, reduce
+from tracker.reduction import Mixture, merge_same_label, reduce
 from tracker.road import Road
 from tracker.track import Track
 from tracker.transforms import to_global
@@ -300,7 +301,9 @@ class Tracker:
             on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
             self.stats["components_off_road"] += int((inside & ~on_road).sum())
             self.mixture = self.mixture.take(inside & on_road)
-        self.mixture = reduce(self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
+        mix = merge_same_label(self.mixture, red.same_label_distance, red.extraction_threshold,
+                               angle_indices=self.angle_indices)
+        self.mixture = reduce(mix, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
                               max_components=red.max_components, angle_indices=self.angle_indices)
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
