@@ -20,17 +20,18 @@
 4. **Update** (Granstrom et al. 2012 with one partition, the paper's weights). With the state-dependent
    ``gamma(x)`` and ``P_D(x)`` of ``tracker.detection``:
 
-   - missed detection: ``w (1 - (1 - e^-gamma) P_D)``, except for a component whose own cluster
-     (inside its track's rectangle) failed every gate: it was seen, not missed, so it keeps ``w``;
+   - missed detection: ``w (1 - (1 - e^-gamma) P_D)``;
    - cluster ``W`` and component ``i`` (only gated pairs: centroid within ``gating.distance`` of the
      predicted rectangle, then the normalised innovation inside the chi-square ``gating.probability``
-     quantile): ``w_i^W = P_D w_i Gamma_i L_i^W / (delta_{|W|,1} + sum_j P_D w_j Gamma_j L_j^W)`` with
+     quantile; a reported track's own cluster, whose points lie in its predicted rectangle, always
+     updates it): ``w_i^W = P_D w_i Gamma_i L_i^W / (delta_{|W|,1} + sum_j P_D w_j Gamma_j L_j^W)`` with
      ``Gamma = e^-gamma gamma^|W|`` and ``L = N(z_W; y, S) prod_z 1 / (lambda c(z))``, in the log domain.
 
 5. **Reduce**: drop components that left the field of view (nearest corner farther than
    ``detection.lidar_range + reduction.fov_margin``) or the road (centre beyond the road edges by more
-   than ``reduction.road_margin``), merge reportable components (weight above the extraction threshold) of one label within
-   ``reduction.same_label_distance`` (a track updated by fragments of one vehicle's points), prune, angle-aware merge, cap
+   than ``reduction.road_margin``), prune, angle-aware merge, then merge reportable components (weight
+   above the extraction threshold) of one label within ``reduction.same_label_distance`` (a track
+   updated by fragments of one vehicle's points), cap
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
@@ -58,7 +59,7 @@ from tracker.frame import EgoState, Frame
 from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
-from tracker.reduction import Mixture, merge_same_label, reduce
+from tracker.reduction import Mixture, cap, merge, merge_same_label, prune
 from tracker.road import Road
 from tracker.track import Track
 from tracker.transforms import to_global
@@ -100,7 +101,8 @@ class Tracker:
         self._s_ego: float | None = None
         self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
         self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))  # cluster births for the next frame
-        self._owned = np.zeros(0, dtype=bool)  # this frame's clusters inside a reported track's rectangle
+        self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
+        self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
 
@@ -188,14 +190,17 @@ class Tracker:
     def _cluster(self, points: np.ndarray, frame: Frame) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
         cfg = self.config.clustering
         clusters: list[np.ndarray] = []
-        owned = np.zeros(0, dtype=bool)
+        owned = np.zeros(0, dtype=int)
+        self._component_group = np.full(len(self.mixture), -1)
         if len(points):
             owner = np.full(len(points), -1)
             tracks = self._reported
             if len(tracks):
                 rect = to_vehicle(self.mixture.means[tracks], frame.ego, self.road, self.config.coordinates)
                 owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
-                owner = np.where(owner >= 0, _duplicate_groups(rect)[np.maximum(owner, 0)], -1)
+                groups = _duplicate_groups(rect)
+                self._component_group[tracks] = groups
+                owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
             component = distance_partition(points, cfg.distance)
             owner = _adopt_strays(component, owner)
             # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
@@ -204,11 +209,11 @@ class Tracker:
             order = np.argsort(key, kind="stable")
             bounds = np.flatnonzero(np.diff(key[order])) + 1
             clusters = np.split(points[order], bounds)
-            owned = (owner[order][np.concatenate([[0], bounds])] >= 0) if len(points) else np.zeros(0, bool)
+            owned = owner[order][np.concatenate([[0], bounds])] if len(points) else np.zeros(0, dtype=int)
         big = np.array([len(c) >= cfg.min_points for c in clusters], dtype=bool)
         self.stats["clusters_too_small"] += int((~big).sum())
         clusters = [c for c, keep in zip(clusters, big) if keep]
-        self._owned = owned[big] if len(big) else np.zeros(0, dtype=bool)
+        self._owned = owned[big] if len(big) else np.zeros(0, dtype=int)
         velocities: list[np.ndarray | None] = [None] * len(clusters)
         radar = frame.radar
         if self.config.use_radar and len(radar) and clusters:
@@ -247,11 +252,12 @@ class Tracker:
             if len(comp):
                 res = update_pairs(mix.means, mix.covs, prepared, comp, clu, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
-                # a component whose own cluster (inside its track's rectangle) fails the gate was seen
-                # but not explained by the model (e.g. partly occluded): no missed-detection penalty
-                unexplained = np.setdiff1d(comp[self._owned[clu]], comp[inside])
-                missed_w[unexplained] = mix.weights[unexplained]
-                self.stats["owned_gate_failures"] += len(unexplained)
+                # a track's own cluster (its points lie in its predicted rectangle) is associated by
+                # geometry: it updates the track even when the model fits it badly (a manoeuvre, partial
+                # occlusion), instead of the track coasting on a stale prediction until it is lost
+                own = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp])
+                self.stats["own_clusters_past_gate"] += int((own & ~inside).sum())
+                inside |= own
                 comp, clu = comp[inside], clu[inside]
                 self.stats["pairs_updated"] += len(comp)
                 if len(comp):
@@ -283,7 +289,7 @@ class Tracker:
         """Clusters that no component explained and that lie outside every reported track's rectangle
         seed births for the next frame (a cluster inside a track's rectangle that failed its gate is
         that track's, badly predicted, not a new vehicle)."""
-        idle = [k for k in range(len(clusters)) if not explained[k] and not self._owned[k]]
+        idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
         means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
                                      ego, self.road, self.config.birth)
         if self.cartesian:
@@ -301,10 +307,9 @@ class Tracker:
             on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
             self.stats["components_off_road"] += int((inside & ~on_road).sum())
             self.mixture = self.mixture.take(inside & on_road)
-        mix = merge_same_label(self.mixture, red.same_label_distance, red.extraction_threshold,
-                               angle_indices=self.angle_indices)
-        self.mixture = reduce(mix, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
-                              max_components=red.max_components, angle_indices=self.angle_indices)
+        mix = merge(prune(self.mixture, red.prune_threshold), red.merge_threshold, self.angle_indices)
+        mix = merge_same_label(mix, red.same_label_distance, red.extraction_threshold, angle_indices=self.angle_indices)
+        self.mixture = cap(mix, red.max_components)
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
 
