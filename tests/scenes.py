@@ -15,17 +15,23 @@ from tracker.transforms import rotate, to_local
 
 @dataclass
 class Car:
-    """A lane-following car: arc length ``s0 + v t`` (m), lateral offset ``n`` (m), size (m)."""
+    """A lane-following car: arc length ``s0 + v t + accel t^2 / 2`` (m), lateral offset ``n`` (m),
+    size (m)."""
 
     s0: float
     n: float
     v: float
     length: float = 4.8
     width: float = 2.0
+    accel: float = 0.0
+
+    def s_at(self, t: float) -> float:
+        """Arc length (m) of the centre at time ``t``."""
+        return self.s0 + self.v * t + 0.5 * self.accel * t * t
 
     def pose(self, road: Road, t: float) -> tuple[np.ndarray, float]:
         """Centre (2,) in G and heading (rad) at time ``t``."""
-        s = road.wrap_s(self.s0 + self.v * t)
+        s = road.wrap_s(self.s_at(t))
         xy, theta, _ = road.frame(np.array([float(s)]))
         centre = xy[0] + self.n * np.array([-np.sin(theta[0]), np.cos(theta[0])])
         return centre, float(theta[0])
@@ -64,11 +70,13 @@ class Scene:
     radar_sigma: float = 0.2
 
     def truth(self, t: float) -> np.ndarray:
-        """Rows ``[x, y, psi, v]`` of the other cars in G at ``t``."""
+        """Rows ``[x, y, psi, speed]`` of the other cars in G at ``t``. A car's ``s`` advances at
+        ``s_dot = v + accel t``, so its own speed at lateral offset ``n`` is ``s_dot (1 - kappa n)``."""
         rows = []
         for car in self.cars:
             centre, psi = car.pose(self.road, t)
-            rows.append([centre[0], centre[1], psi, car.v])
+            kappa = float(self.road.curvature(np.array([float(self.road.wrap_s(car.s_at(t)))]))[0])
+            rows.append([centre[0], centre[1], psi, (car.v + car.accel * t) * (1.0 - kappa * car.n)])
         return np.array(rows).reshape(-1, 4)
 
     def frame(self, t: float, rng: np.random.Generator, extra_points_g: np.ndarray | None = None) -> Frame:
@@ -93,4 +101,5 @@ class Scene:
                 vx=vel[seen, 0] + rng.normal(0, self.radar_sigma, k), vy=vel[seen, 1] + rng.normal(0, self.radar_sigma, k),
             )
         curvature = float(self.road.curvature(np.array([float(self.road.wrap_s(self.ego.s0 + self.ego.v * t))]))[0])
-        return Frame(t, EgoState(ego_xy[0], ego_xy[1], ego_yaw, self.ego.v, self.ego.v * curvature), pts, radar)
+        speed = self.ego.v * (1.0 - curvature * self.ego.n)
+        return Frame(t, EgoState(ego_xy[0], ego_xy[1], ego_yaw, speed, self.ego.v * curvature), pts, radar)

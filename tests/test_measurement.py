@@ -189,7 +189,7 @@ def test_downsampling_bound_keeps_extremes_and_corner() -> None:
     cfg = MeasurementConfig(max_cluster_points=40, end_gap_correction=False)
     c = prepare_cluster(pts, cfg)
     assert c.raw_count == len(pts)
-    assert c.size <= 41
+    assert c.size <= 40
     np.testing.assert_allclose(c.points[c.corner], k[3], atol=1e-9)
     np.testing.assert_allclose(c.points[0], k[0], atol=1e-9)
     np.testing.assert_allclose(c.points[-1], k[2], atol=1e-9)

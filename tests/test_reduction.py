@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tracker.reduction import Mixture, cap, merge, prune, reduce
+from tracker.ukf import Wrapping
 
 
 def mixture(weights, means, variances, labels):
@@ -29,7 +30,7 @@ def test_merge_moment_matches_and_keeps_heaviest_label():
 
 def test_merge_wraps_angles():
     mix = mixture([0.5, 0.5], [[0.0, np.pi - 0.1], [0.0, -np.pi + 0.1]], [0.1, 0.1], [1, 2])
-    out = merge(mix, gate=4.0, angle_indices=(1,))
+    out = merge(mix, gate=4.0, wrapping=Wrapping(angles=(1,)))
     assert len(out) == 1
     assert abs(abs(out.means[0, 1]) - np.pi) < 1e-12  # mean at pi, not at 0
     assert out.covs[0, 1, 1] == pytest.approx(0.1 + 0.01)
@@ -64,3 +65,13 @@ def test_merge_same_label_joins_close_heavy_fragments_only():
     assert out.means[heavy3][0, 0] == pytest.approx((10.0 * 1.0 + 10.8 * 0.9) / 1.9)
     assert np.any((out.labels == 3) & np.isclose(out.weights, 0.1))  # the light copy is untouched
     assert np.count_nonzero(out.labels == 4) == 2  # 40 m apart: not merged
+
+
+def test_merge_across_the_start_of_a_closed_road():
+    # s wraps at 500 m: components at 499.95 m and 0.05 m are 0.1 m apart
+    mix = mixture([0.6, 0.6], [[499.95, 0.0], [0.05, 0.0]], [0.01, 0.01], [1, 2])
+    wrap = Wrapping(periods=((0, 500.0),))
+    out = merge(mix, gate=4.0, wrapping=wrap)
+    assert len(out) == 1 and out.weights[0] == pytest.approx(1.2)
+    assert min(out.means[0, 0], 500.0 - out.means[0, 0]) == pytest.approx(0.0, abs=1e-9)
+    assert len(merge(mix, gate=4.0)) == 2  # without the period they are 499.9 m apart

@@ -10,6 +10,7 @@ from scenes import Car, Scene
 
 from tracker import Frame, Road, Tracker, TrackerConfig
 from tracker.frame import EgoState, RadarDetections
+from tracker.transforms import to_global, to_local
 
 DT = 0.1
 
@@ -100,12 +101,12 @@ def test_clutter_off_road_never_becomes_a_track_and_on_road_rarely(curve):
     assert false_frames <= 0.02 * len(frames), false_frames
 
 
-def test_car_hidden_for_two_seconds_keeps_its_label():
+def test_car_hidden_for_about_two_seconds_keeps_its_label():
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
-    # ego in lane 0; car A in lane 1 10 m ahead at the ego's speed hides car B in lane 2, which the
-    # ego overtakes at 9 m/s: B is fully behind A for about 2 s (relative 32 m -> 14 m)
+    # ego in lane 0; a 6 m van A in lane 1 10 m ahead at the ego's speed hides car B in lane 2, which
+    # the ego overtakes at 9 m/s: B is fully behind A for 1.8 s, partly for 0.5 s before and after
     ego = Car(100.0, -3.5, 20.0)
-    scene = Scene(road, ego, [Car(110.0, 0.0, 20.0), Car(150.0, 3.5, 11.0)])
+    scene = Scene(road, ego, [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(150.0, 3.5, 11.0)])
     frames, tracker = run(scene, TrackerConfig(), 6.5)
     def label_of_b(k):
         tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
@@ -113,14 +114,23 @@ def test_car_hidden_for_two_seconds_keeps_its_label():
     before = label_of_b(int(1.5 / DT))
     after = label_of_b(int(6.0 / DT))
     assert before is not None and before == after
-    visible = [len(scene.frame(k * DT, np.random.default_rng(0)).lidar) for k in range(0, 66)]
-    assert min(visible) < max(visible)  # B really disappeared from the scan for a while
+    def points_on_b(k):
+        fr = scene.frame(k * DT, np.random.default_rng(0))
+        centre, psi = scene.cars[1].pose(road, k * DT)
+        local = to_local(to_global(fr.lidar, (fr.ego.x, fr.ego.y), fr.ego.yaw), centre, psi)
+        return int(np.sum((np.abs(local[:, 0]) < 2.6) & (np.abs(local[:, 1]) < 1.2)))
+    hidden = [points_on_b(k) == 0 for k in range(0, 66)]
+    assert sum(hidden) >= 18  # B really was out of sight (no point on it) for 1.8 s or more
+    assert points_on_b(int(1.5 / DT)) > 0 and points_on_b(int(6.0 / DT)) > 0
 
 
 def test_fused_speed_error_below_lidar_only(curve):
+    # one car accelerates (2 m/s^2), one brakes (-2 m/s^2): lidar alone infers speed from positions
+    # and lags; the radar measures it
     errs = {}
     for use_radar in (True, False):
-        scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(25.0, -3.5, 18.0), Car(30.0, 3.5, 12.0)], radar=True)
+        cars = [Car(25.0, -3.5, 15.0, accel=2.0), Car(30.0, 3.5, 18.0, accel=-2.0)]
+        scene = Scene(curve, Car(0.0, 0.0, 15.0), cars, radar=True)
         config = TrackerConfig.for_variant("curvilinear-fused" if use_radar else "curvilinear-lidar")
         frames, tracker = run(scene, config, 3.0, seed=1)
         e = []
@@ -158,12 +168,15 @@ def test_bad_and_degenerate_input(curve):
     # dt = 0: the same time again is accepted and predicts nothing
     scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, 0.0, 15.0)])
     rng = np.random.default_rng(0)
-    fr = scene.frame(0.3, rng)
-    tracker.step(fr)
-    tracks = tracker.step(fr)
-    assert all(np.isfinite(t.mean).all() for t in tracks)
+    for k in range(3, 6):
+        before = {tr.label: tr.mean for tr in tracker.step(scene.frame(k * DT, rng))}
+    assert before
+    after = {tr.label: tr.mean for tr in tracker.step(Frame(0.5, scene.frame(0.5, rng).ego))}
+    assert after.keys() == before.keys()  # dt = 0, no points: nothing moves, nothing is updated
+    for label, mean in after.items():
+        np.testing.assert_allclose(mean, before[label], atol=1e-9)
     with pytest.raises(ValueError, match="older than the last one"):
-        tracker.step(scene.frame(0.2, rng))
+        tracker.step(scene.frame(0.4, rng))
     with pytest.raises(ValueError, match="needs a tracker.Frame"):
         tracker.step("not a frame")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="not built yet"):

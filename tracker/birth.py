@@ -10,7 +10,7 @@
   road), and the speed from an associated radar detection when fused.
 
 Both return curvilinear means (B, 7) and covariances (B, 7, 7); ``to_cartesian_gaussians`` maps them to
-the Cartesian variant's state by linearisation at the mean.
+the Cartesian variant's state by the unscented transform.
 """
 
 from __future__ import annotations
@@ -22,13 +22,15 @@ from tracker.config import BirthConfig
 from tracker.frame import EgoState
 from tracker.road import Road
 from tracker.shape_fit import fit_rectangle
+from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import to_global
+from tracker.ukf import UnscentedTransform, Wrapping
 
 
-def birth_covariance(config: BirthConfig, count: int, speed_std: float | None = None) -> np.ndarray:
+def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
     """Diagonal prior covariances (count, 7, 7) of birth components (``BirthConfig`` spreads)."""
     std = np.array([
-        config.position_std, config.lateral_std, config.speed_std if speed_std is None else speed_std,
+        config.position_std, config.lateral_std, config.speed_std,
         config.heading_std, config.heading_rate_std, config.length_std, config.width_std,
     ])
     return np.broadcast_to(np.diag(std**2), (count, 7, 7)).copy()
@@ -102,21 +104,14 @@ def cluster_births(
     return np.array(means), covs
 
 
-def to_cartesian_gaussians(road: Road, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Curvilinear Gaussians (B, 7) / (B, 7, 7) to Cartesian ``[x, y, v, psi, psi_dot, L, W]`` ones,
-    linearised at the mean: ``dx/ds = t (1 - kappa n)``, ``dx/dn = normal``, ``dpsi/ds = kappa``."""
+def to_cartesian_gaussians(
+    road: Road, means: np.ndarray, covs: np.ndarray, ut: UnscentedTransform | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Curvilinear Gaussians (B, 7) / (B, 7, 7) to Cartesian ``[x, y, v, psi, psi_dot, L, W]`` ones by
+    the unscented transform of ``tracker.track.curvilinear_to_cartesian`` (batched)."""
     if len(means) == 0:
         return means.copy(), covs.copy()
-    xy, theta, kappa = road.frame(means[:, 0], extrapolate=True)
-    t = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
-    n = means[:, 1]
-    out = means.copy()
-    out[:, :2] = xy + n[:, None] * nrm
-    out[:, 3] = wrap_angle(theta + means[:, 3])
-    out[:, 4] = means[:, 4] + kappa * means[:, 2]
-    jac = np.broadcast_to(np.eye(7), (len(means), 7, 7)).copy()
-    jac[:, :2, 0] = t * (1.0 - kappa * n)[:, None]
-    jac[:, :2, 1] = nrm
-    jac[:, 3, 0] = kappa
-    return out, jac @ covs @ np.swapaxes(jac, 1, 2)
+    ut = ut if ut is not None else UnscentedTransform()
+    wrap_in = Wrapping(angles=(3,), periods=((0, road.length),) if road.closed else ())
+    mean, cov, _ = ut.transform(lambda x: curvilinear_to_cartesian(road, x), means, covs, wrap_in, Wrapping(angles=(3,)))
+    return mean, cov

@@ -172,14 +172,6 @@ class HermiteCenterline(_Cells):
         d = s - self.starts[cell]
         return self.segment_of_cell[cell], ((q[:, 3] * d + q[:, 2]) * d + q[:, 1]) * d + q[:, 0]
 
-    def arc_length_to(self, segment: int, tau: float) -> float:
-        """Arc length from the curve start to ``(segment, tau)`` by composite quadrature (for tests)."""
-        seg_len = self._segment_lengths(self.coeffs[:segment]).sum() if segment else 0.0
-        pieces = 64
-        edges = np.linspace(0.0, tau, pieces + 1)
-        c = np.repeat(self.coeffs[segment : segment + 1], pieces, axis=0)
-        return float(seg_len + self._arc_length(c, edges[:-1], edges[1:]).sum())
-
     # -- evaluation -----------------------------------------------------------------------------
     def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]."""

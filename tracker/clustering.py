@@ -24,7 +24,7 @@ def points_in_rectangles(
     yaw: np.ndarray,
     length: np.ndarray,
     width: np.ndarray,
-    margin: float = 0.5,
+    margin: float = 1.0,
 ) -> np.ndarray:
     """Index of the rectangle containing each point (-1 for none), all in one frame (m, rad).
 
@@ -64,7 +64,7 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     return rank[labels]
 
 
-def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate: float = 2.5) -> np.ndarray:
+def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate: float = 3.0) -> np.ndarray:
     """Greedy nearest-neighbour association of radar detections (R, 2) to clusters.
 
     The distance from a detection to a cluster is the distance to the cluster's nearest point (the

@@ -205,21 +205,18 @@ class DetectionConfig:
 
     - ``p_detection``: probability that a target in the field of view yields a cluster (``P_D``);
     - ``p_survival``: probability that a target survives one frame (``P_S``);
-    - ``expected_points`` (points): the mean number ``gamma`` of lidar points per detected target,
-      used when the state-dependent model of the multi-target layer has nothing better;
     - ``clutter_rate`` (points per frame): mean number ``lambda`` of clutter points on the road;
     - ``clutter_density`` (1/m^2): spatial density ``c(z)`` of a clutter point (uniform over
       ``1 / clutter_density`` square metres of road in view);
     - ``lidar_resolution`` (rad) and ``lidar_range`` (m): the state-dependent model expects
-      ``gamma(x) = (visible bearing span of the rectangle) / lidar_resolution`` points, and
-      ``P_D(x) = 0`` for a rectangle centre beyond ``lidar_range``;
+      ``gamma(x) = (bearing span of the rectangle) / lidar_resolution`` points, and
+      ``P_D(x) = 0`` for a rectangle whose nearest corner is beyond ``lidar_range``;
     - ``occlusion``: whether ``P_D`` and ``gamma`` are scaled by the fraction of the target's bearing
       span not hidden by a nearer track.
     """
 
     p_detection: float = 0.9
     p_survival: float = 0.99
-    expected_points: float = 20.0
     clutter_rate: float = 1.0
     clutter_density: float = 1.0 / 5000.0
     lidar_resolution: float = math.radians(0.2)
@@ -229,7 +226,6 @@ class DetectionConfig:
     def __post_init__(self) -> None:
         _check("DetectionConfig", "p_detection", self.p_detection, low=0.0, high=1.0, low_open=True)
         _check("DetectionConfig", "p_survival", self.p_survival, low=0.0, high=1.0, low_open=True)
-        _check("DetectionConfig", "expected_points", self.expected_points, low=0.0, low_open=True, unit="points")
         _check("DetectionConfig", "clutter_rate", self.clutter_rate, low=0.0, low_open=True, unit="points/frame")
         _check("DetectionConfig", "clutter_density", self.clutter_density, low=0.0, low_open=True, unit="1/m^2")
         _check("DetectionConfig", "lidar_resolution", self.lidar_resolution, low=0.0, low_open=True, unit="rad")

@@ -34,8 +34,8 @@ def nearest_range(rect: Rectangles) -> np.ndarray:
 
 
 def bearing_spans(rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bearing interval ``(lo, hi)`` (rad, ``hi - lo < pi``, ``lo`` in (-pi, pi]) of each rectangle
-    seen from the E origin, and the range (m) of its centre."""
+    """Bearing interval ``(lo, hi)`` (rad, ``hi - lo < pi``; around the centre's bearing, so ``lo`` may
+    be below -pi) of each rectangle seen from the E origin, and the range (m) of its centre."""
     corners = rect.corners()  # (C, 4, 2)
     centre_bearing = np.arctan2(rect.center[:, 1], rect.center[:, 0])
     rel = wrap_angle(np.arctan2(corners[..., 1], corners[..., 0]) - centre_bearing[:, None])

@@ -351,8 +351,9 @@ def prepare_cluster(
     if two:
         k = corner_index(pts)
         if n > config.max_cluster_points:
-            m0 = max(2, int(round(config.max_cluster_points * (k + 1) / (n + 1))))
-            m1 = max(2, config.max_cluster_points + 1 - m0)
+            bound = config.max_cluster_points  # the corner is shared: m0 + m1 - 1 = bound points
+            m0 = min(max(2, int(round(bound * (k + 1) / (n + 1)))), bound - 1)
+            m1 = bound + 1 - m0
             keep = np.unique(np.concatenate([_even(0, k, m0), _even(k, n - 1, m1)]))
         corner = int(np.searchsorted(keep, k))
     elif n > config.max_cluster_points:

@@ -11,20 +11,9 @@ Three steps, each vectorised and each reporting what it removed so nothing is lo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from tracker.road import Road
-
-
-@dataclass(frozen=True)
-class PreprocessCounts:
-    """How many points each preprocessing step removed in one frame."""
-
-    nonfinite: int = 0
-    off_road: int = 0
-    bearing: int = 0
 
 
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -41,7 +30,7 @@ def road_bound_mask(points_g: np.ndarray, road: Road, margin: float = 0.5) -> np
     return road.on_road(points_g, margin=margin)
 
 
-def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.25)) -> np.ndarray:
+def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> np.ndarray:
     """Indices of the closest point in each bearing bin of ``bin_width`` rad (seen from the E origin),
     in increasing bearing order. ``bin_width`` should be at least the lidar's azimuth resolution."""
     if not bin_width > 0:

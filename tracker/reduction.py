@@ -1,8 +1,9 @@
 """Gaussian-mixture reduction for the GM-PHD filter: prune, merge, cap (Vo & Ma 2006).
 
 A mixture is held as arrays: ``weights`` (J,), ``means`` (J, D), ``covs`` (J, D, D) and integer
-``labels`` (J,). Angle components (``angle_indices``, e.g. ``xi`` of the curvilinear state) are
-handled on the circle: residuals are wrapped and merged means are circular weighted means.
+``labels`` (J,). Wrapped coordinates (a ``tracker.ukf.Wrapping``: angles such as ``xi``, and ``s`` on a
+closed road) are handled on the circle: residuals are wrapped and merged means are circular
+weighted means, so components on either side of ``s = 0`` merge.
 
 - prune: drop components with weight below ``threshold``;
 - merge: repeatedly take the heaviest remaining component ``j`` and merge every component ``i``
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker.angles import wrap_angle
+from tracker.ukf import NO_WRAP, Wrapping
 
 
 @dataclass
@@ -37,13 +38,6 @@ class Mixture:
         return Mixture(self.weights[index], self.means[index], self.covs[index], self.labels[index])
 
 
-def _residual(a: np.ndarray, b: np.ndarray, angle_indices: tuple[int, ...]) -> np.ndarray:
-    d = a - b
-    for k in angle_indices:
-        d[..., k] = wrap_angle(d[..., k])
-    return d
-
-
 def prune(mix: Mixture, threshold: float) -> Mixture:
     """Components with weight >= ``threshold``."""
     return mix.take(mix.weights >= threshold)
@@ -57,16 +51,14 @@ def cap(mix: Mixture, max_components: int) -> Mixture:
     return mix.take(order)
 
 
-def _moment_match(mix: Mixture, group: np.ndarray, anchor: int, angle_indices: tuple[int, ...]) -> tuple[float, np.ndarray, np.ndarray]:
+def _moment_match(mix: Mixture, group: np.ndarray, anchor: int, wrapping: Wrapping) -> tuple[float, np.ndarray, np.ndarray]:
     """Weight, mean and covariance of one Gaussian matching the moments of components ``group``;
     residuals are taken about component ``anchor`` (so angles average on the circle)."""
     w = mix.weights[group]
     w_sum = float(w.sum())
-    dev = _residual(mix.means[group], mix.means[anchor][None, :], angle_indices)
+    dev = wrapping.residual(mix.means[group] - mix.means[anchor][None, :])
     mean_dev = (w[:, None] * dev).sum(axis=0) / w_sum
-    mean = mix.means[anchor] + mean_dev
-    for k in angle_indices:
-        mean[k] = wrap_angle(mean[k])
+    mean = wrapping.wrap(mix.means[anchor] + mean_dev)
     spread = dev - mean_dev
     cov = (w[:, None, None] * (mix.covs[group] + spread[:, :, None] * spread[:, None, :])).sum(axis=0) / w_sum
     return w_sum, mean, 0.5 * (cov + cov.T)
@@ -77,7 +69,7 @@ def merge_same_label(
     distance: float,
     min_weight: float = 0.5,
     position: tuple[int, int] = (0, 1),
-    angle_indices: tuple[int, ...] = (),
+    wrapping: Wrapping = NO_WRAP,
 ) -> Mixture:
     """Merge components of weight >= ``min_weight`` that share a label and whose positions (state
     entries ``position``) lie within ``distance`` metres of the heaviest of them: posteriors of one
@@ -96,8 +88,9 @@ def merge_same_label(
         idx = idx[np.argsort(-mix.weights[idx], kind="stable")]
         while len(idx):
             j = idx[0]
-            near = np.linalg.norm(mix.means[idx][:, pos] - mix.means[j, pos], axis=1) <= distance
-            w_sum, mean, cov = _moment_match(mix, idx[near], j, angle_indices)
+            gap = wrapping.residual(mix.means[idx] - mix.means[j][None, :])[:, pos]
+            near = np.linalg.norm(gap, axis=1) <= distance
+            w_sum, mean, cov = _moment_match(mix, idx[near], j, wrapping)
             w_out.append(np.array([w_sum]))
             m_out.append(mean[None, :])
             p_out.append(cov[None, :, :])
@@ -106,7 +99,7 @@ def merge_same_label(
     return Mixture(np.concatenate(w_out), np.concatenate(m_out), np.concatenate(p_out), np.concatenate(l_out))
 
 
-def merge(mix: Mixture, gate: float, angle_indices: tuple[int, ...] = ()) -> Mixture:
+def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
     """Merge components within Mahalanobis distance^2 ``gate`` of the heaviest remaining one.
 
     One pass per output component, each vectorised over the remaining components. The merged
@@ -124,10 +117,10 @@ def merge(mix: Mixture, gate: float, angle_indices: tuple[int, ...] = ()) -> Mix
         if not remaining[j]:
             continue
         idx = np.flatnonzero(remaining)
-        d = _residual(mix.means[idx], mix.means[j][None, :], angle_indices)
+        d = wrapping.residual(mix.means[idx] - mix.means[j][None, :])
         maha = np.einsum("ni,nij,nj->n", d, inv[idx], d)
         group = idx[maha <= gate]
-        w_sum, mean, cov = _moment_match(mix, group, j, angle_indices)
+        w_sum, mean, cov = _moment_match(mix, group, j, wrapping)
         w_out.append(w_sum)
         m_out.append(mean)
         p_out.append(cov)
@@ -142,7 +135,7 @@ def reduce(
     prune_threshold: float,
     merge_gate: float,
     max_components: int,
-    angle_indices: tuple[int, ...] = (),
+    wrapping: Wrapping = NO_WRAP,
 ) -> Mixture:
     """Prune, merge, then cap a mixture."""
-    return cap(merge(prune(mix, prune_threshold), merge_gate, angle_indices), max_components)
+    return cap(merge(prune(mix, prune_threshold), merge_gate, wrapping), max_components)

@@ -75,8 +75,10 @@ class Tracker:
 
     ``stats`` counts, over the tracker's life: ``frames``, ``predict_only_frames``,
     ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
-    ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated``, ``pairs_updated``,
-    ``births_road``, ``births_cluster``, ``label_splits``.
+    ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated`` (centroid within the gating
+    distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
+    ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
+    ``label_splits``.
     """
 
     def __init__(self, road: Road, config: TrackerConfig | None = None) -> None:
@@ -93,7 +95,6 @@ class Tracker:
         self.ut = UnscentedTransform(config.ukf)
         self.motion = make_motion(config, road)
         self.wrapping = state_wrapping(road, config.coordinates)
-        self.angle_indices = (3,)
         self.mixture = Mixture(np.zeros(0), np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0, dtype=int))
         self.t: float | None = None
         self.stats: Counter[str] = Counter()
@@ -153,7 +154,7 @@ class Tracker:
             return
         means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
         if self.cartesian:
-            means, covs = to_cartesian_gaussians(self.road, means, covs)
+            means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         occ = self._reported
         if len(means) and len(occ):
             # a vehicle can enter the view only where the view is not blocked and no track already is
@@ -293,7 +294,7 @@ class Tracker:
         means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
                                      ego, self.road, self.config.birth)
         if self.cartesian:
-            means, covs = to_cartesian_gaussians(self.road, means, covs)
+            means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         self._pending = (means, covs)
 
     def _reduce(self, ego: EgoState) -> None:
@@ -307,8 +308,8 @@ class Tracker:
             on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
             self.stats["components_off_road"] += int((inside & ~on_road).sum())
             self.mixture = self.mixture.take(inside & on_road)
-        mix = merge(prune(self.mixture, red.prune_threshold), red.merge_threshold, self.angle_indices)
-        mix = merge_same_label(mix, red.same_label_distance, red.extraction_threshold, angle_indices=self.angle_indices)
+        mix = merge(prune(self.mixture, red.prune_threshold), red.merge_threshold, self.wrapping)
+        mix = merge_same_label(mix, red.same_label_distance, red.extraction_threshold, wrapping=self.wrapping)
         self.mixture = cap(mix, red.max_components)
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)

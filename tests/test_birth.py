@@ -1,0 +1,60 @@
+"""Tests of tracker/birth.py: road births, cluster births from an L-shape, the Cartesian mapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracker import EgoState, Road
+from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
+from tracker.config import BirthConfig
+from tracker.measurement import rectangle_corners, rectangle_scan
+from tracker.track import curvilinear_to_cartesian
+from tracker.transforms import to_local
+
+
+@pytest.fixture(scope="module")
+def road() -> Road:
+    return Road.from_curvature([(2 * np.pi * 200.0, 1 / 200.0, 1 / 200.0)], closed=True, lanes=3)
+
+
+def test_road_births_per_lane_at_the_range_limits(road):
+    cfg = BirthConfig()
+    means, covs = road_births(road, 10.0, 15.0, 100.0, cfg)
+    assert means.shape == (6, 7) and covs.shape == (6, 7, 7)
+    np.testing.assert_allclose(np.sort(np.unique(np.round(means[:, 0], 6))), np.sort(road.wrap_s([105.0, -85.0])))
+    np.testing.assert_allclose(np.sort(means[:3, 1]), road.lane_centers)
+    assert np.all(means[:, 2] == 15.0) and np.all(means[:, 5] == cfg.length)
+    open_road = Road.from_curvature([(150.0, 0.0, 0.0)], lanes=2)
+    means, _ = road_births(open_road, 10.0, 15.0, 100.0, cfg)  # behind the start: only ahead
+    np.testing.assert_allclose(means[:, 0], 105.0)
+
+
+def test_cluster_birth_from_an_l_shape(road):
+    # a 4.8 x 2 m car in the left lane, 20 m ahead of the ego, seen on its rear and right side
+    s_car, n_car = 60.0, road.lane_centers[2]
+    xy, theta, _ = road.frame(np.array([s_car]))
+    centre = road.to_cartesian(s_car, n_car)
+    ego_s, ego_n = 40.0, road.lane_centers[1]
+    ego_xy = road.to_cartesian(ego_s, ego_n)
+    ego_yaw = float(road.heading(ego_s))
+    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 15.0)
+    corners = to_local(rectangle_corners(centre, np.array(theta[0]), np.array(4.8), np.array(2.0)), ego_xy, ego_yaw)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    means, covs = cluster_births([points], [np.array([17.0, 0.5])], ego, road, BirthConfig())
+    assert means.shape == (1, 7)
+    s, n, v, xi, _, length, width = means[0]
+    assert s == pytest.approx(s_car, abs=0.3) and n == pytest.approx(n_car, abs=0.3)
+    assert abs(xi) < 0.05
+    assert length == pytest.approx(4.8, abs=0.2) and width == pytest.approx(2.0, abs=0.2)
+    assert v == pytest.approx(17.0, abs=0.6)  # radar velocity along the fitted heading
+    # too few points: no birth
+    assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig())[0]) == 0
+
+
+def test_cartesian_births_match_the_exact_conversion(road):
+    means = np.array([[30.0, 3.5, 20.0, 0.1, 0.02, 4.8, 2.0]])
+    covs = np.diag([1e-6] * 7)[None]
+    m, c = to_cartesian_gaussians(road, means, covs)
+    np.testing.assert_allclose(m, curvilinear_to_cartesian(road, means), atol=1e-6)
+    assert c.shape == (1, 7, 7) and np.all(np.linalg.eigvalsh(c[0]) > -1e-12)
