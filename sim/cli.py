@@ -171,15 +171,23 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     from sim.progress import ProgressBar
     from sim.results import write_results
     from sim.runner import run_scenario
-    from sim.scenario import load_scenario
+    from sim.scenario import ScenarioError, load_scenario
+    from sim.variants import check_variant
 
     spec = load_scenario(scenario)
+    try:  # usage errors are checked here; an error inside the run is a bug and keeps its traceback
+        check_variant(variant)
+        if duration is not None and not (0.0 < duration <= spec.duration):
+            raise ValueError(f"--duration must be in (0, {spec.duration:g}] s for {spec.name}; got {duration:g}")
+    except ValueError as exc:
+        print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
     start = time.perf_counter()
     with ProgressBar(0, f"{spec.name} / {variant} / seed {seed}", enabled=not quiet) as bar:
         try:
             result = run_scenario(spec, seed, variant, duration=duration, roadside=roadside, keep_sensor_data=gif,
                                   progress=bar)
-        except ValueError as exc:
+        except ScenarioError as exc:  # e.g. a bad [sensors] / [tracker] override in the file
             bar.close()
             print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
             return 2

@@ -94,6 +94,12 @@ def plan(
     for v in variants:
         check_variant(v)
     loaded = [scenario_task_data(s) for s in scenarios]
+    if duration is not None:
+        for name, _, data in loaded:
+            if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= float(data["duration"])):
+                raise ValueError(
+                    f"duration must be in (0, {float(data['duration']):g}] s for scenario {name!r}; got {duration!r}"
+                )
     return [
         RunTask(name, source, data, variant, seed0 + k, duration, roadside, tracker_factory)
         for name, source, data in loaded

@@ -96,3 +96,10 @@ def test_ray_equals_local(small_tasks, serial):
     pytest.importorskip("ray")
     ray_study = run_study(small_tasks, workers=2, backend="ray")
     assert _strip(ray_study.rows) == _strip(serial.rows)
+
+
+def test_plan_rejects_a_duration_longer_than_the_scenario():
+    with pytest.raises(ValueError, match=r"duration must be in \(0, 20\] s for scenario 'curve-single'"):
+        plan(["curve-single"], 1, duration=100.0)
+    with pytest.raises(ValueError, match="duration must be in"):
+        plan(["curve-single"], 1, duration=0.0)
