@@ -18,8 +18,15 @@ def test_tracker_imports_only_numpy_and_scipy():
     code = (
         "import importlib, sys\n"
         f"for name in {modules!r}: importlib.import_module(name)\n"
-        f"bad = sorted(m for m in sys.modules if m.split('.')[0] in {FORBIDDEN!r})\n"
-        "print(','.join(bad))\n"
+        "tops = {m.split('.')[0] for m in sys.modules}\n"
+        "third = sorted(t for t in tops if t not in sys.stdlib_module_names and not t.startswith('_')\n"
+        "               and t not in ('tracker', 'numpy', 'scipy'))\n"
+        f"bad = sorted(t for t in tops if t in {FORBIDDEN!r})\n"
+        "print(','.join(bad) + '|' + ','.join(third))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "", f"tracker pulled in: {out.stdout.strip()}"
+    bad, third = out.stdout.strip().split("|")
+    assert bad == "", f"tracker pulled in: {bad}"
+    # anything else outside the standard library must be a dependency of numpy/scipy themselves
+    allowed_transitive = {"packaging", "typing_extensions", "cython_runtime"}  # cython_runtime: made by scipy's extensions
+    assert set(filter(None, third.split(","))) <= allowed_transitive, f"tracker imports third-party: {third}"
