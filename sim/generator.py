@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.scenario import GeneratorSpec, ScenarioSpec, parse_scenario
+from sim.scenario import GeneratorSpec, LaneChange, ScenarioError, ScenarioSpec, parse_scenario
 
 #: Stream tag mixed into the seed for the generator's random numbers.
 GEN_STREAM = 0x47454E  # "GEN"
@@ -152,7 +152,18 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
         "sensors": spec.sensors,
         "tracker": spec.tracker,
     }
-    lanes = spec.road.lanes if spec.road is not None else _integer(rng, gen.lanes)
+    if spec.road is not None:
+        lanes = spec.road.lanes
+    else:  # fixed traffic on a drawn road: draw only lane counts that hold every lane it uses
+        used = [v.lane for _, v in spec._all()]
+        used += [m.lane for _, v in spec._all() for m in v.maneuvers if isinstance(m, LaneChange)]
+        low = max(gen.lanes[0], max(used, default=-1) + 1)
+        if low > gen.lanes[1]:
+            raise ScenarioError(
+                f"{spec.source or spec.name}: generator.lanes = {list(gen.lanes)} cannot hold lane {low - 1} "
+                f"used by the fixed traffic; raise its upper bound to at least {low}"
+            )
+        lanes = _integer(rng, (low, gen.lanes[1]))
     ego_s = max(0.0, -gen.spawn[0]) + 10.0
     if spec.ego is not None:
         ego_s = spec.ego.s

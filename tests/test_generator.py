@@ -117,6 +117,22 @@ def test_fixed_traffic_random_road(tmp_path: Path) -> None:
     assert a.road.segments != realize(spec, 1).road.segments
 
 
+def test_fixed_traffic_random_road_draws_enough_lanes(tmp_path: Path) -> None:
+    path = tmp_path / "lanes.toml"
+    body = (
+        'name = "l"\ndescription = "d"\nduration = 10.0\n'
+        "[ego]\nlane = 2\ns = 30.0\nspeed = 20.0\n"
+        "[generator]\nlanes = [{lo}, {hi}]\n"
+    )
+    path.write_text(body.format(lo=2, hi=4))
+    spec = load_scenario(path)
+    lanes = {realize(spec, seed).road.lanes for seed in range(12)}
+    assert lanes <= {3, 4} and len(lanes) == 2  # never 2: lane 2 must exist
+    path.write_text(body.format(lo=1, hi=2))
+    with pytest.raises(ScenarioError, match="cannot hold lane 2"):
+        realize(load_scenario(path), 0)
+
+
 def test_generator_errors(tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text('name = "b"\ndescription = "d"\nduration = 10.0\n[generator]\nspeed = [30.0, 10.0]\n')
