@@ -244,14 +244,16 @@ class Tracker:
         missed_w = mix.weights * (1.0 - (1.0 - np.exp(-gamma)) * p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
-            prepared = [prepare_cluster(c, cfg.measurement, v if cfg.use_radar else None) for c, v in zip(clusters, velocities)]
             centroid = np.stack([c.mean(axis=0) for c in clusters])
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
             comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0))
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
-                res = update_pairs(mix.means, mix.covs, prepared, comp, clu, ego, self.road, cfg, self.ut)
+                used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
+                prepared = [prepare_cluster(clusters[k], cfg.measurement, velocities[k] if cfg.use_radar else None)
+                            for k in used]
+                res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
                 # a track's own cluster (its points lie in its predicted rectangle) is associated by
                 # geometry: it updates the track even when the model fits it badly (a manoeuvre, partial
