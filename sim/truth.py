@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tracker.measurement import rectangle_corners as tracker_rectangle_corners
+
 
 @dataclass(frozen=True)
 class EgoPose:
@@ -80,21 +82,11 @@ class Snapshot:
 
 def rectangle_corners(xy: np.ndarray, yaw: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
     """Corners (N, 4, 2) of rectangles with centres ``xy`` (N, 2), heading ``yaw`` (N,) and size (m),
-    ordered front-right, front-left, rear-left, rear-right (counter-clockwise)."""
-    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-    yaw = np.asarray(yaw, dtype=float).reshape(-1)
-    half_l = 0.5 * np.asarray(length, dtype=float).reshape(-1)
-    half_w = 0.5 * np.asarray(width, dtype=float).reshape(-1)
-    local = np.stack(
-        [
-            np.stack([half_l, -half_w], axis=-1),
-            np.stack([half_l, half_w], axis=-1),
-            np.stack([-half_l, half_w], axis=-1),
-            np.stack([-half_l, -half_w], axis=-1),
-        ],
-        axis=1,
-    )  # (N, 4, 2)
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    gx = xy[:, None, 0] + c * local[..., 0] - s * local[..., 1]
-    gy = xy[:, None, 1] + s * local[..., 0] + c * local[..., 1]
-    return np.stack([gx, gy], axis=-1)
+    ordered front-right, front-left, rear-left, rear-right (counter-clockwise); the tracker's own
+    ``tracker.measurement.rectangle_corners`` on (N,) arrays."""
+    return tracker_rectangle_corners(
+        np.asarray(xy, dtype=float).reshape(-1, 2),
+        np.asarray(yaw, dtype=float).reshape(-1),
+        np.asarray(length, dtype=float).reshape(-1),
+        np.asarray(width, dtype=float).reshape(-1),
+    )

@@ -23,6 +23,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from sim.sensors.raycast import Segments
+from sim.truth import rectangle_corners
 
 KINDS = ("post", "tree", "parked_car")
 SIDES = ("left", "right")
@@ -256,15 +257,6 @@ def _place(road: RoadLike, s: np.ndarray, side: np.ndarray, offset: np.ndarray) 
     return centre, heading
 
 
-def _boxes(centre: np.ndarray, yaw: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
-    """Counter-clockwise rectangle corners (N, 4, 2)."""
-    local = np.array([[0.5, -0.5], [0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5]])
-    lx = local[None, :, 0] * length[:, None]
-    ly = local[None, :, 1] * width[:, None]
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    return np.stack([centre[:, None, 0] + c * lx - s * ly, centre[:, None, 1] + s * lx + c * ly], axis=-1)
-
-
 def _octagons(centre: np.ndarray, radius: np.ndarray, phase: np.ndarray) -> np.ndarray:
     """Counter-clockwise regular octagons (N, 8, 2) of circumradius ``radius``."""
     ang = phase[:, None] + np.arange(8)[None, :] * (np.pi / 4.0)
@@ -298,7 +290,7 @@ def generate_roadside(
             side = np.full(s_posts.shape, 1.0 if side_name == "left" else -1.0)
             centre, heading = _place(road, s_posts, side, np.full(s_posts.shape, config.post_offset))
             size = np.full(s_posts.shape, config.post_size)
-            parts.append(("post", _boxes(centre, heading, size, size)))
+            parts.append(("post", rectangle_corners(centre, heading, size, size)))
 
     for kind, density in (("tree", config.tree_density), ("parked_car", config.parked_car_density)):
         counts = rng.poisson(density * length / 100.0, size=2)
@@ -318,7 +310,7 @@ def generate_roadside(
             dyaw = np.clip(sigma * rng.standard_normal(total), -3.0 * sigma, 3.0 * sigma)
             centre, heading = _place(road, s, side, offset)
             car_l, car_w = config.parked_car_size
-            polys = _boxes(centre, heading + flip + dyaw, np.full(total, car_l), np.full(total, car_w))
+            polys = rectangle_corners(centre, heading + flip + dyaw, np.full(total, car_l), np.full(total, car_w))
         parts.append((kind, polys))
 
     kinds = [kind for kind, polys in parts for _ in range(polys.shape[0])]

@@ -13,24 +13,16 @@ import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import Segments
-from sim.truth import Snapshot
+from sim.truth import Snapshot, rectangle_corners
 
 # corner signs along (length, width) of the corners front-right, front-left, rear-left, rear-right
 # (counter-clockwise), and of each corner's successor (the edge's end point)
-_SIGN_L = np.array([1.0, 1.0, -1.0, -1.0])
-_SIGN_W = np.array([-1.0, 1.0, 1.0, -1.0])
-_NEXT = np.array([1, 2, 3, 0])
 
 
 def _vehicle_edges(snapshot: Snapshot, rows: np.ndarray) -> np.ndarray:
     """Edges (4 V, 4) ``[ax, ay, bx, by]`` in G of the vehicles ``rows``, counter-clockwise."""
-    x, y = snapshot.xy[rows, 0], snapshot.xy[rows, 1]
-    c, s = np.cos(snapshot.yaw[rows])[:, None], np.sin(snapshot.yaw[rows])[:, None]
-    lx = (0.5 * snapshot.length[rows])[:, None] * _SIGN_L
-    ly = (0.5 * snapshot.width[rows])[:, None] * _SIGN_W
-    gx = x[:, None] + c * lx - s * ly
-    gy = y[:, None] + s * lx + c * ly
-    return np.stack([gx, gy, gx[:, _NEXT], gy[:, _NEXT]], axis=-1).reshape(-1, 4)
+    corners = rectangle_corners(snapshot.xy[rows], snapshot.yaw[rows], snapshot.length[rows], snapshot.width[rows])
+    return np.concatenate([corners, np.roll(corners, -1, axis=1)], axis=-1).reshape(-1, 4)
 
 
 def scene_segments(
