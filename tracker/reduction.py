@@ -136,6 +136,12 @@ def reduce(
     merge_gate: float,
     max_components: int,
     wrapping: Wrapping = NO_WRAP,
+    same_label_distance: float | None = None,
+    same_label_min_weight: float = 0.5,
 ) -> Mixture:
-    """Prune, merge, then cap a mixture."""
-    return cap(merge(prune(mix, prune_threshold), merge_gate, wrapping), max_components)
+    """Prune, merge, then (with ``same_label_distance``) merge heavy same-label fragments
+    (``merge_same_label``), and cap a mixture."""
+    mix = merge(prune(mix, prune_threshold), merge_gate, wrapping)
+    if same_label_distance is not None:
+        mix = merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping)
+    return cap(mix, max_components)

@@ -59,7 +59,7 @@ from tracker.frame import EgoState, Frame
 from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
-from tracker.reduction import Mixture, cap, merge, merge_same_label, prune
+from tracker.reduction import Mixture, reduce
 from tracker.road import Road
 from tracker.track import Track
 from tracker.transforms import to_global
@@ -310,9 +310,11 @@ class Tracker:
             on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
             self.stats["components_off_road"] += int((inside & ~on_road).sum())
             self.mixture = self.mixture.take(inside & on_road)
-        mix = merge(prune(self.mixture, red.prune_threshold), red.merge_threshold, self.wrapping)
-        mix = merge_same_label(mix, red.same_label_distance, red.extraction_threshold, wrapping=self.wrapping)
-        self.mixture = cap(mix, red.max_components)
+        self.mixture = reduce(
+            self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
+            max_components=red.max_components, wrapping=self.wrapping,
+            same_label_distance=red.same_label_distance, same_label_min_weight=red.extraction_threshold,
+        )
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
 

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
 
+from sim.benchmarks._timing import median_seconds
 from tracker import Road, TrackerConfig
 from tracker.measurement import prepare_cluster, rectangle_scan, to_vehicle
 from tracker.motion import make_motion, predict
@@ -20,16 +18,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeat", type=int, default=200, help="timed calls per single-component measurement")
     parser.add_argument("--batch-repeat", type=int, default=30, help="timed calls per batch measurement")
     parser.add_argument("--points", type=int, default=30, help="points per cluster")
-
-
-def _median_us(fn: Callable[[], object], repeat: int) -> float:
-    fn()  # warm up
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e6 * statistics.median(times)
 
 
 def _cluster_points(road: Road, state: np.ndarray, ego: tuple[float, float, float], count: int,
@@ -62,17 +50,17 @@ def run(args: argparse.Namespace) -> dict:
     comp = np.repeat(np.arange(20), 10)
     clu = np.tile(np.arange(10), 20)
     zero = np.zeros(1, dtype=int)
-    single_pair = _median_us(lambda: update_pairs(one_mean, one_cov, clusters[:1], zero, zero, ego, road, config, ut),
+    single_pair = 1e6 * median_seconds(lambda: update_pairs(one_mean, one_cov, clusters[:1], zero, zero, ego, road, config, ut),
                              args.repeat)
-    batch_update = _median_us(lambda: update_pairs(means, covs, clusters, comp, clu, ego, road, config, ut),
+    batch_update = 1e6 * median_seconds(lambda: update_pairs(means, covs, clusters, comp, clu, ego, road, config, ut),
                               args.batch_repeat)
     out = {
         "points_per_cluster": args.points,
-        "predict_1_us": _median_us(lambda: predict(ut, motion, one_mean, one_cov, 0.1), args.repeat),
-        "prepare_cluster_us": _median_us(lambda: prepare_cluster(pts, config.measurement), args.repeat),
+        "predict_1_us": 1e6 * median_seconds(lambda: predict(ut, motion, one_mean, one_cov, 0.1), args.repeat),
+        "prepare_cluster_us": 1e6 * median_seconds(lambda: prepare_cluster(pts, config.measurement), args.repeat),
         "update_1x1_us": single_pair,
-        "predict_20_us": _median_us(lambda: predict(ut, motion, means, covs, 0.1), args.batch_repeat),
-        "prepare_10_clusters_us": _median_us(
+        "predict_20_us": 1e6 * median_seconds(lambda: predict(ut, motion, means, covs, 0.1), args.batch_repeat),
+        "prepare_10_clusters_us": 1e6 * median_seconds(
             lambda: [prepare_cluster(_p, config.measurement) for _p in (c.points for c in clusters)], args.batch_repeat
         ),
         "update_20x10_us": batch_update,

@@ -3,29 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
-from collections.abc import Callable
 
 import numpy as np
 
+from sim.benchmarks._timing import median_seconds
 from tracker import Road
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeat", type=int, default=3000, help="single-point calls per measurement")
     parser.add_argument("--batch-repeat", type=int, default=15, help="10^5-point calls per measurement")
-
-
-def _median_seconds(fn: Callable[[], object], repeat: int, inner: int = 1) -> float:
-    fn()  # warm up
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        times.append((time.perf_counter() - t0) / inner)
-    return statistics.median(times)
 
 
 def bench_roads() -> dict[str, Road]:
@@ -49,11 +36,11 @@ def run(args: argparse.Namespace) -> dict:
         p_list = tuple(float(v) for v in p)
         out[name] = {
             "length_m": round(road.length, 1),
-            "to_frenet_1pt_hint_us": 1e6 * _median_seconds(lambda: road.to_frenet(p_list, s_hint=s1 - 0.5), 15, args.repeat // 15),
-            "to_frenet_1pt_no_hint_us": 1e6 * _median_seconds(lambda: road.to_frenet(p_list), 15, args.repeat // 15),
-            "to_cartesian_1pt_us": 1e6 * _median_seconds(lambda: road.to_cartesian(s1, n1), 15, args.repeat // 15),
-            "to_frenet_1e5_ms": 1e3 * _median_seconds(lambda: road.to_frenet(xy), args.batch_repeat),
-            "to_cartesian_1e5_ms": 1e3 * _median_seconds(lambda: road.to_cartesian(s, n), args.batch_repeat),
+            "to_frenet_1pt_hint_us": 1e6 * median_seconds(lambda: road.to_frenet(p_list, s_hint=s1 - 0.5), 15, args.repeat // 15),
+            "to_frenet_1pt_no_hint_us": 1e6 * median_seconds(lambda: road.to_frenet(p_list), 15, args.repeat // 15),
+            "to_cartesian_1pt_us": 1e6 * median_seconds(lambda: road.to_cartesian(s1, n1), 15, args.repeat // 15),
+            "to_frenet_1e5_ms": 1e3 * median_seconds(lambda: road.to_frenet(xy), args.batch_repeat),
+            "to_cartesian_1e5_ms": 1e3 * median_seconds(lambda: road.to_cartesian(s, n), args.batch_repeat),
         }
         out[name] = {k: round(v, 2) for k, v in out[name].items()}
     return out

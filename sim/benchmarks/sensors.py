@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
-from collections.abc import Callable
 
 import numpy as np
 
+from sim.benchmarks._timing import median_seconds
 from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadside
 from sim.sensors.lidar import Lidar, LidarConfig
 from sim.sensors.radar import FRONT_RADAR, RadarUnit
@@ -84,16 +83,6 @@ def scene(seed: int = 0, vehicles: int = 20, roadside: int = 300) -> tuple[Snaps
     return snapshot, objects
 
 
-def _median_ms(fn: Callable[[], object], repeats: int) -> float:
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * float(np.median(times))
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``eot bench sensors``."""
     parser.add_argument("--repeats", type=int, default=200, help="timed repeats of the numpy casts (default 200)")
@@ -142,13 +131,13 @@ def run(args: argparse.Namespace) -> dict:
             "rays_hit": int(res_np.hit.sum()),
             "max_range_m": max_range,
         },
-        "numpy_cast_ms": _median_ms(lambda: cast_numpy(segments, grid, max_range), repeats),
-        "numpy_scan_ms": _median_ms(lambda: lidar_np.scan(snapshot, objects, rng=rng), repeats),
-        "pymunk_cast_ms": _median_ms(lambda: cast_pymunk(segments, grid, max_range), pm_repeats),
-        "pymunk_query_ms": _median_ms(lambda: pm_scene.cast(grid, max_range), pm_repeats),
-        "pymunk_scan_ms": _median_ms(lambda: lidar_pm.scan(snapshot, objects, rng=rng), pm_repeats),
-        "radar_cycle_ms": _median_ms(lambda: radar.detect(snapshot, objects, rng=rng), repeats),
-        "rig_frame_ms": _median_ms(lambda: next(frames), repeats),
+        "numpy_cast_ms": 1e3 * median_seconds(lambda: cast_numpy(segments, grid, max_range), repeats),
+        "numpy_scan_ms": 1e3 * median_seconds(lambda: lidar_np.scan(snapshot, objects, rng=rng), repeats),
+        "pymunk_cast_ms": 1e3 * median_seconds(lambda: cast_pymunk(segments, grid, max_range), pm_repeats),
+        "pymunk_query_ms": 1e3 * median_seconds(lambda: pm_scene.cast(grid, max_range), pm_repeats),
+        "pymunk_scan_ms": 1e3 * median_seconds(lambda: lidar_pm.scan(snapshot, objects, rng=rng), pm_repeats),
+        "radar_cycle_ms": 1e3 * median_seconds(lambda: radar.detect(snapshot, objects, rng=rng), repeats),
+        "rig_frame_ms": 1e3 * median_seconds(lambda: next(frames), repeats),
         "agreement": {
             "rays_both_hit": int(both.sum()),
             "hit_mismatches": int((res_np.hit != res_pm.hit).sum()),
