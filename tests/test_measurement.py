@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -242,13 +244,37 @@ def test_radar_rows_predict_absolute_velocity_in_e() -> None:
     ego = (5.0, -2.0, 0.3)
     state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])  # Cartesian, psi = 0.5 in G
     rect = to_vehicle(state[None, None], ego, coordinates="cartesian")  # one pair, one sigma point
-    st = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners()[:, 0], EXACT, use_radar=True)
+    paper = dataclasses.replace(EXACT, radar_rows="velocity")
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners()[:, 0], paper, use_radar=True)
     y = predict_measurements(rect, st)
     np.testing.assert_allclose(y[0, 0, -2:], 12.0 * np.array([np.cos(0.2), np.sin(0.2)]), atol=1e-12)
     np.testing.assert_allclose(st.z[0, -2:], [9.9, 1.0])
     assert st.mask[0, -2:].all()
     off = build_structure(ClusterBatch.of([c]), np.array([0]), rect.corners()[:, 0], EXACT, use_radar=False)
     assert not off.mask[0, -2:].any()
+
+
+def test_radar_speed_row_is_the_velocity_along_the_predicted_heading() -> None:
+    """``radar_rows="speed"`` (default): one row, ``u . v_radar`` against ``u . v (cos psi_E, sin psi_E)``
+    with ``u`` the predicted mean's heading in E (psi_E = 0.2 here); the second row is masked out.
+    A sigma point turned by 0.1 rad predicts ``v cos 0.1``."""
+    k = corners_of(AHEAD_LEFT)
+    c = prepare_cluster(two_sided_scan(k, 0, 3, 2), EXACT, velocity=[9.9, 1.0])
+    ego = (5.0, -2.0, 0.3)
+    state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])
+    turned = state + np.array([0, 0, 0, 0.1, 0, 0, 0])
+    mean = to_vehicle(state[None, None], ego, coordinates="cartesian")
+    rect = to_vehicle(np.stack([state, turned])[None], ego, coordinates="cartesian")  # (1 pair, 2 sigma points)
+    assert EXACT.radar_rows == "speed"
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), mean.corners()[:, 0], EXACT, use_radar=True)
+    u = np.array([np.cos(0.2), np.sin(0.2)])
+    assert st.z[0, -2] == pytest.approx(u @ [9.9, 1.0], abs=1e-12)
+    assert st.mask[0, -2] and not st.mask[0, -1]
+    y = predict_measurements(rect, st)
+    np.testing.assert_allclose(y[0, :, -2], [12.0, 12.0 * np.cos(0.1)], atol=1e-9)
+    np.testing.assert_allclose(y[0, :, -1], 0.0)
+    with pytest.raises(ValueError, match="radar_rows"):
+        dataclasses.replace(EXACT, radar_rows="doppler")
 
 
 def test_structure_batched_over_pairs_equals_one_by_one() -> None:

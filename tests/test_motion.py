@@ -8,6 +8,7 @@ import pytest
 from tracker import Road
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.motion import (
+    slip_angle,
     CartesianMotion,
     FrenetMotion,
     PaperMotion,
@@ -27,11 +28,15 @@ def circle50() -> Road:
     return Road.from_curvature([(2 * np.pi * R50, 1 / R50, 1 / R50)], closed=True, lanes=2, right_edge=-1.75)
 
 
-def lane_following_error(road: Road, model, v: float = 15.0, n: float = 3.5, steps: int = 100, dt: float = 0.1):
-    """Propagate a lane-following car (xi = xi_dot = 0) for steps * dt seconds; return the largest
-    distance (m) from the analytic position on the lane circle (radius 50 - n about (0, 50)) and the
-    largest |n - 3.5|."""
-    x = np.array([0.0, n, v, 0.0, 0.0, 4.5, 1.8])
+NO_SLIP = MotionConfig(slip_lever=0.0)
+
+
+def lane_following_error(road: Road, model, v: float = 15.0, n: float = 3.5, steps: int = 100, dt: float = 0.1,
+                         xi: float = 0.0):
+    """Propagate a lane-following car (body at ``xi`` to the road, xi_dot = 0) for steps * dt seconds;
+    return the largest distance (m) from the analytic position on the lane circle (radius 50 - n about
+    (0, 50)) and the largest |n - 3.5|."""
+    x = np.array([0.0, n, v, xi, 0.0, 4.5, 1.8])
     radius = R50 - n
     worst, worst_n = 0.0, 0.0
     for k in range(1, steps + 1):
@@ -48,7 +53,7 @@ def test_exact_model_keeps_lane_on_tight_circle_paper_model_drifts(circle50: Roa
     """Radius 50 m, n = 3.5 m, 15 m/s for 10 s at 10 Hz: the exact model stays within 1 cm of the true
     lane position; the paper's flat model advances s at v instead of v / (1 - kappa n), lagging by
     v t kappa n / (1 - kappa n) ~ 11 m of arc."""
-    exact_err, exact_dn = lane_following_error(circle50, FrenetMotion(circle50))
+    exact_err, exact_dn = lane_following_error(circle50, FrenetMotion(circle50, NO_SLIP))
     paper_err, paper_dn = lane_following_error(circle50, PaperMotion(circle50))
     assert exact_err < 0.01
     assert exact_dn < 1e-9
@@ -56,12 +61,27 @@ def test_exact_model_keeps_lane_on_tight_circle_paper_model_drifts(circle50: Roa
     assert exact_err < paper_err
 
 
+def test_slip_lane_follower_has_its_body_turned_into_the_curve(circle50: Road) -> None:
+    """With slip (``slip_lever`` 0.5, the simulator's kinematic bicycle), a car holding its lane on the
+    R 46.5 m lane circle has its body at ``xi = -beta``, ``sin beta = psi_dot 0.5 L / v`` with
+    ``psi_dot = v / 46.5``: propagated with that ``xi`` it stays on its lane; with ``xi = 0`` (what the
+    no-slip model takes for lane keeping) it drifts outward by metres."""
+    length, v = 4.5, 15.0
+    beta = float(slip_angle(np.array(v / (R50 - 3.5)), np.array(v), np.array(length), 0.5))
+    assert beta == pytest.approx(np.arcsin(0.5 * length / (R50 - 3.5)), rel=1e-12)
+    slip = FrenetMotion(circle50, MotionConfig(slip_lever=0.5))
+    err, dn = lane_following_error(circle50, slip, v=v, xi=-beta)
+    assert err < 0.05 and dn < 0.01
+    _, drift = lane_following_error(circle50, slip, v=v, xi=0.0)
+    assert drift > 1.0
+
+
 def test_frenet_equals_constant_turn_on_a_straight_road() -> None:
     """On a straight road (kappa = 0) the exact kinematics are the constant-turn model: RK4 with sub-steps
     matches the closed form for a turning car to 1e-7 m."""
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
     x = np.array([[50.0, -1.0, 20.0, 0.1, 0.3, 4.5, 1.8], [60.0, 1.0, 10.0, -0.2, -0.5, 4.0, 1.7]])
-    exact = FrenetMotion(road, MotionConfig(max_step=0.01)).propagate(x, 1.0)
+    exact = FrenetMotion(road, MotionConfig(max_step=0.01, slip_lever=0.0)).propagate(x, 1.0)
     flat = PaperMotion(road).propagate(x, 1.0)
     np.testing.assert_allclose(exact, flat, atol=1e-7)
 
@@ -103,7 +123,7 @@ def test_rk4_substeps_converged_on_a_clothoid() -> None:
 
 def test_closed_road_wraps_s(circle50: Road) -> None:
     x = np.array([circle50.length - 1.0, 0.0, 20.0, 0.0, 0.0, 4.5, 1.8])
-    out = FrenetMotion(circle50).propagate(x, 0.1)
+    out = FrenetMotion(circle50, NO_SLIP).propagate(x, 0.1)
     assert 0.0 <= out[0] < 2.0
     assert out[0] == pytest.approx(1.0)
 
@@ -151,6 +171,6 @@ def test_curvilinear_and_cartesian_models_agree_for_a_lane_follower(circle50: Ro
     same position for a lane-following car on a circle."""
     x = np.array([30.0, 3.5, 15.0, 0.0, 0.0, 4.5, 1.8])
     xc = curvilinear_to_cartesian(circle50, x)
-    a = curvilinear_to_cartesian(circle50, FrenetMotion(circle50).propagate(x, 2.0))
+    a = curvilinear_to_cartesian(circle50, FrenetMotion(circle50, NO_SLIP).propagate(x, 2.0))
     b = CartesianMotion().propagate(xc, 2.0)
     np.testing.assert_allclose(a[:4], b[:4], atol=1e-6)

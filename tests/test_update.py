@@ -219,3 +219,37 @@ def test_no_pairs_gives_an_empty_result(circle80: Road) -> None:
     assert res.mean.shape == (0, 7) and res.log_likelihood.shape == (0,)
     with pytest.raises(ValueError, match="does not exist"):
         update_pairs(scn.truth(0)[None], np.eye(7)[None], [cluster], np.array([1]), np.array([0]), scn.ego(0), circle80)
+
+
+def test_unobserved_length_is_held_observed_length_is_updated() -> None:
+    """A car straight ahead shows only its rear: ``s - L/2`` is measured, ``L`` is not. With
+    ``hold_unobserved_extent`` (default) the update keeps the prior's ``L`` mean and variance (the
+    Schmidt update), while the plain update splits the along-track innovation between ``s`` and ``L``. A car ahead in the next lane shows its right side too: ``L`` is updated."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    ego = (100.0, -1.75, 0.0)
+    cfg = TrackerConfig()
+    plain = TrackerConfig(measurement=MeasurementConfig(hold_unobserved_extent=False))
+    res = np.radians(0.2)
+    cov = np.diag(INIT_STD**2)
+    for n_target, seen in ((-1.75, False), (1.75, True)):
+        truth = np.array([130.0, n_target, 20.0, 0.0, 0.0, 4.8, 2.0])
+        corners = to_vehicle(truth[None], ego, road).corners()[0]
+        b = np.arctan2(corners[:, 1], corners[:, 0])
+        pts, _ = rectangle_scan(corners, np.arange(np.ceil(b.min() / res), np.floor(b.max() / res) + 1) * res)
+        cluster = prepare_cluster(pts, cfg.measurement)
+        prior = truth + np.array([0.4, 0.0, 0.0, 0.0, 0.0, -0.8, 0.0])
+        m, c, _ = update(prior, cov, cluster, ego, road, cfg)
+        m0, c0, _ = update(prior, cov, cluster, ego, road, plain)
+        assert np.linalg.eigvalsh(c).min() > 0.0 and np.allclose(c, c.T)
+        if seen:
+            assert abs(m[5] - 4.8) < abs(prior[5] - 4.8) - 0.1 and c[5, 5] < 0.8 * cov[5, 5]
+        else:
+            assert m[5] == prior[5] and c[5, 5] == cov[5, 5]
+            assert abs(m0[5] - prior[5]) > 0.05  # the plain update moved the unobserved length
+            # s - L/2 is measured: over a few frames s takes the whole correction, L keeps its prior
+            mk, ck = m, c
+            for _ in range(30):
+                mk, ck, _ = update(mk, ck, cluster, ego, road, cfg)
+            rear_before, rear_after = prior[0] - prior[5] / 2 - 127.6, mk[0] - mk[5] / 2 - 127.6
+            assert abs(rear_after) < 0.25 * abs(rear_before) and mk[5] == prior[5]
+            np.testing.assert_allclose(np.delete(np.delete(c, 5, 0), 5, 1), np.delete(np.delete(c0, 5, 0), 5, 1), atol=1e-12)

@@ -62,8 +62,11 @@ Measurement generating points (one per point, in the same order, so no associati
   that side where the point projects (fixed across sigma points). MATLAB uses the nearest side's
   midpoint, which pulls the target along the side by up to half its length.
 
-Radar (fused cluster): two rows ``v (cos psi_E, sin psi_E)``, the target's absolute velocity in E's
-axes, against the radar's ``(vx, vy)``, with ``radar_velocity_sigma^2 I2``; the lidar rows have
+Radar (fused cluster), ``MeasurementConfig.radar_rows``: ``"speed"`` (default) one row, the radar's
+velocity along the predicted mean's heading ``u`` against ``u . v (cos psi_E, sin psi_E)`` (linear in the
+same features), with ``radar_velocity_sigma^2``; ``"velocity"`` (the paper) two rows
+``v (cos psi_E, sin psi_E)``, the target's absolute velocity in E's axes, against the radar's
+``(vx, vy)``, with ``radar_velocity_sigma^2 I2``; the lidar rows have
 ``lidar_sigma^2 I2`` per point. The radar's timestamp is not used: the velocity of a vehicle changes
 little within one lidar period.
 """
@@ -607,7 +610,14 @@ def build_structure(
     xs, ys = matrix[:, :, 0 : 2 * m : 2], matrix[:, :, 1 : 2 * m : 2]
     xs[:, 0], xs[:, 2], xs[:, 4], xs[:, 5], xs[:, 6] = vf, ax, gx, -gy, -ay
     ys[:, 1], ys[:, 3], ys[:, 5], ys[:, 4], ys[:, 7] = vf, ax, gx, gy, ay
-    matrix[:, 8, -2] = matrix[:, 9, -1] = radar
+    if config.radar_rows == "speed":  # one row: the component along the predicted mean heading
+        heading = mean_corners[:, 0] - mean_corners[:, 3]  # rear-right -> front-right corner
+        u = heading / np.maximum(np.linalg.norm(heading, axis=-1, keepdims=True), 1e-12)
+        z[:, -2] = np.einsum("pd,pd->p", batch.velocity[ci], u)
+        mask[:, -1] = False
+        matrix[:, 8, -2], matrix[:, 9, -2] = u[:, 0] * radar, u[:, 1] * radar
+    else:
+        matrix[:, 8, -2] = matrix[:, 9, -1] = radar
     return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors)
 

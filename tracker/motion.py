@@ -8,7 +8,10 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
 
       s' = v cos(xi) / (1 - kappa(s) n),   n' = v sin(xi),   v' = 0,   xi' = xi_dot,   xi_dot' = 0
 
-  integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps, evaluating the road's
+  integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps (with ``MotionConfig.slip_lever > 0``
+  the centre moves along ``xi + beta`` instead of ``xi``, ``beta`` the kinematic slip angle of
+  ``slip_angle``: ``psi`` is the body axis, the rectangle's, and a car holding its lane on a curve has
+  ``xi = -beta``), evaluating the road's
   ``kappa(s)`` at every stage -- from a table of the road's curvature every ``CURVATURE_TABLE_STEP``
   metres, interpolated linearly (exact on a curvature profile's straights, arcs and clothoid ramps
   between joints; error ``<= h^2/8 max|kappa''|`` on a spline road; a table lookup costs microseconds
@@ -72,6 +75,22 @@ def _constant_turn(x: np.ndarray, dt: float) -> np.ndarray:
     out[..., N] += chord * np.sin(h + half)
     out[..., XI] = h + w * dt
     return out
+
+
+#: Largest slip angle (rad) the motion model assumes (|sin beta| <= 0.5); speeds below ``SLIP_MIN_SPEED``
+#: (m/s) count as that speed in ``slip_angle`` (a standing vehicle has no defined slip).
+MAX_SIN_SLIP = 0.5
+SLIP_MIN_SPEED = 1.0
+
+
+def slip_angle(yaw_rate: np.ndarray, v: np.ndarray, length: np.ndarray, lever: float) -> np.ndarray:
+    """Kinematic slip angle ``beta`` (rad) between a vehicle's body axis and its centre's velocity:
+    ``sin beta = yaw_rate * lever * L / v`` (a kinematic bicycle whose rear axle lies ``lever * L`` behind
+    the centre), clipped to ``|sin beta| <= MAX_SIN_SLIP``, ``|v|`` floored at ``SLIP_MIN_SPEED``."""
+    v = np.asarray(v, dtype=float)
+    speed = np.where(v < 0.0, -1.0, 1.0) * np.maximum(np.abs(v), SLIP_MIN_SPEED)
+    sin_b = yaw_rate * lever * np.maximum(length, 0.0) / speed
+    return np.arcsin(np.clip(sin_b, -MAX_SIN_SLIP, MAX_SIN_SLIP))
 
 
 def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarray:
@@ -149,12 +168,17 @@ class FrenetMotion:
         return np.interp(s, self._table_s, self._table_k, left=0.0, right=0.0)
 
     def derivative(self, x: np.ndarray) -> np.ndarray:
-        """``dx/dt`` of states ``x (..., 7)``: ``[v cos xi / (1 - kappa n), v sin xi, 0, xi_dot, 0, 0, 0]``."""
+        """``dx/dt`` of states ``x (..., 7)``: ``[v cos(xi + beta) / (1 - kappa n), v sin(xi + beta), 0,
+        xi_dot, 0, 0, 0]`` with the slip angle ``beta`` of ``slip_angle`` (0 when ``slip_lever = 0``)."""
         kappa = self.curvature(x[..., S])
         denom = np.maximum(1.0 - kappa * x[..., N], self.config.min_denominator)
         d = np.zeros_like(x)
-        d[..., S] = x[..., V] * np.cos(x[..., XI]) / denom
-        d[..., N] = x[..., V] * np.sin(x[..., XI])
+        course = x[..., XI]
+        if self.config.slip_lever > 0.0:
+            yaw_rate = kappa * x[..., V] * np.cos(x[..., XI]) / denom + x[..., XI_DOT]
+            course = course + slip_angle(yaw_rate, x[..., V], x[..., LENGTH], self.config.slip_lever)
+        d[..., S] = x[..., V] * np.cos(course) / denom
+        d[..., N] = x[..., V] * np.sin(course)
         d[..., XI] = x[..., XI_DOT]
         return d
 

@@ -104,6 +104,7 @@ class Tracker:
         self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))  # cluster births for the next frame
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
+        self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
 
@@ -179,6 +180,7 @@ class Tracker:
         ego = frame.ego
         pts, dropped = drop_nonfinite(frame.lidar)
         self.stats["points_nonfinite"] += dropped
+        self._scan = pts  # every finite return, on and off the road: occluders for the detection model
         if len(pts) == 0:
             return pts, False
         on_road = road_bound_mask(to_global(pts, (ego.x, ego.y), ego.yaw), self.road, cfg.road_margin)
@@ -200,7 +202,10 @@ class Tracker:
                 rect = to_vehicle(self.mixture.means[tracks], frame.ego, self.road, self.config.coordinates)
                 owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
                 groups = _duplicate_groups(rect)
-                self._component_group[tracks] = groups
+                # every component carrying a reported track's label belongs to that track's group
+                # (its unreported hypotheses: a missed-detection copy, a fragment's update)
+                lookup = dict(zip(self.mixture.labels[tracks].tolist(), groups.tolist()))
+                self._component_group = np.array([lookup.get(lab, -1) for lab in self.mixture.labels.tolist()], dtype=int)
                 owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
             component = distance_partition(points, cfg.distance)
             owner = _adopt_strays(component, owner)
@@ -240,6 +245,7 @@ class Tracker:
         gamma, p_d = detection_model(
             rect, mix.labels, cfg.detection,
             rect.take(occ) if len(occ) else None, mix.labels[occ] if len(occ) else None,
+            scan=self._scan,
         )
         missed_w = mix.weights * (1.0 - (1.0 - np.exp(-gamma)) * p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
@@ -247,7 +253,12 @@ class Tracker:
             centroid = np.stack([c.mean(axis=0) for c in clusters])
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
-            comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0))
+            # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
+            # only the components of the track's group compete for it, so a newborn or another
+            # track's hypothesis cannot take it over when the track's own fit is poor for a frame
+            owner = self._owned[None, :]
+            allowed = (owner < 0) | (owner == self._component_group[:, None])
+            comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair

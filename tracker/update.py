@@ -25,12 +25,14 @@ import numpy as np
 
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import Cluster, ClusterBatch, build_structure, predict_measurements, to_vehicle
+from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
 from tracker.motion import CARTESIAN_WRAPPING, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
 LOG_2PI = float(np.log(2.0 * np.pi))
+#: State indices of the extent.
+LENGTH, WIDTH = 5, 6
 
 
 @dataclass(frozen=True)
@@ -173,8 +175,30 @@ def update_pairs(
     batch = ClusterBatch.of(clusters)
     structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
     z_sigma = predict_measurements(rect.take(inverse), structure)
-    return kalman_update(ut, sigma[inverse], means[comp], covs[comp], z_sigma, structure.z, structure.r,
-                         structure.mask, wrapping, structure.factors)
+    res = kalman_update(ut, sigma[inverse], means[comp], covs[comp], z_sigma, structure.z, structure.r,
+                        structure.mask, wrapping, structure.factors)
+    if config.measurement.hold_unobserved_extent:
+        hold_unobserved_extent(res, means[comp], covs[comp], structure)
+    return res
+
+
+def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> None:
+    """Keep ``L`` (``W``) of a pair at its prior mean and variance unless the cluster shows a long
+    (short) side fully -- the Schmidt ("consider") update of an unobserved extent, in place.
+
+    Seen only from its rear, a car's length is unobservable: the points fix ``s - L/2``, and the
+    normal update moves ``L`` by the prior's ``s``-``L`` correlation times every along-track innovation.
+    Any small model error (slip, a timing lag, an accelerating car) then drains into ``L`` frame after
+    frame (curve-single: -0.5 m over 20 s). The Schmidt update with the extent as a consider
+    parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
+    prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
+    everywhere but ``P+[L, L] = P[L, L]``), which keeps ``P+`` positive semi-definite."""
+    full = structure.mode == FULL  # (P, 2 parts)
+    long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
+    for index, seen in ((LENGTH, (full & long_side).any(axis=1)), (WIDTH, (full & ~long_side).any(axis=1))):
+        hold = ~seen
+        res.mean[hold, index] = prior_mean[hold, index]
+        res.cov[hold, index, index] = prior_cov[hold, index, index]
 
 
 def update(
