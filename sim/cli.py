@@ -1,5 +1,11 @@
-"""The ``eot`` command line: ``demo``, ``run``, ``montecarlo``, ``scenarios``, ``bench`` (and
-``compare``, not built yet).
+"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``scenarios``, ``bench``
+(and ``compare``, not built yet).
+
+``eot run`` / ``eot demo`` also write the run's diagnostics (``sim.inspect``: ``events.csv``,
+``worst_intervals.csv``, ``events.png``) and print one line of them; ``eot inspect RUN_DIR`` prints
+the full summary (per vehicle a line, then the worst GOSPA intervals with their causes) and
+rewrites those files (``--out`` elsewhere). A missing or incomplete run folder is a one-line error
+with exit status 2.
 
 Exit status: 0 on success; 2 for a usage error (unknown scenario, suite or variant -- one line that
 lists the choices --, an invalid scenario file, a missing optional dependency) and for subcommands
@@ -167,6 +173,7 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     import time
     from pathlib import Path
 
+    from sim.inspect import headline, inspect_run, write_inspection
     from sim.plots import write_figures
     from sim.progress import ProgressBar
     from sim.results import write_results
@@ -194,10 +201,13 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     paths = write_results(result, out)
     with ProgressBar(0, "figures" + (" + GIF" if gif else ""), enabled=not quiet) as bar:
         paths.update(write_figures(result, out, gif=gif, progress=bar))
+    insp = inspect_run(out)  # the diagnostics read back the files just written: one code path with `eot inspect`
+    paths.update(write_inspection(insp, out))
     wall = time.perf_counter() - start
     print(f"{spec.name} / {variant} / seed {seed}: {result.duration:g} s simulated in {wall:.1f} s wall "
           f"(GOSPA: alpha 2, p 2, c 5 m; parts are p-th-power sums)")
     print(summary_table(result.metrics))
+    print(f"diagnostics: {headline(insp)} (`eot inspect {out}` for the timelines)")
     print(f"wrote {len(paths)} files to {Path(out)}/: " + ", ".join(sorted(p.name for p in paths.values())))
     return 0
 
@@ -218,6 +228,21 @@ def _run(args: argparse.Namespace) -> int:
     out = args.out or f"out/{name}-{variant}-seed{args.seed}"
     return _run_and_write(paths[0], seed=args.seed, variant=variant, out=out, gif=args.gif, duration=args.duration,
                           roadside=False if args.no_roadside else None, quiet=args.quiet)
+
+
+def _inspect(args: argparse.Namespace) -> int:
+    """``eot inspect RUN_DIR``: print the diagnostics of a run folder and write their files."""
+    from sim.inspect import InspectError, inspect_run, summary_text, write_inspection
+
+    try:
+        insp = inspect_run(args.run_dir, top=args.top, threshold=args.threshold)
+    except InspectError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    print(summary_text(insp))
+    out = args.out or args.run_dir
+    paths = write_inspection(insp, out)
+    print(f"wrote {', '.join(str(p) for p in paths.values())}")
+    return 0
 
 
 def _split_variants(values: list[str] | None) -> list[str]:
@@ -305,6 +330,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
+
+    p = sub.add_parser("inspect", help="why a run went wrong: per-vehicle event timelines and the worst GOSPA intervals")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `eot run ... --out DIR`")
+    p.add_argument("--top", type=int, default=5, help="how many worst intervals (default 5)")
+    p.add_argument("--threshold", type=float,
+                   help="GOSPA (m) above which frames form intervals (default: max(2 m, the run's 75th percentile))")
+    p.add_argument("--out", help="write events.csv, worst_intervals.csv, events.png here (default: RUN_DIR)")
+    p.set_defaults(func=_inspect)
 
     p = sub.add_parser("montecarlo", help="Monte Carlo study over seeds (local processes or Ray)")
     p.add_argument("target", metavar="SCENARIO_OR_SUITE", help="scenario or suite name, or a .toml file")

@@ -7,13 +7,17 @@
 - ``timeseries.csv``: one row per frame: ``t`` (s), ``n_truth`` (scored truth set), ``n_visible``,
   ``n_tracks``, ``gospa`` (m) and its parts ``gospa_localization``, ``gospa_missed``,
   ``gospa_false`` (p-th-power sums, m^2), the same for the visible-only scoring (``gospa_visible``
-  ...), and ``tracker_ms``.
+  ...), ``tracker_ms``, and the ego's pose ``ego_x, ego_y`` (m, G), ``ego_yaw`` (rad) and ``ego_s``
+  (its arc length, m).
 - ``tracks.csv``: one row per reported track per frame: ``t``, ``label``, ``weight``, the curvilinear
   state ``s, n, v, xi, xi_dot, length, width``, ``s_rel`` (``s - s_ego``, m), the Cartesian view
   ``x, y, psi, psi_dot`` (G), and ``truth_id`` (the truth vehicle it is assigned to by GOSPA, -1 if
   none).
 - ``truth.csv``: one row per other vehicle per frame: ``t``, ``id``, ``x, y, yaw, v, yaw_rate,
   length, width, s, n, xi``, ``scored`` and ``visible`` (0/1) and ``lidar_points``.
+- ``tracker_events.csv`` (only when the tracker exposes ``last_events``; ``sim.runner``): one row per
+  label per event per frame: ``t``, ``label``, ``event`` (``born``, ``updated``, ``missed``,
+  ``dropped``, ``merged``) and ``other_label`` (for ``merged``: the label that absorbed it; else -1).
 
 Numbers are written with ``repr`` precision so the files round-trip exactly.
 """
@@ -29,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from sim.metrics import GOSPA_C, GOSPA_P
-from sim.runner import Result
+from sim.runner import TRACKER_EVENT_LABEL_KEYS, Result
 
 GOSPA_CONVENTION = (
     "GOSPA alpha=2, order p and cut-off c as given (default p=2, c=5 m) on rectangle centres (x, y) in G; "
@@ -92,7 +96,7 @@ TIMESERIES_COLUMNS = [
     "t", "n_truth", "n_visible", "n_tracks",
     "gospa", "gospa_localization", "gospa_missed", "gospa_false",
     "gospa_visible", "gospa_visible_localization", "gospa_visible_missed", "gospa_visible_false",
-    "tracker_ms",
+    "tracker_ms", "ego_x", "ego_y", "ego_yaw", "ego_s",
 ]  # fmt: skip
 TRACK_COLUMNS = [
     "t", "label", "weight", "s", "n", "v", "xi", "xi_dot", "length", "width", "s_rel",
@@ -102,6 +106,7 @@ TRUTH_COLUMNS = [
     "t", "id", "x", "y", "yaw", "v", "yaw_rate", "length", "width", "s", "n", "xi", "scored", "visible",
     "lidar_points",
 ]  # fmt: skip
+TRACKER_EVENT_COLUMNS = ["t", "label", "event", "other_label"]
 
 
 def timeseries_rows(result: Result) -> list[list[Any]]:
@@ -110,7 +115,8 @@ def timeseries_rows(result: Result) -> list[list[Any]]:
     for f in result.frames:
         g, gv = f.gospa, f.gospa_visible
         rows.append([f.t, f.n_truth, f.n_visible, f.n_tracks, g.gospa, g.localization, g.missed, g.false,
-                     gv.gospa, gv.localization, gv.missed, gv.false, f.tracker_ms])
+                     gv.gospa, gv.localization, gv.missed, gv.false, f.tracker_ms,
+                     f.truth.ego.x, f.truth.ego.y, f.truth.ego.yaw, f.ego_s])
     return rows
 
 
@@ -138,9 +144,24 @@ def truth_rows(result: Result) -> list[list[Any]]:
     return rows
 
 
+def tracker_event_rows(result: Result) -> list[list[Any]] | None:
+    """Rows of ``tracker_events.csv`` (columns ``TRACKER_EVENT_COLUMNS``), or ``None`` when no frame
+    has tracker events (the tracker does not expose ``last_events``)."""
+    if all(f.tracker_events is None for f in result.frames):
+        return None
+    rows: list[list[Any]] = []
+    for f in result.frames:
+        events = f.tracker_events or {}
+        for key in TRACKER_EVENT_LABEL_KEYS:
+            rows.extend([f.t, int(label), key, -1] for label in events.get(key, ()))
+        rows.extend([f.t, int(absorbed), "merged", int(kept)] for absorbed, kept in events.get("merged", ()))
+    return rows
+
+
 def write_results(result: Result, out: str | Path) -> dict[str, Path]:
     """Write ``metrics.json``, ``timeseries.csv``, ``tracks.csv`` and ``truth.csv`` of ``result``
-    into the folder ``out`` (created if needed); returns the paths by name."""
+    (and ``tracker_events.csv`` when the tracker exposed events) into the folder ``out`` (created if
+    needed); returns the paths by name."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     paths = {
@@ -155,7 +176,24 @@ def write_results(result: Result, out: str | Path) -> dict[str, Path]:
     _write_csv(paths["timeseries"], TIMESERIES_COLUMNS, timeseries_rows(result))
     _write_csv(paths["tracks"], TRACK_COLUMNS, track_rows(result))
     _write_csv(paths["truth"], TRUTH_COLUMNS, truth_rows(result))
+    events = tracker_event_rows(result)
+    stale = folder / "tracker_events.csv"
+    if events is not None:
+        paths["tracker_events"] = stale
+        _write_csv(stale, TRACKER_EVENT_COLUMNS, events)
+    elif stale.exists():  # from an earlier run into the same folder: it would describe another run
+        stale.unlink()
     return paths
 
 
-__all__ = ["GOSPA_CONVENTION", "TRUTH_SET", "metrics_document", "write_results"]
+__all__ = [
+    "GOSPA_CONVENTION",
+    "TIMESERIES_COLUMNS",
+    "TRACKER_EVENT_COLUMNS",
+    "TRACK_COLUMNS",
+    "TRUTH_COLUMNS",
+    "TRUTH_SET",
+    "metrics_document",
+    "tracker_event_rows",
+    "write_results",
+]

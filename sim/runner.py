@@ -28,6 +28,11 @@ wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than i
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
 run to run; every other metric is bit-identical for the same scenario, seed and variant).
 
+**Tracker events.** When the tracker exposes ``last_events`` after ``step`` (a dict: ``"born"``,
+``"updated"``, ``"missed"``, ``"dropped"`` -> labels, ``"merged"`` -> (absorbed, kept) label pairs),
+each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` otherwise); ``sim.results``
+writes them to ``tracker_events.csv`` and ``sim.inspect`` uses them to explain losses.
+
 Randomness: ``World(spec, seed)`` seeds the traffic; the sensors and the clutter draw from their own
 ``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all three are independent and fixed
 by the seed.
@@ -95,7 +100,9 @@ class FrameRecord:
       ``np.flatnonzero(scored)`` / ``np.flatnonzero(visible)`` and into ``tracks``);
     - ``track_truth_id`` (K,): the truth id each track is assigned to in ``gospa`` (-1: none);
     - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
-    - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF)."""
+    - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF);
+    - ``tracker_events``: the tracker's ``last_events`` after this step, normalised by
+      ``normalize_tracker_events`` (``None`` when the tracker does not expose them)."""
 
     t: float
     truth: Snapshot
@@ -111,6 +118,7 @@ class FrameRecord:
     tracker_ms: float
     ego_s: float
     frame: Frame | None = None
+    tracker_events: dict[str, list] | None = None
 
     @property
     def n_truth(self) -> int:
@@ -193,6 +201,34 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
     if spec.tracker:
         config = apply_overrides(config, dict(spec.tracker), f"{_where(spec)}: tracker")
     return config
+
+
+#: Keys of ``Tracker.last_events`` that list labels; ``"merged"`` lists (absorbed, kept) pairs.
+TRACKER_EVENT_LABEL_KEYS = ("born", "updated", "missed", "dropped")
+
+
+def normalize_tracker_events(events: Any) -> dict[str, list] | None:
+    """A copy of a tracker's ``last_events`` (``None`` stays ``None``): ``"born"``, ``"updated"``,
+    ``"missed"``, ``"dropped"`` -> sorted lists of int labels, ``"merged"`` -> list of
+    ``(absorbed_label, kept_label)`` int pairs; missing keys become empty lists. Raises
+    ``ValueError`` naming the key when an entry is not of that form."""
+    if events is None:
+        return None
+    if not isinstance(events, dict):
+        raise ValueError(f"Tracker.last_events must be a dict or None; got {type(events).__name__}")
+    out: dict[str, list] = {}
+    for key in TRACKER_EVENT_LABEL_KEYS:
+        try:
+            out[key] = sorted(int(label) for label in events.get(key, ()) or ())
+        except (TypeError, ValueError):
+            raise ValueError(f"Tracker.last_events[{key!r}] must be a list of int labels; got {events.get(key)!r}") from None
+    try:
+        out["merged"] = [(int(a), int(b)) for a, b in events.get("merged", ()) or ()]
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"Tracker.last_events['merged'] must be a list of (absorbed, kept) label pairs; got {events.get('merged')!r}"
+        ) from None
+    return out
 
 
 # -- scoring -------------------------------------------------------------------------------------
@@ -357,6 +393,7 @@ def run_scenario(
         t0 = time.perf_counter()
         tracks = list(tracker.step(sf.frame))
         ms = 1e3 * (time.perf_counter() - t0)
+        events = normalize_tracker_events(getattr(tracker, "last_events", None))
         snap = sf.truth
         t_state = truth_state(snap)
         scored = truth_set(snap, road, max_range)
@@ -387,6 +424,7 @@ def run_scenario(
                 tracker_ms=ms,
                 ego_s=ego_s,
                 frame=sf.frame if keep_sensor_data else None,
+                tracker_events=events,
             )
         )
         if progress is not None:
@@ -439,8 +477,10 @@ __all__ = [
     "MIN_VISIBLE_POINTS",
     "Result",
     "TIMING_KEYS",
+    "TRACKER_EVENT_LABEL_KEYS",
     "deterministic_metrics",
     "default_tracker_factory",
+    "normalize_tracker_events",
     "rig_config_for",
     "run_scenario",
     "summarize",

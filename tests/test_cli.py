@@ -30,7 +30,8 @@ def test_eot_run_writes_every_file(tmp_path):
         capture_output=True, text=True, env=env, timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "GOSPA mean (m)" in proc.stdout and "wrote 9 files" in proc.stdout
+    assert "GOSPA mean (m)" in proc.stdout and "wrote 12 files" in proc.stdout
+    assert "diagnostics: losses and label changes by cause" in proc.stdout
     metrics = json.loads((out / "metrics.json").read_text())
     for key in DESIGN_KEYS:
         assert key in metrics, key
@@ -55,6 +56,14 @@ def test_eot_run_writes_every_file(tmp_path):
     for name in ("gospa.png", "gospa_visible.png", "birdseye.png", "targets.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     assert (out / "run.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+    # the diagnostics of `eot inspect` come with every run
+    assert (out / "events.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with open(out / "events.csv", newline="") as fh:
+        events = list(csv.DictReader(fh))
+    assert list(events[0]) == ["t", "truth_id", "label", "event", "cause", "detail"]
+    assert {"entered", "first_lidar", "confirmed"} <= {e["event"] for e in events}
+    assert sum(e["event"] == "label_change" for e in events) == metrics["id_switches"]
+    assert (out / "worst_intervals.csv").exists()
 
 
 def _main(capsys, *argv):

@@ -10,7 +10,7 @@ import pytest
 from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
-from sim.runner import TIMING_KEYS, deterministic_metrics, run_scenario, truth_set
+from sim.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
 from sim.scenario import ScenarioError, parse_scenario
 from sim.truth import EgoPose, Snapshot
 from sim.variants import VARIANTS, UnknownVariantError, variant_config
@@ -214,3 +214,36 @@ def test_sim_exports_run_scenario():
     import sim
 
     assert sim.run_scenario is run_scenario and "run_scenario" in sim.__all__
+
+
+def test_tracker_events_are_recorded_when_present(curvy):
+    class EventfulOracle:
+        def __init__(self, inner):
+            self.inner = inner
+            self.last_events = None
+
+        def step(self, frame):
+            tracks = self.inner.step(frame)
+            self.last_events = {"updated": [tr.label for tr in tracks][::-1], "merged": [(9, tracks[0].label)]}
+            return tracks
+
+    factory = OracleFactory(curvy, 0, {})
+    result = run_scenario(curvy, 0, duration=0.5, tracker_factory=lambda road, cfg: EventfulOracle(factory(road, cfg)))
+    f = result.frames[2]
+    assert f.tracker_events == {"born": [], "updated": sorted(tr.label for tr in f.tracks), "missed": [],
+                                "dropped": [], "merged": [(9, f.tracks[0].label)]}
+    # trackers without last_events: None in every frame
+    plain = _oracle_run(curvy, duration=0.3)
+    assert all(fr.tracker_events is None for fr in plain.frames)
+
+
+def test_normalize_tracker_events_rejects_bad_entries():
+    assert normalize_tracker_events(None) is None
+    assert normalize_tracker_events({"born": (np.int64(3), 1)}) == {"born": [1, 3], "updated": [], "missed": [],
+                                                                     "dropped": [], "merged": []}
+    with pytest.raises(ValueError, match="last_events\\['missed'\\]"):
+        normalize_tracker_events({"missed": ["a"]})
+    with pytest.raises(ValueError, match="merged"):
+        normalize_tracker_events({"merged": [1, 2]})
+    with pytest.raises(ValueError, match="must be a dict"):
+        normalize_tracker_events([1])
