@@ -13,7 +13,7 @@ def test_defaults_are_the_documented_ones() -> None:
     c = TrackerConfig()
     assert c.coordinates == "curvilinear" and c.motion.model == "frenet" and c.use_radar
     assert c.measurement.two_side_eigen_ratio == 50.0
-    assert c.measurement.partial_visibility == 0.6
+    assert c.measurement.partial_visibility == 0.9
     assert c.reduction.extraction_threshold == 0.5
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
 
@@ -47,7 +47,7 @@ def test_variants() -> None:
 def test_from_dict() -> None:
     c = TrackerConfig.from_dict({"coordinates": "cartesian", "measurement": {"lidar_sigma": 0.05}})
     assert c.coordinates == "cartesian" and c.measurement.lidar_sigma == 0.05
-    assert c.measurement.partial_visibility == 0.6
+    assert c.measurement.partial_visibility == 0.9
     with pytest.raises(ValueError, match="unknown key.*'lidar_sigm'.*accepted"):
         TrackerConfig.from_dict({"measurement": {"lidar_sigm": 0.05}})
     with pytest.raises(ValueError, match="unknown tracker configuration key 'noise'"):

@@ -290,7 +290,7 @@ class Tracker:
                     peak[single] = 0.0
                     np.maximum.at(peak, clu, log_num)
                     total = np.bincount(clu, weights=np.exp(log_num - peak[clu]), minlength=len(clusters))
-                    total += np.where(single, np.exp(-np.minimum(peak, 700.0)), 0.0)
+                    total += np.where(single, np.exp(-np.clip(peak, -700.0, 700.0)), 0.0)
                     weights = np.exp(log_num - peak[clu]) / total[clu]
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
