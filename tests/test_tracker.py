@@ -67,11 +67,13 @@ def test_entering_car_confirmed_and_leaving_car_dropped_within_1s():
     # car B pulls away from 30 m at 10 m/s: its centre leaves the range at t = 1 s
     scene = Scene(road, Car(0.0, -1.75, 20.0), [Car(45.0 + 2.4, 1.75, 15.0), Car(30.0, -1.75, 30.0)], max_range=40.0)
     frames, _ = run(scene, config, 4.0)
-    def near(k, car_index):
-        return nearest(frames[k], road, scene.truth(k * DT)[car_index, :2])[1] < 1.0
+    def near(k, car_index, tol=1.0):
+        return nearest(frames[k], road, scene.truth(k * DT)[car_index, :2])[1] < tol
     enter = 1.0  # the first time A's nearest point is within range is a little earlier
     assert any(near(k, 0) for k in range(int(enter / DT), int((enter + 1.0) / DT) + 1))
-    assert all(near(k, 0) for k in range(int((enter + 1.0) / DT), len(frames)))
+    # seen from its front only, A's length is unobservable and held at the birth prior (4.5 m, truth
+    # 4.8 m; tracker.update.hold_unobserved_extent): its centre may sit ~0.2 m off on top of the noise
+    assert all(near(k, 0, 1.25) for k in range(int((enter + 1.0) / DT), len(frames)))
     leave = 1.0
     assert near(int(leave / DT) - 3, 1)
     assert not any(near(k, 1) for k in range(int((leave + 1.0) / DT), len(frames)))

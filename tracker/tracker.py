@@ -78,7 +78,8 @@ class Tracker:
     ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
-    ``label_splits``.
+    ``label_splits``. ``last_events`` (dict of label lists) says what happened to the tracks in the
+    last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
 
     def __init__(self, road: Road, config: TrackerConfig | None = None) -> None:
@@ -105,6 +106,11 @@ class Tracker:
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
+        self._updated_labels: set[int] = set()
+        self._reported_labels: list[int] = []
+        self._ever_reported: set[int] = set()
+        self._born_start = 1
+        self.last_events: dict[str, list] = {"born": [], "updated": [], "missed": [], "dropped": [], "merged": []}
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
 
@@ -121,6 +127,9 @@ class Tracker:
         ego = frame.ego
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
+        self._reported_labels = [int(lab) for lab in self.mixture.labels[self._reported]] if len(self.mixture) else []
+        self._updated_labels = set()
+        self._born_start = self._next_label
         self._predict(dt)
         self._add_births(ego, s_ego)
         points, scanned = self._preprocess(frame)
@@ -131,7 +140,10 @@ class Tracker:
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
-        return self._extract(frame.t)
+        previous = self._reported_labels
+        tracks = self._extract(frame.t)
+        self._record_events(previous, tracks)
+        return tracks
 
     # -- steps ------------------------------------------------------------------------------------
     def _predict(self, dt: float) -> None:
@@ -274,6 +286,7 @@ class Tracker:
                 inside |= own
                 comp, clu = comp[inside], clu[inside]
                 self.stats["pairs_updated"] += len(comp)
+                self._updated_labels.update(int(lab) for lab in mix.labels[comp])
                 if len(comp):
                     size = np.array([len(c) for c in clusters])[clu]
                     lam_c = cfg.detection.clutter_rate * cfg.detection.clutter_density
@@ -354,6 +367,22 @@ class Tracker:
             else:
                 tracks.append(Track(int(mix.labels[i]), t, mix.means[i], mix.covs[i], float(mix.weights[i])))
         return tracks
+
+    def _record_events(self, previous: list[int], tracks: list[Track]) -> None:
+        """``last_events`` of this step, by label: ``born`` (tracks reported for the first time),
+        ``updated`` (reported tracks a cluster updated), ``missed`` (last frame's tracks no cluster
+        updated), ``dropped`` (last frame's tracks with no component left: left the view or the road,
+        pruned, or merged into another component), ``merged`` (not separated from ``dropped``: empty)."""
+        reported = [tr.label for tr in tracks]
+        alive = set(int(lab) for lab in self.mixture.labels)
+        self.last_events = {
+            "born": [lab for lab in reported if lab >= self._born_start or lab not in self._ever_reported],
+            "updated": [lab for lab in reported if lab in self._updated_labels],
+            "missed": [lab for lab in previous if lab not in self._updated_labels],
+            "dropped": [lab for lab in previous if lab not in alive],
+            "merged": [],
+        }
+        self._ever_reported.update(reported)
 
     def _new_labels(self, count: int) -> np.ndarray:
         labels = np.arange(self._next_label, self._next_label + count)
