@@ -5,7 +5,9 @@
 vehicles) when it has neither ``[ego]`` nor ``[[vehicles]]``; everything else (duration, sensor and
 tracker overrides) is kept. The drawn scenario goes through the same validation as a file, so it is
 valid by construction or the call raises ``ScenarioError``. The ranges and rules are documented on
-``sim.scenario.GeneratorSpec``.
+``sim.scenario.GeneratorSpec``; with ``classes`` (``sim.scenario.VehicleClass``) each drawn vehicle is
+a car, van, truck, bus, motorcycle ... with the class's share as its probability, and the class's
+length and width.
 
 Randomness: one ``numpy.random.Generator`` seeded from ``SeedSequence(seed, spawn_key=(GEN_STREAM,))``
 (kept apart from the world's and the sensors' streams); the same spec + seed gives the same scenario.
@@ -87,7 +89,10 @@ def _maneuvers(gen: GeneratorSpec, rng: np.random.Generator, lane: int, lanes: i
 
 def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_length: float, closed: bool,
                  duration: float, ego_s: float) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The ego (at ``ego_s``) and the other vehicles as scenario tables, without overlap."""
+    """The ego (at ``ego_s``) and the other vehicles as scenario tables, without overlap. With
+    ``gen.classes`` each vehicle first draws its class (one uniform number against the cumulative
+    shares), then its length and width from that class; without, from ``gen.length`` / ``gen.width``
+    (the draws, and so the traffic of a seed, are then exactly those of a generator without classes)."""
     ego = {
         "lane": _integer(rng, (0, lanes - 1)),
         "s": round(ego_s, 3),
@@ -97,11 +102,16 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
         "width": 2.0,
     }
     placed: list[tuple[int, float, float]] = [(ego["lane"], ego["s"], ego["length"])]
+    classes = gen.class_bounds() if gen.classes is not None else None
     vehicles: list[dict[str, Any]] = []
     for _ in range(_integer(rng, gen.vehicles)):
         u = float(rng.uniform())
         behaviour = "scripted" if u < gen.scripted_fraction else "constant" if u < gen.scripted_fraction + gen.constant_fraction else "idm"
-        length, width = round(_uniform(rng, gen.length), 3), round(_uniform(rng, gen.width), 3)
+        if classes is None:
+            length, width = round(_uniform(rng, gen.length), 3), round(_uniform(rng, gen.width), 3)
+        else:
+            k = min(int(np.searchsorted(classes[0], rng.uniform(), side="right")), len(classes[0]) - 1)
+            length, width = round(_uniform(rng, tuple(classes[1][k])), 3), round(_uniform(rng, tuple(classes[2][k])), 3)
         for _attempt in range(PLACEMENT_ATTEMPTS):
             lane = _integer(rng, (0, lanes - 1))
             s = ego_s + _uniform(rng, gen.spawn)

@@ -26,10 +26,18 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     speed = 22.0
     behaviour = "scripted"                # "idm" (default) | "constant" | "scripted"
     maneuvers = [{ t = 2.0, kind = "lane_change", lane = 0, duration = 4.0 }]
+    # kinds: lane_change (lane, duration s, wait_for_gap), speed (speed m/s, accel m/s^2 <= 8),
+    #        brake (speed m/s, default 0 = stop; decel m/s^2 <= 9, constant until the speed is reached)
+    length = 4.8                          # m; 2-20 (a 2.2 m motorcycle, an 18 m bus)
+    width = 2.0                           # m; 0.6-3.0 and <= lane_width - 0.5
 
     [sensors]                             # optional overrides, applied by the runner
     [tracker]                             # optional overrides, applied by the runner
     [generator]                           # optional: draw a new road and/or traffic per seed
+    classes = [                           # optional vehicle classes of the drawn traffic
+        { name = "car", length = [4.2, 5.2], width = [1.7, 2.1], share = 0.8 },
+        { name = "truck", length = [10.0, 16.0], width = 2.5, share = 0.2 },
+    ]
 
 Every table rejects unknown keys (highway-env silently ignores typos; this does not). Errors raise
 ``ScenarioError`` (a ``ValueError``) naming the file, the field, the value and what is allowed.
@@ -37,11 +45,17 @@ Every table rejects unknown keys (highway-env silently ignores typos; this does 
 Defaults (see the models below): lanes 2, lane_width 3.5 m, closed false, start (0, 0, 0);
 vehicle behaviour "idm", length 4.8 m and width 2.0 m (the paper's target), target_speed = speed,
 lane_changes (MOBIL, idm only) true for vehicles and false for the ego; lane change duration 4 s,
-speed change accel 2 m/s^2, brake to 0 m/s at 4 m/s^2.
+speed change accel 2 m/s^2, brake to 0 m/s at 4 m/s^2 (constant deceleration, landing on the
+target speed). A vehicle standing still on the road: behaviour "constant" with speed 0.
+Generator vehicle classes (``VehicleClass``): ``length`` and ``width`` are a number or a range
+``[low, high]`` (m, drawn uniformly), ``share`` > 0 and the shares must sum to 1 within 1e-6 (they are
+not normalised: a typo in a share is an error, not a silent re-weighting); without ``classes`` the
+generator draws every vehicle from its ``length`` / ``width`` ranges, as before.
 """
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import fields, is_dataclass, replace
@@ -49,7 +63,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
 
 from sim.truth import rectangle_corners
 from tracker import Road
@@ -158,7 +172,9 @@ class LaneChange(_Model):
 
 class SpeedChange(_Model):
     """At time ``t`` (s) set the target speed to ``speed`` (m/s), reached at up to ``accel`` m/s^2
-    (both speeding up and slowing down)."""
+    (both speeding up and slowing down; default 2, at most 8): the rate holds until the speed is
+    within ``accel x 0.6 s`` of the target, which it then approaches smoothly (highway-env's
+    speed-tracking gain). Re-accelerating from a stop is a speed change from 0."""
 
     kind: Literal["speed"]
     t: StrictFloat = Field(ge=0.0)
@@ -167,7 +183,10 @@ class SpeedChange(_Model):
 
 
 class Brake(_Model):
-    """At time ``t`` (s) brake at ``decel`` m/s^2 down to ``speed`` m/s (default 0: a stop)."""
+    """At time ``t`` (s) brake at a constant ``decel`` m/s^2 (default 4, at most 9: 6-8 is an
+    emergency stop) down to exactly ``speed`` m/s (default 0: a stop), then hold that speed; a stopped
+    vehicle stands still until a later ``speed`` maneuver. Repeated stop-and-go is a list of brakes
+    and speed changes. (The IDM term still brakes it harder behind a slower vehicle.)"""
 
     kind: Literal["brake"]
     t: StrictFloat = Field(ge=0.0)
@@ -191,7 +210,9 @@ class VehicleSpec(_Model):
     - ``"scripted"``: keeps its lane and follows ``maneuvers`` (lane changes, speed changes,
       braking) at their times; IDM car following keeps it from running into the vehicle ahead.
 
-    ``length`` (4.8 m) and ``width`` (2.0 m) size its rectangle."""
+    ``length`` (4.8 m; 2-20 m) and ``width`` (2.0 m; 0.6-3 m) size its rectangle: a 2.2 x 0.8 m
+    motorcycle, a 6 x 2.1 m van, a 12-18 x 2.5 m truck or bus. ``behaviour = "constant"`` with
+    ``speed = 0`` is a vehicle standing still on the road (broken down, parked)."""
 
     lane: StrictInt = Field(ge=0)
     s: StrictFloat
@@ -200,7 +221,7 @@ class VehicleSpec(_Model):
     target_speed: StrictFloat | None = Field(default=None, ge=0.0, le=MAX_SPEED)
     lane_changes: StrictBool | None = None
     length: StrictFloat = Field(default=4.8, ge=2.0, le=20.0)
-    width: StrictFloat = Field(default=2.0, ge=1.0, le=3.0)
+    width: StrictFloat = Field(default=2.0, ge=0.6, le=3.0)
     maneuvers: list[Maneuver] = Field(default_factory=list)
 
     @model_validator(mode="after")
@@ -243,6 +264,40 @@ class EgoSpec(VehicleSpec):
 # -- generator -----------------------------------------------------------------------------------
 FloatRange = tuple[StrictFloat, StrictFloat]
 IntRange = tuple[StrictInt, StrictInt]
+#: Tolerance (absolute) on the sum of the generator's class shares.
+SHARE_TOLERANCE = 1e-6
+#: Bounds (m) of vehicle lengths and widths (those of ``VehicleSpec``).
+LENGTH_BOUNDS = (2.0, 20.0)
+WIDTH_BOUNDS = (0.6, 3.0)
+
+
+def _extent(value: Any) -> Any:
+    """A single number ``x`` (m) as the range ``(x, x)``; anything else unchanged."""
+    if isinstance(value, float):
+        return (value, value)
+    return value
+
+
+def _shown(extent: tuple[float, float]) -> str:
+    """An extent as the user wrote it: ``6.0`` for ``(6.0, 6.0)``, else ``[low, high]``."""
+    return repr(extent[0]) if extent[0] == extent[1] else repr(list(extent))
+
+
+#: A length or width (m): a number or a range ``[low, high]``, stored as ``(low, high)``.
+Extent = Annotated[FloatRange, BeforeValidator(_extent)]
+
+
+class VehicleClass(_Model):
+    """A class of drawn vehicles (``generator.classes``): ``name`` (letters, digits, "-", "_";
+    unique), ``length`` and ``width`` (m; a number, or a range ``[low, high]`` drawn uniformly;
+    stored as ``(low, high)``; lengths 2-20 m, widths 0.6-3 m and at most the lane width - 0.5 m)
+    and ``share`` (the probability that a drawn vehicle is of this class, in (0, 1]; the shares of
+    all classes sum to 1 within 1e-6). Checked by ``GeneratorSpec``, which knows the class's index."""
+
+    name: StrictStr = Field(min_length=1, max_length=32)
+    length: Extent
+    width: Extent
+    share: StrictFloat = Field(gt=0.0, le=1.0)
 
 
 class GeneratorSpec(_Model):
@@ -256,9 +311,10 @@ class GeneratorSpec(_Model):
     until it is long enough for the ego to drive the scenario's duration.
     Traffic (when the file has no ``[ego]`` and no ``[[vehicles]]``): the ego (idm, no MOBIL,
     ``ego_speed`` [14, 20] m/s) and ``vehicles`` [3, 8] others at ``spawn`` [-60, 120] m from the
-    ego along the road, ``speed`` [12, 25] m/s, ``length`` [4.2, 5.2] m, ``width`` [1.7, 2.1] m,
-    placed without overlap (10 m between bumpers in a lane; a vehicle that finds no room after 50
-    draws is dropped). A fraction ``scripted_fraction`` [0.4] is scripted, ``constant_fraction`` [0]
+    ego along the road, ``speed`` [12, 25] m/s, ``length`` [4.2, 5.2] m, ``width`` [1.7, 2.1] m
+    (or, with ``classes`` [none], a class drawn by its ``share`` and that class's length and width;
+    ``length`` / ``width`` must then be left out), placed without overlap (10 m between bumpers in
+    a lane; a vehicle that finds no room after 50 draws is dropped). A fraction ``scripted_fraction`` [0.4] is scripted, ``constant_fraction`` [0]
     constant, the rest idm with MOBIL. Scripted vehicles get Poisson-timed lane changes to an
     adjacent lane (``lane_change_rate`` [0.08] per second, 3-6 s long, waiting for a gap) and speed
     changes (``speed_change_rate`` [0.04] per second, to a speed in ``speed``)."""
@@ -279,6 +335,57 @@ class GeneratorSpec(_Model):
     constant_fraction: StrictFloat = Field(default=0.0, ge=0.0, le=1.0)
     lane_change_rate: StrictFloat = Field(default=0.08, ge=0.0, le=1.0)
     speed_change_rate: StrictFloat = Field(default=0.04, ge=0.0, le=1.0)
+    classes: list[VehicleClass] | None = Field(default=None, min_length=1, max_length=16)
+
+    @model_validator(mode="after")
+    def _classes(self) -> GeneratorSpec:
+        if self.classes is None:
+            return self
+        both = sorted({"length", "width"} & self.model_fields_set)
+        if both:
+            raise ValueError(
+                f"generator.{both[0]}: not used when generator.classes is given (each class has its own "
+                "length and width); drop it"
+            )
+        names = [c.name for c in self.classes]
+        for i, c in enumerate(self.classes):
+            if not _NAME.match(c.name):
+                raise ValueError(f"generator.classes[{i}].name = {c.name!r}: use letters, digits, '-' and '_'")
+            if c.name in names[:i]:
+                raise ValueError(f"generator.classes[{i}].name = {c.name!r}: class names must be unique")
+            for field, (low, high) in (("length", LENGTH_BOUNDS), ("width", WIDTH_BOUNDS)):
+                lo, hi = getattr(c, field)
+                if lo > hi:
+                    raise ValueError(f"generator.classes[{i}].{field} = {[lo, hi]}: low must be <= high")
+                if lo < low or hi > high:
+                    raise ValueError(f"generator.classes[{i}].{field} = {_shown((lo, hi))}: must lie within [{low}, {high}] m")
+        total = math.fsum(c.share for c in self.classes)
+        if abs(total - 1.0) > SHARE_TOLERANCE:
+            shares = ", ".join(f"{c.name} {c.share!r}" for c in self.classes)
+            raise ValueError(
+                f"generator.classes share: the shares sum to {total:.9g} ({shares}); they must sum to 1 "
+                f"(within {SHARE_TOLERANCE:g})"
+            )
+        for i, c in enumerate(self.classes):
+            if c.width[1] > self.lane_width - 0.5:
+                raise ValueError(
+                    f"generator.classes[{i}].width = {_shown(c.width)}: widths must leave 0.5 m in a {self.lane_width} m lane"
+                )
+        return self
+
+    def class_bounds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The classes as arrays: cumulative shares (K,) rescaled to end at exactly 1 (the shares sum
+        to 1 within ``SHARE_TOLERANCE``), length bounds (K, 2) and width bounds (K, 2) in m. Without
+        ``classes``: one class from ``length`` / ``width``."""
+        if self.classes is None:
+            return np.ones(1), np.array([self.length], float), np.array([self.width], float)
+        cumulative = np.cumsum([c.share for c in self.classes])
+        cumulative /= cumulative[-1]
+        return (
+            cumulative,
+            np.array([c.length for c in self.classes], float),
+            np.array([c.width for c in self.classes], float),
+        )
 
     @model_validator(mode="after")
     def _ranges(self) -> GeneratorSpec:
@@ -357,6 +464,13 @@ class ScenarioSpec(_Model):
                 raise ValueError("ego: missing; give [ego] and [[vehicles]] together, or neither (the generator draws both)")
             if self.road is not None and self.ego is not None:
                 raise ValueError("generator: nothing to draw; the file already has a road and traffic (drop [generator] or one of them)")
+        if self.generator is not None and self.generator.classes and self.road is not None:
+            for i, c in enumerate(self.generator.classes):
+                if c.width[1] > self.road.lane_width - 0.5:
+                    raise ValueError(
+                        f"generator.classes[{i}].width = {_shown(c.width)}: must be <= {self.road.lane_width - 0.5} m "
+                        "(this road's lane width - 0.5 m)"
+                    )
         if self.road is not None:
             try:
                 road = self.road.build()
@@ -476,7 +590,9 @@ def _loc_text(loc: tuple[Any, ...]) -> str:
 
 def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
     """The model class that holds the field at ``loc`` (for listing the allowed keys)."""
-    sub: dict[str, type[BaseModel]] = {"road": RoadSpec, "ego": EgoSpec, "vehicles": VehicleSpec, "generator": GeneratorSpec}
+    sub: dict[str, type[BaseModel]] = {
+        "road": RoadSpec, "ego": EgoSpec, "vehicles": VehicleSpec, "generator": GeneratorSpec, "classes": VehicleClass,
+    }
     tags: dict[str, type[BaseModel]] = {"lane_change": LaneChange, "speed": SpeedChange, "brake": Brake}
     model: type[BaseModel] | None = ScenarioSpec
     parts = iter(p for p in loc[:-1] if not isinstance(p, int))
@@ -507,6 +623,8 @@ def _describe(error: dict[str, Any]) -> str:
         return f"{field} = {value!r}: unknown key; allowed keys here: {allowed}"
     if kind == "union_tag_invalid" or kind == "union_tag_not_found":
         return f"{field}: maneuver kind must be one of 'lane_change', 'speed', 'brake'; got {value!r}"
+    if kind == "tuple_type" and "classes" in loc and loc[-1] in ("length", "width"):
+        return f"{field} = {value!r}: must be a float (e.g. 6.0) or a range [low, high] of floats (m)"
     if kind == "literal_error":
         return f"{field} = {value!r}: {msg[0].lower() + msg[1:]}"
     shown = value if not isinstance(value, dict) else "{...}"

@@ -5,18 +5,27 @@
   ignoring traffic);
 - ``scripted`` -> ``ScriptedCar`` (an ``IDMVehicle`` without MOBIL, steered through
   ``target_lane_index`` / ``target_speed`` by its maneuvers: lane changes follow a quintic lateral
-  profile that completes within the maneuver's duration; speed changes and braking are rate-limited;
-  IDM's interaction term still keeps it from running into the vehicle ahead).
+  profile that completes within the maneuver's duration; speed changes are rate-limited (``accel`` m/s^2 each way, then a smooth approach with highway-env's
+  ``KP_A``); braking is a constant deceleration (``decel`` m/s^2) that lands exactly on the target speed
+  (0 m/s: a stop, after which the vehicle stands still until a later maneuver); IDM's interaction term
+  still keeps it from running into the vehicle ahead. A script's own rates may exceed highway-env's
+  ``ACC_MAX`` (6 m/s^2): an emergency brake at 8 m/s^2 is not clipped to 6).
 
-All of them share ``_FrenetCar``: per-vehicle ``LENGTH``/``WIDTH``; after every step the vehicle's
+All of them share ``_FrenetCar``: per-vehicle ``LENGTH``/``WIDTH`` and ``rear_axle`` (the bicycle
+model's centre-to-rear-axle distance: ``min(length / 2, MAX_REAR_AXLE)``, so trucks and buses do not
+swing out of their lane on tight bends); after every step the vehicle's
 road coordinates ``frenet_s``, ``frenet_n`` are projected with a warm start and its lane is the one
 containing ``n`` (the same answer as highway-env's closest-lane search for parallel lanes, without
 projecting on every lane); distances along the road are differences of ``s``, wrapped on a closed road;
-speed never goes below 0 (a braking vehicle stops instead of reversing); the IDM jam distance is 5 m
-bumper to bumper whatever the vehicles' lengths (highway-env assumes 5 m cars).
+speed never goes below 0 (a braking vehicle stops instead of reversing, and a vehicle at 0 m/s with
+nothing to accelerate it stays at 0: highway-env's ``MIN_SPEED`` of -40 m/s is never reached); the IDM
+jam distance is 5 m bumper to bumper whatever the vehicles' lengths (highway-env assumes 5 m cars), so
+18 m buses and 2.2 m motorcycles queue with the same gaps as cars. A ``constant`` vehicle at speed 0 is
+a vehicle standing still on the road.
 
 ``TrafficRoad`` is highway-env's ``Road`` with a neighbour search on the stored ``(s, n)`` that wraps
-on closed roads, a ``time`` attribute (s, set by the world) for the scripts, and no collision physics:
+on closed roads, ``time`` (s, set by the world) and ``dt`` (s, the world's step) for the scripts, and
+no collision physics:
 highway-env's impulses would move vehicles outside their kinematics; ``sim.world`` detects and
 records overlaps instead.
 """
@@ -46,6 +55,14 @@ SCRIPTED_DECEL = 3.0
 #: for ~6 m/s at the start of a MOBIL lane change (a 1.6 rad/s yaw rate at 20 m/s); drivers change
 #: lanes at ~1 m/s over 3-4 s. Scripted lane changes add their profile's rate as feed-forward.
 MAX_LATERAL_SPEED = 1.5
+#: Default step (s) over which a vehicle's action is held (``sim.world`` passes its own step).
+DEFAULT_DT = 0.05
+#: Largest distance (m) from a vehicle's rectangle centre to the rear axle of the kinematic bicycle
+#: model. highway-env puts the axles at the bumpers (``l_r = length / 2``), which for a 12 m truck on a
+#: R 40 m bend turns the body 0.15 rad off its path and swings its corners out of the lane; real rigid
+#: trucks and buses have overhangs (rear axle ~3 m behind the centre). Vehicles up to 6 m long keep
+#: highway-env's ``length / 2`` exactly.
+MAX_REAR_AXLE = 3.0
 #: Extra bumper-to-bumper clearance (m) a ``wait_for_gap`` lane change needs in the target lane.
 GAP_CLEARANCE = 3.0
 
@@ -54,11 +71,15 @@ class TrafficRoad(HighwayRoad):
     """highway-env ``Road`` over ``FrenetLane``s: neighbour search on stored road coordinates
     (wrapping on closed roads), no collision physics, and the simulated ``time`` (s)."""
 
-    def __init__(self, network: RoadNetwork, projector: FrenetProjector, road: Road, np_random: Any) -> None:
+    def __init__(self, network: RoadNetwork, projector: FrenetProjector, road: Road, np_random: Any,
+                 dt: float = DEFAULT_DT) -> None:
         super().__init__(network=network, vehicles=[], np_random=np_random, record_history=False)
+        if not (isinstance(dt, (int, float)) and 0.0 < dt <= 1.0):
+            raise ValueError(f"TrafficRoad dt must be a step in (0, 1] s; got {dt!r}")
         self.projector = projector
         self.geometry = road
         self.time = 0.0
+        self.dt = float(dt)
         self.closed = road.closed
         self.period = road.length
         self.centers = [float(c) for c in road.lane_centers]
@@ -124,6 +145,7 @@ class _FrenetCar:
         self.LENGTH = float(length)
         self.WIDTH = float(width)
         self.diagonal = math.hypot(self.LENGTH, self.WIDTH)
+        self.rear_axle = min(self.LENGTH / 2, MAX_REAR_AXLE)
         self.frenet_s = math.nan
         self._locate(None)
 
@@ -141,15 +163,16 @@ class _FrenetCar:
 
     # -- the hot path, in plain Python (the same equations as highway-env's numpy code) --------
     def _move(self, dt: float) -> None:
-        """highway-env's ``Vehicle.step``: kinematic bicycle model with the held action, then the
-        state update; speed is kept >= 0. (No collision impulses: see the module notes.)"""
+        """highway-env's ``Vehicle.step``: kinematic bicycle model with the held action (yaw rate
+        ``v sin(beta) / rear_axle``), then the state update; speed is kept >= 0. (No collision
+        impulses: see the module notes.)"""
         self.clip_actions()  # type: ignore[attr-defined]
         beta = math.atan(0.5 * math.tan(self.action["steering"]))  # type: ignore[attr-defined]
         speed, heading = self.speed, self.heading  # type: ignore[attr-defined]
         position = self.position  # type: ignore[attr-defined]
         position[0] += speed * math.cos(heading + beta) * dt
         position[1] += speed * math.sin(heading + beta) * dt
-        self.heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
+        self.heading = heading + speed * math.sin(beta) / self.rear_axle * dt
         self.speed = max(speed + self.action["acceleration"] * dt, 0.0)  # type: ignore[attr-defined]
         self.on_state_update()
 
@@ -202,7 +225,7 @@ class _FrenetCar:
         future = s + self.speed * ControlledVehicle.TAU_PURSUIT  # type: ignore[attr-defined]
         heading_ref = target_lane.heading_at(future) + min(max(heading_command, -math.pi / 4), math.pi / 4)
         heading_rate_command = ControlledVehicle.KP_HEADING * utils.wrap_to_pi(heading_ref - self.heading)  # type: ignore[attr-defined]
-        slip = math.asin(min(max(self.LENGTH / 2 / speed * heading_rate_command, -1.0), 1.0))
+        slip = math.asin(min(max(self.rear_axle / speed * heading_rate_command, -1.0), 1.0))
         steering = math.atan(2.0 * math.tan(slip))
         limit = ControlledVehicle.MAX_STEERING_ANGLE
         return float(min(max(steering, -limit), limit))
@@ -223,7 +246,12 @@ class IDMCar(_FrenetCar, IDMVehicle):
         if self.lane_index != self.target_lane_index:
             front, rear = self.road.neighbour_vehicles(self, self.target_lane_index)
             acc = min(acc, self.acceleration(ego_vehicle=self, front_vehicle=front, rear_vehicle=rear))
-        self.action = {"steering": steering, "acceleration": min(max(acc, -self.ACC_MAX), self.ACC_MAX)}
+        low, high = self.acceleration_limits()
+        self.action = {"steering": steering, "acceleration": min(max(acc, low), high)}
+
+    def acceleration_limits(self) -> tuple[float, float]:
+        """Bounds (m/s^2) of the commanded acceleration: highway-env's ``[-ACC_MAX, ACC_MAX]``."""
+        return -self.ACC_MAX, self.ACC_MAX
 
     def step(self, dt: float) -> None:
         self.timer += dt
@@ -256,7 +284,9 @@ class ScriptedCar(IDMCar):
     behind it): ``LaneChange`` sets
     ``target_lane_index`` and steers along a quintic lateral profile from the current offset to the
     target lane centre over ``duration`` s (feed-forward lateral speed + highway-env's cascaded
-    lateral/heading controller); ``SpeedChange``/``Brake`` set ``target_speed`` and the rate limit.
+    lateral/heading controller); ``SpeedChange`` sets ``target_speed`` and the rate limit ``accel``
+    both ways (approached smoothly, gain ``KP_A``); ``Brake`` sets ``target_speed`` and decelerates at
+    exactly ``decel`` until the speed lands on the target within one step (``road.dt``), then holds it.
     ``started`` records ``(maneuver index, start time)`` of every maneuver that ran."""
 
     def configure(self, maneuvers: Sequence[LaneChange | SpeedChange | Brake]) -> None:
@@ -267,11 +297,17 @@ class ScriptedCar(IDMCar):
         self.started: list[tuple[int, float]] = []
         self.accel_limit = SCRIPTED_ACCEL
         self.decel_limit = SCRIPTED_DECEL
+        self.braking = False  # a Brake is running: constant deceleration landing on target_speed
         self._profile: tuple[float, float, float] | None = None  # start time, duration, start offset
 
     def act(self, action: Any = None) -> None:
         self._run_script()
         super().act(action)
+
+    def acceleration_limits(self) -> tuple[float, float]:
+        """highway-env's ``[-ACC_MAX, ACC_MAX]`` widened to the script's own rates, so an 8 m/s^2
+        emergency brake (or a hard speed change) is not clipped to 6 m/s^2."""
+        return -max(self.ACC_MAX, self.decel_limit), max(self.ACC_MAX, self.accel_limit)
 
     def _run_script(self) -> None:
         now = self.road.time + 1e-9
@@ -289,9 +325,11 @@ class ScriptedCar(IDMCar):
             elif isinstance(m, SpeedChange):
                 self.target_speed = m.speed
                 self.accel_limit = self.decel_limit = m.accel
+                self.braking = False
             elif isinstance(m, Brake):
                 self.target_speed = m.speed
                 self.decel_limit = m.decel
+                self.braking = True
             self.started.append((self._next, self.road.time))
             self._next += 1
 
@@ -332,7 +370,11 @@ class ScriptedCar(IDMCar):
         vehicle ahead; for another vehicle (MOBIL's what-ifs): plain IDM."""
         if ego_vehicle is not self:
             return _FrenetCar.acceleration(self, ego_vehicle, front_vehicle, rear_vehicle)
-        free = self.KP_A * (self.target_speed - self.speed)
+        if self.braking and self.speed > self.target_speed:
+            # constant deceleration, landing exactly on the target speed at the end of a step
+            free = -min(self.decel_limit, (self.speed - self.target_speed) / self.road.dt)
+        else:
+            free = self.KP_A * (self.target_speed - self.speed)
         acc = min(max(free, -self.decel_limit), self.accel_limit)
         if front_vehicle:
             d = self.lane_distance_to(front_vehicle)

@@ -16,7 +16,8 @@ Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped); ``v`` 
 ``xi_dot = yaw_rate - kappa(s) * s_dot`` with ``s_dot = v cos(xi + beta) / (1 - kappa n)``.
 ``yaw`` is the body heading (the rectangle's orientation); highway-env's bicycle model moves the
 centre along ``yaw + beta``, ``beta = atan(tan(steering) / 2)`` the slip angle, so a car keeping its
-lane on a steady curve has ``xi ~ -beta ~ -L kappa / 2`` (-0.04 rad for a 4.8 m car at R 60 m),
+lane on a steady curve has ``xi ~ -beta ~ -l_r kappa`` with ``l_r = min(L / 2, 3 m)`` the centre to
+rear axle distance (``sim.traffic.MAX_REAR_AXLE``; -0.04 rad for a 4.8 m car at R 60 m),
 while ``Snapshot.velocity`` (speed along ``yaw``) differs from the centre's true velocity by ``beta``.
 
 Open roads: a vehicle whose centre passes the end (``s > length``) leaves the world (its id no longer
@@ -92,7 +93,7 @@ class World:
         self.road = spec.build_road()
         network, projector = build_network(self.road, spec.road.to_config())
         rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(WORLD_STREAM,)))
-        self.traffic = TrafficRoad(network, projector, self.road, np_random=rng)
+        self.traffic = TrafficRoad(network, projector, self.road, np_random=rng, dt=self.step)
         ego = make_vehicle(self.traffic, 0, spec.ego, spec.ego.mobil)
         others = [make_vehicle(self.traffic, i + 1, v, v.mobil) for i, v in enumerate(spec.vehicles)]
         self.traffic.vehicles = [ego, *others]
@@ -181,8 +182,7 @@ class World:
         if speed > v.MAX_SPEED:  # type: ignore[attr-defined]  (highway-env's clip_actions)
             acceleration = min(acceleration, v.MAX_SPEED - speed)  # type: ignore[attr-defined]
         beta = math.atan(0.5 * math.tan(steering))
-        half_length = 0.5 * v.LENGTH  # type: ignore[attr-defined]
-        yaw_rate = speed * math.sin(beta) / half_length
+        yaw_rate = speed * math.sin(beta) / v.rear_axle  # type: ignore[attr-defined]
         heading = float(v.heading)  # type: ignore[attr-defined]
         x, y = float(v.position[0]), float(v.position[1])  # type: ignore[attr-defined]
         if fraction > 0.0:
@@ -205,7 +205,7 @@ class World:
             yaw=yaw,
             v=speed,
             yaw_rate=yaw_rate,
-            length=half_length * 2.0,
+            length=float(v.LENGTH),  # type: ignore[attr-defined]
             width=float(v.WIDTH),  # type: ignore[attr-defined]
             s=float(s),
             n=float(n),

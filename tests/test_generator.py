@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sim import ScenarioSpec, load_scenario
-from sim.generator import MIN_BUMPER_GAP, realize
-from sim.scenario import LaneChange, ScenarioError, parse_scenario
+from sim.generator import MIN_BUMPER_GAP, draw_traffic, realize
+from sim.scenario import GeneratorSpec, LaneChange, ScenarioError, parse_scenario
 from sim.world import World
 
 SEEDS = range(50)
@@ -146,3 +147,78 @@ def test_generator_errors(tmp_path: Path) -> None:
         load_scenario(path)
     with pytest.raises(ValueError, match="seed must be a non-negative integer"):
         realize(load_scenario("random-road"), -1)
+
+
+# -- vehicle classes --------------------------------------------------------------------------------
+def test_without_classes_the_draws_are_unchanged(random_road: ScenarioSpec) -> None:
+    """No ``classes``: seed 0 draws exactly the traffic it drew before classes existed (pinned)."""
+    spec = realize(random_road, 0)
+    assert spec.ego.s == 70.0 and spec.ego.speed == 19.091 and spec.ego.lane == 0
+    assert [(v.lane, v.s, v.speed, v.length, v.width, v.behaviour) for v in spec.vehicles] == [
+        (1, 151.132, 20.817, 4.661, 1.993, "scripted"),
+        (0, 116.672, 17.747, 4.623, 2.074, "idm"),
+        (1, 77.554, 20.578, 4.902, 1.758, "scripted"),
+        (0, 164.859, 12.62, 5.071, 1.852, "idm"),
+    ]
+
+
+CLASSES = {
+    "car": ((4.2, 5.2), (1.7, 2.1), 0.6),
+    "van": ((6.0, 6.0), (2.1, 2.1), 0.1),
+    "truck": ((10.0, 16.0), (2.5, 2.5), 0.2),
+    "motorcycle": ((2.2, 2.2), (0.8, 0.8), 0.1),
+}
+
+
+def _classed_generator(**extra: object) -> GeneratorSpec:
+    classes = [{"name": k, "length": list(L), "width": list(W), "share": p} for k, (L, W, p) in CLASSES.items()]
+    return GeneratorSpec.model_validate({"classes": classes, "lane_width": 3.75, **extra})
+
+
+def _class_of(length: float, width: float) -> str:
+    found = [k for k, (L, W, _) in CLASSES.items() if L[0] <= length <= L[1] and W[0] <= width <= W[1]]
+    assert len(found) == 1, (length, width)
+    return found[0]
+
+
+def test_classes_are_drawn_with_their_shares() -> None:
+    """4000 drawn vehicles: each class's frequency is within 4.5 binomial standard deviations of its
+    share, and every vehicle's size lies in its class's ranges."""
+    gen = _classed_generator(vehicles=[100, 100], spawn=[-50.0, 6000.0])
+    rng = np.random.default_rng(7)
+    drawn: list[str] = []
+    while len(drawn) < 4000:
+        _, vehicles = draw_traffic(gen, rng, 3, 7000.0, False, 10.0, 100.0)
+        drawn += [_class_of(v["length"], v["width"]) for v in vehicles]
+    drawn = drawn[:4000]
+    for name, (_, _, share) in CLASSES.items():
+        freq = drawn.count(name) / len(drawn)
+        assert abs(freq - share) < 4.5 * math.sqrt(share * (1 - share) / len(drawn)), (name, freq, share)
+    trucks = [v for v in drawn if v == "truck"]
+    assert len(trucks) > 600
+
+
+def test_classes_in_a_scenario_file_are_reproducible_and_valid() -> None:
+    spec = load_scenario("mixed-traffic")
+    names = {c.name: c for c in spec.generator.classes}
+    sizes = set()
+    for seed in range(6):
+        a = realize(spec, seed)
+        assert a.model_dump() == realize(spec, seed).model_dump()  # same seed, same traffic
+        for v in a.vehicles:
+            cls = [c for c in names.values() if c.length[0] <= v.length <= c.length[1] and c.width[0] <= v.width <= c.width[1]]
+            assert cls, (seed, v.length, v.width)
+            sizes.add(cls[0].name)
+    assert {"car", "truck"} <= sizes
+    assert realize(spec, 0).model_dump() != realize(spec, 1).model_dump()
+
+
+def test_long_drawn_vehicles_keep_the_bumper_gap() -> None:
+    gen = _classed_generator(vehicles=[12, 12], spawn=[-60.0, 200.0])
+    for seed in range(10):
+        ego, vehicles = draw_traffic(gen, np.random.default_rng(seed), 2, 2000.0, False, 10.0, 100.0)
+        cars = [ego, *vehicles]
+        for i, a in enumerate(cars):
+            for b in cars[i + 1 :]:
+                if a["lane"] == b["lane"]:
+                    assert abs(a["s"] - b["s"]) >= 0.5 * (a["length"] + b["length"]) + MIN_BUMPER_GAP - 1e-3

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import pytest
 
 from sim import ScenarioSpec, load_scenario
 from sim.cli import main
-from sim.scenario import SCENARIO_DIR, ScenarioError, apply_overrides, load_suite, parse_scenario
+from sim.scenario import SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite, parse_scenario
 
 STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
 
@@ -273,3 +274,121 @@ def test_apply_overrides() -> None:
         apply_overrides(_Config(), {"nois": 0.5}, "f.toml: sensors")
     with pytest.raises(ScenarioError, match="noise must be >= 0"):
         apply_overrides(_Config(), {"noise": -1.0}, "f.toml: sensors")
+
+
+# -- the hard suite and the vehicle sizes and maneuvers it needs ----------------------------------
+HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
+
+
+def test_hard_suite_lists_its_scenarios_and_is_not_standard(capsys: pytest.CaptureFixture[str]) -> None:
+    suite = load_suite("hard")
+    assert suite.name == "hard" and [p.stem for p in suite.paths] == HARD
+    specs = suite.load()
+    assert [s.name for s in specs] == HARD
+    assert all(15.0 <= s.duration <= 20.0 and "\n" not in s.description for s in specs)
+    assert not set(HARD) & set(STANDARD)
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out
+    assert "suite hard (hard.toml)" in out and all(f"{name}  " in out for name in HARD)
+
+
+def test_hard_suite_covers_the_vehicles_and_maneuvers_of_the_issue() -> None:
+    specs = {s.name: s for s in load_suite("hard").load()}
+    vehicles = [v for s in specs.values() for v in s.vehicles]
+    sizes = {(v.length, v.width) for v in vehicles}
+    assert any(8.0 <= length <= 18.0 and width == 2.5 for length, width in sizes)  # trucks and buses
+    assert max(length for length, _ in sizes) == 18.0
+    assert (6.0, 2.1) in sizes and (2.2, 0.8) in sizes  # a van, a motorcycle
+    brakes = [m for v in vehicles for m in v.maneuvers if isinstance(m, Brake)]
+    assert any(m.speed == 0.0 and 6.0 <= m.decel <= 8.0 for m in brakes)  # emergency stops
+    speedups = [m for v in vehicles for m in v.maneuvers if isinstance(m, SpeedChange)]
+    assert any(m.accel == 3.0 and m.speed >= 22.0 for m in speedups)  # hard acceleration
+    stop_and_go = specs["stop-and-go"]
+    assert max(sum(isinstance(m, Brake) and m.speed == 0.0 for m in v.maneuvers) for v in stop_and_go.vehicles) >= 2
+    assert any(v.behaviour == "constant" and v.speed == 0.0 for v in specs["standing-vehicle"].vehicles)
+    radii = {}
+    for name, spec in specs.items():
+        if spec.road is not None:
+            road = spec.build_road()
+            radii[name] = 1.0 / np.abs(road.curvature(np.linspace(0.0, road.length, 4000))).max()
+    assert radii["truck-hairpin"] == pytest.approx(40.0, rel=0.01) and radii["stop-and-go"] == pytest.approx(50.0, rel=0.01)
+    classes = specs["mixed-traffic"].generator.classes
+    assert {c.name for c in classes} == {"car", "van", "truck", "bus", "motorcycle"}
+
+
+def test_vehicle_sizes_and_standing_vehicles(tmp_path: Path) -> None:
+    text = GOOD + '\n[[vehicles]]\nlane = 0\ns = 120.0\nspeed = 0.0\nbehaviour = "constant"\nlength = 2.2\nwidth = 0.8\n'
+    text += '\n[[vehicles]]\nlane = 1\ns = 160.0\nspeed = 10.0\nlength = 18.0\nwidth = 2.5\n'
+    spec = load_scenario(write(tmp_path, text))
+    moto, bus = spec.vehicles[1], spec.vehicles[2]
+    assert (moto.length, moto.width, moto.speed, moto.max_speed()) == (2.2, 0.8, 0.0, 0.0)
+    assert (bus.length, bus.width) == (18.0, 2.5)
+    message = load_error(tmp_path, text.replace("width = 0.8", "width = 0.5"))
+    assert "vehicles[1].width = 0.5" in message and "greater than or equal to 0.6" in message
+    message = load_error(tmp_path, text.replace("length = 18.0", "length = 21.0"))
+    assert "vehicles[2].length = 21.0" in message and "less than or equal to 20" in message
+    # a long vehicle's rectangle counts for the start clearance: a bus centred 11 m behind a car overlaps it
+    message = load_error(tmp_path, text.replace("s = 160.0", "s = 71.0"))
+    assert "vehicles[2].s = 71.0: its rectangle overlaps vehicles[0]'s" in message
+
+
+def test_brake_and_speed_change_limits(tmp_path: Path) -> None:
+    ok = GOOD.replace('{ t = 1.0, kind = "lane_change", lane = 0, duration = 3.0 }',
+                      '{ t = 1.0, kind = "brake", decel = 8.0 }, { t = 3.0, kind = "speed", speed = 22.0, accel = 3.0 }')
+    brake, speed = load_scenario(write(tmp_path, ok)).vehicles[0].maneuvers
+    assert isinstance(brake, Brake) and (brake.speed, brake.decel) == (0.0, 8.0)
+    assert isinstance(speed, SpeedChange) and (speed.speed, speed.accel) == (22.0, 3.0)
+    message = load_error(tmp_path, ok.replace("decel = 8.0", "decel = 9.5"))
+    assert "vehicles[0].maneuvers[0].decel = 9.5" in message and "less than or equal to 9" in message
+    message = load_error(tmp_path, ok.replace("accel = 3.0", "accel = 0.0"))
+    assert "vehicles[0].maneuvers[1].accel = 0.0" in message and "greater than 0" in message
+
+
+# -- generator vehicle classes --------------------------------------------------------------------
+GENERATED = 'name = "g"\ndescription = "d"\nduration = 10.0\n[generator]\n'
+CLASSES = (
+    'classes = [{ name = "car", length = [4.2, 5.2], width = 2.0, share = 0.7 },'
+    ' { name = "truck", length = [10.0, 16.0], width = 2.5, share = 0.3 }]\n'
+)
+
+
+def test_generator_classes_parse(tmp_path: Path) -> None:
+    gen = load_scenario(write(tmp_path, GENERATED + CLASSES)).generator
+    car, truck = gen.classes
+    assert (car.name, car.length, car.width, car.share) == ("car", (4.2, 5.2), (2.0, 2.0), 0.7)
+    assert (truck.length, truck.width) == ((10.0, 16.0), (2.5, 2.5))
+    cumulative, lengths, widths = gen.class_bounds()
+    np.testing.assert_allclose(cumulative, [0.7, 1.0])
+    assert cumulative[-1] == 1.0
+    np.testing.assert_array_equal(lengths, [[4.2, 5.2], [10.0, 16.0]])
+    np.testing.assert_array_equal(widths, [[2.0, 2.0], [2.5, 2.5]])
+    assert load_scenario("random-road").generator.classes is None
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (("share = 0.3", "share = 0.25"), r"generator.classes share: the shares sum to 0.95 \(car 0.7, truck 0.25\); they must sum to 1"),
+        (("share = 0.3 }", "share = 0.3, colour = \"red\" }"), r"generator.classes\[1\].colour = 'red': unknown key; allowed keys here: name, length, width, share"),
+        (("share = 0.7", "share = 0.0"), r"generator.classes\[0\].share = 0.0: input should be greater than 0"),
+        (("[10.0, 16.0]", "[16.0, 10.0]"), r"generator.classes\[1\].length = \[16.0, 10.0\]: low must be <= high"),
+        (("[10.0, 16.0]", "22.0"), r"generator.classes\[1\].length = 22.0: must lie within \[2.0, 20.0\] m"),
+        (("[10.0, 16.0]", "\"long\""), r"generator.classes\[1\].length = 'long': must be a float"),
+        (("width = 2.5", "width = 3.2"), r"generator.classes\[1\].width = 3.2: must lie within \[0.6, 3.0\] m"),
+        (("name = \"truck\"", "name = \"car\""), r"generator.classes\[1\].name = 'car': class names must be unique"),
+        (("width = 2.0,", ""), r"generator.classes\[0\].width: missing"),
+    ],
+)
+def test_generator_class_errors_name_the_field(tmp_path: Path, change: tuple[str, str], expected: str) -> None:
+    message = load_error(tmp_path, GENERATED + CLASSES.replace(*change))
+    assert re.search(expected, message), message
+
+
+def test_generator_classes_exclude_length_and_fit_the_lanes(tmp_path: Path) -> None:
+    message = load_error(tmp_path, GENERATED + "length = [4.0, 5.0]\n" + CLASSES)
+    assert "generator.length: not used when generator.classes is given" in message
+    message = load_error(tmp_path, GENERATED + "lane_width = 2.8\n" + CLASSES)
+    assert "generator.classes[1].width = 2.5: widths must leave 0.5 m in a 2.8 m lane" in message
+    fixed_road = 'name = "g"\ndescription = "d"\nduration = 10.0\n[road]\nlanes = 2\nlane_width = 2.8\nsegments = [[500.0, 0.0, 0.0]]\n'
+    message = load_error(tmp_path, fixed_road + "[generator]\n" + CLASSES)
+    assert "generator.classes[1].width = 2.5: must be <= 2.3 m (this road's lane width - 0.5 m)" in message
