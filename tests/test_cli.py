@@ -30,7 +30,9 @@ def test_eot_run_writes_every_file(tmp_path):
         capture_output=True, text=True, env=env, timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "GOSPA mean (m)" in proc.stdout and "wrote 12 files" in proc.stdout
+    # 12 files, plus tracker_events.csv from the tracker's last_events
+    assert "GOSPA mean (m)" in proc.stdout and "wrote 13 files" in proc.stdout
+    assert (out / "tracker_events.csv").is_file()
     assert "diagnostics: losses and label changes by cause" in proc.stdout
     metrics = json.loads((out / "metrics.json").read_text())
     for key in DESIGN_KEYS:
