@@ -107,9 +107,7 @@ class Tracker:
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
         self._updated_labels: set[int] = set()
-        self._reported_labels: list[int] = []
         self._ever_reported: set[int] = set()
-        self._born_start = 1
         self.last_events: dict[str, list] = {"born": [], "updated": [], "missed": [], "dropped": [], "merged": []}
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
@@ -127,9 +125,8 @@ class Tracker:
         ego = frame.ego
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
-        self._reported_labels = [int(lab) for lab in self.mixture.labels[self._reported]] if len(self.mixture) else []
+        previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
         self._updated_labels = set()
-        self._born_start = self._next_label
         self._predict(dt)
         self._add_births(ego, s_ego)
         points, scanned = self._preprocess(frame)
@@ -140,7 +137,6 @@ class Tracker:
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
-        previous = self._reported_labels
         tracks = self._extract(frame.t)
         self._record_events(previous, tracks)
         return tracks
@@ -216,8 +212,8 @@ class Tracker:
                 groups = _duplicate_groups(rect)
                 # every component carrying a reported track's label belongs to that track's group
                 # (its unreported hypotheses: a missed-detection copy, a fragment's update)
-                lookup = dict(zip(self.mixture.labels[tracks].tolist(), groups.tolist()))
-                self._component_group = np.array([lookup.get(lab, -1) for lab in self.mixture.labels.tolist()], dtype=int)
+                same = self.mixture.labels[:, None] == self.mixture.labels[tracks][None, :]  # (C, T)
+                self._component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
                 owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
             component = distance_partition(points, cfg.distance)
             owner = _adopt_strays(component, owner)
@@ -376,7 +372,7 @@ class Tracker:
         reported = [tr.label for tr in tracks]
         alive = set(int(lab) for lab in self.mixture.labels)
         self.last_events = {
-            "born": [lab for lab in reported if lab >= self._born_start or lab not in self._ever_reported],
+            "born": [lab for lab in reported if lab not in self._ever_reported],
             "updated": [lab for lab in reported if lab in self._updated_labels],
             "missed": [lab for lab in previous if lab not in self._updated_labels],
             "dropped": [lab for lab in previous if lab not in alive],

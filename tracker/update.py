@@ -26,13 +26,11 @@ import numpy as np
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
-from tracker.motion import CARTESIAN_WRAPPING, curvilinear_wrapping
+from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
 LOG_2PI = float(np.log(2.0 * np.pi))
-#: State indices of the extent.
-LENGTH, WIDTH = 5, 6
 
 
 @dataclass(frozen=True)
