@@ -205,6 +205,10 @@ class MeasurementConfig:
       prior (no short side fully: ``W``), the Schmidt ("consider") update of ``tracker.update.
       hold_unobserved_extent``; ``False`` is the plain UKF update (the paper), where ``L`` drifts with
       every along-track innovation while only the rear is in view.
+    - ``grow_extent``: when a side's points run well past the predicted rectangle (a truck tracked
+      from its rear shows its side), the pair's prior gets the excess as variance of the extent, anchored
+      at the end nearest the sensor, before the update (``tracker.update.grow_extent``); ``False``: the
+      prior is used as is (the paper), and the side's innovation usually fails the gate.
     """
 
     lidar_sigma: float = 0.1
@@ -216,6 +220,7 @@ class MeasurementConfig:
     end_gap_correction: bool = True
     radar_rows: Literal["speed", "velocity"] = "speed"
     hold_unobserved_extent: bool = True
+    grow_extent: bool = True
 
     def __post_init__(self) -> None:
         _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
@@ -230,6 +235,8 @@ class MeasurementConfig:
         _check_choice("MeasurementConfig", "radar_rows", self.radar_rows, ("speed", "velocity"))
         if not isinstance(self.hold_unobserved_extent, bool):
             raise ValueError(f"MeasurementConfig.hold_unobserved_extent must be true or false; got {self.hold_unobserved_extent!r}")
+        if not isinstance(self.grow_extent, bool):
+            raise ValueError(f"MeasurementConfig.grow_extent must be true or false; got {self.grow_extent!r}")
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ import numpy as np
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
-from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, curvilinear_wrapping
+from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
@@ -172,12 +172,76 @@ def update_pairs(
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
     batch = ClusterBatch.of(clusters)
     structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
-    z_sigma = predict_measurements(rect.take(inverse), structure)
-    res = kalman_update(ut, sigma[inverse], means[comp], covs[comp], z_sigma, structure.z, structure.r,
+    pair_means, pair_covs = means[comp], covs[comp]
+    pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
+    if config.measurement.grow_extent:
+        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse])
+        if grown.any():  # new sigma points for the pairs whose prior was widened (rare: a side came into view)
+            pair_covs = grown_covs
+            pair_sigma = pair_sigma.copy()
+            pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
+            pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates)
+    z_sigma = predict_measurements(pair_rect, structure)
+    res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
                         structure.mask, wrapping, structure.factors)
     if config.measurement.hold_unobserved_extent:
-        hold_unobserved_extent(res, means[comp], covs[comp], structure)
+        hold_unobserved_extent(res, pair_means, pair_covs, structure)
     return res
+
+
+#: A side's measured extent must exceed its predicted length by more than this (m) and by more than
+#: ``GROWTH_SIGMAS`` standard deviations of the extent before ``grow_extent`` widens the prior.
+GROWTH_MIN_EXCESS = 0.5
+GROWTH_SIGMAS = 2.0
+
+
+def grow_extent(
+    means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Widen the prior of pairs whose cluster shows a side longer than the predicted rectangle's.
+
+    A track born from a truck's rear has a car's length prior (``BirthConfig.length`` 4.5 +- 1 m). When
+    the truck's side comes into view its points run 5-15 m past the predicted rectangle: the innovation
+    is far outside the gate, the track is not updated, and a newborn takes the cluster (issue 10,
+    stop-and-go: 25 ID switches per run). A side's measured extent is a lower bound of its length,
+    so an excess ``e = extent - predicted`` (``Structure.excess``) above ``max(GROWTH_MIN_EXCESS,
+    GROWTH_SIGMAS sqrt(P[L, L]))`` is evidence that the prior is wrong, not noise. The prior then gets
+    the variance ``e^2`` along the direction in which the vehicle can grow while the end nearest the
+    sensor stays put::
+
+        P += e^2 d d^T,   d = 0.5 sgn (cos h, sin h) in the position slots, 1 in the L slot
+
+    (``h`` = ``xi`` (``psi``) of the mean, ``sgn`` = +1 when the sensor is behind the centre along the
+    body axis), and likewise ``W`` with the left normal ``(-sin h, cos h)`` for a short side; the update
+    then learns the extent from the side itself. Returns the mask of widened pairs ``(P,)`` and the
+    covariances (a copy; unchanged where the mask is False)."""
+    corners = np.asarray(mean_corners, dtype=float)
+    centre = corners.mean(axis=1)  # (P, 2) in E
+    axis = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis
+    axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
+    left = np.stack([-axis[:, 1], axis[:, 0]], axis=-1)
+    long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
+    excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
+    h = means[:, XI]
+    out = covs.copy()
+    grown = np.zeros(len(means), dtype=bool)
+    for index, is_part, direction, unit in (
+        (LENGTH, long_part, axis, np.stack([np.cos(h), np.sin(h)], -1)),
+        (WIDTH, ~long_part, left, np.stack([-np.sin(h), np.cos(h)], -1)),
+    ):
+        e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
+        sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
+        hit = e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
+        if not hit.any():
+            continue
+        sgn = np.where(np.einsum("pd,pd->p", centre, direction) >= 0.0, 1.0, -1.0)
+        d = np.zeros((len(means), 7))
+        d[:, :2] = 0.5 * sgn[:, None] * unit
+        d[:, index] = 1.0
+        add = np.where(hit, e, 0.0)[:, None, None] ** 2 * d[:, :, None] * d[:, None, :]
+        out += add
+        grown |= hit
+    return grown, out
 
 
 def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> None:
