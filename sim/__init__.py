@@ -1,14 +1,28 @@
 """frenet-eot simulation testbed: scenarios, traffic, sensors, evaluation, CLI.
 
 ``sim`` imports ``tracker``; ``tracker`` never imports ``sim``. ``sim.run_scenario`` (and
-``sim.Result``) are imported on first use, so ``import sim`` stays light.
+``sim.Result``) are imported on first use, so ``import sim`` stays light; it does register the
+gymnasium environment ``eot/TrackedRoad-v0`` (``sim.env``, imported when the env is made).
 """
 
 from typing import Any
 
 from sim.scenario import ScenarioError, ScenarioSpec, load_scenario, load_suite
 
-__all__ = ["Result", "ScenarioError", "ScenarioSpec", "load_scenario", "load_suite", "run_scenario"]
+#: The gymnasium id of ``sim.env.TrackedRoadEnv``.
+ENV_ID = "eot/TrackedRoad-v0"
+
+
+def _register_env() -> None:
+    from gymnasium.envs.registration import register, registry
+
+    if ENV_ID not in registry:
+        register(id=ENV_ID, entry_point="sim.env:TrackedRoadEnv")
+
+
+_register_env()
+
+__all__ = ["ENV_ID", "Result", "ScenarioError", "ScenarioSpec", "load_scenario", "load_suite", "run_scenario"]
 
 
 def __getattr__(name: str) -> Any:

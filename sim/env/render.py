@@ -1,0 +1,108 @@
+"""``render_mode = "rgb_array"`` of ``eot/TrackedRoad-v0``, drawn with matplotlib's Agg canvas.
+
+highway-env's pygame viewer draws black frames under ``SDL_VIDEODRIVER=dummy``; this renderer needs no
+display at all (``matplotlib.figure.Figure`` + ``FigureCanvasAgg``, never pyplot). The view follows the
+ego, north up, ``view_half_width`` m each way: road edges and lane lines, the other vehicles' true
+outlines (grey), the ego (black), the latest lidar scan (green points), the radar detections of the
+latest frame (red crosses, 0.5 s velocity arrows), and the tracks as filled rectangles coloured and
+labelled by track label (none with ``perception = "truth"``). The frame is ``(screen_height, screen_width, 3)`` uint8.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.figure import Figure
+
+from sim.plots import label_color
+from sim.truth import rectangle_corners
+from tracker.track import curvilinear_to_cartesian
+from tracker.transforms import rotate, to_global
+
+if TYPE_CHECKING:
+    from sim.env.core import TrackedRoadEnv
+
+_DPI = 100
+
+
+class Renderer:
+    """Draws frames of one environment (the figure is made once and reused)."""
+
+    def __init__(self, env: TrackedRoadEnv) -> None:
+        s = env.settings
+        self.env = env
+        self.size = (int(s.screen_width), int(s.screen_height))
+        self.fig = Figure(figsize=(self.size[0] / _DPI, self.size[1] / _DPI), dpi=_DPI)
+        self.canvas = FigureCanvasAgg(self.fig)
+        self.ax = self.fig.add_axes((0.0, 0.0, 1.0, 1.0))
+
+    def draw(self) -> np.ndarray:
+        """The current frame as an RGB array."""
+        env = self.env
+        ax = self.ax
+        ax.clear()
+        ax.set_facecolor("#f4f4f0")
+        ax.set_axis_off()
+        road = env.world.road
+        ego = env.world.ego_state()
+        half = float(env.settings.view_half_width)
+        # road: edges and lane lines over the window around the ego
+        s = ego.s + np.linspace(-1.6 * half, 1.6 * half, 161)
+        if road.closed:
+            s = np.mod(s, road.length)
+        else:
+            s = s[(s >= 0.0) & (s <= road.length)]
+        if len(s) >= 2:
+            offsets = [road.right_edge + k * road.lane_width for k in range(road.lanes + 1)]
+            lines = [road.to_cartesian(s, np.full_like(s, n)) for n in offsets]
+            breaks = np.flatnonzero(np.abs(np.diff(s)) > 0.5 * road.length) + 1 if road.closed else []
+            for k, xy in enumerate(lines):
+                edge = k in (0, road.lanes)
+                for part in np.split(xy, breaks):
+                    ax.plot(part[:, 0], part[:, 1], color="0.3" if edge else "0.6", lw=1.4 if edge else 0.8,
+                            ls="-" if edge else (0, (6, 6)))
+        frame = env.last_frame
+        if frame is not None:
+            snap = frame.truth
+            pose = ((snap.ego.x, snap.ego.y), snap.ego.yaw)
+            if len(snap):
+                ax.add_collection(PolyCollection(snap.corners(), facecolors="none", edgecolors="0.35", linewidths=1.2))
+            pts = to_global(np.asarray(frame.frame.lidar).reshape(-1, 2), *pose).reshape(-1, 2)
+            ax.scatter(pts[:, 0], pts[:, 1], s=2.0, c="#2ca02c", zorder=6)
+            radar = frame.frame.radar
+            if len(radar):
+                rxy = to_global(radar.xy, *pose).reshape(-1, 2)
+                rv = rotate(radar.velocity, snap.ego.yaw).reshape(-1, 2)
+                ax.scatter(rxy[:, 0], rxy[:, 1], s=22.0, marker="x", c="#d62728", zorder=6)
+                ax.add_collection(LineCollection(np.stack([rxy, rxy + 0.5 * rv], axis=1), colors="#d62728", zorder=6))
+        e = env.world.ego
+        ax.add_collection(PolyCollection(
+            rectangle_corners(np.array([e.position]), np.array([e.heading]), np.array([e.LENGTH]), np.array([e.WIDTH])),
+            facecolors="k", edgecolors="k", alpha=0.8, zorder=5))
+        tracks = env.tracks
+        if tracks:
+            state = curvilinear_to_cartesian(road, np.stack([tr.mean for tr in tracks])).reshape(-1, 7)
+            corners = rectangle_corners(state[:, :2], state[:, 3], state[:, 5], state[:, 6])
+            colors = [label_color(tr.label) for tr in tracks]
+            ax.add_collection(PolyCollection(corners, facecolors=colors, edgecolors=colors, alpha=0.45, zorder=7))
+            for k, tr in enumerate(tracks):
+                ax.text(state[k, 0], state[k, 1] + 2.0, str(tr.label), color=colors[k], fontsize=9, ha="center",
+                        va="bottom", zorder=8, clip_on=True)
+        ax.set_xlim(e.position[0] - half, e.position[0] + half)
+        ax.set_ylim(e.position[1] - half * self.size[1] / self.size[0], e.position[1] + half * self.size[1] / self.size[0])
+        ax.set_aspect("equal", adjustable="box")
+        ax.text(0.01, 0.99, f"t = {env.sim_time:5.1f} s  v = {ego.v:4.1f} m/s  {env.settings.perception}"
+                + (f" ({env.settings.variant}): {len(tracks)} tracks" if env.settings.perception == "tracks" else ""),
+                transform=ax.transAxes, fontsize=9, va="top", ha="left")
+        self.canvas.draw()
+        rgba = np.asarray(self.canvas.buffer_rgba())
+        return np.ascontiguousarray(rgba[: self.size[1], : self.size[0], :3])
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+__all__ = ["Renderer"]
