@@ -17,6 +17,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from tracker.frame import RadarDetections
+
 
 def points_in_rectangles(
     points: np.ndarray,
@@ -92,3 +94,18 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
             out[r] = c
             used_r[c] = True
     return out
+
+
+def cluster_velocities(clusters: list[np.ndarray], radar: RadarDetections, t: float, gate: float) -> list[np.ndarray | None]:
+    """Per cluster, the absolute velocity ``(vx, vy)`` (m/s, E axes) of its associated radar detection,
+    or None. Each detection is first moved to the frame time ``t`` with its own velocity (a radar
+    scan is up to one lidar period old), then ``associate_radar`` pairs them within ``gate`` metres."""
+    velocities: list[np.ndarray | None] = [None] * len(clusters)
+    if len(radar) == 0 or not clusters:
+        return velocities
+    lag = t - radar.t
+    radar_xy = np.column_stack([radar.x + radar.vx * lag, radar.y + radar.vy * lag])
+    for k, r in enumerate(associate_radar(clusters, radar_xy, gate)):
+        if r >= 0:
+            velocities[k] = np.array([radar.vx[r], radar.vy[r]])
+    return velocities

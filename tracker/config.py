@@ -209,6 +209,11 @@ class MeasurementConfig:
       from its rear shows its side), the pair's prior gets the excess as variance of the extent, anchored
       at the end nearest the sensor, before the update (``tracker.update.grow_extent``); ``False``: the
       prior is used as is (the paper), and the side's innovation usually fails the gate.
+    - ``conversion``: how the measurement model takes a curvilinear state to E: ``"exact"`` (default,
+      the centerline ``c(s) + n (-sin theta, cos theta)``) or ``"euler"`` (the paper's Algorithm 1:
+      Euler integration of the local cubic heading polynomial fitted around the ego,
+      ``tracker.road.Road.frame_euler``; its error grows with the distance from the ego and the
+      road's departure from a cubic heading within 30 m). Curvilinear states only.
     """
 
     lidar_sigma: float = 0.1
@@ -221,6 +226,7 @@ class MeasurementConfig:
     radar_rows: Literal["speed", "velocity"] = "speed"
     hold_unobserved_extent: bool = True
     grow_extent: bool = True
+    conversion: Literal["exact", "euler"] = "exact"
 
     def __post_init__(self) -> None:
         _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
@@ -237,6 +243,7 @@ class MeasurementConfig:
             raise ValueError(f"MeasurementConfig.hold_unobserved_extent must be true or false; got {self.hold_unobserved_extent!r}")
         if not isinstance(self.grow_extent, bool):
             raise ValueError(f"MeasurementConfig.grow_extent must be true or false; got {self.grow_extent!r}")
+        _check_choice("MeasurementConfig", "conversion", self.conversion, ("exact", "euler"))
 
 
 @dataclass(frozen=True)
@@ -397,6 +404,37 @@ class ClusteringConfig:
         _check_int("ClusteringConfig", "min_points", self.min_points, 1)
 
 
+@dataclass(frozen=True)
+class PointConfig:
+    """The point-object GNN tracker (``TrackerConfig.object_model = "point"``, ``tracker.point``).
+
+    - ``centroid_sigma`` (m): std of a cluster centroid about the tracked point, per axis in E; large
+      because the centroid of the visible points moves on the vehicle as the aspect changes;
+    - ``confirm_hits``, ``confirm_window``: a tentative track is confirmed (reported) after
+      ``confirm_hits`` associations within its last ``confirm_window`` frames (M-of-N logic);
+    - ``max_misses``: a track is deleted after this many consecutive frames without an association;
+    - ``tentative_max_misses``: the same for a track not yet confirmed.
+
+    Gating uses ``GatingConfig`` (pre-gate distance, chi-square probability), births ``BirthConfig``
+    (spreads, minimum points), the radar noise ``MeasurementConfig.radar_velocity_sigma``.
+    """
+
+    centroid_sigma: float = 0.5
+    confirm_hits: int = 3
+    confirm_window: int = 5
+    max_misses: int = 5
+    tentative_max_misses: int = 2
+
+    def __post_init__(self) -> None:
+        _check("PointConfig", "centroid_sigma", self.centroid_sigma, low=0.0, low_open=True, unit="m")
+        for name in ("confirm_hits", "confirm_window", "max_misses", "tentative_max_misses"):
+            _check_int("PointConfig", name, getattr(self, name), 1)
+        if self.confirm_hits > self.confirm_window:
+            raise ValueError(
+                f"PointConfig.confirm_hits ({self.confirm_hits}) must be <= confirm_window ({self.confirm_window})"
+            )
+
+
 _SECTIONS: dict[str, type] = {
     "process_noise": ProcessNoise,
     "ukf": UKFParams,
@@ -407,6 +445,7 @@ _SECTIONS: dict[str, type] = {
     "gating": GatingConfig,
     "reduction": ReductionConfig,
     "clustering": ClusteringConfig,
+    "point": PointConfig,
 }
 
 
@@ -416,8 +455,9 @@ class TrackerConfig:
 
     - ``coordinates``: ``"curvilinear"`` (the paper: state ``[s, n, v, xi, xi_dot, L, W]``, default)
       or ``"cartesian"`` (same EOT with state ``[x, y, v, psi, psi_dot, L, W]`` in G);
-    - ``object_model``: ``"extended"`` (rectangle EOT, default) or ``"point"`` (the point-object GNN
-      variant of the multi-target layer);
+    - ``object_model``: ``"extended"`` (rectangle EOT, default) or ``"point"`` (point objects on
+      cluster centroids, global nearest neighbour, a UKF in curvilinear coordinates: ``tracker.point``;
+      curvilinear only);
     - ``use_radar``: fuse radar velocity rows into clusters with an associated radar detection;
     - the sections (see their classes for units and defaults).
     """
@@ -434,10 +474,14 @@ class TrackerConfig:
     gating: GatingConfig = field(default_factory=GatingConfig)
     reduction: ReductionConfig = field(default_factory=ReductionConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+    point: PointConfig = field(default_factory=PointConfig)
 
     def __post_init__(self) -> None:
         _check_choice("TrackerConfig", "coordinates", self.coordinates, ("curvilinear", "cartesian"))
         _check_choice("TrackerConfig", "object_model", self.object_model, ("extended", "point"))
+        if self.object_model == "point" and self.coordinates != "curvilinear":
+            raise ValueError("TrackerConfig: object_model='point' tracks in curvilinear coordinates only; "
+                             "set coordinates='curvilinear'")
         if not isinstance(self.use_radar, bool):
             raise ValueError(f"TrackerConfig.use_radar must be true or false; got {self.use_radar!r}")
         for name, cls in _SECTIONS.items():

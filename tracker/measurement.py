@@ -157,13 +157,16 @@ def visible_sides(corners: np.ndarray, sensor: np.ndarray | None = None) -> np.n
 
 
 def to_vehicle(
-    states: np.ndarray, ego: EgoState | tuple, road: Road | None = None, coordinates: Coordinates = "curvilinear"
+    states: np.ndarray, ego: EgoState | tuple, road: Road | None = None, coordinates: Coordinates = "curvilinear",
+    euler_s0: float | None = None,
 ) -> Rectangles:
     """States ``(..., 7)`` as rectangles in E (module docstring). ``ego`` is an ``EgoState`` or
     ``(x, y, yaw[, v, yaw_rate])`` in G. Curvilinear states need ``road`` (open roads extrapolate along
     their end tangents) and use the exact conversion ``c(s) + n (-sin theta, cos theta)``: ``n`` positive
     to the left (the paper's Algorithm 1 writes the normal as ``(cos(pi/2 - theta), sin(pi/2 - theta))``,
-    which points right; ``Road.to_cartesian(method="euler")`` has the paper's integration if wanted)."""
+    which points right). With ``euler_s0`` (the ego's arc length, m) a curvilinear state goes through
+    the paper's Euler conversion instead (``Road.frame_euler``: Algorithm 1, the local cubic heading
+    polynomial around ``euler_s0``), the ``paper`` variant's measurement model."""
     ego = EgoState.coerce(ego)
     x = np.asarray(states, dtype=float)
     if x.shape[-1] != 7:
@@ -171,7 +174,10 @@ def to_vehicle(
     if coordinates == "curvilinear":
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")
-        xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
+        if euler_s0 is None:
+            xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
+        else:
+            xy, theta = road.frame_euler(x[..., 0], euler_s0)
         n = x[..., 1]
         gx = xy[..., 0] - n * np.sin(theta) - ego.x
         gy = xy[..., 1] + n * np.cos(theta) - ego.y

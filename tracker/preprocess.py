@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker.config import ClusteringConfig
+from tracker.frame import Frame
 from tracker.road import Road
+from tracker.transforms import to_global
 
 
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -45,3 +48,20 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
     first = np.ones(len(order), dtype=bool)
     first[1:] = bins[order][1:] != bins[order][:-1]
     return order[first]
+
+
+def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """The three steps on one frame's lidar points (E): returns ``(scan, points, counts)`` -- every
+    finite return (occluders for the detection model), the points kept for clustering, and how many
+    each step removed (``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``)."""
+    ego = frame.ego
+    scan, dropped = drop_nonfinite(frame.lidar)
+    counts = {"points_nonfinite": dropped, "points_off_road": 0, "points_bearing_filtered": 0}
+    if len(scan) == 0:
+        return scan, scan, counts
+    on_road = road_bound_mask(to_global(scan, (ego.x, ego.y), ego.yaw), road, config.road_margin)
+    counts["points_off_road"] = int((~on_road).sum())
+    pts = scan[on_road]
+    keep = bearing_filter(pts, config.bearing_bin)
+    counts["points_bearing_filtered"] = len(pts) - len(keep)
+    return scan, pts[keep], counts

@@ -542,7 +542,17 @@ class Road:
         """The paper's local curvature polynomial around ``s0``, like ``heading_poly`` (1/m)."""
         return self._local_fit(s0, 2, horizon, behind)
 
-    def _to_cartesian_euler(self, s: np.ndarray, n: np.ndarray, s0: float, step: float, horizon: float) -> np.ndarray:
+    def frame_euler(self, s: ArrayLike, s0: float, step: float = 0.5, horizon: float = POLY_HORIZON) -> tuple[np.ndarray, np.ndarray]:
+        """The paper's Algorithm 1 without the lateral offset: centerline points ``s.shape + (2,)`` in G
+        and headings ``s.shape`` (rad) at arc lengths ``s``, integrated in Euler steps of ``step`` metres
+        from the centerline point at ``s0`` along the local cubic heading polynomial (``heading_poly``
+        fitted over ``[s0 - horizon, s0 + horizon]``); the heading is the polynomial's. Vectorised."""
+        s_arr = _as_float_array(s, "s")
+        if not step > 0:
+            raise ValueError(f"step must be > 0 m; got {step!r}")
+        shape = s_arr.shape
+        s = s_arr.reshape(-1)
+        s0 = float(s0)
         d = s - s0
         if self.closed:
             d = wrap_angle(d * (2.0 * np.pi / self.length)) * (self.length / (2.0 * np.pi))
@@ -563,4 +573,8 @@ class Road:
         theta_end = np.polyval(poly, d)
         tail = (sign * rem)[:, None] * np.column_stack([np.cos(theta_end), np.sin(theta_end)])
         center = start + base + tail
-        return center + n[:, None] * np.column_stack([-np.sin(theta_end), np.cos(theta_end)])
+        return center.reshape(shape + (2,)), theta_end.reshape(shape)
+
+    def _to_cartesian_euler(self, s: np.ndarray, n: np.ndarray, s0: float, step: float, horizon: float) -> np.ndarray:
+        center, theta = self.frame_euler(s, s0, step, horizon)
+        return center + n[:, None] * np.column_stack([-np.sin(theta), np.cos(theta)])

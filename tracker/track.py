@@ -67,13 +67,16 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 class Track:
     """One reported target: ``label`` (stable integer id), time ``t`` (s), curvilinear ``mean (7,)``
     ``[s, n, v, xi, xi_dot, L, W]`` and ``cov (7, 7)`` (SI units), and the GM-PHD ``weight``.
-    Arrays are copied and read-only. ``cartesian(road)`` gives ``[x, y, v, psi, psi_dot, L, W]`` in G."""
+    Arrays are copied and read-only. ``cartesian(road)`` gives ``[x, y, v, psi, psi_dot, L, W]`` in G.
+    ``extent`` is False for a point-object track (``tracker.point``): its ``L`` and ``W`` are the size the
+    tracker assumes, not estimates, and evaluators must not score them."""
 
     label: int
     t: float
     mean: np.ndarray
     cov: np.ndarray
     weight: float = 1.0
+    extent: bool = True
 
     def __post_init__(self) -> None:
         mean = np.array(self.mean, dtype=float).reshape(-1)
@@ -87,6 +90,7 @@ class Track:
         object.__setattr__(self, "label", int(self.label))
         object.__setattr__(self, "t", float(self.t))
         object.__setattr__(self, "weight", float(self.weight))
+        object.__setattr__(self, "extent", bool(self.extent))
         object.__setattr__(self, "mean", _readonly(mean))
         object.__setattr__(self, "cov", _readonly(cov))
 

@@ -52,17 +52,17 @@ from scipy.sparse.csgraph import connected_components
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
-from tracker.clustering import associate_radar, distance_partition, points_in_rectangles
+from tracker.clustering import cluster_velocities, distance_partition, points_in_rectangles
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
 from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
 from tracker.motion import make_motion, predict
-from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
+from tracker.point import PointTracker
+from tracker.preprocess import preprocess_frame
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
 from tracker.track import Track
-from tracker.transforms import to_global
 from tracker.ukf import UnscentedTransform
 from tracker.update import state_wrapping, update_pairs
 
@@ -82,14 +82,19 @@ class Tracker:
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
 
+    def __new__(cls, road: Road | None = None, config: TrackerConfig | None = None) -> Tracker:
+        """``Tracker(road, config)`` with ``config.object_model == "point"`` builds the point-object GNN
+        tracker (``tracker.point.PointTracker``: the same ``step``, ``stats`` and ``last_events``)."""
+        if cls is Tracker and isinstance(config, TrackerConfig) and config.object_model == "point":
+            return PointTracker(road, config)  # type: ignore[return-value]
+        return super().__new__(cls)
+
     def __init__(self, road: Road, config: TrackerConfig | None = None) -> None:
         if not isinstance(road, Road):
             raise ValueError(f"Tracker needs a tracker.Road; got {type(road).__name__}")
         config = TrackerConfig() if config is None else config
         if not isinstance(config, TrackerConfig):
             raise ValueError(f"Tracker config must be a TrackerConfig; got {type(config).__name__}")
-        if config.object_model != "extended":
-            raise ValueError("object_model='point' (the point-object GNN variant) is not built yet; use 'extended'")
         self.road = road
         self.config = config
         self.cartesian = config.coordinates == "cartesian"
@@ -184,19 +189,9 @@ class Tracker:
 
     def _preprocess(self, frame: Frame) -> tuple[np.ndarray, bool]:
         """Points kept for clustering, and whether the frame had any finite lidar point at all."""
-        cfg = self.config.clustering
-        ego = frame.ego
-        pts, dropped = drop_nonfinite(frame.lidar)
-        self.stats["points_nonfinite"] += dropped
-        self._scan = pts  # every finite return, on and off the road: occluders for the detection model
-        if len(pts) == 0:
-            return pts, False
-        on_road = road_bound_mask(to_global(pts, (ego.x, ego.y), ego.yaw), self.road, cfg.road_margin)
-        self.stats["points_off_road"] += int((~on_road).sum())
-        pts = pts[on_road]
-        keep = bearing_filter(pts, cfg.bearing_bin)
-        self.stats["points_bearing_filtered"] += len(pts) - len(keep)
-        return pts[keep], True
+        self._scan, points, counts = preprocess_frame(frame, self.road, self.config.clustering)
+        self.stats.update(counts)
+        return points, len(self._scan) > 0
 
     def _cluster(self, points: np.ndarray, frame: Frame) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
         cfg = self.config.clustering
@@ -229,14 +224,8 @@ class Tracker:
         clusters = [c for c, keep in zip(clusters, big) if keep]
         self._owned = owned[big] if len(big) else np.zeros(0, dtype=int)
         velocities: list[np.ndarray | None] = [None] * len(clusters)
-        radar = frame.radar
-        if self.config.use_radar and len(radar) and clusters:
-            lag = frame.t - radar.t  # move each detection to the frame time with its own velocity
-            radar_xy = np.column_stack([radar.x + radar.vx * lag, radar.y + radar.vy * lag])
-            match = associate_radar(clusters, radar_xy, cfg.radar_gate)
-            for k, r in enumerate(match):
-                if r >= 0:
-                    velocities[k] = np.array([radar.vx[r], radar.vy[r]])
+        if self.config.use_radar:
+            velocities = cluster_velocities(clusters, frame.radar, frame.t, cfg.radar_gate)
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities

@@ -167,8 +167,12 @@ def update_pairs(
         return UpdateResult(np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
                             np.zeros((0, d)), np.zeros((0, d)))
     used, inverse = np.unique(comp, return_inverse=True)
+    euler_s0 = None
+    if config.measurement.conversion == "euler" and config.coordinates == "curvilinear":
+        ego_state = EgoState.coerce(ego)
+        euler_s0 = float(road.to_frenet((ego_state.x, ego_state.y))[0])  # the paper integrates from the ego
     sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
-    rect = to_vehicle(sigma, ego, road, config.coordinates)  # (U, S) rectangles in E
+    rect = to_vehicle(sigma, ego, road, config.coordinates, euler_s0)  # (U, S) rectangles in E
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
     batch = ClusterBatch.of(clusters)
     structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
@@ -180,7 +184,7 @@ def update_pairs(
             pair_covs = grown_covs
             pair_sigma = pair_sigma.copy()
             pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
-            pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates)
+            pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
     z_sigma = predict_measurements(pair_rect, structure)
     res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
                         structure.mask, wrapping, structure.factors)
