@@ -25,8 +25,9 @@ own ``n, v, xi, xi_dot, L, W`` (odometry, exact). Rows 1.. are the other vehicle
 - ``perception = "truth"``: the vehicles a perfect tracker would report at that frame -- the runner's
   scored truth set (centre within the lidar range and on the road, occluded ones included).
 
-So "truth" and "tracks" differ only by the tracker. With ``normalize = True`` each column but
-``present`` and ``label`` is divided by ``SCALES`` and clipped to [-1, 1].
+So "truth" and "tracks" differ only by the tracker. Values are clipped into ``LIMITS`` (generous
+physical bounds). With ``normalize = True`` each column but ``present`` and ``label`` is divided by
+``SCALES`` and clipped to [-1, 1].
 """
 
 from __future__ import annotations
@@ -53,18 +54,24 @@ _SCALE_ROW = np.array([SCALES.get(c, 1.0) for c in COLUMNS])
 _SCALED = np.array([c in SCALES for c in COLUMNS])
 
 
+#: Bounds of the unnormalised columns (values outside, e.g. a diverged track's, are clipped into them).
+LIMITS = {"present": (0.0, 1.0), "ds": (-1e4, 1e4), "n": (-100.0, 100.0), "v": (0.0, 100.0), "xi": (-np.pi, np.pi),
+          "xi_dot": (-10.0, 10.0), "length": (0.0, 50.0), "width": (0.0, 10.0), "sigma_s": (0.0, 1e4),
+          "sigma_n": (0.0, 1e4), "label": (0.0, 2.0**24)}
+_LOW = np.array([LIMITS[c][0] for c in COLUMNS])
+_HIGH = np.array([LIMITS[c][1] for c in COLUMNS])
+
+
 def observation_space(max_tracks: int, normalize: bool) -> spaces.Box:
-    """The ``Box`` of the observation (module docstring)."""
-    low = np.full(len(COLUMNS), -np.inf, dtype=np.float32)
-    high = np.full(len(COLUMNS), np.inf, dtype=np.float32)
-    low[COL["present"]], high[COL["present"]] = 0.0, 1.0
-    for c in ("v", "length", "width", "sigma_s", "sigma_n", "label"):
-        low[COL[c]] = 0.0
+    """The ``Box`` of the observation: ``LIMITS`` per column, or [-1, 1] for the scaled columns with
+    ``normalize`` (``[0, 1]`` where the column is non-negative)."""
+    low, high = _LOW.copy(), _HIGH.copy()
     if normalize:
-        low[_SCALED] = np.maximum(low[_SCALED], -1.0)
-        high[_SCALED] = 1.0
+        low[_SCALED] = np.maximum(low[_SCALED] / _SCALE_ROW[_SCALED], -1.0)
+        high[_SCALED] = np.minimum(high[_SCALED] / _SCALE_ROW[_SCALED], 1.0)
     rows = 1 + int(max_tracks)
-    return spaces.Box(np.tile(low, (rows, 1)), np.tile(high, (rows, 1)), dtype=np.float32)
+    return spaces.Box(np.tile(low, (rows, 1)).astype(np.float32), np.tile(high, (rows, 1)).astype(np.float32),
+                      dtype=np.float32)
 
 
 def build_rows(ego: np.ndarray, others: np.ndarray, max_tracks: int, normalize: bool) -> np.ndarray:
@@ -75,6 +82,7 @@ def build_rows(ego: np.ndarray, others: np.ndarray, max_tracks: int, normalize: 
     if len(others):
         order = np.argsort(np.abs(others[:, COL["ds"]]), kind="stable")[:max_tracks]
         obs[1 : 1 + len(order)] = others[order]
+    obs = np.clip(obs, _LOW, _HIGH)
     if normalize:
         obs[:, _SCALED] = np.clip(obs[:, _SCALED] / _SCALE_ROW[_SCALED], -1.0, 1.0)
     return obs.astype(np.float32)
@@ -143,4 +151,4 @@ def rows_to_dicts(obs: np.ndarray) -> list[dict[str, Any]]:
     return [dict(zip(COLUMNS, map(float, row))) for row in np.asarray(obs) if row[0] > 0.5]
 
 
-__all__ = ["COL", "COLUMNS", "SCALES", "TrackObservation", "build_rows", "denormalize", "observation_space", "rows_to_dicts"]
+__all__ = ["COL", "COLUMNS", "LIMITS", "SCALES", "TrackObservation", "build_rows", "denormalize", "observation_space", "rows_to_dicts"]

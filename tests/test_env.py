@@ -1,0 +1,180 @@
+"""eot/TrackedRoad-v0 (sim.env): gymnasium API, determinism, vector env, observation, config errors,
+actions, reward, rendering. Episodes are kept to a few simulated seconds."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import sim  # noqa: F401  (registers the env)
+from sim.env import COL, ConfigError, EnvConfig, TrackedRoadEnv
+from sim.env.observation import SCALES, denormalize
+
+IDLE = 1  # meta-action index (0 LANE_LEFT, 1 IDLE, 2 LANE_RIGHT, 3 FASTER, 4 SLOWER)
+
+
+def make(**config) -> TrackedRoadEnv:
+    config.setdefault("duration", 3.0)
+    return TrackedRoadEnv(config)
+
+
+def test_check_env_passes():
+    env = make(scenario="cut-in", duration=2.0)
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_registered_and_reachable_from_a_fresh_interpreter():
+    assert "eot/TrackedRoad-v0" in gym.registry
+    code = (
+        "import gymnasium as gym\n"
+        "env = gym.make('sim:eot/TrackedRoad-v0', config={'duration': 0.4, 'perception': 'truth'})\n"
+        "obs, info = env.reset(seed=1)\n"
+        "print(obs.shape, type(env.unwrapped).__name__)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "(11, 11) TrackedRoadEnv"
+
+
+def test_reset_with_a_seed_is_deterministic_and_seeds_differ():
+    env = make(scenario="random-road", duration=1.0)
+    runs = []
+    for seed in (4, 4, 5):
+        obs, _ = env.reset(seed=seed)
+        trace = [obs]
+        for _ in range(4):
+            obs, *_ = env.step(IDLE)
+            trace.append(obs)
+        runs.append((np.stack(trace), env.world.road.length))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    assert runs[0][1] == runs[1][1]
+    assert runs[0][1] != runs[2][1]  # the generator drew another road for another seed
+    # reset() without a seed draws the episode seed from np_random: reproducible after a seeded reset
+    env.reset(seed=9)
+    a = env.reset()[1]["episode_seed"]
+    env.reset(seed=9)
+    assert env.reset()[1]["episode_seed"] == a
+
+
+def test_async_vector_env_steps():
+    envs = gym.make_vec("eot/TrackedRoad-v0", num_envs=2, vectorization_mode="async",
+                        config={"scenario": "cut-in", "duration": 1.0, "perception": "truth"})
+    try:
+        obs, info = envs.reset(seed=[0, 1])
+        assert obs.shape == (2, 11, 11) and obs.dtype == np.float32
+        for _ in range(3):
+            obs, reward, terminated, truncated, info = envs.step(np.array([IDLE, 3]))
+        assert obs.shape == (2, 11, 11)
+        assert reward.shape == (2,) and np.all((reward >= 0) & (reward <= 1))
+        assert obs[0, 0, COL["present"]] == 1.0 and obs[1, 0, COL["present"]] == 1.0
+    finally:
+        envs.close()
+
+
+def test_tracks_observation_is_within_the_tracker_error_of_truth():
+    tracks = make(scenario="curve-single", perception="tracks", duration=3.0)
+    truth = make(scenario="curve-single", perception="truth", duration=3.0)
+    obs_k, _ = tracks.reset(seed=2)
+    obs_t, _ = truth.reset(seed=2)
+    for _ in range(15):  # 3 s: the tracker confirms the car ahead in the next lane
+        obs_k, *_ = tracks.step(IDLE)
+        obs_t, *_ = truth.step(IDLE)
+    np.testing.assert_array_equal(obs_k[0], obs_t[0])  # the ego row is odometry in both
+    rows_t = obs_t[1:][obs_t[1:, 0] > 0]
+    rows_k = obs_k[1:][obs_k[1:, 0] > 0]
+    assert len(rows_t) == 1 and rows_t[0, COL["label"]] == 1  # vehicle id 1
+    assert len(rows_k) == 1
+    t, k = rows_t[0], rows_k[0]
+    assert t[COL["sigma_s"]] == 0 and t[COL["sigma_n"]] == 0
+    assert 0 < k[COL["sigma_s"]] < 1.0 and 0 < k[COL["sigma_n"]] < 1.0
+    assert abs(k[COL["ds"]] - t[COL["ds"]]) <= 3 * k[COL["sigma_s"]] + 0.3
+    assert abs(k[COL["n"]] - t[COL["n"]]) <= 3 * k[COL["sigma_n"]] + 0.2
+    assert abs(k[COL["v"]] - t[COL["v"]]) < 1.0
+    assert abs(k[COL["length"]] - t[COL["length"]]) < 1.0 and abs(k[COL["width"]] - t[COL["width"]]) < 0.5
+    # the truth row is the world's vehicle in road coordinates relative to the ego
+    ego = truth.world.ego_state()
+    car = truth.world.states()[1]
+    assert t[COL["ds"]] == pytest.approx(car.s - ego.s, abs=1e-4)
+    assert t[COL["n"]] == pytest.approx(car.n, abs=1e-5) and car.lane == 1
+
+
+def test_normalised_observation_is_scaled_and_in_the_box():
+    raw = make(perception="truth", duration=1.0)
+    norm = make(perception="truth", duration=1.0, normalize=True)
+    a, _ = raw.reset(seed=0)
+    b, _ = norm.reset(seed=0)
+    assert norm.observation_space.contains(b)
+    assert b[0, COL["v"]] == pytest.approx(a[0, COL["v"]] / SCALES["v"])
+    np.testing.assert_allclose(denormalize(b), a, atol=1e-5)
+
+
+def test_bad_config_keys_and_values_are_named():
+    with pytest.raises(ConfigError, match=r"unknown config key 'polcy_frequency'.*allowed keys: .*policy_frequency"):
+        TrackedRoadEnv({"polcy_frequency": 5})
+    with pytest.raises(ConfigError, match=r"'max_tracks' = 0"):
+        TrackedRoadEnv({"max_tracks": 0})
+    with pytest.raises(ConfigError, match=r"'perception' = 'lidar'"):
+        gym.make("eot/TrackedRoad-v0", config={"perception": "lidar"})
+    with pytest.raises(ConfigError, match=r"'policy_frequency' = 3.*lidar rate"):
+        TrackedRoadEnv({"policy_frequency": 3})
+    with pytest.raises(ConfigError, match=r"'scenario' = 'no-such-road'"):
+        TrackedRoadEnv({"scenario": "no-such-road"})
+    with pytest.raises(ConfigError, match=r"'observation'.*perception"):
+        TrackedRoadEnv({"observation": {"type": "Kinematics"}})
+    # highway-env's spelling of the action is accepted
+    cfg = EnvConfig().updated({"action": {"type": "ContinuousAction", "acceleration_range": [-6, 3]}})
+    assert cfg.action == "ContinuousAction" and cfg.acceleration_range == (-6.0, 3.0)
+
+
+def test_lane_left_moves_toward_positive_n_and_truncation_at_duration():
+    env = make(scenario="curve-single", perception="truth", duration=4.0)
+    obs, info = env.reset(seed=0)
+    assert info["lane"] == 0 and obs[0, COL["n"]] == pytest.approx(-1.75)
+    assert env.get_available_actions() == [IDLE, 0, 3, 4]  # no LANE_RIGHT from the rightmost lane
+    obs, *_ = env.step(0)  # LANE_LEFT
+    steps, truncated = 1, False
+    while not truncated:
+        obs, reward, terminated, truncated, info = env.step(IDLE)
+        steps += 1
+        assert not terminated
+    assert steps == 20 and info["t"] == pytest.approx(4.0)  # 4 s at 5 Hz
+    assert info["lane"] == 1 and obs[0, COL["n"]] == pytest.approx(1.75, abs=0.25)
+
+
+def test_reward_matches_highway_env_terms():
+    env = make(scenario="curve-single", perception="truth", duration=1.0)
+    env.reset(seed=0)
+    _, reward, *_ , info = env.step(IDLE)  # lane 0 (rightmost) at 20 m/s: no speed reward yet
+    r = info["rewards"]
+    assert r["right_lane_reward"] == 1.0 and r["collision_reward"] == 0.0 and r["on_road_reward"] == 1.0
+    expected = (0.4 * r["high_speed_reward"] + 0.1) / 1.5 + 1.0 / 1.5  # lmap from [-1, 0.5] onto [0, 1]
+    assert reward == pytest.approx(expected)
+    assert 0.0 <= r["high_speed_reward"] < 0.05
+
+
+def test_continuous_action_brakes_the_ego():
+    env = make(scenario="curve-single", perception="truth", action="ContinuousAction", duration=1.0)
+    obs, _ = env.reset(seed=0)
+    v0 = obs[0, COL["v"]]
+    for _ in range(5):  # -1 -> -8 m/s^2 for 1 s
+        obs, *_ = env.step(np.array([-1.0, 0.0], dtype=np.float32))
+    assert obs[0, COL["v"]] == pytest.approx(v0 - 8.0, abs=0.05)
+
+
+def test_rendered_frame_is_not_blank():
+    env = TrackedRoadEnv({"scenario": "cut-in", "duration": 2.0, "screen_width": 320, "screen_height": 240},
+                         render_mode="rgb_array")
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(IDLE)
+    frame = env.render()
+    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+    dark = np.all(frame < 60, axis=-1).sum()  # the ego, road edges, text
+    green = ((frame[..., 1] > 100) & (frame[..., 0] < 100) & (frame[..., 2] < 100)).sum()  # lidar points
+    assert dark > 100 and green > 5
+    assert frame.std() > 10

@@ -1,0 +1,156 @@
+"""sim.planner: ACC, flicker hold, lane-change gaps on synthetic observations; closed-loop episodes on
+tracks (curve-single, cut-in) without collision; the closed-loop study's metrics on one short run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.closed_loop import Task, run_task, wilson
+from sim.env import COL, COLUMNS, TrackedRoadEnv
+from sim.planner import Planner, PlannerConfig, planner_for
+
+LANES = (-1.75, 1.75)
+
+
+def obs_with(*rows: tuple[float, float, float, int], ego_n: float = -1.75, ego_v: float = 20.0) -> np.ndarray:
+    """An observation: the ego on lane 0 and rows ``(ds, n, v, label)`` of 4.8 x 2 m cars."""
+    obs = np.zeros((1 + 8, len(COLUMNS)), dtype=np.float32)
+    obs[0, [COL["present"], COL["n"], COL["v"], COL["length"], COL["width"]]] = [1, ego_n, ego_v, 4.8, 2.0]
+    for k, (ds, n, v, label) in enumerate(rows, start=1):
+        obs[k, [COL["present"], COL["ds"], COL["n"], COL["v"], COL["length"], COL["width"], COL["label"]]] = \
+            [1, ds, n, v, 4.8, 2.0, label]
+    return obs
+
+
+def accel(planner: Planner, action: np.ndarray) -> float:
+    lo, hi = planner.config.accel_range
+    return lo + (float(action[0]) + 1.0) * 0.5 * (hi - lo)
+
+
+def test_acc_brakes_for_a_slow_lead_in_lane_and_ignores_the_next_lane():
+    p = Planner(PlannerConfig(lane_centers=LANES, lane_changes=False))
+    a_free = accel(p, p.act(obs_with(ego_v=20.0)))
+    assert a_free == pytest.approx(0.0, abs=1e-5)  # at the set speed (the first observation's), no lead
+    p.reset()
+    p.act(obs_with(ego_v=20.0))
+    a_next_lane = accel(p, p.act(obs_with((20.0, 1.75, 5.0, 7))))
+    assert a_next_lane == pytest.approx(0.0, abs=1e-5) and p.decision.lead_label is None
+    a_lead = accel(p, p.act(obs_with((20.0, -1.6, 5.0, 7))))
+    # IDM: s* = 4 + 20 * 1.5 + 20 * 15 / (2 sqrt(1.5 * 2.5)); gap = 20 - 4.8 = 15.2 m -> clipped to -8
+    assert a_lead == pytest.approx(-8.0)
+    assert p.decision.lead_label == 7 and p.decision.lead_gap == pytest.approx(15.2, abs=1e-4)
+    p.act(obs_with((80.0, -1.75, 20.0, 7)))
+    gap = 80.0 - 4.8
+    s_star = 4.0 + 20.0 * 1.5
+    assert p.decision.accel == pytest.approx(-1.5 * (s_star / gap) ** 2)
+
+
+def test_flickering_lead_is_held_then_forgotten():
+    p = Planner(PlannerConfig(lane_centers=LANES, lane_changes=False, lead_hold_s=0.6))
+    p.act(obs_with((30.0, -1.75, 15.0, 3)))
+    assert p.decision.lead_source == "row"
+    p.act(obs_with())  # the track flickers out
+    assert p.decision.lead_label == 3 and p.decision.lead_source == "held"
+    assert p.decision.lead_ds == pytest.approx(30.0 + (15.0 - 20.0) * 0.2)  # predicted at its speed
+    assert p.decision.accel < 0
+    for _ in range(3):
+        p.act(obs_with())
+    assert p.decision.lead_label is None  # older than lead_hold_s
+
+
+def test_lane_change_only_into_a_safe_gap():
+    slow_lead = (58.0, -1.75, 14.0, 1)  # within the 60 m lookahead, slower than the 18 m/s set speed
+    p = Planner(PlannerConfig(lane_centers=LANES))
+    p.act(obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))  # a car alongside-behind in lane 1
+    p.act(obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))
+    assert p.decision.target_lane == 0
+    q = Planner(PlannerConfig(lane_centers=LANES))
+    q.act(obs_with(slow_lead, (-40.0, 1.75, 21.0, 2), ego_v=18.0))
+    assert q.decision.target_lane == 1 and q.decision.changing
+    assert q.decision.accel > -2.5  # not an emergency
+    left = Planner(PlannerConfig(lane_centers=LANES))  # in the leftmost lane the only free lane is lane 0
+    left.act(obs_with((58.0, 1.75, 14.0, 1), ego_n=1.75, ego_v=18.0))
+    assert left.decision.target_lane == 0
+    braking = Planner(PlannerConfig(lane_centers=LANES))  # braking hard for the lead: stay in the lane
+    braking.act(obs_with((25.0, -1.75, 12.0, 1), (-40.0, 1.75, 21.0, 2), ego_v=18.0))
+    assert braking.decision.accel < -2.5 and braking.decision.target_lane == 0
+
+
+def test_planner_needs_the_continuous_action():
+    env = TrackedRoadEnv({"scenario": "curve-single", "duration": 0.4, "perception": "truth"})
+    _, info = env.reset(seed=0)
+    with pytest.raises(ValueError, match="ContinuousAction"):
+        planner_for(env.settings, info["lane_centers"])
+
+
+def drive(scenario: str, duration: float, seed: int = 0) -> tuple[TrackedRoadEnv, Planner, list[float], list]:
+    env = TrackedRoadEnv({"scenario": scenario, "action": "ContinuousAction", "perception": "tracks",
+                          "duration": duration})
+    obs, info = env.reset(seed=seed)
+    planner = planner_for(env.settings, info["lane_centers"])
+    lateral, decisions = [], []
+    done = False
+    while not done:
+        action = planner.act(obs)
+        decisions.append(planner.decision)
+        obs, _, terminated, truncated, info = env.step(action)
+        lane = planner.decision.target_lane
+        lateral.append(abs(obs[0, COL["n"]] - info["lane_centers"][lane]))
+        done = terminated or truncated
+    return env, planner, lateral, decisions
+
+
+def test_planner_keeps_its_lane_on_curve_single_with_tracks():
+    env, _, lateral, decisions = drive("curve-single", 6.0)
+    assert not env.vehicle.crashed and env.world.collisions == []
+    assert env.sim_time == pytest.approx(6.0)
+    assert max(lateral) < 0.3  # on the R 150 m curve
+    assert abs(env.world.ego_state().v - 20.0) < 0.5
+    assert all(d.lead_label is None for d in decisions)  # the car is in the next lane
+
+
+def test_planner_handles_the_cut_in_with_tracks():
+    env, _, _, decisions = drive("cut-in", 16.0)
+    assert not env.vehicle.crashed and env.world.collisions == []
+    # the cut-in car (truth id 1) became the lead and the planner braked for it
+    braking = [d for d in decisions if d.lead_label is not None and d.accel < -0.5]
+    assert braking
+    assert min(d.lead_gap for d in decisions) > 5.0
+
+
+def test_closed_loop_run_reports_the_metrics():
+    row, events = run_task(Task("emergency-brake", "emergency-brake", "truth", 0, duration=9.0))
+    assert row["collision"] == 0 and row["sim_s"] == pytest.approx(9.0)
+    assert 0.5 < row["min_time_headway_s"] < 3.0  # the lead stops at 8 m/s^2 ahead of the ego
+    assert 1.0 < row["min_ttc_s"] < 10.0
+    assert 5.0 < row["mean_speed_mps"] < 20.0
+    assert row["phantom_brake_events"] == 0 and row["late_brake_events"] == 0  # truth has no phantoms
+    assert all(e["kind"] != "collision" for e in events)
+
+
+def test_wilson_interval():
+    lo, hi = wilson(0, 20)
+    assert lo == 0.0 and hi == pytest.approx(0.1611, abs=1e-3)
+    lo, hi = wilson(10, 20)
+    assert lo == pytest.approx(0.2993, abs=1e-3) and hi == pytest.approx(0.7007, abs=1e-3)
+    assert math.isclose(sum(wilson(3, 10)), 2 * (3 + 1.96**2 / 2) / (10 + 1.96**2), rel_tol=1e-3)
+
+
+def test_eot_closed_loop_command(tmp_path, capsys):
+    from sim.cli import main
+
+    out = tmp_path / "cl"
+    assert main(["closed-loop", "cut-in", "--runs", "2", "--duration", "1", "--out", str(out), "--quiet",
+                 "--variant", "curvilinear-lidar"]) == 0
+    assert {p.name for p in out.iterdir()} >= {"runs.csv", "summary.csv", "summary.json", "events.csv", "table.md",
+                                               "closed_loop.png"}
+    table = (out / "table.md").read_text()
+    assert "| cut-in | truth | 2 | 0/2 [0.00, 0.66] |" in table and "| cut-in | curvilinear-lidar | 2 |" in table
+    assert "eot closed-loop cut-in --runs 2 --workers 1 --variant curvilinear-lidar --duration 1" in table
+    rows = (out / "runs.csv").read_text().splitlines()
+    assert len(rows) == 1 + 4 and rows[0].startswith("scenario,variant,seed,sim_s,collision,min_time_headway_s")
+    assert main(["closed-loop", "cut-in", "--variant", "nope", "--out", str(out)]) == 2
+    assert "unknown variant 'nope'" in capsys.readouterr().err
