@@ -1,5 +1,10 @@
-"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``scenarios``, ``bench``
-(and ``compare``, not built yet).
+"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``compare``, ``scenarios``,
+``bench``.
+
+``eot compare`` runs every study variant over a suite with the same seeds and writes ``REPORT.md``
+with its figures and CSVs (``sim.study``, ``sim.claims``, ``sim.report``); a variant that cannot be
+built here is skipped with a warning and a note in the report; ``--report-only`` rebuilds the report
+from ``OUT/report/``.
 
 ``eot run`` / ``eot demo`` also write the run's diagnostics (``sim.inspect``: ``events.csv``,
 ``worst_intervals.csv``, ``events.png``) and print one line of them; ``eot inspect RUN_DIR`` prints
@@ -345,6 +350,86 @@ def _closed_loop(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    """``eot compare``: run every variant over a suite with the same seeds and write REPORT.md."""
+    import shlex
+    import subprocess
+    from pathlib import Path
+
+    from sim.montecarlo import import_ray
+    from sim.progress import ProgressBar
+    from sim.report import write_report
+    from sim.study import STUDY_VARIANTS, CompareSettings, read_compare, run_compare, write_compare
+
+    out = Path(args.out)
+    folder = out / "report"
+    if args.report_only:
+        try:
+            data = read_compare(folder)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        paths = write_report(data, out)
+        print(f"rebuilt {paths['report']} from {folder}/")
+        return 0
+    variants = _check_variants(_split_variants(args.variants) if args.variants else list(STUDY_VARIANTS))
+    _resolve_scenarios(args.suite, allow_suite=True)
+    for name, value, low in (("--runs", args.runs, 1), ("--workers", args.workers, 1), ("--hard-runs", args.hard_runs, 0)):
+        if value < low:
+            raise UsageError(f"{name} must be >= {low}; got {value}")
+    if args.backend == "ray":
+        try:
+            import_ray()
+        except RuntimeError as exc:
+            raise UsageError(str(exc)) from None
+    elif args.address:
+        raise UsageError("--address applies to --backend ray only")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"cannot write to the output folder {folder}: {exc.strerror or type(exc).__name__}") from None
+    settings = CompareSettings(suite=args.suite, runs=args.runs, variants=tuple(variants), seed0=args.seed,
+                               duration=args.duration, workers=args.workers, backend=args.backend, address=args.address,
+                               hard_runs=args.hard_runs)
+    bars: list[ProgressBar] = []
+
+    def progress(label: str, total: int) -> ProgressBar:
+        bar = ProgressBar(total, label, enabled=not args.quiet)
+        bars.append(bar)
+        return bar
+
+    try:
+        data = run_compare(settings, progress=progress, warn=lambda text: print(f"eot compare: warning: {text}", file=sys.stderr))
+    except ValueError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    finally:
+        for bar in bars:
+            bar.close()
+    data.meta["command"] = " ".join(["eot compare", f"--suite {shlex.quote(args.suite)}", f"--runs {args.runs}",
+                                     f"--workers {args.workers}", f"--backend {args.backend}", f"--out {shlex.quote(args.out)}",
+                                     f"--variants {','.join(variants)}", f"--seed {args.seed}"]
+                                    + ([f"--duration {args.duration:g}"] if args.duration is not None else [])
+                                    + ([f"--hard-runs {args.hard_runs}"] if args.hard_runs else []))
+    try:
+        data.meta["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                             cwd=Path(__file__).parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        data.meta["commit"] = None
+    files = write_compare(data, folder)
+    paths = write_report(data, out)
+    print(f"{len(data.rows)} runs in {data.meta['study_wall_s']:.1f} s wall (figure runs {data.meta['figure_wall_s']:.1f} s); "
+          f"variants: {', '.join(data.meta['variants'])}")
+    for name, reason in data.meta["skipped"].items():
+        print(f"  skipped {name}: {reason}")
+    print("mean wall seconds per run, by variant (all scenarios):")
+    for v in data.meta["variants"]:
+        walls = [r["wall_s"] for r in data.rows if r["variant"] == v and r.get("wall_s") is not None]
+        ms = [r["tracker_ms_mean"] for r in data.rows if r["variant"] == v and r.get("tracker_ms_mean") is not None]
+        if walls:
+            print(f"  {v:<18} {sum(walls) / len(walls):7.1f} s per run, tracker {sum(ms) / max(1, len(ms)):6.1f} ms per frame")
+    print(f"wrote {paths['report']}, {len(paths) - 1 + len(files)} files in {folder}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``eot`` with one sub-parser per subcommand."""
     parser = argparse.ArgumentParser(
@@ -409,8 +494,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_closed_loop)
 
-    p = sub.add_parser("compare", help="the paper's comparison study and report")
-    p.set_defaults(func=_not_built("compare"))
+    p = sub.add_parser("compare", help="the paper's comparison study: every variant, same seeds, results/REPORT.md")
+    p.add_argument("--suite", default="standard", help="scenario suite (default: standard)")
+    p.add_argument("--runs", type=int, default=20, help="seeds per scenario and variant (default 20)")
+    p.add_argument("--workers", type=int, default=1, help="parallel workers (default 1)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes or Ray")
+    p.add_argument("--address", help="Ray cluster address (e.g. auto); default: a local Ray with --workers CPUs")
+    p.add_argument("--out", default="results", help="folder of REPORT.md; figures and CSVs go to OUT/report/ (default: results)")
+    p.add_argument("--variants", action="append",
+                   help="variants, repeat or comma-separate (default: all of the study; unavailable ones are skipped)")
+    p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
+    p.add_argument("--duration", type=float, help="simulate only this many seconds per run (quick checks)")
+    p.add_argument("--hard-runs", type=int, default=0, help="also run the hard suite with this many seeds (default 0: no)")
+    p.add_argument("--report-only", action="store_true", help="rebuild REPORT.md from OUT/report/ without running")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_compare)
     p = sub.add_parser("scenarios", help="list the scenario suites and files (name and description)")
     p.add_argument("--dir", help="folder of scenario files (default: the repository's scenarios/)")
     p.set_defaults(func=_scenarios)

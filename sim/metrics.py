@@ -144,17 +144,20 @@ class MatchedErrors:
     width: np.ndarray
 
 
-def matched_errors(truth: np.ndarray, estimate: np.ndarray, result: GospaResult) -> MatchedErrors:
+def matched_errors(truth: np.ndarray, estimate: np.ndarray, result: GospaResult, *, extent: bool = True) -> MatchedErrors:
     """Errors of the GOSPA-assigned pairs. ``truth`` and ``estimate`` rows are Cartesian views
-    ``[x, y, v, psi, psi_dot, L, W]`` (the ``Track.cartesian`` order)."""
+    ``[x, y, v, psi, psi_dot, L, W]`` (the ``Track.cartesian`` order). ``extent=False`` (a point
+    tracker, whose L, W columns are placeholders): ``length`` and ``width`` are empty (missing, so
+    an RMSE over them is undefined rather than the placeholder's error)."""
     t = np.asarray(truth, dtype=float).reshape(-1, 7)[result.truth_index]
     e = np.asarray(estimate, dtype=float).reshape(-1, 7)[result.estimate_index]
+    none = np.zeros(0)
     return MatchedErrors(
         position=np.linalg.norm(e[:, :2] - t[:, :2], axis=1),
         yaw=np.asarray(wrap_angle(e[:, 3] - t[:, 3])).reshape(-1),
         speed=e[:, 2] - t[:, 2],
-        length=e[:, 5] - t[:, 5],
-        width=e[:, 6] - t[:, 6],
+        length=e[:, 5] - t[:, 5] if extent else none,
+        width=e[:, 6] - t[:, 6] if extent else none,
     )
 
 

@@ -52,7 +52,7 @@ from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, m
 from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
 from sim.truth import Snapshot
-from sim.variants import DEFAULT_VARIANT, check_variant, variant_config
+from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.track import curvilinear_to_cartesian
@@ -142,7 +142,8 @@ class Result:
     ``config``, the ``road``, the ``roadside`` objects (or ``None``), the per-frame ``frames``, the
     summary ``metrics`` (metrics.json keys, DESIGN.md), the tracker's ``tracker_stats`` counters and
     the simulated ``duration`` (s); ``settings``: the scoring settings (``gospa_c`` m, ``gospa_p``,
-    ``min_visible_points``) and ``roadside_objects`` (count)."""
+    ``min_visible_points``), ``roadside_objects`` (count) and ``estimates_extent`` (False for a point
+    tracker, whose length/width errors are not scored)."""
 
     spec: ScenarioSpec
     seed: int
@@ -278,8 +279,10 @@ def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
     return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
 
 
-def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None) -> dict[str, Any]:
-    """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames."""
+def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None,
+              extent: bool = True) -> dict[str, Any]:
+    """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames. ``extent=False``
+    (a point tracker): ``length_rmse_m`` and ``width_rmse_m`` are ``None`` (missing, not zero)."""
     pos: list[np.ndarray] = []
     yaw: list[np.ndarray] = []
     speed: list[np.ndarray] = []
@@ -287,7 +290,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
     width: list[np.ndarray] = []
     for f in frames:
         scored_state = f.truth_state[f.scored]
-        err = matched_errors(scored_state, f.track_state, f.gospa)
+        err = matched_errors(scored_state, f.track_state, f.gospa, extent=extent)
         pos.append(err.position)
         yaw.append(err.yaw)
         speed.append(err.speed)
@@ -352,7 +355,8 @@ def run_scenario(
     ``roadside`` forces roadside clutter on or off (default: the scenario's ``sensors.roadside``,
     on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
     ``progress(done, total)`` is called after every frame; ``tracker_factory(road, config)`` builds
-    the tracker (default ``tracker.Tracker``). Raises ``ValueError`` (``UnknownVariantError``,
+    the tracker (default: the variant's own factory, ``sim.variants.variant_factory``, else
+    ``tracker.Tracker``). Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
         raise ValueError(f"run_scenario needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
@@ -382,7 +386,9 @@ def run_scenario(
         clutter_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
         objects = generate_roadside(road, clutter_cfg, rng=clutter_rng)
     rig = SensorRig(rig_cfg, objects)
-    tracker = (tracker_factory or default_tracker_factory)(road, config)
+    tracker = (tracker_factory or variant_factory(variant) or default_tracker_factory)(road, config)
+    # a point tracker (the variant says so, or the tracker: ``estimates_extent = False``) has no L, W to score
+    extent = bool(getattr(tracker, "estimates_extent", estimates_extent(variant)))
     max_range = rig_cfg.lidar.max_range
     total = len(rig.frame_times(duration))
 
@@ -430,7 +436,7 @@ def run_scenario(
         if progress is not None:
             progress(k + 1, total)
     wall = time.perf_counter() - start
-    metrics = summarize(records, switches.switches, wall_s=wall)
+    metrics = summarize(records, switches.switches, wall_s=wall, extent=extent)
     stats = dict(getattr(tracker, "stats", {}) or {})
     return Result(
         spec=spec,
@@ -449,6 +455,7 @@ def run_scenario(
             "gospa_p": float(gospa_p),
             "min_visible_points": int(min_visible_points),
             "roadside_objects": 0 if objects is None else len(objects),
+            "estimates_extent": extent,
         },
     )
 

@@ -132,9 +132,13 @@ def test_demo_runs_curvy_multi_into_results_demo(monkeypatch):
     assert kw["variant"] == "curvilinear-fused" and kw["seed"] == 0 and kw["duration"] is None
 
 
-def test_compare_is_not_built_yet(capsys):
-    code, out, err = _main(capsys, "compare")
-    assert code == 2 and out == "" and "not built yet" in err
+def test_compare_usage_errors_are_one_line(capsys, tmp_path):
+    code, out, err = _main(capsys, "compare", "--variants", "no-such-variant", "--out", str(tmp_path))
+    assert code == 2 and out == "" and "unknown variant" in err and "stonesoup-gmphd" in err
+    code, out, err = _main(capsys, "compare", "--runs", "0", "--out", str(tmp_path))
+    assert code == 2 and "--runs must be >= 1" in err
+    code, out, err = _main(capsys, "compare", "--report-only", "--out", str(tmp_path))
+    assert code == 2 and "runs.csv is missing" in err
 
 
 def test_scenarios_still_lists(capsys):

@@ -1,0 +1,88 @@
+"""REPORT.md from a tiny comparison study (sim/report.py, sim/study.py): every section and figure,
+the paired CSV, the skipped-variant note, the hard-suite section, and the files round-trip."""
+
+from pathlib import Path
+
+import pytest
+
+from sim import variants as variants_module
+from sim.report import FIGURES, write_report
+from sim.scenario import SCENARIO_DIR
+from sim.study import CompareSettings, read_compare, run_compare, write_compare
+
+
+def _suite(folder: Path, name: str, scenarios: list[str]) -> str:
+    path = folder / f"{name}.toml"
+    listed = ", ".join(f'"{SCENARIO_DIR / (s + ".toml")}"' for s in scenarios)
+    path.write_text(f'name = "{name}"\ndescription = "tiny suite for the report test"\nscenarios = [{listed}]\n')
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("compare")
+    suite = _suite(folder, "tiny", ["curvy-multi", "curve-single", "chicane-follow"])
+    hard = _suite(folder, "tiny-hard", ["truck-hairpin"])
+
+    def broken(road, config):
+        raise ValueError("not built yet in this test")
+
+    mp = pytest.MonkeyPatch()
+    mp.setitem(variants_module._VARIANTS, "broken",
+               variants_module.Variant("broken", "cannot be built", variants_module._paper_motion, broken))
+    warnings = []
+    settings = CompareSettings(suite=suite, runs=2, duration=1.5, hard_suite=hard, hard_runs=1, workers=1,
+                               variants=("curvilinear-fused", "curvilinear-lidar", "cartesian-fused", "stonesoup-gmphd",
+                                         "broken"))
+    try:
+        data = run_compare(settings, warn=warnings.append)
+    finally:
+        mp.undo()
+    data.meta["command"] = "eot compare (test)"
+    out = folder / "results"
+    files = write_compare(data, out / "report")
+    paths = write_report(data, out)
+    return data, out, files, paths, warnings
+
+
+def test_study_pairs_every_variant_on_the_same_seeds(study):
+    data, _, _, _, warnings = study
+    assert warnings == ["skipping variant broken: not built yet in this test"]
+    assert data.meta["variants"] == ["curvilinear-fused", "curvilinear-lidar", "cartesian-fused", "stonesoup-gmphd"]
+    keys = {(r["scenario"], r["seed"]) for r in data.rows}
+    assert keys == {(s, k) for s in ("curvy-multi", "curve-single", "chicane-follow") for k in (0, 1)}
+    assert len(data.rows) == 3 * 4 * 2 and len(data.hard_rows) == 4
+    assert data.meta["figure_runs_match"] is True
+    # figure series: fused/lidar on curvy-multi, curvilinear/Cartesian on curve-single, every variant on chicane-follow
+    runs = {(r["scenario"], r["variant"]) for r in data.series}
+    assert runs == {("curvy-multi", "curvilinear-fused"), ("curvy-multi", "curvilinear-lidar"),
+                    ("curve-single", "curvilinear-fused"), ("curve-single", "cartesian-fused")} | {
+        ("chicane-follow", v) for v in data.meta["variants"]}
+    assert data.meta["curvature"]["chicane-follow"] == pytest.approx(0.02)
+
+
+def test_report_has_every_section_and_figure(study):
+    data, out, _, paths, _ = study
+    text = (out / "REPORT.md").read_text()
+    for heading in ("## How this was made", "## The claims", "## Figures", "## Per-scenario results",
+                    "## Wall time per run", "## The hard suite", "#### curvy-multi", "#### chicane-follow"):
+        assert heading in text
+    for k in range(1, 7):
+        assert f"### {k}. " in text
+    assert "**skipped** `broken`: not built yet in this test" in text
+    assert "**Verdict: " in text and "not evaluated" in text  # paper-motion/point-gnn were not in this study
+    for name in FIGURES:
+        png = out / "report" / name
+        assert f"(report/{name})" in text and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "| stonesoup-gmphd |" in text and "n/a" in text  # no extent for the point baseline
+    paired = (out / "report" / "paired.csv").read_text().splitlines()
+    assert paired[0].startswith("claim,metric,a,b") and any(",curvilinear-fused,curvilinear-lidar," in ln for ln in paired)
+
+
+def test_report_rebuilds_identically_from_its_files(study):
+    data, out, _, _, _ = study
+    first = (out / "REPORT.md").read_text()
+    again = read_compare(out / "report")
+    assert len(again.rows) == len(data.rows) and len(again.series) == len(data.series)
+    write_report(again, out)
+    assert (out / "REPORT.md").read_text() == first
