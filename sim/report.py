@@ -86,7 +86,7 @@ def plot_fused_vs_lidar(data: CompareData, path: Path) -> Path:
         ax_g.plot(s["t"], s["gospa"], color=_color(variants, v), lw=1.2, label=v)
         ax_c.plot(s["t"], s["n_tracks"], color=_color(variants, v), lw=1.2, drawstyle="steps-post", label=f"{v} estimated")
         if not truth_drawn:
-            ax_c.plot(s["t"], s["n_truth"], color="black", lw=1.6, drawstyle="steps-post", label="true")
+            ax_c.plot(s["t"], s["n_truth"], color="black", lw=1.6, ls="--", drawstyle="steps-post", label="true", zorder=3)
             truth_drawn = True
     if not truth_drawn:
         _no_data(ax_g, "curvy-multi or the variants were not in this study")

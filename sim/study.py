@@ -12,7 +12,8 @@ Student t interval over the pairs (``mean_interval``). Optionally the hard suite
 The figures need per-frame series of a few runs (``FIGURE_RUNS``: GOSPA and cardinality over time,
 fused vs lidar-only on curvy-multi; GOSPA and yaw, curvilinear vs Cartesian on curve-single; the
 followed car's position, yaw, length and width on chicane-follow for every variant). They are rerun
-for the study's first seed (the paper's figures are single runs), in processes, with
+for the study's first seed (the paper's figures are single runs), in local processes (also with
+``backend="ray"``: they are a handful of runs), with
 ``series_of`` keeping one row per frame (``SERIES_COLUMNS``); runs are deterministic, so these are
 the same runs as those of ``runs.csv`` for that seed (``run_compare`` checks the GOSPA mean).
 

@@ -111,6 +111,9 @@ def test_matched_errors_and_cardinality():
     assert (e.speed[0], e.length[0], e.width[0]) == pytest.approx((1.0, -0.3, 0.2))
     assert cardinality_error(3, 1) == -2
     np.testing.assert_allclose(euclidean_distances(truth[:, :2], est[:, :2]), [[0.5]])
+    # a point tracker (no extent): length and width errors are missing, the others unchanged
+    p = matched_errors(truth, est, r, extent=False)
+    assert p.length.size == 0 and p.width.size == 0 and p.position[0] == pytest.approx(0.5)
 
 
 def test_id_switches():
