@@ -487,8 +487,8 @@ class Structure:
     on), the stacked measurement ``z (P, D)``, its noise variances ``r (P, D)`` and row mask ``mask (P, D)``
     with ``D = 2 M + 2`` (points ``x0, y0, x1, y1, ...``, then ``vx, vy``), and ``factors (P, 2, D)``:
     the end-gap uncertainty as low-rank noise, ``R = diag(r) + sum_e f_e f_e^T`` (module docstring);
-    ``excess (P, 2)`` (m): how far each part's measured extent (chord plus end margins) exceeds the
-    predicted length of its side (negative when shorter; ``tracker.update.grow_extent``)."""
+    ``excess (P, 2)`` (m): how far each part's chord (the points' extent, without the end margins)
+    exceeds the predicted length of its side (negative when shorter; ``tracker.update.grow_extent``)."""
 
     a: np.ndarray
     b: np.ndarray
@@ -629,7 +629,7 @@ def build_structure(
         matrix[:, 8, -2] = matrix[:, 9, -1] = radar
     return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors,
-                     excess=np.where(single[:, None], -np.inf, covered - side_len[rows[:, None], sides]))
+                     excess=np.where(single[:, None], -np.inf, chord_len - side_len[rows[:, None], sides]))
 
 
 def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
