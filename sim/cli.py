@@ -12,10 +12,17 @@ the full summary (per vehicle a line, then the worst GOSPA intervals with their 
 rewrites those files (``--out`` elsewhere). A missing or incomplete run folder is a one-line error
 with exit status 2.
 
-Exit status: 0 on success; 2 for a usage error (unknown scenario, suite or variant -- one line that
-lists the choices --, an invalid scenario file, a missing optional dependency) and for subcommands
-that are not built yet, which say so plainly; nothing here prints output that looks like results
-unless it computed them.
+``eot soak [SCENARIO]`` streams one long run (default: ``dense-highway-loop`` for an hour of
+simulated time) and writes ``soak.csv`` (a row per window) and ``soak.json`` (``sim.soak``).
+``eot montecarlo`` rewrites ``runs.csv`` as each run finishes; after Ctrl-C, ``--resume`` with the same
+arguments runs only the missing rows.
+
+Exit status: 0 on success; 2, with one line on stderr and never a traceback, for a usage error
+(unknown scenario, suite or variant -- the line lists the choices --, a malformed or invalid scenario
+file, unknown keys or out-of-range values in it, a missing file or folder, an output folder that
+cannot be written, a missing optional dependency), for an interrupted Monte Carlo (Ctrl-C; the line
+says how to resume it) and for subcommands that are not built yet, which say so plainly; nothing here
+prints output that looks like results unless it computed them.
 """
 
 from __future__ import annotations
@@ -60,8 +67,7 @@ def _scenarios(args: argparse.Namespace) -> int:
 
     folder = Path(args.dir) if args.dir else SCENARIO_DIR
     if not folder.is_dir():
-        print(f"eot scenarios: no such folder {folder}", file=sys.stderr)
-        return 1
+        raise UsageError(f"no such folder {folder}")
     files = sorted(folder.glob("*.toml"))
     suites = [p for p in files if is_suite_file(p)]
     status = 0
@@ -120,6 +126,8 @@ def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
     if found is None:
         what = "scenario or suite" if allow_suite else "scenario"
         choices = ", ".join(scenarios + ([f"suite {s}" for s in suites] if allow_suite else []))
+        if path.suffix == ".toml" or len(path.parts) > 1:
+            raise UsageError(f"no such file {name}; shipped {what}s: {choices}")
         raise UsageError(f"unknown {what} {name!r}; choose one of: {choices} (or give a .toml file)")
     try:
         if is_suite_file(found):
@@ -182,7 +190,7 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     from sim.plots import write_figures
     from sim.progress import ProgressBar
     from sim.results import write_results
-    from sim.runner import run_scenario
+    from sim.runner import check_scenario_settings, run_scenario
     from sim.scenario import ScenarioError, load_scenario
     from sim.variants import check_variant
 
@@ -191,7 +199,11 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
         check_variant(variant)
         if duration is not None and not (0.0 < duration <= spec.duration):
             raise ValueError(f"--duration must be in (0, {spec.duration:g}] s for {spec.name}; got {duration:g}")
-    except ValueError as exc:
+        if seed < 0:
+            raise ValueError(f"--seed must be >= 0; got {seed}")
+        check_scenario_settings(spec, variant)
+        _check_writable(out)
+    except (ValueError, UsageError) as exc:
         print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     start = time.perf_counter()
@@ -258,9 +270,21 @@ def _split_variants(values: list[str] | None) -> list[str]:
 
 
 def _montecarlo(args: argparse.Namespace) -> int:
-    """``eot montecarlo SCENARIO_OR_SUITE --runs N``."""
-    from sim.montecarlo import import_ray, plan, run_study, summarize_runs, write_study
-    from sim.progress import ProgressBar
+    """``eot montecarlo SCENARIO_OR_SUITE --runs N``: ``runs.csv`` is rewritten as each run finishes;
+    Ctrl-C stops with a one-line message (exit status 2) and ``--resume`` runs only the missing rows."""
+    from pathlib import Path
+
+    from sim.montecarlo import (
+        RunsFile,
+        Study,
+        StudyInterrupted,
+        import_ray,
+        plan,
+        run_study,
+        summarize_runs,
+        write_study,
+    )
+    from sim.progress import NestedProgress
 
     paths = _resolve_scenarios(args.target, allow_suite=True)
     variants = _check_variants(_split_variants(args.variant))
@@ -280,10 +304,38 @@ def _montecarlo(args: argparse.Namespace) -> int:
                      roadside=False if args.no_roadside else None)
     except ValueError as exc:
         raise UsageError(" ".join(str(exc).split())) from None
-    label = f"{len(tasks)} runs on {args.backend} ({args.workers} worker{'s' if args.workers > 1 else ''})"
-    with ProgressBar(len(tasks), label, enabled=not args.quiet) as bar:
-        study = run_study(tasks, workers=args.workers, backend=args.backend, address=args.address, progress=bar)
-    files = write_study(study, args.out)
+    out = Path(args.out)
+    _check_writable(out)
+    runs_file = RunsFile(out / "runs.csv", tasks)
+    if args.resume:
+        try:
+            resumed = runs_file.resume()
+        except (ValueError, OSError) as exc:
+            raise UsageError(" ".join(str(exc).split())) from None
+    pending = runs_file.pending
+    if args.resume:
+        print(f"resuming: {resumed} of {len(tasks)} runs already in {runs_file.path}; {len(pending)} to run")
+    todo = [tasks[i] for i in pending]
+    groups: dict[str, int] = {}
+    for task in todo:
+        groups[task.name] = groups.get(task.name, 0) + 1
+    label = f"{len(todo)} runs on {args.backend} ({args.workers} worker{'s' if args.workers > 1 else ''})"
+    with NestedProgress(groups, label, enabled=not args.quiet) as bars:
+        def on_row(k: int, row: dict) -> None:
+            runs_file.add(pending[k], row)
+            bars.done(todo[k].name)
+
+        try:
+            part = run_study(todo, workers=args.workers, backend=args.backend, address=args.address, on_row=on_row)
+        except StudyInterrupted:
+            bars.close()
+            done = len(tasks) - len(runs_file.pending)
+            raise UsageError(
+                f"interrupted: {done} of {len(tasks)} runs finished and are in {runs_file.path}; "
+                "run the same command with --resume to complete the study"
+            ) from None
+    study = Study([r for r in runs_file.rows if r is not None], part.backend, part.workers, part.wall_s)
+    files = write_study(study, out)
     summary = summarize_runs(study.rows)
     shown = ["gospa_mean", "cardinality_error_mean", "pos_rmse_m", "yaw_rmse_deg", "id_switches"]
     print(f"{len(study.rows)} runs, {study.simulated_s:g} s simulated in {study.wall_s:.1f} s wall: "
@@ -306,6 +358,63 @@ def _montecarlo(args: argparse.Namespace) -> int:
             print(f"{scenario:<16} {variant:<18} " + " ".join(cells))
     print("(mean +- 95 % CI half-width over seeds; GOSPA alpha 2, p 2, c 5 m)")
     print(f"wrote {', '.join(str(p) for p in files.values())}")
+    return 0
+
+
+def _soak(args: argparse.Namespace) -> int:
+    """``eot soak [SCENARIO]``: one long streamed run; soak.csv (a row per window) and soak.json."""
+    import csv
+    import json
+    import subprocess
+    from dataclasses import fields
+    from pathlib import Path
+
+    from sim.progress import ProgressBar
+    from sim.scenario import load_scenario
+    from sim.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, run_soak, window_row
+
+    paths = _resolve_scenarios(args.scenario or SOAK_SCENARIO, allow_suite=False)
+    variant = _check_variants([args.variant])[0]
+    spec = load_scenario(paths[0])
+    try:
+        config = SoakConfig(spec, duration_s=args.duration, window_s=args.window, seed=args.seed, variant=variant,
+                            roadside=False if args.no_roadside else None)
+    except ValueError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    out = Path(args.out or f"out/soak-{spec.name}-seed{args.seed}")
+    _check_writable(out)
+    columns = [f.name for f in fields(SoakWindow)]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    with open(out / "soak.csv", "w", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=columns)
+        writer.writeheader()
+
+        def on_window(window: SoakWindow) -> None:
+            writer.writerow(window_row(window))
+            fh.flush()
+
+        with ProgressBar(0, f"soak {spec.name} / {variant} / seed {args.seed}", enabled=not args.quiet,
+                         unit="frame") as bar:
+            result = run_soak(config, on_window=on_window, progress=bar)
+    doc = {"scenario": spec.name, "variant": variant, "seed": args.seed, "duration_s": config.duration,
+           "window_s": config.window_s, "commit": commit, "summary": result.summary}
+    (out / "soak.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    s = result.summary
+    print(f"soak {spec.name} / {variant} / seed {args.seed}: {s['simulated_s']:g} s simulated ({s['frames']} frames) "
+          f"in {s['wall_s']:.0f} s wall")
+    print(f"components max {s['components_max']} (mean {s['components_mean']:.1f}); tracks mean {s['tracks_mean']:.2f}, "
+          f"scored vehicles mean {s['truth_mean']:.2f}; labels born {s['labels_born']}")
+    print(f"resident memory {s['rss_first_window_mb']:.1f} MB after the first window -> {s['rss_end_mb']:.1f} MB at the end "
+          f"(growth {s['rss_growth_mb']:+.1f} MB, max {s['rss_max_mb']:.1f} MB)")
+    print(f"non-finite frames {s['nonfinite_frames']}, non-PSD or asymmetric track covariances {s['bad_covariances']}")
+    print(f"tracker ms per frame, median of the first / last {s['edge_windows']} windows: "
+          f"{s['tracker_ms_median_first']:.1f} / {s['tracker_ms_median_last']:.1f} (max {s['tracker_ms_max']:.1f}); "
+          f"GOSPA mean {s['gospa_mean']:.3f} m")
+    print(f"wrote {out / 'soak.csv'}, {out / 'soak.json'}")
     return 0
 
 
@@ -348,6 +457,22 @@ def _closed_loop(args: argparse.Namespace) -> int:
     print(files["table"].read_text(encoding="utf-8"))
     print(f"{len(rows)} runs in {wall:.1f} s wall; wrote {', '.join(str(p) for p in files.values())}")
     return 0
+
+
+def _check_writable(folder: object) -> None:
+    """Create ``folder`` (and parents) and check that a file can be written in it; ``UsageError``
+    (one line) otherwise."""
+    import tempfile
+    from pathlib import Path
+
+    path = Path(str(folder))
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise UsageError(f"cannot write to the output folder {path}: {reason}") from None
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -476,8 +601,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the runs already in OUT/runs.csv (an interrupted study) and run only the missing ones")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_montecarlo)
+
+    p = sub.add_parser("soak", help="one long streamed run: component count, memory, non-finite states, ms per frame")
+    p.add_argument("scenario", nargs="?", help="scenario name or .toml file (default: dense-highway-loop, a closed road)")
+    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's; dense-highway-loop: 3600)")
+    p.add_argument("--window", type=float, default=60.0, help="simulated seconds per row of soak.csv (default 60)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
+    p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
+    p.add_argument("--out", help="output folder (default: out/soak-SCENARIO-seedN)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_soak)
 
     p = sub.add_parser("closed-loop", help="the planner on truth vs tracks over seeds: collisions, headway, TTC, jerk, track-caused events")
     p.add_argument("target", metavar="SCENARIO_OR_SUITE", nargs="?", default="closed-loop",
@@ -510,7 +648,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_compare)
     p = sub.add_parser("scenarios", help="list the scenario suites and files (name and description)")
-    p.add_argument("--dir", help="folder of scenario files (default: the repository's scenarios/)")
+    p.add_argument("--dir", help="folder of scenario files (default: the shipped scenarios)")
     p.set_defaults(func=_scenarios)
     from sim.benchmarks import targets
 
@@ -533,6 +671,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except UsageError as exc:
         print(f"eot {args.command}: {exc}", file=sys.stderr)
+        return USAGE_EXIT
+    except BrokenPipeError:  # `eot scenarios | head`: the reader left; nothing more to say
+        sys.stderr.close()
+        return 0
+    except OSError as exc:  # a file or folder that cannot be read or written: one line, not a traceback
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"eot {args.command}: {exc.strerror or exc}{where}", file=sys.stderr)
+        return USAGE_EXIT
+    except KeyboardInterrupt:
+        print(f"eot {args.command}: interrupted", file=sys.stderr)
         return USAGE_EXIT
 
 

@@ -162,6 +162,8 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
         "sensors": spec.sensors,
         "tracker": spec.tracker,
     }
+    if spec.faults is not None:
+        data["faults"] = spec.faults.model_dump()
     if spec.road is not None:
         lanes = spec.road.lanes
     else:  # fixed traffic on a drawn road: draw only lane counts that hold every lane it uses

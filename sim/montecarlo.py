@@ -20,6 +20,15 @@ the standard deviation and the 95 % confidence interval of the mean (Student t, 
 freedom; none for a single run). ``write_study`` writes ``runs.csv`` (one row per run),
 ``summary.csv`` and ``summary.json`` (with the throughput: simulated seconds per wall second per
 worker).
+
+**Interruptions and resuming.** ``run_study(..., on_row=...)`` reports every finished run as it
+finishes; ``RunsFile`` uses that to rewrite ``runs.csv`` (atomically: a temporary file, then a rename)
+with every row finished so far, so a study stopped by Ctrl-C, or killed, leaves its finished rows.
+Ctrl-C raises ``StudyInterrupted`` carrying those rows (worker processes ignore SIGINT and are
+terminated, so they print nothing). ``RunsFile.resume`` reads an existing ``runs.csv`` back and
+matches its rows to the planned tasks (scenario, variant, seed and simulated seconds); the study then
+runs only the missing tasks, and the rows of both sessions are identical to those of one
+uninterrupted study (runs are deterministic), apart from the wall-clock keys.
 """
 
 from __future__ import annotations
@@ -28,6 +37,9 @@ import csv
 import json
 import math
 import os
+import re
+import signal
+import tempfile
 import time
 import tomllib
 from collections.abc import Callable, Sequence
@@ -38,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.runner import TIMING_KEYS, run_scenario
+from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario
 from sim.scenario import ScenarioError, parse_scenario, resolve_scenario_path
 from sim.variants import DEFAULT_VARIANT, check_variant
 
@@ -94,6 +106,10 @@ def plan(
     for v in variants:
         check_variant(v)
     loaded = [scenario_task_data(s) for s in scenarios]
+    for name, source, data in loaded:  # bad [sensors] / [tracker] / [faults] settings: an error now, not in a worker
+        spec = parse_scenario(data, source)
+        for v in variants:
+            check_scenario_settings(spec, v)
     if duration is not None:
         for name, _, data in loaded:
             if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= float(data["duration"])):
@@ -125,20 +141,60 @@ def run_task(task: RunTask) -> dict[str, Any]:
     return row
 
 
-def _run_local(tasks: list[RunTask], workers: int, progress: Callable[[int, int], None] | None) -> list[dict[str, Any]]:
+class StudyInterrupted(Exception):
+    """A study stopped by Ctrl-C (``KeyboardInterrupt``): ``rows`` holds, in task order, the row of
+    every finished run and ``None`` for the others."""
+
+    def __init__(self, rows: list[dict[str, Any] | None]) -> None:
+        self.rows = rows
+        done = sum(r is not None for r in rows)
+        super().__init__(f"interrupted after {done} of {len(rows)} runs")
+
+    @property
+    def finished(self) -> int:
+        """How many runs finished."""
+        return sum(r is not None for r in self.rows)
+
+
+RowCallback = Callable[[int, dict[str, Any]], None]
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C is the parent's to handle (it terminates the workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _finished(rows: list[dict[str, Any] | None], i: int, row: dict[str, Any], done: int, total: int,
+              progress: Callable[[int, int], None] | None, on_row: RowCallback | None) -> None:
+    rows[i] = row
+    if on_row is not None:
+        on_row(i, row)
+    if progress is not None:
+        progress(done, total)
+
+
+def _run_local(tasks: list[RunTask], workers: int, progress: Callable[[int, int], None] | None,
+               on_row: RowCallback | None = None) -> list[dict[str, Any]]:
     rows: list[dict[str, Any] | None] = [None] * len(tasks)
     if workers <= 1:
-        for i, task in enumerate(tasks):
-            rows[i] = run_task(task)
-            if progress is not None:
-                progress(i + 1, len(tasks))
+        try:
+            for i, task in enumerate(tasks):
+                _finished(rows, i, run_task(task), i + 1, len(tasks), progress, on_row)
+        except KeyboardInterrupt:
+            raise StudyInterrupted(rows) from None
         return rows  # type: ignore[return-value]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint)
+    try:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
         for done, future in enumerate(as_completed(futures), start=1):
-            rows[futures[future]] = future.result()
-            if progress is not None:
-                progress(done, len(tasks))
+            _finished(rows, futures[future], future.result(), done, len(tasks), progress, on_row)
+    except KeyboardInterrupt:
+        processes = list(getattr(pool, "_processes", {}).values())  # running workers would finish their runs first
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        raise StudyInterrupted(rows) from None
+    pool.shutdown()
     return rows  # type: ignore[return-value]
 
 
@@ -155,7 +211,8 @@ def import_ray() -> Any:
 
 
 def _run_ray(
-    tasks: list[RunTask], workers: int, address: str | None, progress: Callable[[int, int], None] | None
+    tasks: list[RunTask], workers: int, address: str | None, progress: Callable[[int, int], None] | None,
+    on_row: RowCallback | None = None,
 ) -> list[dict[str, Any]]:
     ray = import_ray()
     started = False
@@ -171,12 +228,15 @@ def _run_ray(
         index = {ref: i for i, ref in enumerate(refs)}
         rows: list[dict[str, Any] | None] = [None] * len(tasks)
         pending = list(refs)
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            for ref in ready:
-                rows[index[ref]] = ray.get(ref)
-            if progress is not None:
-                progress(len(tasks) - len(pending), len(tasks))
+        try:
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1)
+                for ref in ready:
+                    _finished(rows, index[ref], ray.get(ref), len(tasks) - len(pending), len(tasks), progress, on_row)
+        except KeyboardInterrupt:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise StudyInterrupted(rows) from None
         return rows  # type: ignore[return-value]
     finally:
         if started:
@@ -210,9 +270,12 @@ def run_study(
     backend: str = "local",
     address: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    on_row: RowCallback | None = None,
 ) -> Study:
     """Run every task on ``backend`` (``"local"`` or ``"ray"``) with ``workers`` workers; rows in
-    task order. ``address`` is the Ray cluster address (Ray only)."""
+    task order. ``address`` is the Ray cluster address (Ray only). ``progress(done, total)`` and
+    ``on_row(task_index, row)`` are called as each run finishes. Ctrl-C raises ``StudyInterrupted``
+    with the rows finished so far."""
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of: {', '.join(BACKENDS)}")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
@@ -222,9 +285,9 @@ def run_study(
     tasks = list(tasks)
     start = time.perf_counter()
     if backend == "local":
-        rows = _run_local(tasks, workers, progress)
+        rows = _run_local(tasks, workers, progress, on_row)
     else:
-        rows = _run_ray(tasks, workers, address, progress)
+        rows = _run_ray(tasks, workers, address, progress, on_row)
     return Study(rows, backend, workers, time.perf_counter() - start)
 
 
@@ -280,17 +343,120 @@ def _fmt(value: Any) -> Any:
     return value
 
 
+def write_runs(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
+    """Write ``rows`` to the CSV file ``path`` (ID columns, then every metric in first-seen order;
+    empty cells for ``None``), atomically: a temporary file in the same folder, then a rename."""
+    path = Path(path)
+    columns = list(ID_COLUMNS) + metric_columns(rows)
+    fd, tmp = tempfile.mkstemp(prefix=".runs-", suffix=".csv", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(columns)
+            for row in rows:
+                writer.writerow([_fmt(row.get(c)) for c in columns])
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+_INT = re.compile(r"^-?\d+$")
+
+
+def _parse_cell(text: str) -> Any:
+    if text == "":
+        return None
+    if _INT.match(text):
+        return int(text)
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_runs(path: str | Path) -> list[dict[str, Any]]:
+    """The rows of a ``runs.csv`` written by ``write_runs`` (ints, floats, ``None`` for empty cells,
+    strings for the scenario and variant). Raises ``ValueError`` naming the file when it is not one."""
+    path = Path(path)
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = reader.fieldnames or []
+        if list(header[: len(ID_COLUMNS)]) != list(ID_COLUMNS):
+            raise ValueError(f"{path}: not a runs.csv of `eot montecarlo` (its first columns must be {', '.join(ID_COLUMNS)})")
+        rows = []
+        for k, raw in enumerate(reader, start=2):
+            row = {key: _parse_cell(value or "") for key, value in raw.items()}
+            row["scenario"], row["variant"] = str(raw["scenario"]), str(raw["variant"])
+            if not isinstance(row["seed"], int) or not isinstance(row["sim_s"], (int, float)):
+                raise ValueError(f"{path}: line {k}: seed and sim_s must be numbers; got {raw['seed']!r}, {raw['sim_s']!r}")
+            rows.append(row)
+    return rows
+
+
+def task_duration(task: RunTask) -> float:
+    """The simulated seconds of ``task`` (its ``duration`` or its scenario's)."""
+    return float(task.duration if task.duration is not None else task.data["duration"])
+
+
+class RunsFile:
+    """``runs.csv`` of a study kept current while it runs: ``add(i, row)`` (an ``on_row`` callback)
+    records the row of task ``i`` and rewrites the file with every row so far, in task order;
+    ``resume()`` first loads the rows of an earlier, interrupted session of the same study."""
+
+    def __init__(self, path: str | Path, tasks: Sequence[RunTask]) -> None:
+        self.path = Path(path)
+        self.tasks = list(tasks)
+        self.rows: list[dict[str, Any] | None] = [None] * len(self.tasks)
+
+    def resume(self) -> int:
+        """Load the rows of an existing ``runs.csv`` (none when there is no file) into their tasks;
+        returns how many. Raises ``ValueError`` when the file holds a row this study does not plan
+        (another scenario, variant, seed or duration): resuming must not mix two studies."""
+        if not self.path.exists():
+            return 0
+        index = {(t.name, t.variant, t.seed): i for i, t in enumerate(self.tasks)}
+        loaded = 0
+        for row in read_runs(self.path):
+            key = (row["scenario"], row["variant"], row["seed"])
+            i = index.get(key)
+            if i is None:
+                raise ValueError(
+                    f"{self.path} has a run this study does not plan (scenario {key[0]}, variant {key[1]}, seed {key[2]}); "
+                    "resume with the same arguments, or write to another --out"
+                )
+            if not math.isclose(float(row["sim_s"]), task_duration(self.tasks[i]), rel_tol=0, abs_tol=1e-9):
+                raise ValueError(
+                    f"{self.path}: the run (scenario {key[0]}, variant {key[1]}, seed {key[2]}) simulated {row['sim_s']} s; "
+                    f"this study asks for {task_duration(self.tasks[i]):g} s; resume with the same --duration"
+                )
+            self.rows[i] = row
+            loaded += 1
+        return loaded
+
+    @property
+    def pending(self) -> list[int]:
+        """Indices of the tasks without a row."""
+        return [i for i, row in enumerate(self.rows) if row is None]
+
+    def add(self, i: int, row: dict[str, Any]) -> None:
+        """Record the row of task ``i`` and rewrite the file."""
+        self.rows[i] = row
+        self.write()
+
+    def write(self) -> Path:
+        """Rewrite the file with every row so far (task order)."""
+        return write_runs([r for r in self.rows if r is not None], self.path)
+
+
 def write_study(study: Study, out: str | Path) -> dict[str, Path]:
     """Write ``runs.csv``, ``summary.csv`` and ``summary.json`` into the folder ``out``."""
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     paths = {"runs": folder / "runs.csv", "summary": folder / "summary.csv", "summary_json": folder / "summary.json"}
-    columns = list(ID_COLUMNS) + metric_columns(study.rows)
-    with open(paths["runs"], "w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(columns)
-        for row in study.rows:
-            writer.writerow([_fmt(row.get(c)) for c in columns])
+    write_runs(study.rows, paths["runs"])
     summary = summarize_runs(study.rows)
     keys = ["scenario", "variant", "metric", "n", "mean", "std", "ci95_low", "ci95_high"]
     with open(paths["summary"], "w", newline="", encoding="utf-8") as fh:
@@ -327,13 +493,18 @@ def default_workers() -> int:
 __all__ = [
     "BACKENDS",
     "RunTask",
+    "RunsFile",
     "Study",
+    "StudyInterrupted",
     "default_workers",
     "import_ray",
     "plan",
+    "read_runs",
     "run_study",
     "run_task",
     "scenario_task_data",
     "summarize_runs",
+    "task_duration",
+    "write_runs",
     "write_study",
 ]

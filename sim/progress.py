@@ -1,21 +1,33 @@
-"""A small text progress bar on stderr (no dependency).
+"""Progress bars: thin adapters from the runner's and the Monte Carlo's ``progress(done, total)``
+callbacks to tqdm (terminals, notebooks and logs; nested bars).
 
-``ProgressBar(total, label)`` is called as ``bar(done)`` or ``bar(done, total)`` (the runner's and
-the Monte Carlo's ``progress`` callback signature) and redraws at most every ``min_interval``
-seconds. On a terminal it redraws one line in place (carriage return); elsewhere (logs, CI, pipes)
-it prints a plain line only at the first step and every 10 % so logs stay short. ``enabled=False``
-silences it.
+``ProgressBar(total, label)`` is a tqdm bar called as ``bar(done)`` or ``bar(done, total)`` (absolute
+counts; ``total = 0`` means unknown until the first call gives it). On a terminal it redraws at most
+every 0.1 s; elsewhere (logs, CI, pipes) at most every ``LOG_INTERVAL`` s, so logs stay short, and
+always once when it closes. ``enabled=False`` silences it. ``position`` stacks bars (0 is the top
+line); a bar with ``leave=False`` is erased when it closes: ``NestedProgress`` uses that for the
+Monte Carlo (a bar over all runs and, below it on a terminal, one bar per scenario).
 """
 
 from __future__ import annotations
 
 import sys
-import time
 from typing import TextIO
+
+from tqdm.auto import tqdm
+
+#: Seconds between redraws when the stream is not a terminal.
+LOG_INTERVAL = 10.0
+#: Seconds between redraws on a terminal.
+TTY_INTERVAL = 0.1
+
+
+def _is_tty(stream: TextIO) -> bool:
+    return bool(getattr(stream, "isatty", lambda: False)())
 
 
 class ProgressBar:
-    """Progress of ``total`` steps labelled ``label``, written to ``stream`` (stderr)."""
+    """A tqdm bar of ``total`` steps (0: unknown yet) labelled ``label`` on ``stream`` (stderr)."""
 
     def __init__(
         self,
@@ -24,66 +36,39 @@ class ProgressBar:
         *,
         stream: TextIO | None = None,
         enabled: bool = True,
-        width: int = 30,
-        min_interval: float = 0.1,
+        position: int | None = None,
+        leave: bool = True,
+        unit: str = "it",
     ) -> None:
-        self.total = max(int(total), 0)
-        self.label = label
-        self.stream = stream if stream is not None else sys.stderr
-        self.enabled = enabled
-        self.width = width
-        self.min_interval = min_interval
-        self.done = 0
-        self._start = time.perf_counter()
-        self._last_draw = -1e9
-        self._last_decile = -1
-        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self._closed = False
-        self._drawn = False
+        stream = sys.stderr if stream is None else stream
+        self.bar = tqdm(
+            total=max(int(total), 0) or None,
+            desc=label or None,
+            file=stream,
+            disable=not enabled,
+            position=position,
+            leave=leave,
+            unit=unit,
+            mininterval=TTY_INTERVAL if _is_tty(stream) else LOG_INTERVAL,
+            dynamic_ncols=True,
+        )
+
+        self.done = 0  # steps done so far (counted also when the bar is disabled)
+        self.total = max(int(total), 0)  # steps in all (0 while unknown)
 
     def __call__(self, done: int, total: int | None = None) -> None:
-        if total is not None:
+        if total is not None and int(total) != self.total:
             self.total = max(int(total), 0)
+            self.bar.total = self.total or None
+            self.bar.refresh()
+        step = int(done) - self.done
         self.done = int(done)
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        finished = self.total and self.done >= self.total
-        if self._tty:
-            if finished or now - self._last_draw >= self.min_interval:
-                self._draw(now, end="\n" if finished else "")
-        else:
-            decile = int(10 * self.done / self.total) if self.total else 0
-            if decile != self._last_decile or finished:
-                self._last_decile = decile
-                self._draw(now, end="\n")
-        if finished:
-            self._closed = True
-
-    def _text(self, now: float) -> str:
-        elapsed = now - self._start
-        frac = min(self.done / self.total, 1.0) if self.total else 0.0
-        filled = int(round(self.width * frac))
-        bar = "#" * filled + "-" * (self.width - filled)
-        eta = ""
-        if 0 < self.done < self.total:
-            eta = f" eta {elapsed * (self.total - self.done) / self.done:5.1f} s"
-        label = f"{self.label} " if self.label else ""
-        return f"{label}[{bar}] {self.done}/{self.total} {elapsed:6.1f} s{eta}"
-
-    def _draw(self, now: float, end: str) -> None:
-        self._last_draw = now
-        self._drawn = True
-        prefix = "\r" if self._tty else ""
-        self.stream.write(prefix + self._text(now) + end)
-        self.stream.flush()
+        if step:
+            self.bar.update(step)
 
     def close(self) -> None:
-        """End the line on a terminal if the bar did not reach its total."""
-        if self.enabled and self._tty and self._drawn and not self._closed:
-            self.stream.write("\n")
-            self.stream.flush()
-        self._closed = True
+        """Draw the final state (unless ``leave=False``) and release the line."""
+        self.bar.close()
 
     def __enter__(self) -> ProgressBar:
         return self
@@ -92,4 +77,38 @@ class ProgressBar:
         self.close()
 
 
-__all__ = ["ProgressBar"]
+class NestedProgress:
+    """A bar over all runs of a study with one bar per group (e.g. scenario) below it; ``done(group)``
+    counts one finished run of ``group``. ``groups`` maps each group to its number of runs."""
+
+    def __init__(self, groups: dict[str, int], label: str, *, stream: TextIO | None = None, enabled: bool = True) -> None:
+        total = sum(groups.values())
+        stream = sys.stderr if stream is None else stream
+        self.outer = ProgressBar(total, label, stream=stream, enabled=enabled, position=0, unit="run")
+        width = max((len(g) for g in groups), default=0)
+        nested = enabled and len(groups) > 1 and _is_tty(stream)  # in a log, stacked bars are only noise
+        self.inner = {
+            g: ProgressBar(n, f"  {g:<{width}}", stream=stream, enabled=nested, position=i + 1, leave=False, unit="run")
+            for i, (g, n) in enumerate(groups.items())
+        }
+
+    def done(self, group: str) -> None:
+        """One more run of ``group`` finished."""
+        bar = self.inner[group]
+        bar(bar.done + 1)
+        self.outer(self.outer.done + 1)
+
+    def close(self) -> None:
+        """Close the group bars, then the outer one."""
+        for bar in reversed(list(self.inner.values())):
+            bar.close()
+        self.outer.close()
+
+    def __enter__(self) -> NestedProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+__all__ = ["LOG_INTERVAL", "NestedProgress", "ProgressBar", "TTY_INTERVAL"]

@@ -33,9 +33,15 @@ run to run; every other metric is bit-identical for the same scenario, seed and 
 each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` otherwise); ``sim.results``
 writes them to ``tracker_events.csv`` and ``sim.inspect`` uses them to explain losses.
 
-Randomness: ``World(spec, seed)`` seeds the traffic; the sensors and the clutter draw from their own
-``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all three are independent and fixed
-by the seed.
+**Faults.** A scenario's ``[faults]`` table (``sim.scenario.FaultsSpec``) is applied to the sensor
+frames by ``sim.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
+(``lidar_time_offset``); the run's metrics then add the ``fault_*`` counts and, for lidar dropouts,
+the dropout measures (``sim.faults.dropout_outcomes``: coasting and re-acquisition with the same
+label within ``sim.faults.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
+
+Randomness: ``World(spec, seed)`` seeds the traffic; the sensors, the clutter and the faults draw
+from their own ``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all are independent and
+fixed by the seed.
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
 from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
@@ -186,6 +193,21 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
             f"{_where(spec)}: sensors.roadside = {roadside!r}: use true, false or a table of ClutterConfig fields"
         )
     return rig, clutter
+
+
+def check_scenario_settings(spec: ScenarioSpec, variant: str = DEFAULT_VARIANT) -> None:
+    """Apply ``spec``'s ``[sensors]`` and ``[tracker]`` overrides for ``variant`` and check its
+    ``[faults]`` against the sensors, without running anything: raises ``ScenarioError`` naming the
+    file and the field (so a study reports a bad file before it starts its workers)."""
+    rig, _ = rig_config_for(spec)
+    tracker_config_for(spec, variant, rig)
+    if spec.faults is not None:
+        period = 1.0 / rig.lidar.rate_hz
+        if spec.faults.lidar_time_offset >= period:
+            raise ScenarioError(
+                f"{_where(spec)}: faults.lidar_time_offset = {spec.faults.lidar_time_offset!r}: must be below the "
+                f"lidar's period ({period:g} s at {rig.lidar.rate_hz:g} Hz)"
+            )
 
 
 def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None = None) -> TrackerConfig:
@@ -372,6 +394,7 @@ def run_scenario(
         raise ValueError(f"min_visible_points must be an integer >= 1; got {min_visible_points!r}")
 
     start = time.perf_counter()
+    check_scenario_settings(spec, variant)
     rig_cfg, clutter_cfg = rig_config_for(spec)  # the file's overrides; errors name the file
     config = tracker_config_for(spec, variant, rig_cfg)
     world = World(spec, seed)
@@ -395,7 +418,16 @@ def run_scenario(
     records: list[FrameRecord] = []
     switches = IdSwitchCounter()
     sensor_seed = np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,))
-    for k, sf in enumerate(rig.frames(world.truth_at, duration, seed=sensor_seed)):
+    faults = spec.faults if spec.faults is not None and spec.faults.active else None
+    stream = rig.frames(world.truth_at, duration, seed=sensor_seed,
+                        lidar_delay=faults.lidar_time_offset if faults is not None else 0.0)
+    injector = None
+    if faults is not None:
+        fault_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(FAULT_STREAM,)))
+        injector = FaultInjector(faults, rig_cfg.lidar, fault_rng)
+        stream = injector.apply(stream)
+        total += sum(1 for t in faults.duplicate_frames if t <= duration)
+    for k, sf in enumerate(stream):
         t0 = time.perf_counter()
         tracks = list(tracker.step(sf.frame))
         ms = 1e3 * (time.perf_counter() - t0)
@@ -437,6 +469,10 @@ def run_scenario(
             progress(k + 1, total)
     wall = time.perf_counter() - start
     metrics = summarize(records, switches.switches, wall_s=wall, extent=extent)
+    if injector is not None and faults is not None:
+        metrics.update(fault_metrics(injector.counts))
+        if faults.lidar_dropout:
+            metrics.update(dropout_metrics(dropout_outcomes(records, faults.lidar_dropout)))
     stats = dict(getattr(tracker, "stats", {}) or {})
     return Result(
         spec=spec,
@@ -485,6 +521,7 @@ __all__ = [
     "Result",
     "TIMING_KEYS",
     "TRACKER_EVENT_LABEL_KEYS",
+    "check_scenario_settings",
     "deterministic_metrics",
     "default_tracker_factory",
     "normalize_tracker_events",

@@ -33,6 +33,15 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
 
     [sensors]                             # optional overrides, applied by the runner
     [tracker]                             # optional overrides, applied by the runner
+    [faults]                              # optional sensor faults, applied by the runner (sim.faults)
+    lidar_dropout = [[6.0, 8.0]]          # intervals [start, end) s: lidar frames carry no points
+    radar_dropout = [[6.0, 8.0]]          # intervals [start, end) s: no radar detections
+    radar_missing = false                 # true: no radar detections in the whole run
+    lidar_time_offset = 0.05              # s, in [0, lidar period): each scan is measured this long
+                                          #   before the time it is stamped with (uncompensated latency)
+    lidar_spikes = 0.05                   # fraction of each scan's points moved to a random range
+                                          #   (uniform in the lidar's [min_range, max_range]) on their ray
+    duplicate_frames = [5.0]              # times s: the first frame at or after each is delivered twice
     [generator]                           # optional: draw a new road and/or traffic per seed
     classes = [                           # optional vehicle classes of the drawn traffic
         { name = "car", length = [4.2, 5.2], width = [1.7, 2.1], share = 0.8 },
@@ -47,6 +56,8 @@ vehicle behaviour "idm", length 4.8 m and width 2.0 m (the paper's target), targ
 lane_changes (MOBIL, idm only) true for vehicles and false for the ego; lane change duration 4 s,
 speed change accel 2 m/s^2, brake to 0 m/s at 4 m/s^2 (constant deceleration, landing on the
 target speed). A vehicle standing still on the road: behaviour "constant" with speed 0.
+Faults (``FaultsSpec``): none by default; intervals must lie within [0, duration] with start < end,
+duplicate times within [0, duration).
 Generator vehicle classes (``VehicleClass``): ``length`` and ``width`` are a number or a range
 ``[low, high]`` (m, drawn uniformly), ``share`` > 0 and the shares must sum to 1 within 1e-6 (they are
 not normalised: a typo in a share is an error, not a silent re-weighting); without ``classes`` the
@@ -58,6 +69,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from importlib import resources
 from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -79,8 +91,21 @@ MAX_CURVATURE = 0.05
 START_CLEARANCE = 0.5
 #: Largest allowed speed (m/s) anywhere in a scenario (highway-env's Vehicle.MAX_SPEED).
 MAX_SPEED = 40.0
-#: Folder of the scenario files shipped with the repository.
-SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+def shipped_scenario_dir() -> Path:
+    """The folder of the shipped scenario files: ``sim/scenarios``, package data read through
+    ``importlib.resources``. In the repository it is a symbolic link to the top-level ``scenarios/``
+    (the one source of the files), which a wheel (``pip install .``) copies into the package, so a
+    source checkout, an editable install and a regular install all find the same files."""
+    shipped = resources.files("sim") / "scenarios"
+    if not isinstance(shipped, Path):  # pragma: no cover (a zipped install; pip never makes one)
+        raise RuntimeError(f"the shipped scenarios must be a folder on disk; got {shipped!r}")
+    return shipped
+
+
+#: Folder of the shipped scenario files (``shipped_scenario_dir``).
+SCENARIO_DIR = shipped_scenario_dir()
 
 
 class ScenarioError(ValueError):
@@ -420,6 +445,61 @@ class GeneratorSpec(_Model):
         return self
 
 
+# -- faults --------------------------------------------------------------------------------------
+#: A time interval ``[start, end)`` (s).
+Interval = tuple[StrictFloat, StrictFloat]
+
+
+class FaultsSpec(_Model):
+    """Sensor faults injected by the runner (``sim.faults``); every default is "no fault".
+
+    - ``lidar_dropout``: intervals ``[start, end)`` (s) in which lidar frames carry no points (the
+      frame still arrives, with the ego pose and any radar detections);
+    - ``radar_dropout``: intervals ``[start, end)`` (s) in which frames carry no radar detections;
+      ``radar_missing`` (false): no radar detections in the whole run;
+    - ``lidar_time_offset`` (0 s; at least 0, below the lidar's period): each scan is measured this
+      long before the time it is stamped with, while the ego pose and the radar keep the true time (a
+      lidar clock running late, or an uncompensated latency);
+    - ``lidar_spikes`` (0; a fraction in [0, 1]): each point of a scan is, with this probability,
+      moved along its ray to a range drawn uniformly in the lidar's ``[min_range, max_range]``;
+    - ``duplicate_frames`` (none): times (s); the first frame at or after each time is delivered
+      twice (the same frame, the same timestamp)."""
+
+    lidar_dropout: list[Interval] = Field(default_factory=list, max_length=100)
+    radar_dropout: list[Interval] = Field(default_factory=list, max_length=100)
+    radar_missing: StrictBool = False
+    lidar_time_offset: StrictFloat = Field(default=0.0, ge=0.0, lt=1.0)
+    lidar_spikes: StrictFloat = Field(default=0.0, ge=0.0, le=1.0)
+    duplicate_frames: list[StrictFloat] = Field(default_factory=list, max_length=1000)
+
+    @model_validator(mode="after")
+    def _intervals(self) -> FaultsSpec:
+        for name in ("lidar_dropout", "radar_dropout"):
+            for i, (start, end) in enumerate(getattr(self, name)):
+                if not 0.0 <= start < end:
+                    raise ValueError(f"faults.{name}[{i}] = {[start, end]}: need 0 <= start < end (s)")
+        for i, t in enumerate(self.duplicate_frames):
+            if t < 0.0:
+                raise ValueError(f"faults.duplicate_frames[{i}] = {t!r}: times must be >= 0 s")
+        return self
+
+    @property
+    def active(self) -> bool:
+        """Whether any fault is set."""
+        return bool(self.lidar_dropout or self.radar_dropout or self.radar_missing or self.lidar_time_offset
+                    or self.lidar_spikes or self.duplicate_frames)
+
+    def check_duration(self, duration: float) -> None:
+        """``ValueError`` when an interval ends after ``duration`` (s) or a duplicate time is not before it."""
+        for name in ("lidar_dropout", "radar_dropout"):
+            for i, (start, end) in enumerate(getattr(self, name)):
+                if end > duration:
+                    raise ValueError(f"faults.{name}[{i}] = {[start, end]}: must end by the duration ({duration} s)")
+        for i, t in enumerate(self.duplicate_frames):
+            if t >= duration:
+                raise ValueError(f"faults.duplicate_frames[{i}] = {t!r}: must be < duration ({duration} s)")
+
+
 # -- the scenario --------------------------------------------------------------------------------
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 
@@ -443,6 +523,7 @@ class ScenarioSpec(_Model):
     vehicles: list[VehicleSpec] = Field(default_factory=list)
     sensors: dict[str, Any] = Field(default_factory=dict)
     tracker: dict[str, Any] = Field(default_factory=dict)
+    faults: FaultsSpec | None = None
     generator: GeneratorSpec | None = None
 
     _road: Road | None = PrivateAttr(default=None)
@@ -454,6 +535,8 @@ class ScenarioSpec(_Model):
             raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
         if "\n" in self.description:
             raise ValueError("description must be one line")
+        if self.faults is not None:
+            self.faults.check_duration(self.duration)
         if self.generator is None:
             if self.road is None:
                 raise ValueError("road: missing; a scenario without a [generator] needs a [road] table")
@@ -592,6 +675,7 @@ def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
     """The model class that holds the field at ``loc`` (for listing the allowed keys)."""
     sub: dict[str, type[BaseModel]] = {
         "road": RoadSpec, "ego": EgoSpec, "vehicles": VehicleSpec, "generator": GeneratorSpec, "classes": VehicleClass,
+        "faults": FaultsSpec,
     }
     tags: dict[str, type[BaseModel]] = {"lane_change": LaneChange, "speed": SpeedChange, "brake": Brake}
     model: type[BaseModel] | None = ScenarioSpec

@@ -157,15 +157,24 @@ def test_run_default_output_folder(monkeypatch):
 def test_progress_bar_lines():
     import io
 
-    from sim.progress import ProgressBar
+    from sim.progress import NestedProgress, ProgressBar
 
-    stream = io.StringIO()  # not a terminal: one line per 10 %
+    stream = io.StringIO()  # not a terminal: tqdm draws the first and the final state
     bar = ProgressBar(20, "runs", stream=stream)
     for i in range(1, 21):
         bar(i)
-    lines = stream.getvalue().splitlines()
-    assert len(lines) == 11 and lines[-1].startswith("runs [" + "#" * 30 + "] 20/20")
+    bar.close()
+    text = stream.getvalue()
+    assert bar.done == 20 and "runs: 100%" in text and "20/20" in text
     quiet = io.StringIO()
     with ProgressBar(5, stream=quiet, enabled=False) as off:
         off(5)
     assert quiet.getvalue() == ""
+    unknown = ProgressBar(0, "frames", stream=io.StringIO())
+    unknown(3, 10)  # the runner gives the total with the first call
+    assert unknown.total == 10 and unknown.done == 3
+    log = io.StringIO()
+    with NestedProgress({"a": 2, "b": 1}, "3 runs", stream=log) as bars:
+        bars.done("a"), bars.done("b"), bars.done("a")
+        assert bars.outer.done == 3 and bars.inner["a"].done == 2 and bars.inner["b"].done == 1
+    assert "3/3" in log.getvalue() and "  a" not in log.getvalue()  # in a log only the outer bar

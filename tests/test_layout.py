@@ -30,3 +30,22 @@ def test_tracker_imports_only_numpy_and_scipy():
     # anything else outside the standard library must be a dependency of numpy/scipy themselves
     allowed_transitive = {"packaging", "typing_extensions", "cython_runtime"}  # cython_runtime: made by scipy's extensions
     assert set(filter(None, third.split(","))) <= allowed_transitive, f"tracker imports third-party: {third}"
+
+
+def test_scenarios_ship_inside_the_package():
+    """``sim/scenarios`` links to the repository's ``scenarios/`` (the one source), and pyproject makes it
+    package data, so a wheel carries the files (.ci/run installs one and runs ``eot`` elsewhere)."""
+    import tomllib
+    from pathlib import Path
+
+    from sim.scenario import SCENARIO_DIR
+
+    root = Path(__file__).resolve().parents[1]
+    link = root / "sim" / "scenarios"
+    assert link.is_symlink() and link.resolve() == (root / "scenarios").resolve()
+    assert SCENARIO_DIR.resolve() == (root / "scenarios").resolve()
+    assert (SCENARIO_DIR / "curvy-multi.toml").is_file() and (SCENARIO_DIR / "standard.toml").is_file()
+    with open(root / "pyproject.toml", "rb") as fh:
+        config = tomllib.load(fh)["tool"]["setuptools"]
+    assert "scenarios/*.toml" in config["package-data"]["sim"]
+    assert "sim*" in config["packages"]["find"]["include"]

@@ -97,15 +97,24 @@ class SensorRig:
         *,
         seed: int | np.random.SeedSequence = 0,
         t0: float = 0.0,
+        lidar_delay: float = 0.0,
     ) -> Iterator[SensorFrame]:
         """Yield a ``SensorFrame`` at every lidar time from ``t0`` up to ``t0 + duration`` (s;
-        forever when ``None``), lazily: ``truth_at`` is called only as far as the frame being made."""
+        forever when ``None``), lazily: ``truth_at`` is called only as far as the frame being made.
+
+        ``lidar_delay`` (s, 0 by default, below the lidar's period) is a fault: the scan delivered
+        with the frame stamped ``t`` is measured at ``t - lidar_delay`` (``SensorFrame.lidar.t``),
+        while the ego pose, the truth and the radar keep their true times (``sim.faults``); a scan
+        that would fall before ``t0`` is measured at ``t0``."""
         if not callable(truth_at):
             raise ValueError("SensorRig.frames needs truth_at, a callable t -> sim.truth.Snapshot")
         if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a finite number of seconds >= 0 (or None); got {duration!r}")
         if not (isinstance(t0, (int, float)) and math.isfinite(t0)):
             raise ValueError(f"t0 must be a finite time in s; got {t0!r}")
+        period = 1.0 / self.config.lidar.rate_hz
+        if not (isinstance(lidar_delay, (int, float)) and 0.0 <= lidar_delay < period):
+            raise ValueError(f"lidar_delay must be in [0, {period:g}) s (below the lidar's period); got {lidar_delay!r}")
         children = _seed_sequence(seed).spawn(1 + len(self.radars))
         lidar_rng = np.random.default_rng(children[0])
         radar_rngs = [np.random.default_rng(c) for c in children[1:]]
@@ -134,18 +143,23 @@ class SensorRig:
             if duration is not None and t_frame > t0 + duration + TIME_TOLERANCE:
                 return
             pending: list[tuple[RadarScan, np.ndarray, np.ndarray]] = []  # scan, xy in G, velocity in G
+            t_scan = max(t_frame - lidar_delay, t0)  # the world does not exist before t0
+            lidar_scan: LidarScan | None = None
             while self.radars:
                 times = [radar_time(i) for i in range(len(self.radars))]
                 i = int(np.argmin(times))  # ties: the lower unit index first
                 if times[i] > t_frame + TIME_TOLERANCE:
                     break
+                if lidar_scan is None and times[i] > t_scan + TIME_TOLERANCE:  # a delayed scan comes first
+                    lidar_scan = self.lidar.scan(truth(t_scan), self.roadside, rng=lidar_rng)
                 snap = truth(times[i])
                 scan = self.radars[i].detect(snap, self.roadside, rng=radar_rngs[i])
                 ego = snap.ego
                 pending.append((scan, to_global(scan.xy, (ego.x, ego.y), ego.yaw), rotate(scan.velocity, ego.yaw)))
                 cycles[i] += 1
+            if lidar_scan is None:
+                lidar_scan = self.lidar.scan(truth(t_scan), self.roadside, rng=lidar_rng)
             snap = truth(t_frame)
-            lidar_scan = self.lidar.scan(snap, self.roadside, rng=lidar_rng)
             ego = snap.ego
             radar = RadarScan.concatenate(
                 [

@@ -1,0 +1,220 @@
+"""Sensor faults on the frames of a run (the scenario's ``[faults]`` table, ``sim.scenario.FaultsSpec``)
+and the per-run measures of how the tracker lives through a lidar dropout.
+
+``FaultInjector(spec, lidar_config, rng).apply(frames)`` wraps the ``SensorRig``'s frame stream:
+
+- a frame in a ``lidar_dropout`` interval ``[start, end)`` (by its stamp) loses its lidar points
+  (``SensorFrame.lidar`` becomes an empty scan, so the visible-truth scoring sees nothing either);
+- a frame in a ``radar_dropout`` interval, or any frame with ``radar_missing``, loses its radar
+  detections;
+- with ``lidar_spikes`` = p, each remaining point is, with probability p, moved along its own ray to
+  a range uniform in the lidar's ``[min_range, max_range]`` (it then hits nothing: vehicle id -1);
+- the first frame at or after each ``duplicate_frames`` time is yielded twice (the same frame object:
+  the tracker sees the same timestamp twice).
+
+The ``lidar_time_offset`` fault is the rig's (``SensorRig.frames(..., lidar_delay=...)``), which
+scans the world that long before the frame's stamp; ``run_scenario`` passes it. Everything else in a
+frame is unchanged, and the spikes draw from their own generator, so a faulty run has the same
+traffic and the same sensor noise as the clean run of the same seed. ``counts`` tallies what was
+done (``fault_*`` keys of the run's metrics).
+
+**Dropout measures** (``dropout_measures``; for each ``lidar_dropout`` interval ``[a, b)``): the
+vehicles *tracked before* are those GOSPA-assigned to a track in the last frame before ``a``; of
+those, the *eligible* ones are still in the scored truth set at the end of the re-acquisition window,
+the first frame at or after ``b + window_s``. A vehicle *coasted* when its track's label is still
+reported in the last frame before ``b``; it was *re-acquired with its label* when, in that
+end-of-window frame, it is GOSPA-assigned to a track with the same label as before the dropout.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim.scenario import FaultsSpec
+from sim.sensors.lidar import LidarConfig, LidarScan
+from sim.sensors.radar import RadarScan
+from sim.sensors.rig import SensorFrame
+from tracker.frame import Frame, RadarDetections
+
+if TYPE_CHECKING:
+    from sim.runner import FrameRecord
+
+#: Stream tag mixed into the seed for the faults' random generator (lidar spikes).
+FAULT_STREAM = 0x46415554  # "FAUT"
+#: Default re-acquisition window (s) after a lidar dropout ends.
+REACQUIRE_WINDOW_S = 1.0
+
+
+def in_intervals(t: float, intervals: Sequence[tuple[float, float]]) -> bool:
+    """Whether ``t`` (s) lies in one of the intervals ``[start, end)``."""
+    return any(start <= t < end for start, end in intervals)
+
+
+def _empty_scan(scan: LidarScan) -> LidarScan:
+    return LidarScan(
+        t=scan.t,
+        azimuth=np.zeros(0),
+        range=np.zeros(0),
+        points=np.zeros((0, 2)),
+        vehicle_id=np.zeros(0, dtype=scan.vehicle_id.dtype),
+        roadside_index=np.zeros(0, dtype=scan.roadside_index.dtype),
+        rays=scan.rays,
+    )
+
+
+def _empty_radar(scan: RadarScan) -> RadarScan:
+    keep = np.zeros(len(scan.t), dtype=bool)
+    return RadarScan(t=scan.t[keep], xy=scan.xy[keep], velocity=scan.velocity[keep], target_id=scan.target_id[keep],
+                     unit=scan.unit[keep])
+
+
+@dataclass
+class FaultInjector:
+    """Applies ``spec`` to a stream of ``SensorFrame``s (module docstring); ``lidar`` gives the spike
+    ranges, ``rng`` draws the spikes. ``counts``: ``lidar_frames_dropped``, ``radar_frames_dropped``,
+    ``radar_detections_dropped``, ``lidar_points_spiked``, ``frames_duplicated``."""
+
+    spec: FaultsSpec
+    lidar: LidarConfig
+    rng: np.random.Generator
+    counts: Counter[str] = field(default_factory=Counter)
+
+    def apply(self, frames: Iterable[SensorFrame]) -> Iterator[SensorFrame]:
+        """The faulty stream (lazy)."""
+        duplicates = sorted(self.spec.duplicate_frames)
+        for sf in frames:
+            out = self.frame(sf)
+            yield out
+            t = float(sf.frame.t)
+            while duplicates and duplicates[0] <= t + 1e-9:
+                duplicates.pop(0)
+                self.counts["frames_duplicated"] += 1
+                yield out
+
+    def frame(self, sf: SensorFrame) -> SensorFrame:
+        """One frame with the lidar dropout, radar dropout and spike faults applied."""
+        spec = self.spec
+        t = float(sf.frame.t)
+        lidar, radar = sf.lidar, sf.radar
+        changed = False
+        if in_intervals(t, spec.lidar_dropout):
+            lidar = _empty_scan(lidar)
+            self.counts["lidar_frames_dropped"] += 1
+            changed = True
+        elif spec.lidar_spikes > 0.0 and len(lidar):
+            hit = self.rng.random(len(lidar)) < spec.lidar_spikes
+            ranges = self.rng.uniform(self.lidar.min_range, self.lidar.max_range, len(lidar))
+            if hit.any():
+                new_range = np.where(hit, ranges, lidar.range)
+                direction = lidar.points / np.maximum(np.linalg.norm(lidar.points, axis=1), 1e-12)[:, None]
+                points = np.where(hit[:, None], direction * new_range[:, None], lidar.points)
+                lidar = replace(
+                    lidar,
+                    range=new_range,
+                    points=points,
+                    vehicle_id=np.where(hit, -1, lidar.vehicle_id),
+                    roadside_index=np.where(hit, -1, lidar.roadside_index),
+                )
+                self.counts["lidar_points_spiked"] += int(hit.sum())
+                changed = True
+        if len(radar) and (spec.radar_missing or in_intervals(t, spec.radar_dropout)):
+            self.counts["radar_frames_dropped"] += 1
+            self.counts["radar_detections_dropped"] += len(radar)
+            radar = _empty_radar(radar)
+            changed = True
+        if not changed:
+            return sf
+        frame = Frame(
+            t=sf.frame.t,
+            ego=sf.frame.ego,
+            lidar=lidar.points,
+            radar=RadarDetections(radar.t, radar.xy[:, 0], radar.xy[:, 1], radar.velocity[:, 0], radar.velocity[:, 1]),
+        )
+        return SensorFrame(frame=frame, truth=sf.truth, lidar=lidar, radar=radar)
+
+
+def fault_metrics(counts: Counter[str]) -> dict[str, int]:
+    """The injector's counts as ``fault_*`` metrics (every key, 0 when nothing was done)."""
+    keys = ("lidar_frames_dropped", "radar_frames_dropped", "radar_detections_dropped", "lidar_points_spiked",
+            "frames_duplicated")
+    return {f"fault_{k}": int(counts.get(k, 0)) for k in keys}
+
+
+@dataclass(frozen=True)
+class DropoutOutcome:
+    """One vehicle across one lidar dropout ``[start, end)`` (s): its truth ``vehicle_id``, the
+    ``label`` of its track before the dropout, whether that track ``coasted`` (still reported at the
+    dropout's last frame) and whether it was ``reacquired`` with that label at ``check_t`` (s), the
+    end of the re-acquisition window; ``label_after`` is the label assigned to it then (-1: none)."""
+
+    start: float
+    end: float
+    vehicle_id: int
+    label: int
+    coasted: bool
+    reacquired: bool
+    label_after: int
+    check_t: float
+
+
+def dropout_outcomes(records: Sequence[FrameRecord], intervals: Sequence[tuple[float, float]],
+                     window_s: float = REACQUIRE_WINDOW_S) -> list[DropoutOutcome]:
+    """Per lidar dropout interval and eligible vehicle, what happened (module docstring). Intervals
+    without a frame before them or without a frame at or after ``end + window_s`` are skipped."""
+    if not window_s >= 0.0:
+        raise ValueError(f"window_s must be >= 0 s; got {window_s!r}")
+    times = np.array([r.t for r in records])
+    out: list[DropoutOutcome] = []
+    for start, end in intervals:
+        before = np.flatnonzero(times < start - 1e-9)
+        during = np.flatnonzero((times >= start - 1e-9) & (times < end - 1e-9))
+        after = np.flatnonzero(times >= end + window_s - 1e-9)
+        if not len(before) or not len(after):
+            continue
+        rec_before = records[before[-1]]
+        rec_check = records[after[0]]
+        rec_last = records[during[-1]] if len(during) else rec_before
+        reported_last = {tr.label for tr in rec_last.tracks}
+        check_scored = set(int(i) for i in rec_check.truth.ids[rec_check.scored])
+        check_label = {int(vid): int(tr.label) for tr, vid in zip(rec_check.tracks, rec_check.track_truth_id) if vid >= 0}
+        for tr, vid in zip(rec_before.tracks, rec_before.track_truth_id):
+            if vid < 0 or int(vid) not in check_scored:
+                continue
+            after_label = check_label.get(int(vid), -1)
+            out.append(DropoutOutcome(
+                start=float(start), end=float(end), vehicle_id=int(vid), label=int(tr.label),
+                coasted=int(tr.label) in reported_last, reacquired=after_label == int(tr.label),
+                label_after=after_label, check_t=float(rec_check.t),
+            ))
+    return out
+
+
+def dropout_metrics(outcomes: Sequence[DropoutOutcome]) -> dict[str, Any]:
+    """``fault_dropout_vehicles`` (eligible vehicles over all dropouts), ``fault_dropout_coasted``,
+    ``fault_dropout_reacquired`` (counts) and ``fault_dropout_reacquired_fraction`` (``None`` when no
+    vehicle was eligible)."""
+    n = len(outcomes)
+    reacquired = sum(o.reacquired for o in outcomes)
+    return {
+        "fault_dropout_vehicles": n,
+        "fault_dropout_coasted": sum(o.coasted for o in outcomes),
+        "fault_dropout_reacquired": reacquired,
+        "fault_dropout_reacquired_fraction": reacquired / n if n else None,
+    }
+
+
+__all__ = [
+    "FAULT_STREAM",
+    "REACQUIRE_WINDOW_S",
+    "DropoutOutcome",
+    "FaultInjector",
+    "dropout_metrics",
+    "dropout_outcomes",
+    "fault_metrics",
+    "in_intervals",
+]

@@ -1,0 +1,171 @@
+"""The command line under bad files and interruptions: malformed TOML, unknown keys, out-of-range values,
+missing files and unwritable output folders are one line on stderr with exit status 2 (never a
+traceback); an interrupted Monte Carlo leaves its finished rows in runs.csv and ``--resume`` completes
+it."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sim import cli
+from sim import montecarlo
+from sim.scenario import SCENARIO_DIR
+
+
+def _main(capsys, *argv):
+    code = cli.main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def _one_line(err: str) -> str:
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+def _scenario(tmp_path: Path, text: str, name: str = "bad.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+GOOD = (SCENARIO_DIR / "curve-single.toml").read_text()
+
+
+@pytest.mark.parametrize("command", ["run", "montecarlo", "soak"])
+def test_malformed_toml(capsys, tmp_path, command):
+    bad = _scenario(tmp_path, GOOD.replace("duration = ", "duration = [", 1))
+    extra = ["--runs", "1", "--out", tmp_path / "mc"] if command == "montecarlo" else []
+    code, out, err = _main(capsys, command, bad, *extra)
+    assert code == 2 and out == ""
+    assert "not valid TOML" in _one_line(err) and str(bad) in err
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needles"),
+    [
+        ("[ego]", "[ego]\nlaen = 1", ("ego.laen = 1: unknown key", "allowed keys here: lane, s, speed")),
+        ("lane_width = 3.5", "lane_width = 9.0", ("road.lane_width = 9.0", "less than or equal to 5")),
+        ("[ego]", "[faults]\nlidar_spikes = 2.0\n\n[ego]", ("faults.lidar_spikes = 2.0", "less than or equal to 1")),
+    ],
+)
+def test_unknown_keys_and_out_of_range_values(capsys, tmp_path, old, new, needles):
+    assert old in GOOD
+    bad = _scenario(tmp_path, GOOD.replace(old, new, 1))
+    for argv in (["run", bad], ["montecarlo", bad, "--runs", "2", "--out", tmp_path / "mc"]):
+        code, _, err = _main(capsys, *argv)
+        assert code == 2 and all(n in _one_line(err) for n in needles), err
+
+
+def test_bad_override_fails_before_the_study_starts(capsys, tmp_path):
+    bad = _scenario(tmp_path, GOOD + "\n[sensors.lidar]\nmax_rnage = 50.0\n")
+    code, _, err = _main(capsys, "montecarlo", bad, "--runs", "2", "--workers", "2", "--out", tmp_path / "mc")
+    assert code == 2 and "sensors.lidar.max_rnage = 50.0: unknown key" in _one_line(err)
+    assert not (tmp_path / "mc" / "runs.csv").exists()
+
+
+def test_missing_files_and_folders(capsys, tmp_path):
+    missing = tmp_path / "nope.toml"
+    for argv in (["run", missing], ["montecarlo", missing, "--runs", "1", "--out", tmp_path / "mc"], ["soak", missing]):
+        code, _, err = _main(capsys, *argv)
+        assert code == 2 and f"no such file {missing}" in _one_line(err)
+    code, _, err = _main(capsys, "scenarios", "--dir", tmp_path / "none")
+    assert code == 2 and "no such folder" in _one_line(err)
+    code, _, err = _main(capsys, "inspect", tmp_path / "none")
+    assert code == 2
+    _one_line(err)
+
+
+def test_unwritable_output_folder(capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("a file, not a folder")
+    out = blocker / "out"  # cannot be created, even by root
+    for argv in (["run", "curve-single", "--out", out, "--quiet"],
+                 ["montecarlo", "curve-single", "--runs", "1", "--out", out, "--quiet"],
+                 ["soak", "curve-single", "--duration", "1", "--out", out, "--quiet"]):
+        code, stdout, err = _main(capsys, *argv)
+        assert code == 2 and stdout == ""
+        assert f"cannot write to the output folder {out}" in _one_line(err)
+
+
+# -- interruption and --resume -----------------------------------------------------------------------
+def _fake_run_task(calls: list, stop_after: int | None = None):
+    def run(task: montecarlo.RunTask) -> dict:
+        if stop_after is not None and len(calls) == stop_after:
+            raise KeyboardInterrupt
+        calls.append((task.name, task.variant, task.seed))
+        return {"scenario": task.name, "variant": task.variant, "seed": task.seed,
+                "sim_s": montecarlo.task_duration(task), "frames": 6, "gospa_mean": 0.25 * task.seed, "pos_rmse_m": None}
+
+    return run
+
+
+def test_interrupted_study_keeps_rows_and_resume_completes_it(capsys, tmp_path, monkeypatch):
+    out = tmp_path / "mc"
+    args = ["montecarlo", "curve-single", "--runs", "5", "--duration", "0.5", "--out", out, "--quiet",
+            "--variant", "curvilinear-fused,curvilinear-lidar"]
+    first: list = []
+    monkeypatch.setattr(montecarlo, "run_task", _fake_run_task(first, stop_after=3))
+    code, _, err = _main(capsys, *args)
+    assert code == 2 and "interrupted: 3 of 10 runs finished" in _one_line(err) and "--resume" in err
+    with open(out / "runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["variant"], r["seed"]) for r in rows] == [("curvilinear-fused", "0"), ("curvilinear-fused", "1"),
+                                                          ("curvilinear-fused", "2")]
+    assert not (out / "summary.json").exists()
+    second: list = []
+    monkeypatch.setattr(montecarlo, "run_task", _fake_run_task(second))
+    code, stdout, _ = _main(capsys, *args, "--resume")
+    assert code == 0 and "resuming: 3 of 10 runs already in" in stdout
+    assert second == [("curve-single", "curvilinear-fused", 3), ("curve-single", "curvilinear-fused", 4)] + [
+        ("curve-single", "curvilinear-lidar", k) for k in range(5)]
+    with open(out / "runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["variant"], int(r["seed"])) for r in rows] == [(v, k) for v in ("curvilinear-fused", "curvilinear-lidar")
+                                                              for k in range(5)]
+    assert [float(r["gospa_mean"]) for r in rows[:5]] == [0.0, 0.25, 0.5, 0.75, 1.0] and rows[0]["pos_rmse_m"] == ""
+    assert (out / "summary.json").exists()
+    # a resume with other arguments would mix two studies
+    code, _, err = _main(capsys, "montecarlo", "curve-single", "--runs", "5", "--duration", "0.4", "--out", out,
+                         "--quiet", "--variant", "curvilinear-fused,curvilinear-lidar", "--resume")
+    assert code == 2 and "simulated 0.5 s; this study asks for 0.4 s" in _one_line(err)
+    code, _, err = _main(capsys, "montecarlo", "cut-in", "--runs", "1", "--out", out, "--quiet", "--resume")
+    assert code == 2 and "has a run this study does not plan (scenario curve-single" in _one_line(err)
+
+
+def test_ctrl_c_on_a_process_pool_leaves_rows_and_no_traceback(tmp_path):
+    out = tmp_path / "mc"
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sim.cli", "montecarlo", "curve-single", "--runs", "40", "--duration", "0.3",
+         "--no-roadside", "--workers", "2", "--out", str(out), "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    deadline = time.monotonic() + 240
+    rows: list = []
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (out / "runs.csv").exists():
+            with open(out / "runs.csv", newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            if rows:
+                break
+        time.sleep(0.05)
+    assert rows, "no run finished"
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 2, stderr
+    assert "Traceback" not in stderr and stderr.count("\n") == 1 and "--resume" in stderr
+    assert "of 40 runs finished" in stderr
+    with open(out / "runs.csv", newline="") as fh:
+        kept = list(csv.DictReader(fh))
+    assert 1 <= len(kept) < 40 and all(r["frames"] == "4" for r in kept)
+    done = int(stderr.split("interrupted: ")[1].split(" of")[0])
+    assert done == len(kept)
