@@ -412,7 +412,8 @@ def _soak(args: argparse.Namespace) -> int:
           f"(growth {s['rss_growth_mb']:+.1f} MB, max {s['rss_max_mb']:.1f} MB)")
     print(f"non-finite frames {s['nonfinite_frames']}, non-PSD or asymmetric track covariances {s['bad_covariances']}")
     print(f"tracker ms per frame, median of the first / last {s['edge_windows']} windows: "
-          f"{s['tracker_ms_median_first']:.1f} / {s['tracker_ms_median_last']:.1f} (max {s['tracker_ms_max']:.1f}); "
+          f"{s['tracker_ms_median_first']:.1f} / {s['tracker_ms_median_last']:.1f} (max {s['tracker_ms_max']:.1f}; CPU "
+          f"{s['tracker_cpu_ms_median_first']:.1f} / {s['tracker_cpu_ms_median_last']:.1f}); "
           f"GOSPA mean {s['gospa_mean']:.3f} m")
     print(f"wrote {out / 'soak.csv'}, {out / 'soak.json'}")
     return 0

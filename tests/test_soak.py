@@ -38,7 +38,7 @@ def test_bad_covariances_counts_asymmetric_negative_and_nonfinite():
 def _window(t0, rss, ms, frames=10):
     return SoakWindow(t_start=t0, t_end=t0 + 1.0, frames=frames, components_max=12, components_mean=8.0,
                       tracks_mean=4.0, truth_mean=5.0, rss_mb=rss, nonfinite=0, bad_cov=0, tracker_ms_median=ms,
-                      tracker_ms_p95=2 * ms, tracker_ms_max=3 * ms, gospa_mean=1.0, labels_born=2, wall_s=t0)
+                      tracker_ms_p95=2 * ms, tracker_ms_max=3 * ms, tracker_cpu_ms_median=ms, gospa_mean=1.0, labels_born=2, wall_s=t0)
 
 
 def test_summary_compares_first_and_last_windows():
@@ -47,6 +47,7 @@ def test_summary_compares_first_and_last_windows():
     assert s["frames"] == 200 and s["simulated_s"] == 20.0 and s["edge_windows"] == 2
     assert s["rss_growth_mb"] == pytest.approx(9.5) and s["rss_max_mb"] == pytest.approx(209.5)
     assert s["tracker_ms_median_first"] == pytest.approx(10.5) and s["tracker_ms_median_last"] == pytest.approx(28.5)
+    assert s["tracker_cpu_ms_median_last"] == pytest.approx(28.5)
     assert s["labels_born"] == 40 and s["components_max"] == 12
 
 
