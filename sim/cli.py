@@ -21,7 +21,7 @@ Exit status: 0 on success; 2, with one line on stderr and never a traceback, for
 (unknown scenario, suite or variant -- the line lists the choices --, a malformed or invalid scenario
 file, unknown keys or out-of-range values in it, a missing file or folder, an output folder that
 cannot be written, a missing optional dependency), for an interrupted Monte Carlo (Ctrl-C; the line
-says how to resume it) and for subcommands that are not built yet, which say so plainly; nothing here
+says how to resume it); nothing here
 prints output that looks like results unless it computed them.
 """
 
@@ -29,22 +29,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
-NOT_BUILT_EXIT = 2
 USAGE_EXIT = 2
-
-
-def _not_built(name: str) -> Callable[[argparse.Namespace], int]:
-    def run(_: argparse.Namespace) -> int:
-        print(
-            f"eot {name}: not built yet. This part of frenet-eot has not been implemented; "
-            "see the open issues. No results were produced.",
-            file=sys.stderr,
-        )
-        return NOT_BUILT_EXIT
-
-    return run
 
 
 def _bench(args: argparse.Namespace) -> int:
