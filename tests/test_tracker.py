@@ -181,5 +181,7 @@ def test_bad_and_degenerate_input(curve):
         tracker.step(scene.frame(0.4, rng))
     with pytest.raises(ValueError, match="needs a tracker.Frame"):
         tracker.step("not a frame")  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="not built yet"):
-        Tracker(curve, TrackerConfig(object_model="point"))
+    with pytest.raises(ValueError, match="curvilinear coordinates only"):
+        TrackerConfig(object_model="point", coordinates="cartesian")
+    with pytest.raises(ValueError, match="needs a tracker.Road"):
+        Tracker("not a road", TrackerConfig(object_model="point"))  # type: ignore[arg-type]
