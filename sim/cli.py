@@ -265,7 +265,6 @@ def _montecarlo(args: argparse.Namespace) -> int:
         RunsFile,
         Study,
         StudyInterrupted,
-        import_ray,
         plan,
         run_study,
         summarize_runs,
@@ -279,13 +278,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
         raise UsageError(f"--runs must be >= 1; got {args.runs}")
     if args.workers < 1:
         raise UsageError(f"--workers must be >= 1; got {args.workers}")
-    if args.backend == "ray":
-        try:
-            import_ray()
-        except RuntimeError as exc:
-            raise UsageError(str(exc)) from None
-    elif args.address:
-        raise UsageError("--address applies to --backend ray only")
+    _check_backend(args)
     try:
         tasks = plan(paths, args.runs, variants, seed0=args.seed, duration=args.duration,
                      roadside=False if args.no_roadside else None)
@@ -447,6 +440,19 @@ def _closed_loop(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_backend(args: argparse.Namespace) -> None:
+    """``--backend ray`` needs Ray installed; ``--address`` goes with Ray only."""
+    from sim.montecarlo import import_ray
+
+    if args.backend == "ray":
+        try:
+            import_ray()
+        except RuntimeError as exc:
+            raise UsageError(str(exc)) from None
+    elif args.address:
+        raise UsageError("--address applies to --backend ray only")
+
+
 def _check_writable(folder: object) -> None:
     """Create ``folder`` (and parents) and check that a file can be written in it; ``UsageError``
     (one line) otherwise."""
@@ -469,7 +475,6 @@ def _compare(args: argparse.Namespace) -> int:
     import subprocess
     from pathlib import Path
 
-    from sim.montecarlo import import_ray
     from sim.progress import ProgressBar
     from sim.report import write_report
     from sim.study import STUDY_VARIANTS, CompareSettings, read_compare, run_compare, write_compare
@@ -489,13 +494,7 @@ def _compare(args: argparse.Namespace) -> int:
     for name, value, low in (("--runs", args.runs, 1), ("--workers", args.workers, 1), ("--hard-runs", args.hard_runs, 0)):
         if value < low:
             raise UsageError(f"{name} must be >= {low}; got {value}")
-    if args.backend == "ray":
-        try:
-            import_ray()
-        except RuntimeError as exc:
-            raise UsageError(str(exc)) from None
-    elif args.address:
-        raise UsageError("--address applies to --backend ray only")
+    _check_backend(args)
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

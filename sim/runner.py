@@ -176,6 +176,22 @@ def _where(spec: ScenarioSpec) -> str:
     return str(spec.source) if spec.source is not None else spec.name
 
 
+def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road, seed: int,
+              roadside: bool | None = None) -> SensorRig:
+    """The sensor rig of a run with seed ``seed``: ``roadside`` False drops the scenario's roadside
+    objects, True adds the default ones (``ClutterConfig()``) where the scenario has none, None keeps
+    what the scenario says; the objects are drawn from the run's own clutter stream."""
+    if roadside is False:
+        clutter_cfg = None
+    elif roadside is True and clutter_cfg is None:
+        clutter_cfg = ClutterConfig()
+    objects = None
+    if clutter_cfg is not None:
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
+        objects = generate_roadside(road, clutter_cfg, rng=rng)
+    return SensorRig(rig_cfg, objects)
+
+
 def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]:
     """The sensor rig configuration and the clutter configuration (``None``: no clutter) of ``spec``
     after its ``[sensors]`` overrides (module docstring)."""
@@ -400,15 +416,8 @@ def run_scenario(
     world = World(spec, seed)
     spec = world.spec  # the realised scenario when a generator drew it
     road = world.road
-    if roadside is False:
-        clutter_cfg = None
-    elif roadside is True and clutter_cfg is None:
-        clutter_cfg = ClutterConfig()
-    objects = None
-    if clutter_cfg is not None:
-        clutter_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
-        objects = generate_roadside(road, clutter_cfg, rng=clutter_rng)
-    rig = SensorRig(rig_cfg, objects)
+    rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside)
+    objects = rig.roadside
     tracker = (tracker_factory or variant_factory(variant) or default_tracker_factory)(road, config)
     # a point tracker (the variant says so, or the tracker: ``estimates_extent = False``) has no L, W to score
     extent = bool(getattr(tracker, "estimates_extent", estimates_extent(variant)))

@@ -32,8 +32,8 @@ import numpy as np
 
 from sim.metrics import GOSPA_C, GOSPA_P, gospa
 from sim.runner import (
-    CLUTTER_STREAM,
     SENSOR_STREAM,
+    build_rig,
     default_tracker_factory,
     rig_config_for,
     track_states,
@@ -42,7 +42,6 @@ from sim.runner import (
     truth_state,
 )
 from sim.scenario import ScenarioSpec
-from sim.sensors import ClutterConfig, SensorRig, generate_roadside
 from sim.variants import DEFAULT_VARIANT, check_variant
 from sim.world import World
 
@@ -228,15 +227,7 @@ def run_soak(
     tracker_cfg = tracker_config_for(spec, config.variant, rig_cfg)
     world = World(spec, config.seed)
     road = world.road
-    if config.roadside is False:
-        clutter_cfg = None
-    elif config.roadside is True and clutter_cfg is None:
-        clutter_cfg = ClutterConfig()
-    objects = None
-    if clutter_cfg is not None:
-        rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(CLUTTER_STREAM,)))
-        objects = generate_roadside(road, clutter_cfg, rng=rng)
-    rig = SensorRig(rig_cfg, objects)
+    rig = build_rig(rig_cfg, clutter_cfg, road, config.seed, config.roadside)
     tracker = default_tracker_factory(road, tracker_cfg)
     max_range = rig_cfg.lidar.max_range
     duration = config.duration

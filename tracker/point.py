@@ -227,14 +227,14 @@ class PointTracker:
         means[:, 0], means[:, 1] = s, n
         means[:, 5], means[:, 6] = cfg.length, cfg.width
         default_speed = ego.v if cfg.speed is None else cfg.speed
-        for k, (_, vel) in enumerate(rows):  # a handful of new clusters per frame
-            if vel is None:
-                means[k, 2] = default_speed
-                continue
-            road_dir = np.array([np.cos(theta[k] - ego.yaw), np.sin(theta[k] - ego.yaw)])  # road tangent in E
-            means[k, 2] = float(vel @ road_dir)
-            means[k, 3] = float(wrap_angle(np.arctan2(vel[1], vel[0]) - (theta[k] - ego.yaw))) if np.hypot(*vel) > 1.0 else 0.0
-            covs[k, 2, 2] = self.config.measurement.radar_velocity_sigma**2
+        fused = np.array([vel is not None for _, vel in rows])
+        vel = np.stack([vel if vel is not None else np.zeros(2) for _, vel in rows])  # (B, 2) in E
+        road_e = theta - ego.yaw  # the road tangent's direction in E
+        along = vel[:, 0] * np.cos(road_e) + vel[:, 1] * np.sin(road_e)
+        moving = fused & (np.hypot(vel[:, 0], vel[:, 1]) > 1.0)  # a heading from the radar only when moving
+        means[:, 2] = np.where(fused, along, default_speed)
+        means[:, 3] = np.where(moving, wrap_angle(np.arctan2(vel[:, 1], vel[:, 0]) - road_e), 0.0)
+        covs[fused, 2, 2] = self.config.measurement.radar_velocity_sigma**2
         covs[:, 0, 0] = covs[:, 1, 1] = self.config.point.centroid_sigma**2
         covs[:, 5, 5] = covs[:, 6, 6] = PINNED_VARIANCE
         labels = np.arange(self._next_label, self._next_label + len(rows))

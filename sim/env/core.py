@@ -45,9 +45,9 @@ from highway_env.envs.common.action import ContinuousAction
 from sim.env.config import ConfigError, EnvConfig
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
-from sim.runner import CLUTTER_STREAM, SENSOR_STREAM, default_tracker_factory, rig_config_for, tracker_config_for
+from sim.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
 from sim.scenario import ScenarioError, ScenarioSpec, load_scenario
-from sim.sensors import ClutterConfig, SensorRig, generate_roadside
+from sim.sensors import SensorRig
 from sim.sensors.rig import SensorFrame
 from sim.world import DEFAULT_STEP, World
 from tracker import Track
@@ -165,15 +165,7 @@ class TrackedRoadEnv(AbstractEnv):
         self.road = world.traffic
         self.controlled_vehicles = [ego]
         rig_cfg, clutter_cfg = rig_config_for(spec)
-        if s.roadside is False:
-            clutter_cfg = None
-        elif s.roadside is True and clutter_cfg is None:
-            clutter_cfg = ClutterConfig()
-        objects = None
-        if clutter_cfg is not None:
-            rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
-            objects = generate_roadside(world.road, clutter_cfg, rng=rng)
-        self.rig = SensorRig(rig_cfg, objects)
+        self.rig = build_rig(rig_cfg, clutter_cfg, world.road, seed, s.roadside)
         self.tracker = None
         if s.perception == "tracks":
             self.tracker = default_tracker_factory(world.road, tracker_config_for(spec, s.variant, rig_cfg))
