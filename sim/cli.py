@@ -12,6 +12,12 @@ the full summary (per vehicle a line, then the worst GOSPA intervals with their 
 rewrites those files (``--out`` elsewhere). A missing or incomplete run folder is a one-line error
 with exit status 2.
 
+``eot bench`` with no target runs every benchmark (tracker ms per frame at 1-50 targets in view,
+Stone Soup's GM-PHD ratio, lidar, world, end to end, Monte Carlo, env, peak memory, the machine) and
+writes ``results/bench.json`` (``--out``) plus a table; ``--quick`` shrinks it to seconds
+(``sim.benchmarks._suite``). ``eot bench TARGET`` runs one benchmark; ``eot bench tracker
+--compare-stonesoup`` needs the extra ``baselines`` (exit 2 with the install command otherwise).
+
 ``eot soak [SCENARIO]`` streams one long run (default: ``dense-highway-loop`` for an hour of
 simulated time) and writes ``soak.csv`` (a row per window) and ``soak.json`` (``sim.soak``).
 ``eot montecarlo`` rewrites ``runs.csv`` as each run finishes; after Ctrl-C, ``--resume`` with the same
@@ -35,14 +41,43 @@ USAGE_EXIT = 2
 
 
 def _bench(args: argparse.Namespace) -> int:
+    """``eot bench TARGET``: one benchmark module's numbers as JSON (and its ``summary`` line, if any)."""
     import json
 
-    result = args.module.run(args)
+    from sim.baselines.stonesoup_gmphd import MissingBaselineError
+
+    try:
+        result = args.module.run(args)
+    except MissingBaselineError as exc:
+        raise UsageError(str(exc)) from None
     text = json.dumps(result, indent=2)
     print(text)
+    summary = getattr(args.module, "summary", None)
+    line = summary(result) if summary is not None else None
+    if line:
+        print(line)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             fh.write(text + "\n")
+    return 0
+
+
+def _bench_all(args: argparse.Namespace) -> int:
+    """``eot bench`` with no target: every section (``sim.benchmarks._suite``), the JSON file and a table."""
+    from sim.benchmarks._suite import SECTIONS, Settings, run_all, stderr_log, write
+    from sim.benchmarks._table import format_table
+
+    sections = tuple(x for item in (args.only or [",".join(SECTIONS)]) for x in item.split(",") if x)
+    unknown = [x for x in sections if x not in SECTIONS]
+    if unknown:
+        raise UsageError(f"unknown section(s) {', '.join(unknown)}; choose from: {', '.join(SECTIONS)}")
+    command = " ".join(["eot bench", *(["--quick"] if args.quick else []), *(["--no-pin"] if args.no_pin else []),
+                        *(["--only", *sections] if args.only else []), "--out", args.bench_out])
+    result = run_all(Settings.make(args.quick), sections, pin=not args.no_pin, command=command,
+                     log=None if args.quiet else stderr_log)
+    path = write(result, args.bench_out)
+    print(format_table(result))
+    print(f"wrote {path}")
     return 0
 
 
@@ -639,8 +674,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_scenarios)
     from sim.benchmarks import targets
 
-    bench = sub.add_parser("bench", help="micro-benchmarks (speed, never asserted in tests)")
-    bench_sub = bench.add_subparsers(dest="target", required=True)
+    bench = sub.add_parser("bench", help="benchmarks (speed, never asserted in tests); no target: all of them -> results/bench.json",
+                           description="With no TARGET: every benchmark, a table, and the numbers in results/bench.json "
+                                       "(sim.benchmarks._suite). With a TARGET: that benchmark's numbers as JSON.")
+    bench.add_argument("--out", "--json", dest="bench_out", metavar="PATH", default="results/bench.json",
+                       help="no target: where to write the JSON (default results/bench.json)")
+    bench.add_argument("--quick", action="store_true", help="no target: shrink every part (seconds; numbers not meaningful)")
+    bench.add_argument("--only", nargs="+", metavar="SECTION",
+                       help="no target: only these sections (tracker stonesoup lidar world end_to_end montecarlo env)")
+    bench.add_argument("--no-pin", action="store_true", help="no target: do not pin the single-process parts to one CPU")
+    bench.add_argument("--quiet", action="store_true", help="no target: no progress lines on stderr")
+    bench.set_defaults(func=_bench_all)
+    bench_sub = bench.add_subparsers(dest="target", metavar="TARGET", required=False)
     for name, module in sorted(targets().items()):
         p = bench_sub.add_parser(name, help=(module.__doc__ or "").strip().splitlines()[0])
         p.add_argument("--json", help="also write the numbers to this JSON file")

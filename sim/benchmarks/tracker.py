@@ -1,81 +1,89 @@
-"""Multi-target tracker speed: median ms per frame at 1, 5, 10 and 20 targets with fused input."""
+"""Multi-target tracker speed: ms per frame (median, p95) at 1, 5, 10, 20 and 50 targets in view, fused and lidar-only.
+
+Scene (``sim.benchmarks._traffic``): a ring road of radius 500 m, lane-following cars placed so that
+all of them stay in the lidar's view (the narrowest of 4, 6, 8, ... lanes on which they fit: 4 lanes up
+to 20 cars, 10 lanes for 50). Per target count one sensor stream of ``--frames`` frames (default
+100 = 10 s; 10 Hz lidar, 14 Hz radars, seed 0) is made once and fed to a fresh tracker of each
+``--variants`` entry. Reported per variant and count: ``ms_median`` and ``ms_p95`` of ``Tracker.step``
+(after a 10-frame warm-up), ``in_view_mean`` (cars with lidar points), ``tracks_mean``, ``lanes``.
+
+``--compare-stonesoup`` also runs Stone Soup's GM-PHD (UKF, 10 point targets, ``--stonesoup-frames``
+frames, default 200) in the same process on the same frames as ours and prints the ratio of its ms per
+frame to ours (``sim.benchmarks._stonesoup``); without Stone Soup it says how to install it
+(``pip install -e ".[baselines]"``) and exits with status 2.
+
+Commands::
+
+    eot bench tracker                                  # 1 5 10 20 50 targets, fused and lidar-only
+    eot bench tracker --targets 10 --variants curvilinear-fused --frames 50
+    eot bench tracker --targets 10 --compare-stonesoup
+    OMP_NUM_THREADS=1 taskset -c 0 eot bench tracker   # one core, as the issue's numbers
+"""
 
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+from typing import Any
 
-import numpy as np
+from sim.benchmarks._tracking import in_view, sensor_frames, time_variant
 
-from sim.sensors import SensorRig
-from sim.truth import EgoPose, Snapshot
-from tracker import Road, Tracker, TrackerConfig
-
-#: Road of the benchmark: a 4-lane circle of radius 500 m (lanes 3.5 m).
-RADIUS = 500.0
-LANES = 4
-EGO_SPEED = 20.0
+COUNTS = (1, 5, 10, 20, 50)
+VARIANTS = ("curvilinear-fused", "curvilinear-lidar")
+FRAMES = 100
+STONESOUP_FRAMES = 200
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--targets", type=int, nargs="+", default=[1, 5, 10, 20], help="target counts")
-    parser.add_argument("--seconds", type=float, default=6.0, help="simulated seconds per count")
-    parser.add_argument("--variant", default="curvilinear-fused", help="TrackerConfig.for_variant name")
+    parser.add_argument("--targets", type=int, nargs="+", default=list(COUNTS), help="target counts (default 1 5 10 20 50)")
+    parser.add_argument("--frames", type=int, default=FRAMES, help=f"frames per count (default {FRAMES} = 10 s)")
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), help="tracker variants (default: fused and lidar-only)")
+    parser.add_argument("--lanes", type=int, default=None, help="force this many lanes (default: the narrowest that fits)")
+    parser.add_argument("--seed", type=int, default=0, help="scene and sensor seed (default 0)")
+    parser.add_argument("--compare-stonesoup", action="store_true",
+                        help="also time Stone Soup's GM-PHD (UKF, 10 point targets) on the same frames and print the ratio")
+    parser.add_argument("--stonesoup-frames", type=int, default=STONESOUP_FRAMES,
+                        help=f"frames of the Stone Soup comparison (default {STONESOUP_FRAMES})")
 
 
-def traffic(road: Road, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lane-following cars around the ego: initial ``s`` offsets (m) spread over +-80 m without overlap,
-    lanes, and speeds (m/s)."""
-    rng = np.random.default_rng(seed)
-    slots = [(lane, ds) for ds in np.arange(-80.0, 81.0, 12.0) for lane in range(LANES) if not (lane == 1 and abs(ds) < 10)]
-    pick = rng.choice(len(slots), size=count, replace=False)
-    lanes = np.array([slots[k][0] for k in pick])
-    offsets = np.array([slots[k][1] for k in pick]) + rng.uniform(-1.0, 1.0, count)
-    speeds = EGO_SPEED + rng.uniform(-1.0, 1.0, count)
-    return offsets, lanes, speeds
+def measure(counts: list[int] | tuple[int, ...], variants: list[str] | tuple[str, ...], frames: int, *,
+            seed: int = 0, lanes: int | None = None) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{variant: {str(count): row}}``: each row the ``frame_stats`` numbers plus ``lanes``."""
+    from sim.variants import check_variant
 
-
-def truth_function(road: Road, offsets: np.ndarray, lanes: np.ndarray, speeds: np.ndarray):
-    """``truth_at(t) -> Snapshot`` of the ego (lane 1) and the lane-following cars."""
-    n_lane = road.lane_centers
-
-    def truth_at(t: float) -> Snapshot:
-        s_ego = EGO_SPEED * t
-        xy_e, th_e, _ = road.frame(np.array([s_ego]))
-        ego_xy = xy_e[0] + n_lane[1] * np.array([-np.sin(th_e[0]), np.cos(th_e[0])])
-        s = road.wrap_s(offsets + speeds * t)
-        n = n_lane[lanes]
-        xy = road.to_cartesian(s, n)
-        yaw = road.heading(s)
-        count = len(offsets)
-        return Snapshot(
-            t, EgoPose(ego_xy[0], ego_xy[1], float(th_e[0]), EGO_SPEED, EGO_SPEED / RADIUS),
-            np.arange(1, count + 1), xy, yaw, speeds, speeds / RADIUS, np.full(count, 4.8), np.full(count, 2.0),
-            s, n, np.zeros(count), np.zeros(count),
-        )
-
-    return truth_at
+    for v in variants:
+        check_variant(v)
+    out: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
+    for count in counts:
+        scene, stream = sensor_frames(int(count), frames, seed=seed, lanes=lanes)
+        visible = in_view(stream)
+        for v in variants:
+            out[v][str(count)] = {"targets": int(count), "lanes": scene.lanes, **time_variant(v, scene, stream, visible)}
+    return out
 
 
 def run(args: argparse.Namespace) -> dict:
-    road = Road.from_curvature([(2 * np.pi * RADIUS, 1 / RADIUS, 1 / RADIUS)], closed=True, lanes=LANES)
-    out: dict[str, dict] = {}
-    for count in args.targets:
-        frames = list(SensorRig().frames(truth_function(road, *traffic(road, count)), args.seconds, seed=0))
-        tracker = Tracker(road, TrackerConfig.for_variant(args.variant))
-        times, counts = [], []
-        for sf in frames:
-            t0 = time.perf_counter()
-            tracks = tracker.step(sf.frame)
-            times.append(time.perf_counter() - t0)
-            counts.append(len(tracks))
-        steady = times[10:] if len(times) > 20 else times
-        out[f"{count}_targets"] = {
-            "ms_median": round(1e3 * statistics.median(steady), 2),
-            "ms_p95": round(1e3 * float(np.percentile(steady, 95)), 2),
-            "frames": len(frames),
-            "mean_tracks_after_1s": round(float(np.mean(counts[10:])), 2),
-            "lidar_points_median": int(statistics.median(len(sf.frame.lidar) for sf in frames)),
-        }
-    return {"variant": args.variant, "road": f"circle R {RADIUS:.0f} m, {LANES} lanes", **out}
+    compare = bool(getattr(args, "compare_stonesoup", False))
+    if compare:  # before the long part: a missing Stone Soup is a usage error now
+        from sim.benchmarks._stonesoup import require_stonesoup
+
+        require_stonesoup()
+    out: dict[str, Any] = {
+        "scene": "ring road R 500 m, lanes 3.5 m, all cars in view (sim.benchmarks._traffic)",
+        "frames": args.frames,
+        "seed": args.seed,
+        "results": measure(args.targets, args.variants, args.frames, seed=args.seed, lanes=args.lanes),
+    }
+    if compare:
+        from sim.benchmarks._stonesoup import compare as compare_stonesoup
+
+        out["stonesoup"] = compare_stonesoup(args.stonesoup_frames, seed=args.seed)
+    return out
+
+
+def summary(result: dict) -> str | None:
+    """The Stone Soup ratio line(s), when the comparison ran (printed after the JSON)."""
+    if "stonesoup" not in result:
+        return None
+    from sim.benchmarks._stonesoup import summary as stonesoup_summary
+
+    return stonesoup_summary(result["stonesoup"])

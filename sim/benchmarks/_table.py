@@ -1,0 +1,93 @@
+"""The readable table ``eot bench`` prints from its result (``sim.benchmarks._suite``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def _num(value: Any, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _header(r: dict[str, Any]) -> list[str]:
+    m = r["machine"]
+    git = m.get("git") or {}
+    commit = git.get("commit", "no git")[:10]
+    if git.get("modified_count"):
+        commit += f" (+{git['modified_count']} modified files)"
+    pinned = f"pinned to CPU {r['pinned_cpu']}" if r.get("pinned_cpu") is not None else "not pinned"
+    return [
+        f"eot bench{' --quick (sizes shrunk: not benchmark numbers)' if r['quick'] else ''}: {r['started_utc']}, "
+        f"commit {commit}",
+        f"machine: {m['cores_usable']} of {m['cores']} cores, {m['cpu_model']}; Python {m['python']}, numpy {m['numpy']}, "
+        f"scipy {m['scipy']}; load {m['load_average_at_start']}; {pinned} (all but the Monte Carlo)",
+    ]
+
+
+def _tracker(t: dict[str, Any]) -> list[str]:
+    variants = list(t["results"])
+    counts = list(t["results"][variants[0]]) if variants else []
+    lines = [f"tracker ms per frame, median / p95 ({t['frames']} frames per count):",
+             f"  {'targets':>7} {'lanes':>5} {'in view':>7} " + " ".join(f"{v:>24}" for v in variants)]
+    for c in counts:
+        first = t["results"][variants[0]][c]
+        cells = " ".join(f"{_num(t['results'][v][c]['ms_median']):>11} / {_num(t['results'][v][c]['ms_p95']):>10}"
+                         for v in variants)
+        lines.append(f"  {c:>7} {first['lanes']:>5} {first['in_view_mean']:>7.1f} {cells}")
+    return lines
+
+
+def _stonesoup(s: dict[str, Any]) -> list[str]:
+    if "skipped" in s:
+        return [f"Stone Soup comparison skipped: {s['skipped']}"]
+    ss = s["stonesoup"]
+    ratios = ", ".join(f"{v} {x}x" for v, x in s["ratio_stonesoup_over_ours"].items())
+    return [f"Stone Soup {ss['version']} GM-PHD (UKF, {s['targets']} point targets, {s['frames']} frames): "
+            f"{_num(ss['ms_median'])} ms/frame median; Stone Soup / ours: {ratios}"]
+
+
+def _world(w: dict[str, Any]) -> list[str]:
+    return ["world ms per simulated s: " + ", ".join(
+        f"{k} {_num(v['ms_per_simulated_s'])} ({_num(v['real_time_factor'], 1)}x real time)" for k, v in w.items())]
+
+
+def _e2e(e: dict[str, Any]) -> list[str]:
+    return ["end to end, one core, simulated s per wall s: " + ", ".join(
+        f"{k} {_num(v['sim_s_per_wall_s'])} (tracker {100 * v['tracker_share']:.0f} %)" for k, v in e.items())]
+
+
+def _mc(mc: dict[str, Any]) -> list[str]:
+    rows = ", ".join(f"{w} worker(s) {_num(x['runs_per_min'], 1)} runs/min = {_num(x['sim_s_per_wall_s'])} sim s/wall s"
+                     for w, x in mc["workers"].items())
+    return [f"Monte Carlo {mc['scenario']}: {rows}"]
+
+
+def _env(e: dict[str, Any]) -> list[str]:
+    tr, truth = e["tracks"], e["truth"]
+    return [f"env ({e['vehicles']} vehicles) steps per s: tracks {_num(tr['steps_per_s'], 1)} "
+            f"({_num(tr['real_time_factor'], 1)}x real time, tracker {100 * tr['tracker_share']:.0f} %), "
+            f"truth {_num(truth['steps_per_s'], 1)}"]
+
+
+def format_table(r: dict[str, Any]) -> str:
+    """The result as lines of text, one block per section that ran."""
+    lines = _header(r)
+    if "tracker" in r:
+        lines += _tracker(r["tracker"])
+    if "stonesoup" in r:
+        lines += _stonesoup(r["stonesoup"])
+    if "lidar" in r:
+        x = r["lidar"]
+        lines.append(f"lidar scan {_num(x['scan_ms'])} ms ({x['rays']} rays; {x['scene']}), radar cycle {_num(x['radar_cycle_ms'])} ms")
+    if "world" in r:
+        lines += _world(r["world"])
+    if "end_to_end" in r:
+        lines += _e2e(r["end_to_end"])
+    if "montecarlo" in r:
+        lines += _mc(r["montecarlo"])
+    if "env" in r:
+        lines += _env(r["env"])
+    mem = r["memory"]
+    lines.append(f"peak memory: {_num(mem['self_peak_rss_mb'], 0)} MB this process, "
+                 f"{_num(mem['children_peak_rss_mb'], 0)} MB largest worker; total wall {_num(r['wall_s'], 1)} s")
+    return "\n".join(lines)

@@ -1,0 +1,93 @@
+"""Timing trackers frame by frame on the benchmark scene (``sim.benchmarks._traffic``).
+
+``sensor_frames`` makes one sensor stream (the default ``SensorRig``: 10 Hz lidar, 14 Hz front/rear
+radars, no roadside clutter); ``time_steps`` feeds it to a tracker and keeps the wall time of every
+``step``; ``frame_stats`` turns the times into the reported numbers. The first ``WARMUP_FRAMES`` frames
+(births, no tracks yet) are left out when at least ``2 * WARMUP_FRAMES`` frames were timed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from sim.benchmarks._traffic import Layout, layout, truth_function
+from sim.runner import MIN_VISIBLE_POINTS
+from sim.sensors import SensorRig
+from sim.sensors.rig import RigConfig, SensorFrame
+from sim.variants import make_tracker, variant_config
+from tracker import TrackerConfig
+
+WARMUP_FRAMES = 10
+
+
+def sensor_frames(count: int, frames: int, *, seed: int = 0, lanes: int | None = None) -> tuple[Layout, list[SensorFrame]]:
+    """The scene with ``count`` cars in view and its first ``frames`` sensor frames (seeded)."""
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+        raise ValueError(f"frames must be an integer >= 1; got {frames!r}")
+    scene = layout(count, seed=seed, lanes=lanes)
+    stream = SensorRig().frames(truth_function(scene), None, seed=seed)
+    return scene, list(itertools.islice(stream, frames))
+
+
+def in_view(frames: list[SensorFrame]) -> np.ndarray:
+    """Per frame, the number of cars hit by at least ``MIN_VISIBLE_POINTS`` lidar points (the
+    runner's "visible")."""
+    out = np.empty(len(frames), dtype=int)
+    for k, sf in enumerate(frames):
+        ids = sf.lidar.vehicle_id
+        _, hits = np.unique(ids[ids >= 0], return_counts=True)
+        out[k] = int(np.count_nonzero(hits >= MIN_VISIBLE_POINTS))
+    return out
+
+
+def bench_config(variant: str) -> TrackerConfig:
+    """The variant's configuration told the default lidar's range and resolution (as ``sim.runner``
+    does for a scenario)."""
+    config = variant_config(variant)
+    lidar = RigConfig().lidar
+    detection = dataclasses.replace(config.detection, lidar_range=float(lidar.max_range),
+                                    lidar_resolution=math.radians(lidar.resolution_deg))
+    return dataclasses.replace(config, detection=detection)
+
+
+def time_steps(tracker: Any, frames: list[SensorFrame]) -> tuple[np.ndarray, np.ndarray]:
+    """Wall seconds of ``tracker.step`` per frame and the number of tracks it reported."""
+    seconds = np.empty(len(frames))
+    tracks = np.empty(len(frames), dtype=int)
+    for k, sf in enumerate(frames):
+        t0 = time.perf_counter()
+        out = tracker.step(sf.frame)
+        seconds[k] = time.perf_counter() - t0
+        tracks[k] = len(out)
+    return seconds, tracks
+
+
+def steady(values: np.ndarray) -> np.ndarray:
+    """``values`` without the warm-up frames (kept whole when fewer than ``2 * WARMUP_FRAMES``)."""
+    return values[WARMUP_FRAMES:] if len(values) >= 2 * WARMUP_FRAMES else values
+
+
+def frame_stats(seconds: np.ndarray, tracks: np.ndarray, visible: np.ndarray) -> dict[str, float | int]:
+    """``ms_median``, ``ms_p95``, ``frames_timed``, ``in_view_mean`` and ``tracks_mean`` over the
+    steady frames."""
+    ms = 1e3 * steady(seconds)
+    return {
+        "ms_median": round(float(np.median(ms)), 3),
+        "ms_p95": round(float(np.percentile(ms, 95)), 3),
+        "frames_timed": int(len(ms)),
+        "in_view_mean": round(float(np.mean(steady(visible))), 2),
+        "tracks_mean": round(float(np.mean(steady(tracks))), 2),
+    }
+
+
+def time_variant(variant: str, scene: Layout, frames: list[SensorFrame], visible: np.ndarray) -> dict[str, float | int]:
+    """``frame_stats`` of a fresh tracker of ``variant`` on ``frames`` of ``scene``."""
+    tracker = make_tracker(variant, scene.road, bench_config(variant))
+    seconds, tracks = time_steps(tracker, frames)
+    return frame_stats(seconds, tracks, visible)

@@ -1,0 +1,185 @@
+"""``eot bench``: the whole-suite run writes a complete bench.json, the Stone Soup comparison, the scene.
+
+Speed is never asserted here (DESIGN.md): only that every number exists, is finite and positive, and
+that the scenes are what they claim (every car in view). The quick run takes a few seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from sim.benchmarks._machine import one_core
+from sim.benchmarks._suite import SECTIONS, Settings, mc_worker_counts, stonesoup_section
+from sim.benchmarks._table import format_table
+from sim.benchmarks._tracking import in_view, sensor_frames
+from sim.benchmarks._traffic import MIN_GAP, layout
+from sim.cli import main
+
+HAS_STONESOUP = True
+try:
+    import stonesoup  # noqa: F401
+except ImportError:
+    HAS_STONESOUP = False
+
+
+def _numbers(value, path="result"):
+    """Every int/float leaf of a JSON value with its path (bools and strings left out)."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _numbers(v, f"{path}.{k}")
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from _numbers(v, f"{path}[{i}]")
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        yield path, value
+
+
+def _positive(value) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "sub" / "bench.json"
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        status = main(["bench", "--quick", "--quiet", "--out", str(out)])
+    return status, out, buffer.getvalue()
+
+
+def test_quick_run_writes_every_section(quick):
+    status, out, printed = quick
+    assert status == 0
+    result = json.loads(out.read_text(encoding="utf-8"))
+    for key in (*SECTIONS, "machine", "memory", "settings", "command", "wall_s", "section_wall_s"):
+        assert key in result, key
+    assert result["quick"] is True
+    assert result["command"].startswith("eot bench --quick")
+    assert set(result["section_wall_s"]) == set(SECTIONS)
+    assert f"wrote {out}" in printed
+    assert "tracker ms per frame" in printed and "Monte Carlo curvy-multi" in printed
+
+
+def test_quick_run_numbers_are_finite(quick):
+    result = json.loads(quick[1].read_text(encoding="utf-8"))
+    leaves = list(_numbers(result))
+    assert len(leaves) > 50
+    bad = [(p, v) for p, v in leaves if not math.isfinite(v)]
+    assert not bad
+
+
+def test_quick_run_tracker_rows(quick):
+    result = json.loads(quick[1].read_text(encoding="utf-8"))
+    rows = result["tracker"]["results"]
+    assert set(rows) == {"curvilinear-fused", "curvilinear-lidar"}
+    for variant, by_count in rows.items():
+        assert list(by_count) == [str(c) for c in Settings.make(True).tracker_counts]
+        for count, row in by_count.items():
+            assert _positive(row["ms_median"]) and _positive(row["ms_p95"]), (variant, count)
+            assert row["ms_p95"] >= row["ms_median"]
+            assert row["frames_timed"] == 10
+            assert row["in_view_mean"] == int(count)  # the scene keeps every car in view
+            assert row["lanes"] == 4
+
+
+def test_quick_run_other_sections(quick):
+    result = json.loads(quick[1].read_text(encoding="utf-8"))
+    assert _positive(result["lidar"]["scan_ms"]) and result["lidar"]["rays"] == 1800
+    assert set(result["world"]) == {"curvy-multi", "dense-highway"}
+    assert all(_positive(w["ms_per_simulated_s"]) for w in result["world"].values())
+    e2e = result["end_to_end"]
+    assert set(e2e) == {"curvy-multi", "dense-highway"}
+    for row in e2e.values():
+        assert _positive(row["sim_s_per_wall_s"]) and row["simulated_s"] == 1.0 and row["frames"] == 11
+        assert 0 < row["tracker_share"] < 1
+    workers = result["montecarlo"]["workers"]
+    assert list(workers)[:2] == ["1", "2"]
+    for row in workers.values():
+        assert _positive(row["runs_per_min"]) and _positive(row["sim_s_per_wall_s"])
+    assert workers["2"]["runs"] == 2
+    assert _positive(result["env"]["tracks"]["steps_per_s"]) and _positive(result["env"]["truth"]["steps_per_s"])
+    assert _positive(result["memory"]["self_peak_rss_mb"])
+    machine = result["machine"]
+    assert machine["cores"] == os.cpu_count() and machine["cpu_model"]
+    assert machine["python"] and machine["numpy"] == np.__version__ and machine["scipy"]
+    if HAS_STONESOUP:
+        ss = result["stonesoup"]
+        assert ss["targets"] == 10 and ss["frames"] == 10
+        assert all(_positive(x) for x in ss["ratio_stonesoup_over_ours"].values())
+    else:
+        assert 'pip install -e ".[baselines]"' in result["stonesoup"]["skipped"]
+
+
+def test_table_reports_a_skipped_comparison(quick):
+    result = json.loads(quick[1].read_text(encoding="utf-8"))
+    result["stonesoup"] = {"skipped": "no Stone Soup here"}
+    assert "Stone Soup comparison skipped: no Stone Soup here" in format_table(result)
+
+
+@pytest.mark.skipif(not HAS_STONESOUP, reason="Stone Soup (extra 'baselines') is not installed")
+def test_compare_stonesoup_prints_the_ratio(tmp_path, capsys):
+    out = tmp_path / "tracker.json"
+    status = main(["bench", "tracker", "--targets", "1", "--frames", "3", "--variants", "curvilinear-fused",
+                   "--compare-stonesoup", "--stonesoup-frames", "5", "--json", str(out)])
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "Stone Soup / ours =" in printed and "10 point targets, 5 frames" in printed
+    ss = json.loads(out.read_text(encoding="utf-8"))["stonesoup"]
+    assert ss["targets"] == 10 and ss["frames"] == 5 and ss["stonesoup"]["in_view_mean"] == 10
+    for variant, ratio in ss["ratio_stonesoup_over_ours"].items():
+        assert _positive(ratio)
+        assert ratio == pytest.approx(ss["stonesoup"]["ms_median"] / ss["ours"][variant]["ms_median"], rel=0.01)
+
+
+def test_compare_stonesoup_without_stonesoup_exits_2(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "stonesoup", None)  # `import stonesoup` raises ImportError
+    status = main(["bench", "tracker", "--targets", "1", "--frames", "2", "--compare-stonesoup"])
+    captured = capsys.readouterr()
+    assert status == 2
+    assert captured.out == ""  # nothing measured before the check
+    assert 'pip install -e ".[baselines]"' in captured.err and "Traceback" not in captured.err
+    assert "skipped" in stonesoup_section(Settings.make(True))
+
+
+def test_unknown_section_is_a_usage_error(capsys):
+    assert main(["bench", "--only", "tracker,nope"]) == 2
+    assert "nope" in capsys.readouterr().err
+
+
+def test_scene_keeps_every_car_in_view_and_apart():
+    scene, frames = sensor_frames(20, 3)
+    assert len(scene) == 20 and scene.lanes == 4
+    assert np.all(in_view(frames) == 20)
+    for lane in np.unique(scene.lane):
+        s = np.sort(scene.s0[scene.lane == lane])
+        gaps = np.diff(np.concatenate([s, s[:1] + scene.road.length]))
+        assert gaps.min() >= MIN_GAP
+    wide = layout(20, lanes=10)
+    assert wide.lanes == 10 and len(wide) == 20
+    with pytest.raises(ValueError, match="do not fit"):
+        layout(60, lanes=2)
+
+
+def test_mc_worker_counts():
+    assert mc_worker_counts(1) == [1, 2]
+    assert mc_worker_counts(2) == [1, 2]
+    assert mc_worker_counts(6) == [1, 2, 4, 6]
+    assert mc_worker_counts(16) == [1, 2, 4, 8, 16]
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
+def test_one_core_pins_and_restores():
+    before = os.sched_getaffinity(0)
+    with one_core() as cpu:
+        assert os.sched_getaffinity(0) == {cpu}
+    assert os.sched_getaffinity(0) == before
+    with one_core(False) as cpu:
+        assert cpu is None and os.sched_getaffinity(0) == before
