@@ -16,7 +16,8 @@ from tracker.transforms import rotate, to_local
 @dataclass
 class Car:
     """A lane-following car: arc length ``s0 + v t + accel t^2 / 2`` (m), lateral offset ``n`` (m),
-    size (m)."""
+    size (m). ``lane_change = (t0, duration, dn)`` (s, s, m) moves it by ``dn`` on a half-cosine
+    profile from ``t0`` (``n_at``); its heading then turns by ``atan(n' / s')`` off the road's."""
 
     s0: float
     n: float
@@ -24,17 +25,30 @@ class Car:
     length: float = 4.8
     width: float = 2.0
     accel: float = 0.0
+    lane_change: tuple[float, float, float] | None = None
 
     def s_at(self, t: float) -> float:
         """Arc length (m) of the centre at time ``t``."""
         return self.s0 + self.v * t + 0.5 * self.accel * t * t
 
+    def n_at(self, t: float) -> tuple[float, float]:
+        """Lateral offset (m) and its rate (m/s) at time ``t``."""
+        if self.lane_change is None:
+            return self.n, 0.0
+        t0, duration, dn = self.lane_change
+        u = min(max((t - t0) / duration, 0.0), 1.0)
+        rate = 0.5 * dn * np.pi / duration * np.sin(np.pi * u) if 0.0 < u < 1.0 else 0.0
+        return self.n + 0.5 * dn * (1.0 - np.cos(np.pi * u)), float(rate)
+
     def pose(self, road: Road, t: float) -> tuple[np.ndarray, float]:
         """Centre (2,) in G and heading (rad) at time ``t``."""
         s = road.wrap_s(self.s_at(t))
         xy, theta, _ = road.frame(np.array([float(s)]))
-        centre = xy[0] + self.n * np.array([-np.sin(theta[0]), np.cos(theta[0])])
-        return centre, float(theta[0])
+        n, n_rate = self.n_at(t)
+        centre = xy[0] + n * np.array([-np.sin(theta[0]), np.cos(theta[0])])
+        kappa = float(road.curvature(np.array([float(s)]))[0])
+        along = (self.v + self.accel * t) * (1.0 - kappa * n)
+        return centre, float(theta[0] + np.arctan2(n_rate, along))
 
 
 def cast(ego_xy: np.ndarray, ego_yaw: float, rects: list[tuple[np.ndarray, float, float, float]],
@@ -76,7 +90,8 @@ class Scene:
         for car in self.cars:
             centre, psi = car.pose(self.road, t)
             kappa = float(self.road.curvature(np.array([float(self.road.wrap_s(car.s_at(t)))]))[0])
-            rows.append([centre[0], centre[1], psi, (car.v + car.accel * t) * (1.0 - kappa * car.n)])
+            n, n_rate = car.n_at(t)
+            rows.append([centre[0], centre[1], psi, float(np.hypot((car.v + car.accel * t) * (1.0 - kappa * n), n_rate))])
         return np.array(rows).reshape(-1, 4)
 
     def frame(self, t: float, rng: np.random.Generator, extra_points_g: np.ndarray | None = None) -> Frame:

@@ -12,6 +12,7 @@ from tracker.motion import (
     CartesianMotion,
     FrenetMotion,
     PaperMotion,
+    heading_noise_block,
     make_motion,
     predict,
     process_noise,
@@ -29,6 +30,8 @@ def circle50() -> Road:
 
 
 NO_SLIP = MotionConfig(slip_lever=0.0)
+#: The constant turn of ``xi`` (no road-following prior), for the tests of the kinematics themselves.
+CONSTANT_TURN = dict(heading_decay=0.0, yaw_rate_decay=0.0)
 
 
 def lane_following_error(road: Road, model, v: float = 15.0, n: float = 3.5, steps: int = 100, dt: float = 0.1,
@@ -69,7 +72,7 @@ def test_slip_lane_follower_has_its_body_turned_into_the_curve(circle50: Road) -
     length, v = 4.5, 15.0
     beta = float(slip_angle(np.array(v / (R50 - 3.5)), np.array(v), np.array(length), 0.5))
     assert beta == pytest.approx(np.arcsin(0.5 * length / (R50 - 3.5)), rel=1e-12)
-    slip = FrenetMotion(circle50, MotionConfig(slip_lever=0.5))
+    slip = FrenetMotion(circle50, MotionConfig(slip_lever=0.5, **CONSTANT_TURN))
     err, dn = lane_following_error(circle50, slip, v=v, xi=-beta)
     assert err < 0.05 and dn < 0.01
     _, drift = lane_following_error(circle50, slip, v=v, xi=0.0)
@@ -81,7 +84,7 @@ def test_frenet_equals_constant_turn_on_a_straight_road() -> None:
     matches the closed form for a turning car to 1e-7 m."""
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
     x = np.array([[50.0, -1.0, 20.0, 0.1, 0.3, 4.5, 1.8], [60.0, 1.0, 10.0, -0.2, -0.5, 4.0, 1.7]])
-    exact = FrenetMotion(road, MotionConfig(max_step=0.01, slip_lever=0.0)).propagate(x, 1.0)
+    exact = FrenetMotion(road, MotionConfig(max_step=0.01, slip_lever=0.0, **CONSTANT_TURN)).propagate(x, 1.0)
     flat = PaperMotion(road).propagate(x, 1.0)
     np.testing.assert_allclose(exact, flat, atol=1e-7)
 
@@ -113,8 +116,8 @@ def test_rk4_substeps_converged_on_a_clothoid() -> None:
     """A lane change on a clothoid ramp: default sub-steps (0.1 s) agree with 1 ms steps to 1e-5 m."""
     road = Road.from_curvature([(100.0, 0.0, 1 / 60), (200.0, 1 / 60, 1 / 60)], lanes=3)
     x = np.array([40.0, -2.0, 25.0, 0.05, -0.05, 4.5, 1.8])
-    coarse = FrenetMotion(road).propagate(x, 1.0)
-    fine = FrenetMotion(road, MotionConfig(max_step=0.001)).propagate(x, 1.0)
+    coarse = FrenetMotion(road, MotionConfig(**CONSTANT_TURN)).propagate(x, 1.0)
+    fine = FrenetMotion(road, MotionConfig(max_step=0.001, **CONSTANT_TURN)).propagate(x, 1.0)
     np.testing.assert_allclose(coarse, fine, atol=1e-5)
     # the exact model keeps L, W and v; xi advances by xi_dot dt
     np.testing.assert_allclose(coarse[[2, 4, 5, 6]], x[[2, 4, 5, 6]])
@@ -174,3 +177,51 @@ def test_curvilinear_and_cartesian_models_agree_for_a_lane_follower(circle50: Ro
     a = curvilinear_to_cartesian(circle50, FrenetMotion(circle50, NO_SLIP).propagate(x, 2.0))
     b = CartesianMotion().propagate(xc, 2.0)
     np.testing.assert_allclose(a[:4], b[:4], atol=1e-6)
+
+
+def test_road_following_prior_keeps_the_slip_lane_follower_on_its_lane(circle50: Road) -> None:
+    """With the default prior (heading_decay 1/s, yaw_rate_decay 2/s) lane keeping on a curve with slip,
+    ``xi = -beta``, is a fixed point: the car stays on its lane as with the constant turn."""
+    beta = float(slip_angle(np.array(15.0 / (R50 - 3.5)), np.array(15.0), np.array(4.5), 0.5))
+    err, dn = lane_following_error(circle50, FrenetMotion(circle50, MotionConfig(slip_lever=0.5)), xi=-beta)
+    assert err < 0.05 and dn < 0.01
+
+
+def test_road_following_prior_ends_a_coasting_lane_change() -> None:
+    """Coasting 2 s through a lane change (xi 0.1 rad, xi_dot 0.1 rad/s at 20 m/s on a straight road):
+    xi and xi_dot decay as the linear system ``xi' = xi_dot - a xi``, ``xi_dot' = -b xi_dot`` says, and
+    the lateral move is bounded by ``v int xi`` instead of the constant turn's ``v (xi t + xi_dot t^2/2)``."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    x = np.array([50.0, 0.0, 20.0, 0.1, 0.1, 4.5, 1.8])
+    a, b, t = 1.0, 2.0, 2.0
+    out = FrenetMotion(road, MotionConfig(slip_lever=0.0, max_step=0.01)).propagate(x, t)
+    xi_dot = 0.1 * np.exp(-b * t)
+    xi = 0.1 * np.exp(-a * t) + 0.1 * (np.exp(-b * t) - np.exp(-a * t)) / (a - b)
+    assert out[4] == pytest.approx(xi_dot, rel=1e-6)
+    assert out[3] == pytest.approx(xi, rel=1e-5)
+    assert out[1] < 20.0 * (0.1 / a + 0.1 / (a * b))  # int_0^inf xi dt, times v (small angles)
+    turn = FrenetMotion(road, MotionConfig(slip_lever=0.0, **CONSTANT_TURN)).propagate(x, t)
+    assert turn[1] > 2.0 * out[1]
+
+
+@pytest.mark.parametrize("dt", [0.05, 0.1, 1.0, 7.3, 60.0])
+def test_heading_noise_block_against_the_constant_turn_and_the_lyapunov_solution(dt: float) -> None:
+    """``heading_noise_block``: with no decay it is ``process_noise``'s integrated white yaw acceleration;
+    with decay it tends to the stationary covariance that solves ``A Q + Q A^T + G G^T = 0``
+    (scipy's Lyapunov solver, an independent oracle), and ``Q(dt)`` matches a fine numerical integral."""
+    from scipy.integrate import quad_vec
+    from scipy.linalg import expm, solve_continuous_lyapunov
+
+    noise = ProcessNoise()
+    np.testing.assert_allclose(heading_noise_block(dt, 0.0, 0.0, noise), process_noise(np.zeros(7), dt, noise)[3:5, 3:5],
+                               rtol=1e-9, atol=1e-15)
+    a, b = 1.0, 2.0
+    a_mat = np.array([[-a, 1.0], [0.0, -b]])
+    gg = np.diag([noise.heading**2, noise.yaw_accel**2])
+    q = heading_noise_block(dt, a, b, noise)
+    integral, _ = quad_vec(lambda s: expm(a_mat * s) @ gg @ expm(a_mat * s).T, 0.0, dt, epsabs=1e-14, epsrel=1e-10)
+    np.testing.assert_allclose(q, integral, rtol=1e-7, atol=1e-14)
+    stationary = solve_continuous_lyapunov(a_mat, -gg)
+    assert np.all(q <= stationary + 1e-12)
+    if dt >= 60.0:
+        np.testing.assert_allclose(q, stationary, rtol=1e-9)

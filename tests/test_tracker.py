@@ -126,6 +126,38 @@ def test_car_hidden_for_about_two_seconds_keeps_its_label():
     assert points_on_b(int(1.5 / DT)) > 0 and points_on_b(int(6.0 / DT)) > 0
 
 
+def blackout_run(scene: Scene, config: TrackerConfig, duration: float, dark: tuple[float, float], seed: int = 0):
+    """``run`` with frames whose lidar is empty (a blackout; radar and ego kept) for ``dark`` (s)."""
+    rng = np.random.default_rng(seed)
+    tracker = Tracker(scene.road, config)
+    out = []
+    for k in range(int(round(duration / DT)) + 1):
+        t = k * DT
+        frame = scene.frame(t, rng)
+        if dark[0] <= t < dark[1]:
+            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
+        out.append(tracker.step(frame))
+    return out, tracker
+
+
+@pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])
+def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, radar):
+    # car A changes lane (3.5 m to the left in 3 s from t = 2 s); the lidar is dark for 2 s from
+    # t = 3 s, while A's heading turns back to the road's. Without the road-following prior
+    # (heading_decay = yaw_rate_decay = 0, the paper's constant turn) the coasting track keeps turning
+    # (its n reaches 6 m against the truth's 3.5 m): A comes back as a new label. No road birth
+    # appears while the lidar is dark (nothing could confirm or discount it).
+    scene = Scene(curve, Car(0.0, -3.5, 15.0), [Car(25.0, 0.0, 16.0, lane_change=(2.0, 3.0, 3.5))], radar=radar)
+    frames, tracker = blackout_run(scene, TrackerConfig(), 7.0, dark=(3.0, 5.0))
+    def track_on_a(k):
+        tr, d = nearest(frames[k], curve, scene.truth(k * DT)[0, :2])
+        return tr if d < 1.0 else None
+    before, after = track_on_a(int(2.9 / DT)), track_on_a(int(6.0 / DT))
+    assert before is not None and after is not None and before.label == after.label
+    assert all(len(tr) == 1 for tr in frames[int(3.0 / DT):int(5.0 / DT)])  # coasting, no road births
+    assert tracker.stats["predict_only_frames"] == 20
+
+
 def test_fused_speed_error_below_lidar_only(curve):
     # one car accelerates (2 m/s^2), one brakes (-2 m/s^2): lidar alone infers speed from positions
     # and lags; the radar measures it

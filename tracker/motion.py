@@ -8,6 +8,8 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
 
       s' = v cos(xi) / (1 - kappa(s) n),   n' = v sin(xi),   v' = 0,   xi' = xi_dot,   xi_dot' = 0
 
+  plus the road-following prior (``MotionConfig.heading_decay``, ``yaw_rate_decay``): ``xi' = xi_dot -
+  heading_decay (xi + beta)``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0 give the constant turn above),
   integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps (with ``MotionConfig.slip_lever > 0``
   the centre moves along ``xi + beta`` instead of ``xi``, ``beta`` the kinematic slip angle of
   ``slip_angle``: ``psi`` is the body axis, the rectangle's, and a car holding its lane on a curve has
@@ -37,6 +39,7 @@ import math
 from typing import Protocol
 
 import numpy as np
+from scipy.linalg import expm
 
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.road import Road
@@ -169,7 +172,10 @@ class FrenetMotion:
 
     def derivative(self, x: np.ndarray) -> np.ndarray:
         """``dx/dt`` of states ``x (..., 7)``: ``[v cos(xi + beta) / (1 - kappa n), v sin(xi + beta), 0,
-        xi_dot, 0, 0, 0]`` with the slip angle ``beta`` of ``slip_angle`` (0 when ``slip_lever = 0``)."""
+        xi_dot - a (xi + beta), -b xi_dot, 0, 0]`` with the slip angle ``beta`` of ``slip_angle`` (0 when
+        ``slip_lever = 0``) and the road-following prior's rates ``a = heading_decay``, ``b =
+        yaw_rate_decay`` (``MotionConfig``): the heading relaxes to lane keeping, a course ``xi + beta = 0``
+        (``xi = -beta`` on a curve with slip)."""
         kappa = self.curvature(x[..., S])
         denom = np.maximum(1.0 - kappa * x[..., N], self.config.min_denominator)
         d = np.zeros_like(x)
@@ -179,7 +185,8 @@ class FrenetMotion:
             course = course + slip_angle(yaw_rate, x[..., V], x[..., LENGTH], self.config.slip_lever)
         d[..., S] = x[..., V] * np.cos(course) / denom
         d[..., N] = x[..., V] * np.sin(course)
-        d[..., XI] = x[..., XI_DOT]
+        d[..., XI] = x[..., XI_DOT] - self.config.heading_decay * course  # relaxes to lane keeping: course 0
+        d[..., XI_DOT] = -self.config.yaw_rate_decay * x[..., XI_DOT]
         return d
 
     def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
@@ -200,8 +207,42 @@ class FrenetMotion:
         return self.wrapping.wrap(x)
 
     def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
-        """See ``process_noise``."""
-        return process_noise(mean, dt, self.noise)
+        """See ``process_noise``; with the road-following prior (``heading_decay`` or
+        ``yaw_rate_decay`` > 0) the ``(xi, xi_dot)`` block is ``heading_noise_block``'s exact one."""
+        q = process_noise(mean, dt, self.noise)
+        if self.config.heading_decay > 0.0 or self.config.yaw_rate_decay > 0.0:
+            q[..., XI:XI_DOT + 1, XI:XI_DOT + 1] = heading_noise_block(
+                dt, self.config.heading_decay, self.config.yaw_rate_decay, self.noise)
+        return q
+
+
+def heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, noise: ProcessNoise) -> np.ndarray:
+    """Covariance ``(2, 2)`` of ``(xi, xi_dot)`` added over ``dt`` by the mean-reverting heading model
+
+        d xi = (xi_dot - a xi) dt + heading dW_1,     d xi_dot = -b xi_dot dt + yaw_accel dW_2
+
+    (``a = heading_decay``, ``b = yaw_rate_decay``): ``Q = int_0^dt e^{At} G G^T e^{A^T t} dt`` with
+    ``A = [[-a, 1], [0, -b]]``, computed exactly by Van Loan's matrix exponential. With ``a = b = 0`` it
+    is ``process_noise``'s block (``yaw_accel^2 [[dt^3/3, dt^2/2], [dt^2/2, dt]] + heading^2 dt``); with
+    ``a, b > 0`` it stays bounded as ``dt`` grows (the stationary covariance). Van Loan's exponential
+    holds ``e^{-At}``, which overflows for long gaps: it is taken over ``dt / 2^k`` with
+    ``max(a, b, 1) dt / 2^k <= 1`` and doubled ``k`` times (``Q(2t) = F Q(t) F^T + Q(t)``, ``F = e^{At}``)."""
+    dt = _check_dt(dt)
+    a_mat = np.array([[-heading_decay, 1.0], [0.0, -yaw_rate_decay]])
+    gg = np.diag([noise.heading**2, noise.yaw_accel**2])
+    doublings = max(0, int(math.ceil(math.log2(max(heading_decay, yaw_rate_decay, 1.0) * dt + 1e-300))))
+    step = dt / 2.0**doublings
+    van_loan = np.zeros((4, 4))
+    van_loan[:2, :2] = -a_mat
+    van_loan[:2, 2:] = gg
+    van_loan[2:, 2:] = a_mat.T
+    e = expm(van_loan * step)
+    f = e[2:, 2:].T  # e^{A step}
+    q = f @ e[:2, 2:]
+    for _ in range(doublings):
+        q = f @ q @ f.T + q
+        f = f @ f
+    return 0.5 * (q + q.T)
 
 
 class PaperMotion:

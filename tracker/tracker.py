@@ -5,7 +5,8 @@
 1. **Predict** the mixture over ``dt`` (UKF through the motion model), weights times ``P_S``;
    add the births: road components (per lane near the range limits, where the view is not blocked and
    no track is within ``gating.distance``) and the previous frame's unexplained clusters
-   (``tracker.birth``). A frame older than the last raises ``ValueError``;
+   (``tracker.birth``), the road births only in frames with lidar points. A frame older than the last
+   raises ``ValueError``;
    ``dt = 0`` predicts nothing.
 2. **Preprocess** the lidar (``tracker.preprocess``): non-finite points dropped, points off the road
    (plus ``clustering.road_margin``) dropped, the bearing filter. Every drop is counted in ``stats``.
@@ -63,7 +64,7 @@ from tracker.preprocess import preprocess_frame
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
 from tracker.track import Track
-from tracker.ukf import UnscentedTransform
+from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_pairs
 
 #: Frames whose time precedes the last one by more than this (s) are rejected.
@@ -77,6 +78,7 @@ class Tracker:
     ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
     ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
+    ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
     ``label_splits``. ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
@@ -133,11 +135,13 @@ class Tracker:
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
         self._updated_labels = set()
         self._predict(dt)
-        self._add_births(ego, s_ego)
         points, scanned = self._preprocess(frame)
         if not scanned:
-            self.stats["predict_only_frames"] += 1  # no lidar points at all: predict only
+            # no lidar points at all (a blackout): predict only; no road births, which no scan could
+            # confirm or discount (their weight would stand unchanged until the lidar returns)
+            self.stats["predict_only_frames"] += 1
         else:
+            self._add_births(ego, s_ego)
             clusters, velocities = self._cluster(points, frame)
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
@@ -290,9 +294,14 @@ class Tracker:
                     total = np.bincount(clu, weights=np.exp(log_num - peak[clu]), minlength=len(clusters))
                     total += np.where(single, np.exp(-np.clip(peak, -700.0, 700.0)), 0.0)
                     weights = np.exp(log_num - peak[clu]) / total[clu]
+                    # the UKF's posterior is a covariance only when the sigma points represent the prior;
+                    # after a long gap (heading spread over the circle, wrapped residuals) it may not be:
+                    # lift such matrices to positive definite and count them
+                    post_cov, repaired = ensure_spd(res.cov[inside], cfg.ukf.min_eigenvalue)
+                    self.stats["covariances_repaired"] += repaired
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
-                    new_p.append(res.cov[inside])
+                    new_p.append(post_cov)
                     new_l.append(mix.labels[comp])
         self.mixture = Mixture(np.concatenate(new_w), np.concatenate(new_m), np.concatenate(new_p), np.concatenate(new_l))
         return explained

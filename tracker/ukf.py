@@ -79,6 +79,19 @@ def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     return flat.reshape(sym.shape), count
 
 
+def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
+    """``cov`` (..., n, n) unchanged when every matrix has a Cholesky factor (the common case, one
+    batched factorisation); else ``make_spd``'s repair. Returns the matrices and how many were repaired."""
+    cov = np.asarray(cov, dtype=float)
+    if cov.size == 0:
+        return cov, 0
+    try:
+        np.linalg.cholesky(cov)
+        return cov, 0
+    except np.linalg.LinAlgError:
+        return make_spd(cov, floor)
+
+
 class UnscentedTransform:
     """Sigma points and weights for an ``n``-dimensional state (default 7) with ``UKFParams``.
 

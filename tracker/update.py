@@ -263,10 +263,14 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     everywhere but ``P+[L, L] = P[L, L]``), which keeps ``P+`` positive semi-definite."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
+    held = {}
     for index, seen in ((LENGTH, (full & long_side).any(axis=1)), (WIDTH, (full & ~long_side).any(axis=1))):
-        hold = ~seen
+        hold = held[index] = ~seen
         res.mean[hold, index] = prior_mean[hold, index]
         res.cov[hold, index, index] = prior_cov[hold, index, index]
+    both = held[LENGTH] & held[WIDTH]  # both consider parameters: their joint block stays the prior's
+    res.cov[both, LENGTH, WIDTH] = prior_cov[both, LENGTH, WIDTH]
+    res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
 
 
 def update(
