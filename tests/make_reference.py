@@ -1,0 +1,63 @@
+"""Write ``tests/reference/tracks.npz``: the tracks of a fixed synthetic run (tests/scenes.py), which
+``tests/test_reference.py`` checks today's tracker reproduces -- the guard that a speed-up changed no
+result (issue 13). Re-make it only for an intended change of the tracker's numbers, and say so in the
+commit::
+
+    python tests/make_reference.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from scenes import Car, Scene  # noqa: E402
+
+from tracker import Road, Tracker, TrackerConfig  # noqa: E402
+
+REFERENCE = Path(__file__).parent / "reference" / "tracks.npz"
+DT = 0.1
+FRAMES = 40
+
+
+def reference_scene() -> Scene:
+    """Ego and six cars on a 3-lane curve (R 150 m) with radar: followers, a car changing lane, one
+    overtaking the ego, one hidden behind another for a while."""
+    road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, 1 / 150.0)],
+                               lanes=3, lane_width=3.5)
+    cars = [
+        Car(125.0, -3.5, 15.0),
+        Car(120.0, 0.0, 17.0, lane_change=(1.0, 3.0, 3.5)),
+        Car(140.0, 3.5, 14.0, length=12.0, width=2.5),
+        Car(160.0, 3.5, 14.0),
+        Car(95.0, 3.5, 20.0),
+        Car(170.0, 0.0, 16.0, accel=1.5),
+    ]
+    return Scene(road, Car(100.0, -3.5, 15.0), cars, radar=True)
+
+
+def run_reference() -> dict[str, np.ndarray]:
+    """Per reported track row: frame index, label, weight, mean (7), covariance (7 x 7)."""
+    scene = reference_scene()
+    rng = np.random.default_rng(2026)
+    tracker = Tracker(scene.road, TrackerConfig())
+    frame_idx, labels, weights, means, covs = [], [], [], [], []
+    for k in range(FRAMES):
+        for tr in tracker.step(scene.frame(k * DT, rng)):
+            frame_idx.append(k)
+            labels.append(tr.label)
+            weights.append(tr.weight)
+            means.append(tr.mean)
+            covs.append(tr.cov)
+    return {"frame": np.array(frame_idx), "label": np.array(labels), "weight": np.array(weights),
+            "mean": np.array(means).reshape(-1, 7), "cov": np.array(covs).reshape(-1, 7, 7)}
+
+
+if __name__ == "__main__":
+    REFERENCE.parent.mkdir(exist_ok=True)
+    out = run_reference()
+    np.savez_compressed(REFERENCE, **out)
+    print(f"wrote {REFERENCE}: {len(out['frame'])} track rows over {FRAMES} frames, labels {sorted(set(out['label'].tolist()))}")
