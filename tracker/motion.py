@@ -36,6 +36,7 @@ construction in both coordinate systems (see ``process_noise``).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Protocol
 
 import numpy as np
@@ -217,6 +218,14 @@ class FrenetMotion:
 
 
 def heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, noise: ProcessNoise) -> np.ndarray:
+    """See ``_heading_noise_block``; cached by its arguments (a tracker's frames mostly share one ``dt``:
+    the matrix exponential costs ~100 us, a cache hit ~1 us). Returns a new array."""
+    return _heading_noise_block(float(dt), float(heading_decay), float(yaw_rate_decay),
+                                float(noise.heading), float(noise.yaw_accel)).copy()
+
+
+@lru_cache(maxsize=256)
+def _heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, heading: float, yaw_accel: float) -> np.ndarray:
     """Covariance ``(2, 2)`` of ``(xi, xi_dot)`` added over ``dt`` by the mean-reverting heading model
 
         d xi = (xi_dot - a xi) dt + heading dW_1,     d xi_dot = -b xi_dot dt + yaw_accel dW_2
@@ -229,7 +238,7 @@ def heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, 
     ``max(a, b, 1) dt / 2^k <= 1`` and doubled ``k`` times (``Q(2t) = F Q(t) F^T + Q(t)``, ``F = e^{At}``)."""
     dt = _check_dt(dt)
     a_mat = np.array([[-heading_decay, 1.0], [0.0, -yaw_rate_decay]])
-    gg = np.diag([noise.heading**2, noise.yaw_accel**2])
+    gg = np.diag([heading**2, yaw_accel**2])
     doublings = max(0, int(math.ceil(math.log2(max(heading_decay, yaw_rate_decay, 1.0) * dt + 1e-300))))
     step = dt / 2.0**doublings
     van_loan = np.zeros((4, 4))
