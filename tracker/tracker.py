@@ -57,9 +57,10 @@ from tracker.clustering import cluster_velocities, distance_partition, points_in
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
-from tracker.measurement import Rectangles, prepare_cluster, to_vehicle
+from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.point import PointTracker
+from tracker.preparation import prepare_clusters
 from tracker.preprocess import preprocess_frame
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
@@ -263,8 +264,8 @@ class Tracker:
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
-                prepared = [prepare_cluster(clusters[k], cfg.measurement, velocities[k] if cfg.use_radar else None)
-                            for k in used]
+                prepared = prepare_clusters([clusters[k] for k in used], cfg.measurement,
+                                            [velocities[k] if cfg.use_radar else None for k in used])
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
                 # a track's own cluster (its points lie in its predicted rectangle) is associated by

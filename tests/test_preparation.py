@@ -1,0 +1,89 @@
+"""Tests of tracker/preparation.py: the batched ``prepare_clusters`` against the one-cluster reference
+``tracker.measurement.prepare_cluster`` on many kinds of clusters at once."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tracker.config import MeasurementConfig
+from tracker.measurement import prepare_cluster, rectangle_corners
+from tracker.preparation import prepare_clusters
+
+FIELDS = ("points", "part", "proj", "chord_start", "chord_end", "chord_dir", "chord_len", "end_margin", "order")
+
+
+def l_shape(rng: np.random.Generator, count: int) -> np.ndarray:
+    """Points on the two sides of a car seen from a corner (a two-sided cluster), with noise."""
+    centre = rng.uniform([10.0, -20.0], [40.0, 20.0])
+    psi = rng.uniform(-np.pi, np.pi)
+    c = rectangle_corners(centre, np.array(psi), np.array(rng.uniform(4.0, 14.0)), np.array(rng.uniform(1.6, 2.6)))
+    near = int(np.argmin(np.linalg.norm(c, axis=1)))
+    a, b, d = c[(near - 1) % 4], c[near], c[(near + 1) % 4]
+    t = rng.random(count)
+    side = rng.random(count) < 0.5
+    pts = np.where(side[:, None], a + t[:, None] * (b - a), b + t[:, None] * (d - b))
+    return pts + rng.normal(0.0, 0.03, pts.shape)
+
+
+def line(rng: np.random.Generator, count: int) -> np.ndarray:
+    start = rng.uniform([5.0, -30.0], [60.0, 30.0])
+    u = rng.normal(size=2)
+    return start + np.outer(np.linspace(0.0, rng.uniform(0.5, 12.0), count), u / np.linalg.norm(u)) + rng.normal(0, 0.02, (count, 2))
+
+
+def random_clusters(seed: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    out = [l_shape(rng, int(rng.integers(4, 200))) for _ in range(12)]
+    out += [line(rng, int(rng.integers(2, 150))) for _ in range(8)]
+    out += [rng.uniform(-40, 40, (1, 2)), rng.uniform(-40, 40, (2, 2)), np.tile(rng.uniform(5, 9, (1, 2)), (5, 1))]
+    out += [l_shape(rng, 3), rng.normal(20.0, 2.0, (40, 2))]  # too few for two sides; a blob
+    return [out[i] for i in rng.permutation(len(out))]
+
+
+def assert_same(batch, reference) -> None:
+    assert len(batch) == len(reference)
+    for b, r in zip(batch, reference):
+        assert (b.two_sided, b.corner, b.raw_count, b.dropped) == (r.two_sided, r.corner, r.raw_count, r.dropped)
+        assert b.eigen_ratio == pytest.approx(r.eigen_ratio, rel=1e-9) or (np.isinf(b.eigen_ratio) and np.isinf(r.eigen_ratio))
+        for name in FIELDS:
+            np.testing.assert_allclose(getattr(b, name), getattr(r, name), rtol=1e-9, atol=1e-9, err_msg=name)
+        assert (b.velocity is None) == (r.velocity is None)
+        if b.velocity is not None:
+            np.testing.assert_array_equal(b.velocity, r.velocity)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("gap_correction", [True, False])
+def test_batch_equals_the_one_cluster_reference(seed: int, gap_correction: bool) -> None:
+    config = MeasurementConfig(end_gap_correction=gap_correction)
+    clusters = random_clusters(seed)
+    rng = np.random.default_rng(100 + seed)
+    velocities = [rng.normal(0, 10, 2) if rng.random() < 0.5 else None for _ in clusters]
+    batch = prepare_clusters(clusters, config, velocities)
+    assert_same(batch, [prepare_cluster(c, config, v) for c, v in zip(clusters, velocities)])
+    assert sum(c.raw_count > c.size for c in batch) >= 3  # downsampling exercised
+    assert sum(c.two_sided for c in batch) >= 5  # corners exercised
+
+
+def test_small_point_budget_downsamples_both_parts_like_the_reference() -> None:
+    config = dataclasses.replace(MeasurementConfig(), max_cluster_points=7)
+    clusters = random_clusters(11)
+    assert_same(prepare_clusters(clusters, config), [prepare_cluster(c, config) for c in clusters])
+
+
+def test_non_finite_points_take_the_reference_path_and_bad_input_is_refused() -> None:
+    rng = np.random.default_rng(0)
+    pts = l_shape(rng, 30)
+    pts[3] = np.nan
+    batch = prepare_clusters([pts, l_shape(rng, 20)])
+    assert batch[0].dropped == 1 and batch[0].raw_count == 29
+    with pytest.raises(ValueError, match="at least one finite point"):
+        prepare_clusters([np.full((2, 2), np.inf)])
+    with pytest.raises(ValueError, match="velocity"):
+        prepare_clusters([pts[:3] * 0 + 1.0 + np.arange(3)[:, None]], velocities=[[np.nan, 1.0]])
+    with pytest.raises(ValueError, match="2 clusters but 1 velocities"):
+        prepare_clusters([pts, pts], velocities=[None])
+    assert prepare_clusters([]) == []
