@@ -75,3 +75,46 @@ def test_merge_across_the_start_of_a_closed_road():
     assert len(out) == 1 and out.weights[0] == pytest.approx(1.2)
     assert min(out.means[0, 0], 500.0 - out.means[0, 0]) == pytest.approx(0.0, abs=1e-9)
     assert len(merge(mix, gate=4.0)) == 2  # without the period they are 499.9 m apart
+
+
+def greedy_merge_oracle(mix: Mixture, gate: float, wrapping: Wrapping) -> Mixture:
+    """Vo & Ma's merge written plainly, one component at a time (the former implementation)."""
+    inv = np.linalg.inv(mix.covs)
+    remaining = np.ones(len(mix), dtype=bool)
+    out_w, out_m, out_p, out_l = [], [], [], []
+    for j in np.argsort(-mix.weights, kind="stable"):
+        if not remaining[j]:
+            continue
+        idx = np.flatnonzero(remaining)
+        d = wrapping.residual(mix.means[idx] - mix.means[j])
+        group = idx[np.einsum("ni,nij,nj->n", d, inv[idx], d) <= gate]
+        w = mix.weights[group]
+        dev = wrapping.residual(mix.means[group] - mix.means[j])
+        mean_dev = (w[:, None] * dev).sum(axis=0) / w.sum()
+        spread = dev - mean_dev
+        cov = (w[:, None, None] * (mix.covs[group] + spread[:, :, None] * spread[:, None, :])).sum(axis=0) / w.sum()
+        out_w.append(w.sum())
+        out_m.append(wrapping.wrap(mix.means[j] + mean_dev))
+        out_p.append(cov)
+        out_l.append(mix.labels[j])
+        remaining[group] = False
+    return Mixture(np.array(out_w), np.array(out_m), np.array(out_p), np.array(out_l))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_batched_merge_equals_the_one_at_a_time_greedy_merge(seed):
+    rng = np.random.default_rng(seed)
+    n = 40
+    centres = rng.uniform([0, -5, 10, -0.2, -0.1, 4, 1.8], [50, 5, 20, 0.2, 0.1, 5, 2.0], (6, 7))
+    means = centres[rng.integers(0, 6, n)] + rng.normal(0, 0.3, (n, 7)) * [1, 0.3, 0.5, 0.02, 0.02, 0.1, 0.05]
+    means[:5, 3] = np.pi - 0.01 * rng.random(5)  # headings across the +-pi cut
+    means[5:10, 3] = -np.pi + 0.01 * rng.random(5)
+    a = rng.normal(size=(n, 7, 7)) * 0.3
+    covs = a @ np.swapaxes(a, 1, 2) + np.diag([0.5, 0.1, 0.3, 0.01, 0.01, 0.2, 0.05])
+    mix = Mixture(rng.uniform(0.01, 1.0, n), means, covs, np.arange(n))
+    wrap = Wrapping(angles=(3,), periods=((0, 60.0),))
+    got, want = merge(mix, 4.0, wrap), greedy_merge_oracle(mix, 4.0, wrap)
+    assert len(want) < n  # something merged
+    np.testing.assert_array_equal(got.labels, want.labels)
+    for name in ("weights", "means", "covs"):
+        np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-12, atol=1e-12, err_msg=name)

@@ -102,31 +102,54 @@ def merge_same_label(
 def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
     """Merge components within Mahalanobis distance^2 ``gate`` of the heaviest remaining one.
 
-    One pass per output component, each vectorised over the remaining components. The merged
-    mean is the weighted mean (circular for angles), the covariance the weighted spread plus the
-    weighted covariances (moment matching).
+    The distances of every pair, ``d_ij^T P_i^-1 d_ij`` with ``d_ij = m_i - m_j`` (wrapped), are
+    computed at once; the greedy grouping (heaviest remaining component ``j`` takes every remaining
+    ``i`` within the gate) is then a loop of boolean operations, and all groups are moment-matched in
+    one batched pass (``_moment_match_groups``). The merged mean is the weighted mean (circular for
+    angles, about the group's heaviest component), the covariance the weighted spread plus the weighted
+    covariances.
     """
     n = len(mix)
     if n <= 1:
         return mix
     inv = np.linalg.inv(mix.covs)
+    d = wrapping.residual(mix.means[:, None, :] - mix.means[None, :, :])  # (i, j, D): m_i - m_j
+    maha = np.einsum("ijd,ide,ije->ij", d, inv, d)
+    within = maha <= gate
     remaining = np.ones(n, dtype=bool)
-    order = np.argsort(-mix.weights, kind="stable")
-    w_out, m_out, p_out, l_out = [], [], [], []
-    for j in order:  # each iteration removes at least component j
+    group = np.full(n, -1)
+    anchors = []
+    for j in np.argsort(-mix.weights, kind="stable"):  # each iteration removes at least component j
         if not remaining[j]:
             continue
-        idx = np.flatnonzero(remaining)
-        d = wrapping.residual(mix.means[idx] - mix.means[j][None, :])
-        maha = np.einsum("ni,nij,nj->n", d, inv[idx], d)
-        group = idx[maha <= gate]
-        w_sum, mean, cov = _moment_match(mix, group, j, wrapping)
-        w_out.append(w_sum)
-        m_out.append(mean)
-        p_out.append(cov)
-        l_out.append(mix.labels[j])
-        remaining[group] = False
-    return Mixture(np.array(w_out), np.array(m_out), np.array(p_out), np.array(l_out))
+        members = remaining & within[:, j]
+        members[j] = True
+        group[members] = len(anchors)
+        anchors.append(j)
+        remaining &= ~members
+    anchor = np.array(anchors)
+    weights, means, covs = _moment_match_groups(mix, group, anchor, wrapping)
+    return Mixture(weights, means, covs, mix.labels[anchor])
+
+
+def _moment_match_groups(mix: Mixture, group: np.ndarray, anchor: np.ndarray,
+                         wrapping: Wrapping) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_moment_match`` of every group at once: component ``i`` belongs to group ``group[i]`` whose
+    residuals are taken about component ``anchor[group[i]]``. Returns weights ``(G,)``, means
+    ``(G, D)`` and covariances ``(G, D, D)``."""
+    count = len(anchor)
+    w = mix.weights
+    w_sum = np.bincount(group, weights=w, minlength=count)
+    dev = wrapping.residual(mix.means - mix.means[anchor[group]])
+    mean_dev = np.zeros((count, mix.means.shape[1]))
+    np.add.at(mean_dev, group, w[:, None] * dev)
+    mean_dev /= w_sum[:, None]
+    means = wrapping.wrap(mix.means[anchor] + mean_dev)
+    spread = dev - mean_dev[group]
+    cov = np.zeros((count,) + mix.covs.shape[1:])
+    np.add.at(cov, group, w[:, None, None] * (mix.covs + spread[:, :, None] * spread[:, None, :]))
+    cov /= w_sum[:, None, None]
+    return w_sum, means, 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
 def reduce(
