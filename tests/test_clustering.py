@@ -39,3 +39,18 @@ def test_associate_radar_greedy_within_gate():
     # cluster 0 takes its nearest detection (2: 0.2 m), cluster 1 takes detection 1, cluster 2 none
     np.testing.assert_array_equal(out, [2, 1, -1])
     np.testing.assert_array_equal(associate_radar(clusters, np.zeros((0, 2))), [-1, -1, -1])
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_dense_components_equal_scipys(seed):
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from tracker.clustering import dense_components
+
+    rng = np.random.default_rng(seed)
+    count = int(rng.integers(1, 60))
+    adj = rng.random((count, count)) < 1.5 / count
+    _, want = connected_components(csr_matrix(adj), directed=False)
+    np.testing.assert_array_equal(dense_components(adj), want)
+    assert dense_components(np.zeros((0, 0), dtype=bool)).shape == (0,)

@@ -66,6 +66,25 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     return rank[labels]
 
 
+def dense_components(adjacency: np.ndarray) -> np.ndarray:
+    """Connected components of the small undirected graph given by a boolean ``adjacency (T, T)``:
+    component index per node, numbered in order of each component's first node (as scipy's
+    ``connected_components``). By boolean squaring of the reachability matrix (``log2 T`` products),
+    which for the tens of tracks of a frame is cheaper than building a sparse graph."""
+    adj = np.asarray(adjacency, dtype=bool)
+    count = len(adj)
+    if count == 0:
+        return np.zeros(0, dtype=int)
+    reach = (adj | adj.T | np.eye(count, dtype=bool)).astype(np.float32)
+    while True:
+        nxt = ((reach @ reach) > 0).astype(np.float32)
+        if np.array_equal(nxt, reach):
+            break
+        reach = nxt
+    first = np.argmax(reach > 0, axis=1)  # the lowest node of each node's component
+    return np.unique(first, return_inverse=True)[1].reshape(-1)
+
+
 def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate: float = 3.0) -> np.ndarray:
     """Greedy nearest-neighbour association of radar detections (R, 2) to clusters.
 

@@ -48,12 +48,10 @@ import math
 from collections import Counter
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
-from tracker.clustering import cluster_velocities, distance_partition, points_in_rectangles
+from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
@@ -413,5 +411,4 @@ def _duplicate_groups(rect: Rectangles) -> np.ndarray:
     lo, hi = proj.min(axis=2), proj.max(axis=2)
     separated = (hi[:, None, :] < lo[None, :, :]) | (hi[None, :, :] < lo[:, None, :])  # (T, T, 2T)
     overlap = ~separated.any(axis=2)
-    _, groups = connected_components(csr_matrix(overlap), directed=False)
-    return groups
+    return dense_components(overlap)
