@@ -363,3 +363,20 @@ def test_vectorised_shapes(winding):
     assert s2.shape == (3, 4) and n2.shape == (3, 4)
     assert winding.heading(s).shape == (3, 4)
     assert math.isclose(float(winding.to_cartesian(s, 0.0)[1, 2, 0]), float(xy[0, 0, 0]))
+
+
+def test_one_point_in_any_shape_takes_the_fast_path_and_agrees_with_the_batch():
+    road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150), (600, 1 / 150, 1 / 150)], lanes=3)
+    rng = np.random.default_rng(4)
+    pts = np.column_stack([rng.uniform(0.0, 700.0, 50), rng.uniform(-10.0, 150.0, 50)])
+    s_batch, n_batch = road.to_frenet(pts)  # the vectorised Newton projection
+    for k, p in enumerate(pts):
+        s1, n1 = road.to_frenet(p[None, :])
+        assert s1.shape == (1,) and n1.shape == (1,)
+        assert abs(s1[0] - s_batch[k]) < 1e-9 and abs(n1[0] - n_batch[k]) < 1e-9
+        s2, n2 = road.to_frenet(p.reshape(1, 1, 2), s_hint=np.array([s_batch[k]]))
+        assert s2.shape == (1, 1) and abs(s2[0, 0] - s_batch[k]) < 1e-9
+        st, nt = road.to_frenet(tuple(p))
+        assert isinstance(st, float) and abs(st - s_batch[k]) < 1e-9 and abs(nt - n_batch[k]) < 1e-9
+    with pytest.raises(ValueError, match="scalar"):
+        road.to_frenet(pts[:1], s_hint=np.array([1.0, 2.0]))

@@ -357,7 +357,8 @@ class Road:
         scalar or one per point, e.g. the previous ``s`` of a moving vehicle) the search starts there
         instead, which keeps the answer continuous under small motion where a tight curve offers
         several projections; if it fails to converge it falls back to the global search. A single
-        point, given as shape (2,), returns two floats and takes a pure-Python fast path.
+        point takes a pure-Python fast path whatever its shape: given as a tuple or shape (2,) it
+        returns two floats, given as (1, 2) (or (1, ..., 1, 2)) two arrays of shape ``xy.shape[:-1]``.
         """
         if (s_hint is None or isinstance(s_hint, (float, int))) and _is_point(xy):
             x, y = float(xy[0]), float(xy[1])  # type: ignore[index]
@@ -369,16 +370,19 @@ class Road:
         pts = _as_float_array(xy, "xy")
         if pts.ndim == 0 or pts.shape[-1] != 2:
             raise ValueError(f"xy must have shape (..., 2); got {pts.shape}")
-        if pts.shape == (2,):
+        if pts.size == 2:  # one point, as (2,), (1, 2), (1, 1, 2), ...: the pure-Python fast path
             hint = None
             if s_hint is not None:
                 h = _as_float_array(s_hint, "s_hint")
                 if h.size != 1:
                     raise ValueError(f"s_hint for one point must be a scalar; got shape {h.shape}")
                 hint = float(h.reshape(-1)[0])
-            result = self._to_frenet1(float(pts[0]), float(pts[1]), hint)
+            flat1 = pts.reshape(2)
+            result = self._to_frenet1(float(flat1[0]), float(flat1[1]), hint)
             if result is not None:
-                return result  # type: ignore[return-value]
+                if pts.shape == (2,):
+                    return result  # type: ignore[return-value]
+                return np.full(pts.shape[:-1], result[0]), np.full(pts.shape[:-1], result[1])
         flat = pts.reshape(-1, 2)
         if s_hint is None:
             s_start = None
