@@ -87,3 +87,20 @@ def test_non_finite_points_take_the_reference_path_and_bad_input_is_refused() ->
     with pytest.raises(ValueError, match="2 clusters but 1 velocities"):
         prepare_clusters([pts, pts], velocities=[None])
     assert prepare_clusters([]) == []
+
+
+@pytest.mark.parametrize("batch", ["one-cluster", "single-points", "pairs", "point-at-sensor"])
+def test_degenerate_batches_equal_the_reference(batch) -> None:
+    rng = np.random.default_rng(7)
+    clusters = {
+        "one-cluster": [l_shape(rng, 60)],
+        "single-points": [rng.uniform(-30, 30, (1, 2)) for _ in range(5)],  # width 1
+        "pairs": [rng.uniform(-30, 30, (2, 2)) for _ in range(4)],
+        "point-at-sensor": [np.zeros((1, 2)), l_shape(rng, 12)],
+    }[batch]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = prepare_clusters(clusters)
+    assert_same(got, [prepare_cluster(c) for c in clusters])

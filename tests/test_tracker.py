@@ -152,9 +152,9 @@ def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, 
     def track_on_a(k):
         tr, d = nearest(frames[k], curve, scene.truth(k * DT)[0, :2])
         return tr if d < 1.0 else None
-    before, after = track_on_a(int(2.9 / DT)), track_on_a(int(6.0 / DT))
+    before, after = track_on_a(round(2.9 / DT)), track_on_a(round(6.0 / DT))
     assert before is not None and after is not None and before.label == after.label
-    assert all(len(tr) == 1 for tr in frames[int(3.0 / DT):int(5.0 / DT)])  # coasting, no road births
+    assert all(len(tr) == 1 for tr in frames[round(3.0 / DT):round(5.0 / DT)])  # coasting, no road births
     assert tracker.stats["predict_only_frames"] == 20
 
 

@@ -93,3 +93,23 @@ def test_bad_inputs_raise_clear_errors() -> None:
         UKFParams(alpha=1e-3)
     with pytest.raises(ValueError, match="alpha"):
         UKFParams(alpha=-1.0)
+
+
+def test_ensure_spd_repairs_only_indefinite_matrices_whatever_the_batch():
+    from tracker.ukf import ensure_spd
+
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(7, 7))
+    good = a @ a.T + np.eye(7)
+    tiny = np.diag([1e-12, 1, 1, 1, 1, 1, 1.0])  # positive definite, below the floor
+    bad = good.copy()
+    bad[0, 0] = -0.5  # indefinite
+    out, count = ensure_spd(np.stack([good, tiny]), 1e-9)
+    assert count == 0 and np.array_equal(out, np.stack([good, tiny]))
+    out, count = ensure_spd(np.stack([good, tiny, bad]), 1e-9)
+    assert count == 1
+    np.testing.assert_array_equal(out[0], good)
+    np.testing.assert_array_equal(out[1], tiny)  # not touched because another matrix failed
+    assert np.linalg.eigvalsh(out[2]).min() >= 1e-9 * 0.999
+    np.testing.assert_allclose(out[2], out[2].T)
+    assert ensure_spd(np.zeros((0, 7, 7)), 1e-9)[1] == 0

@@ -148,12 +148,15 @@ class MotionConfig:
       axis turned into the curve) but ``xi = 0`` in the model, a yaw bias of 0.7 deg at R 150 m.
     - ``heading_decay`` (1/s, default 1.0), ``yaw_rate_decay`` (1/s, default 2.0; 0 and 0 turn the prior
       off, the paper's constant turn): the exact model's road-following
-      prior, ``xi' = xi_dot - heading_decay * xi`` and ``xi_dot' = -yaw_rate_decay * xi_dot`` (mean-reverting
-      Ornstein-Uhlenbeck processes; ``tracker.motion.FrenetMotion``). Vehicles follow their road: a lane
+      prior, ``xi' = xi_dot - heading_decay * (xi + beta)`` (``beta`` the slip angle: the course relaxes to
+      lane keeping) and ``xi_dot' = -yaw_rate_decay * xi_dot`` (mean-reverting Ornstein-Uhlenbeck
+      processes; ``tracker.motion.FrenetMotion``, whose RK4 sub-steps shrink to ``0.5 / rate`` for large rates). Vehicles follow their road: a lane
       change ends, a heading relative to the road returns to 0. With updates every 0.1 s the pull is a
       few per cent per frame and the measurements correct it; while a track coasts (occluded, a sensor
       blackout) it stops a lane change's ``xi_dot`` from carrying the prediction metres off the lane, and
-      the variances of ``xi`` and ``xi_dot`` stay bounded over any gap instead of growing with ``dt^3``.
+      the variances of ``xi`` and ``xi_dot`` stay bounded over any gap (both rates > 0) instead of
+      growing with ``dt^3``. The pull takes the short way to 0, so it assumes ``|xi| < pi/2`` (births
+      start within pi/4 of the road).
       Departure from the paper (constant turn in ``xi``), measured in issue 10's note.
     """
 

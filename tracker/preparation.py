@@ -195,7 +195,7 @@ def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None
         db = np.zeros(count)  # the median bearing step (the upper one of an even count, as np.partition)
         if width > 1:
             gaps = np.sort(np.where(j[:, 1:] < n[:, None], np.diff(np.where(valid, rel, 0.0), axis=1), np.inf), axis=1)
-            db = gaps[rows, np.maximum(n - 1, 1) // 2]
+            db = np.where(n >= 2, gaps[rows, np.maximum(n - 1, 1) // 2], 0.0)  # a lone point has no gap
         dist = np.abs(origin[..., 0] * direction[..., 1] - origin[..., 1] * direction[..., 0])
         r2 = np.stack([(starts * starts).sum(axis=-1), (ends * ends).sum(axis=-1)], axis=-1)
         gap = r2 * db[:, None, None] / np.maximum(dist, 1e-3)[..., None]

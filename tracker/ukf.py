@@ -80,8 +80,12 @@ def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
 
 
 def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
-    """``cov`` (..., n, n) unchanged when every matrix has a Cholesky factor (the common case, one
-    batched factorisation); else ``make_spd``'s repair. Returns the matrices and how many were repaired."""
+    """``cov`` (..., n, n) with the matrices that are not positive semi-definite (smallest eigenvalue
+    below 0) repaired: symmetrised, eigenvalues lifted to ``floor``. Whether a matrix is repaired does
+    not depend on the others in the batch. One batched Cholesky factorisation decides the common case
+    (all positive definite: returned unchanged); only when it fails are the eigenvalues computed.
+    Non-finite entries are not repaired here (``UnscentedTransform.sigma_points`` refuses them).
+    Returns the matrices and how many were repaired."""
     cov = np.asarray(cov, dtype=float)
     if cov.size == 0:
         return cov, 0
@@ -89,7 +93,16 @@ def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
         np.linalg.cholesky(cov)
         return cov, 0
     except np.linalg.LinAlgError:
-        return make_spd(cov, floor)
+        pass
+    sym = 0.5 * (cov + np.swapaxes(cov, -1, -2))
+    flat = sym.reshape((-1,) + sym.shape[-2:])
+    vals, vecs = np.linalg.eigh(flat)
+    bad = vals[:, 0] < 0.0
+    count = int(bad.sum())
+    out = cov.reshape(flat.shape).copy()
+    if count:
+        out[bad] = np.einsum("bij,bj,bkj->bik", vecs[bad], np.maximum(vals[bad], floor), vecs[bad])
+    return out.reshape(cov.shape), count
 
 
 class UnscentedTransform:

@@ -260,7 +260,8 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     frame (curve-single: -0.5 m over 20 s). The Schmidt update with the extent as a consider
     parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
     prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
-    everywhere but ``P+[L, L] = P[L, L]``), which keeps ``P+`` positive semi-definite."""
+    everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
+    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
     held = {}
