@@ -33,6 +33,7 @@ from matplotlib.figure import Figure
 
 from sim.claims import ClaimResult, evaluate_claims, fmt
 from sim.study import CompareData, Interval, mean_interval
+from tracker.angles import wrap_angle
 
 #: Metrics of the per-scenario tables: (runs.csv key, column title).
 TABLE_METRICS: tuple[tuple[str, str], ...] = (
@@ -104,10 +105,6 @@ def plot_fused_vs_lidar(data: CompareData, path: Path) -> Path:
     return path
 
 
-def _wrapped_deg(a: np.ndarray) -> np.ndarray:
-    return np.degrees(np.angle(np.exp(1j * a)))
-
-
 def plot_curvilinear_vs_cartesian(data: CompareData, path: Path) -> Path:
     """GOSPA and the target's yaw error over time on curve-single: curvilinear vs Cartesian."""
     variants = data.meta.get("variants", [])
@@ -120,7 +117,7 @@ def plot_curvilinear_vs_cartesian(data: CompareData, path: Path) -> Path:
             continue
         drawn = True
         ax_g.plot(s["t"], s["gospa"], color=_color(variants, v), lw=1.2, label=v)
-        ax_y.plot(s["t"], _wrapped_deg(s["est_yaw"] - s["truth_yaw"]), color=_color(variants, v), lw=1.2, label=v)
+        ax_y.plot(s["t"], np.degrees(wrap_angle(s["est_yaw"] - s["truth_yaw"])), color=_color(variants, v), lw=1.2, label=v)
     if not drawn:
         _no_data(ax_g, "curve-single or the variants were not in this study")
     ax_g.set_ylabel("GOSPA (m)")

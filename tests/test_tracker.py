@@ -15,15 +15,19 @@ from tracker.transforms import to_global, to_local
 DT = 0.1
 
 
-def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, extra=None):
-    """Run the tracker over the scene; returns the per-frame tracks and the tracker."""
+def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, extra=None, dark=None):
+    """Run the tracker over the scene; returns the per-frame tracks and the tracker. ``dark = (t0, t1)``
+    (s): frames in that interval have an empty lidar (a blackout; radar and ego kept)."""
     rng = np.random.default_rng(seed)
     tracker = Tracker(scene.road, config)
     out = []
     for k in range(int(round(duration / DT)) + 1):
         t = k * DT
         points = extra(t, rng) if extra is not None else None
-        out.append(tracker.step(scene.frame(t, rng, points)))
+        frame = scene.frame(t, rng, points)
+        if dark is not None and dark[0] <= t < dark[1]:
+            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
+        out.append(tracker.step(frame))
     return out, tracker
 
 
@@ -126,20 +130,6 @@ def test_car_hidden_for_about_two_seconds_keeps_its_label():
     assert points_on_b(int(1.5 / DT)) > 0 and points_on_b(int(6.0 / DT)) > 0
 
 
-def blackout_run(scene: Scene, config: TrackerConfig, duration: float, dark: tuple[float, float], seed: int = 0):
-    """``run`` with frames whose lidar is empty (a blackout; radar and ego kept) for ``dark`` (s)."""
-    rng = np.random.default_rng(seed)
-    tracker = Tracker(scene.road, config)
-    out = []
-    for k in range(int(round(duration / DT)) + 1):
-        t = k * DT
-        frame = scene.frame(t, rng)
-        if dark[0] <= t < dark[1]:
-            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
-        out.append(tracker.step(frame))
-    return out, tracker
-
-
 @pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])
 def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, radar):
     # car A changes lane (3.5 m to the left in 3 s from t = 2 s); the lidar is dark for 2 s from
@@ -148,7 +138,7 @@ def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, 
     # (its n reaches 6 m against the truth's 3.5 m): A comes back as a new label. No road birth
     # appears while the lidar is dark (nothing could confirm or discount it).
     scene = Scene(curve, Car(0.0, -3.5, 15.0), [Car(25.0, 0.0, 16.0, lane_change=(2.0, 3.0, 3.5))], radar=radar)
-    frames, tracker = blackout_run(scene, TrackerConfig(), 7.0, dark=(3.0, 5.0))
+    frames, tracker = run(scene, TrackerConfig(), 7.0, dark=(3.0, 5.0))
     def track_on_a(k):
         tr, d = nearest(frames[k], curve, scene.truth(k * DT)[0, :2])
         return tr if d < 1.0 else None

@@ -21,7 +21,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from tracker.config import MeasurementConfig
-from tracker.measurement import CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, prepare_cluster
+from tracker.measurement import (
+    CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, _lambda_min, prepare_cluster,
+)
 
 
 def _masked_scatter(pts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -36,10 +38,6 @@ def _masked_scatter(pts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndar
     syy = np.einsum("...n,...n->...", d[..., 1], d[..., 1]) / safe
     sxy = np.einsum("...n,...n->...", d[..., 0], d[..., 1]) / safe
     return count, c, sxx, syy, sxy
-
-
-def _lambda_min(sxx: np.ndarray, syy: np.ndarray, sxy: np.ndarray) -> np.ndarray:
-    return 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
 
 
 def _corner_indices(pts: np.ndarray, n: np.ndarray) -> np.ndarray:

@@ -140,8 +140,10 @@ class Tracker:
             # confirm or discount (their weight would stand unchanged until the lidar returns)
             self.stats["predict_only_frames"] += 1
         else:
-            self._add_births(ego, s_ego)
-            clusters, velocities = self._cluster(points, frame)
+            # last frame's tracks as predicted rectangles in E: births avoid them, clustering assigns to them
+            track_rect = to_vehicle(self.mixture.means[self._reported], ego, self.road, self.config.coordinates)
+            self._add_births(ego, s_ego, track_rect)
+            clusters, velocities = self._cluster(points, frame, track_rect)
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
@@ -165,7 +167,7 @@ class Tracker:
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
         self.mixture = mix
 
-    def _add_births(self, ego: EgoState, s_ego: float) -> None:
+    def _add_births(self, ego: EgoState, s_ego: float, tracks: Rectangles) -> None:
         cfg = self.config
         if not cfg.birth.road:
             return
@@ -176,7 +178,6 @@ class Tracker:
         if len(means) and len(occ):
             # a vehicle can enter the view only where the view is not blocked and no track already is
             rect = to_vehicle(means, ego, self.road, cfg.coordinates)
-            tracks = to_vehicle(self.mixture.means[occ], ego, self.road, cfg.coordinates)
             labels = np.full(len(means), -1)
             hidden = occluded_fraction(rect, labels, tracks, self.mixture.labels[occ])
             gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
@@ -196,7 +197,7 @@ class Tracker:
         self.stats.update(counts)
         return points, len(self._scan) > 0
 
-    def _cluster(self, points: np.ndarray, frame: Frame) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+    def _cluster(self, points: np.ndarray, frame: Frame, rect: Rectangles) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
         cfg = self.config.clustering
         clusters: list[np.ndarray] = []
         owned = np.zeros(0, dtype=int)
@@ -205,7 +206,6 @@ class Tracker:
             owner = np.full(len(points), -1)
             tracks = self._reported
             if len(tracks):
-                rect = to_vehicle(self.mixture.means[tracks], frame.ego, self.road, self.config.coordinates)
                 owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
                 groups = _duplicate_groups(rect)
                 # every component carrying a reported track's label belongs to that track's group

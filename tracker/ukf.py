@@ -94,15 +94,11 @@ def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
         return cov, 0
     except np.linalg.LinAlgError:
         pass
-    sym = 0.5 * (cov + np.swapaxes(cov, -1, -2))
-    flat = sym.reshape((-1,) + sym.shape[-2:])
-    vals, vecs = np.linalg.eigh(flat)
-    bad = vals[:, 0] < 0.0
-    count = int(bad.sum())
-    out = cov.reshape(flat.shape).copy()
-    if count:
-        out[bad] = np.einsum("bij,bj,bkj->bik", vecs[bad], np.maximum(vals[bad], floor), vecs[bad])
-    return out.reshape(cov.shape), count
+    out = cov.reshape((-1,) + cov.shape[-2:]).copy()
+    bad = np.linalg.eigvalsh(0.5 * (out + np.swapaxes(out, -1, -2)))[:, 0] < 0.0
+    if bad.any():
+        out[bad] = make_spd(out[bad], floor)[0]  # every one of them is below the floor: all lifted
+    return out.reshape(cov.shape), int(bad.sum())
 
 
 class UnscentedTransform:
