@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from tracker.config import MeasurementConfig, ProcessNoise, TrackerConfig, UKFParams
+from tracker.config import MeasurementConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
 
 
 def test_defaults_are_the_documented_ones() -> None:
@@ -15,6 +15,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.measurement.two_side_eigen_ratio == 50.0
     assert c.measurement.partial_visibility == 0.9
     assert c.reduction.extraction_threshold == 0.5
+    assert c.reduction.confirm_min_points == 2 and c.measurement.single_point_min_apparent == 0.25
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
 
 
@@ -24,6 +25,8 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MeasurementConfig(lidar_sigma=-0.1), r"MeasurementConfig.lidar_sigma must be > 0"),
         (lambda: MeasurementConfig(partial_visibility=1.5), r"partial_visibility must be >= 0.0 and <= 1.0"),
         (lambda: MeasurementConfig(max_cluster_points=2), r"max_cluster_points must be an integer >= 3"),
+        (lambda: MeasurementConfig(single_point_min_apparent=2.0), r"single_point_min_apparent must be >= 0.0 and <= 1.0"),
+        (lambda: ReductionConfig(confirm_min_points=0), r"ReductionConfig.confirm_min_points must be an integer >= 1"),
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),

@@ -210,6 +210,25 @@ def test_single_point_generating_point_on_nearest_visible_side() -> None:
     np.testing.assert_allclose(y[0], p, atol=1e-9)
 
 
+def test_single_point_is_not_matched_to_a_side_seen_at_grazing_incidence() -> None:
+    # issue 10 (dense-highway): a car 92 m behind in the left lane, turned 3 deg to its right. Its left
+    # side (1) faces the sensor at 89.8 deg incidence (apparent width 0.02 m) and its rear-left corner
+    # lies nearest a lone return 0.5 m farther out; the front (0, apparent width 1.8 m) faces the sensor
+    behind = np.array([-94.0, 3.9, 20.0, np.radians(-3.0), 0.0, 4.5, 1.8])
+    k = corners_of(behind)
+    point = k[2] + np.array([-0.5, 0.1])  # beyond the rear-left corner
+    c = prepare_cluster(point[None], EXACT)
+    assert visible_sides(k[None])[0].tolist() == [True, True, False, False]
+    grazing = build_structure(ClusterBatch.of([c]), np.array([0]), k[None],
+                              dataclasses.replace(EXACT, single_point_min_apparent=0.0))
+    assert grazing.sides[0, 0] == 1  # the model before: the grazing side's far corner
+    st = build_structure(ClusterBatch.of([c]), np.array([0]), k[None], EXACT)
+    assert st.sides[0, 0] == 0  # the side facing the sensor
+    y = generating_points(behind, c, ORIGIN, config=EXACT, coordinates="cartesian")[0]
+    front_x = k[0, 0] + (y[1] - k[0, 1]) * (k[1, 0] - k[0, 0]) / (k[1, 1] - k[0, 1])
+    assert abs(y[0] - front_x) < 1e-9  # the generating point lies on the front, about a car length from the return
+
+
 def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
     k = corners_of(AHEAD_LEFT)
     pts = two_sided_scan(k, 0, 3, 2)

@@ -107,6 +107,27 @@ def test_clutter_off_road_never_becomes_a_track_and_on_road_rarely(curve):
     assert false_frames <= 0.02 * len(frames), false_frames
 
 
+@pytest.mark.parametrize("confirm, reported", [(2, False), (1, True)])
+def test_a_lone_return_moving_with_traffic_at_the_range_limit_is_not_confirmed(curve, confirm, reported):
+    # one lidar point per frame, 95-88 m behind in the left lane, moving like a car: it updates a road
+    # birth every frame but never shows two points, so it does not fix a vehicle's position along the
+    # road (reduction.confirm_min_points); with 1 it is confirmed within a few frames
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [])
+    config = TrackerConfig()
+    config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, confirm_min_points=confirm))
+
+    def lone(t, rng):
+        return curve.to_cartesian(curve.wrap_s(np.array([-93.0 + 16.0 * t])), np.array([3.5 + rng.normal(0.0, 0.03)]))
+
+    frames, tracker = run(scene, config, 3.0, extra=lone)
+    confirmed = sum(len(tracks) > 0 for tracks in frames)
+    assert tracker.stats["pairs_updated"] >= len(frames) - 2  # the point does update a component
+    if reported:
+        assert confirmed >= len(frames) - 5
+    else:
+        assert confirmed == 0 and tracker.stats["births_awaiting_support"] >= len(frames) - 5
+
+
 def test_car_hidden_for_about_two_seconds_keeps_its_label():
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     # ego in lane 0; a 6 m van A in lane 1 10 m ahead at the ego's speed hides car B in lane 2, which

@@ -225,6 +225,12 @@ class MeasurementConfig:
       from its rear shows its side), the pair's prior gets the excess as variance of the extent, anchored
       at the end nearest the sensor, before the update (``tracker.update.grow_extent``); ``False``: the
       prior is used as is (the paper), and the side's innovation usually fails the gate.
+    - ``single_point_min_apparent``: a single-point cluster is matched to the nearest visible side of
+      the predicted rectangle among those whose apparent width seen from the sensor (side length times
+      the cosine of the incidence angle) is at least this fraction of the widest visible side's: a lone
+      return far away almost always comes from the side facing the sensor, rarely from a side seen at
+      grazing incidence, and a grazing side's far corner would fit the point with the vehicle a whole
+      length off (issue 10, dense-highway). 0 considers every visible side (the model before).
     - ``conversion``: how the measurement model takes a curvilinear state to E: ``"exact"`` (default,
       the centerline ``c(s) + n (-sin theta, cos theta)``) or ``"euler"`` (the paper's Algorithm 1:
       Euler integration of the local cubic heading polynomial fitted around the ego,
@@ -242,6 +248,7 @@ class MeasurementConfig:
     radar_rows: Literal["speed", "velocity"] = "speed"
     hold_unobserved_extent: bool = True
     grow_extent: bool = True
+    single_point_min_apparent: float = 0.25
     conversion: Literal["exact", "euler"] = "exact"
 
     def __post_init__(self) -> None:
@@ -259,6 +266,7 @@ class MeasurementConfig:
             raise ValueError(f"MeasurementConfig.hold_unobserved_extent must be true or false; got {self.hold_unobserved_extent!r}")
         if not isinstance(self.grow_extent, bool):
             raise ValueError(f"MeasurementConfig.grow_extent must be true or false; got {self.grow_extent!r}")
+        _check("MeasurementConfig", "single_point_min_apparent", self.single_point_min_apparent, low=0.0, high=1.0)
         _check_choice("MeasurementConfig", "conversion", self.conversion, ("exact", "euler"))
 
 
@@ -372,7 +380,11 @@ class ReductionConfig:
     - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
       dropped (only objects on the road are tracked);
     - ``same_label_distance`` (m): components sharing a label whose positions lie this close are
-      merged (one track updated by several fragments of a vehicle's points).
+      merged (one track updated by several fragments of a vehicle's points);
+    - ``confirm_min_points``: a label is reported for the first time only once a cluster of at least
+      this many lidar points has updated it (a birth confirmed from one or two points at the range
+      limit does not fix its position along the road: one point fits a grazing side's far corner as
+      well as the facing side); once reported, a label stays reportable. 1 confirms on any update.
     """
 
     prune_threshold: float = 1e-4
@@ -382,6 +394,7 @@ class ReductionConfig:
     fov_margin: float = 2.0
     road_margin: float = 1.0
     same_label_distance: float = 2.0
+    confirm_min_points: int = 2
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
@@ -391,6 +404,7 @@ class ReductionConfig:
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
+        _check_int("ReductionConfig", "confirm_min_points", self.confirm_min_points, 1)
 
 
 @dataclass(frozen=True)

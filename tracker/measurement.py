@@ -58,8 +58,9 @@ Measurement generating points (one per point, in the same order, so no associati
   extent (no shrinking);
 - partially visible, one-sided: anchored like MATLAB at whichever of (first point <-> ``P``, last
   point <-> ``Q``, centroid <-> side centre) is closest in the predicted mean, spacing in metres;
-- a single point (or a zero-length chord): on the nearest visible side of the mean, at the fraction of
-  that side where the point projects (fixed across sigma points). MATLAB uses the nearest side's
+- a single point (or a zero-length chord): on the nearest visible side of the mean that does not face
+  the sensor at grazing incidence (apparent width at least ``single_point_min_apparent`` of the widest
+  visible side's), at the fraction of that side where the point projects (fixed across sigma points). MATLAB uses the nearest side's
   midpoint, which pulls the target along the side by up to half its length.
 
 Radar (fused cluster), ``MeasurementConfig.radar_rows``: ``"speed"`` (default) one row, the radar's
@@ -536,8 +537,12 @@ def build_structure(
     e = np.roll(mean_corners, -1, axis=-2) - mean_corners
     t_seg = np.clip(np.einsum("pkd,pkd->pk", z0[:, None, :] - mean_corners, e) / np.maximum(side_len**2, 1e-12), 0, 1)
     dist = np.linalg.norm(mean_corners + t_seg[..., None] * e - z0[:, None, :], axis=-1)
-    dist = np.where(vis, dist, np.inf)
-    k_single = np.where(vis.any(axis=1), np.argmin(dist, axis=1), k_one)
+    # ... among the visible sides that look wide enough from the sensor (not seen at grazing incidence)
+    mid = mean_corners + 0.5 * e
+    apparent = side_len * np.einsum("pkd,pkd->pk", -mid, nrm) / np.maximum(np.linalg.norm(mid, axis=-1), 1e-12)
+    eligible = vis & (apparent >= config.single_point_min_apparent * apparent.max(axis=1, keepdims=True))
+    dist = np.where(eligible, dist, np.inf)
+    k_single = np.where(eligible.any(axis=1), np.argmin(dist, axis=1), k_one)
     side0 = np.where(two, j_two, np.where(single, k_single, k_one))
     sides = np.stack([side0, np.where(two, (j_two - 1) % 4, side0)], axis=1)  # (P, 2) side of each part
     start_c, end_c = (sides + 1) % 4, sides  # side k is traversed from K_{k+1} to K_k

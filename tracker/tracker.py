@@ -34,7 +34,8 @@
    above the extraction threshold) of one label within ``reduction.same_label_distance`` (a track
    updated by fragments of one vehicle's points), cap
    (``tracker.reduction``); and **extract**: components with
-   weight above ``reduction.extraction_threshold`` (0.5) are tracks. Labels: births get new ones,
+   weight above ``reduction.extraction_threshold`` (0.5) are tracks, a new label only once a cluster of
+   ``reduction.confirm_min_points`` (2) points has updated it. Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
    component with the same label above the threshold gets a new label: the target split).
 
@@ -79,7 +80,9 @@ class Tracker:
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
-    ``label_splits``. ``last_events`` (dict of label lists) says what happened to the tracks in the
+    ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
+    reported: no cluster of ``reduction.confirm_min_points`` points has updated their label).
+    ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
 
@@ -114,6 +117,7 @@ class Tracker:
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
+        self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
         self.last_events: dict[str, list] = {"born": [], "updated": [], "missed": [], "dropped": [], "merged": []}
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
@@ -277,6 +281,9 @@ class Tracker:
                 self._updated_labels.update(int(lab) for lab in mix.labels[comp])
                 if len(comp):
                     size = np.array([len(c) for c in clusters])[clu]
+                    for lab, n_pts in zip(mix.labels[comp].tolist(), size.tolist()):
+                        if n_pts > self._support.get(lab, 0):
+                            self._support[lab] = n_pts
                     lam_c = cfg.detection.clutter_rate * cfg.detection.clutter_density
                     log_num = (
                         np.log(np.maximum(p_d[comp], 1e-300)) + np.log(np.maximum(mix.weights[comp], 1e-300))
@@ -345,10 +352,21 @@ class Tracker:
         mix = self.mixture
         above = np.flatnonzero(mix.weights > self.config.reduction.extraction_threshold)
         above = above[np.argsort(-mix.weights[above], kind="stable")]
+        # a label not reported before needs the support of a large enough cluster (confirm_min_points)
+        need = self.config.reduction.confirm_min_points
+        if need > 1:
+            confirmed = np.array([int(lab) in self._ever_reported or self._support.get(int(lab), 0) >= need
+                                  for lab in mix.labels[above]], dtype=bool)
+            self.stats["births_awaiting_support"] += int((~confirmed).sum())
+            above = above[confirmed]
+            alive = set(mix.labels.tolist())
+            self._support = {lab: n for lab, n in self._support.items() if lab in alive}
         seen: set[int] = set()
         for i in above:  # one label per frame: a second component with a label is a split target
             if int(mix.labels[i]) in seen:
+                old = int(mix.labels[i])
                 mix.labels[i] = self._new_labels(1)[0]
+                self._support[int(mix.labels[i])] = self._support.get(old, 0)
                 self.stats["label_splits"] += 1
             seen.add(int(mix.labels[i]))
         self._reported = above
