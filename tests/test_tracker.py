@@ -151,6 +151,31 @@ def test_car_hidden_for_about_two_seconds_keeps_its_label():
     assert points_on_b(int(1.5 / DT)) > 0 and points_on_b(int(6.0 / DT)) > 0
 
 
+@pytest.mark.parametrize("speed, accel", [(12.0, 1.0), (16.5, 0.0)], ids=["accelerating", "coasting-takeover"])
+def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
+    # as above with radar, but B is hidden longer: accelerating at 1 m/s^2 from 12 m/s (lost at 2.7 s,
+    # seen again at 4.7 s, 2 m ahead of the track's constant-speed coast), or at 16.5 m/s (hidden 4.5 s;
+    # the track still coasts when B reappears outside its predicted rectangle and a newborn is
+    # confirmed next to it). tracker.identity gives the newcomer B's old label; without it
+    # (reidentify_window = 0) B comes back under a new label
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, -3.5, 20.0),
+                  [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, speed, accel=accel)], radar=True)
+    for window, same in ((5.0, True), (0.0, False)):
+        config = TrackerConfig()
+        config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=window))
+        frames, tracker = run(scene, config, 9.0)
+        labels = []
+        for k in range(len(frames)):
+            tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
+            labels.append(tr.label if d < 1.5 else None)
+        seen = [lab for lab in labels if lab is not None]
+        assert labels[int(2.0 / DT)] is not None and labels[int(8.5 / DT)] is not None
+        assert None in labels[int(2.0 / DT): int(8.5 / DT)]  # B was lost in between
+        assert (len(set(seen)) == 1) == same, (window, sorted(set(seen)))
+        assert (tracker.stats["labels_reidentified"] >= 1) == same
+
+
 @pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])
 def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, radar):
     # car A changes lane (3.5 m to the left in 3 s from t = 2 s); the lidar is dark for 2 s from

@@ -385,6 +385,15 @@ class ReductionConfig:
       this many lidar points has updated it (a birth confirmed from one or two points at the range
       limit does not fix its position along the road: one point fits a grazing side's far corner as
       well as the facing side); once reported, a label stays reportable. 1 confirms on any update.
+    - ``reidentify_window`` (s): a track that stops being reported (hidden behind another vehicle, its
+      weight decayed or its component pruned) is remembered this long; a newly confirmed track whose
+      position matches its prediction takes its label instead of a new one (``tracker.identity``).
+      0 turns re-identification off (the paper: every confirmation is a new label).
+    - ``reidentify_probability``: the match's gate, a chi-square quantile (2 degrees of freedom) of the
+      squared Mahalanobis distance between the positions.
+    - ``reidentify_accel`` (m/s^2): the acceleration the match allows for while a track was not updated
+      (the motion model holds the speed; a car accelerating at 2 m/s^2 while hidden for 2.4 s is 5.8 m
+      ahead of its coasting track): variance ``(accel tau^2 / 2)^2`` along the road after ``tau`` s.
     """
 
     prune_threshold: float = 1e-4
@@ -395,6 +404,9 @@ class ReductionConfig:
     road_margin: float = 1.0
     same_label_distance: float = 2.0
     confirm_min_points: int = 2
+    reidentify_window: float = 5.0
+    reidentify_probability: float = 0.99
+    reidentify_accel: float = 2.0
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)
@@ -405,6 +417,10 @@ class ReductionConfig:
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
         _check_int("ReductionConfig", "confirm_min_points", self.confirm_min_points, 1)
+        _check("ReductionConfig", "reidentify_window", self.reidentify_window, low=0.0, unit="s")
+        _check("ReductionConfig", "reidentify_probability", self.reidentify_probability, low=0.0, high=1.0,
+               low_open=True, high_open=True)
+        _check("ReductionConfig", "reidentify_accel", self.reidentify_accel, low=0.0, unit="m/s^2")
 
 
 @dataclass(frozen=True)

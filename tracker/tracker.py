@@ -35,7 +35,9 @@
    updated by fragments of one vehicle's points), cap
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) are tracks, a new label only once a cluster of
-   ``reduction.confirm_min_points`` (2) points has updated it. Labels: births get new ones,
+   ``reduction.confirm_min_points`` (2) points has updated it, and a newly confirmed track takes the
+   label of a track lost within ``reduction.reidentify_window`` whose prediction it matches
+   (``tracker.identity``). Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
    component with the same label above the threshold gets a new label: the target split).
 
@@ -56,6 +58,7 @@ from tracker.clustering import cluster_velocities, dense_components, distance_pa
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
+from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.point import PointTracker
@@ -81,7 +84,8 @@ class Tracker:
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
-    reported: no cluster of ``reduction.confirm_min_points`` points has updated their label).
+    reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
+    ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
@@ -118,6 +122,10 @@ class Tracker:
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
+        red = config.reduction
+        self._lost = LostTracks(red.reidentify_window, red.reidentify_probability, self.ut, self.motion,
+                                road.length if road.closed and not self.cartesian else None,
+                                red.reidentify_accel, self.cartesian)
         self.last_events: dict[str, list] = {"born": [], "updated": [], "missed": [], "dropped": [], "merged": []}
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
@@ -361,6 +369,12 @@ class Tracker:
             above = above[confirmed]
             alive = set(mix.labels.tolist())
             self._support = {lab: n for lab, n in self._support.items() if lab in alive}
+        keep = self._reidentify(t, above)
+        if not keep.all():  # a newcomer took over a coasting track: the track's components go
+            self.stats["coasting_tracks_taken_over"] += int(len(np.unique(mix.labels[above][~keep[above]])))
+            position = np.cumsum(keep) - 1
+            above = position[above[keep[above]]]
+            self.mixture = mix = mix.take(keep)
         seen: set[int] = set()
         for i in above:  # one label per frame: a second component with a label is a split target
             if int(mix.labels[i]) in seen:
@@ -370,6 +384,8 @@ class Tracker:
                 self.stats["label_splits"] += 1
             seen.add(int(mix.labels[i]))
         self._reported = above
+        self._lost.observe(t, mix.labels[above], mix.means[above], mix.covs[above],
+                           np.array([int(lab) in self._updated_labels for lab in mix.labels[above]], dtype=bool))
         tracks = []
         for i in above:
             if self.cartesian:
@@ -378,6 +394,33 @@ class Tracker:
             else:
                 tracks.append(Track(int(mix.labels[i]), t, mix.means[i], mix.covs[i], float(mix.weights[i])))
         return tracks
+
+    def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:
+        """Components about to be reported under a label never reported before take the label of a
+        recently lost track, or of a reported track that coasts this frame, that they match
+        (``tracker.identity.LostTracks``), with all their label's components; a coasting track's own
+        components are dropped. Returns the mask of components kept."""
+        mix = self.mixture
+        keep = np.ones(len(mix), dtype=bool)
+        fresh = np.array([int(mix.labels[i]) not in self._ever_reported for i in above], dtype=bool)
+        new = above[fresh]
+        if not len(new):
+            return keep
+        coasting = above[~fresh]
+        coasting = coasting[[int(mix.labels[i]) not in self._updated_labels for i in coasting]] if len(coasting) else coasting
+        if self.config.reduction.reidentify_window <= 0.0:
+            coasting = coasting[:0]
+        old = self._lost.match(t, mix.means[new], mix.covs[new],
+                               (mix.labels[coasting], mix.means[coasting], mix.covs[coasting]))
+        for i, lab in zip(new, old):
+            if lab < 0:
+                continue
+            newcomer = int(mix.labels[i])
+            keep &= mix.labels != lab  # the coasting track's hypotheses (none for a lost track)
+            mix.labels[mix.labels == newcomer] = lab
+            self._support[int(lab)] = max(self._support.get(int(lab), 0), self._support.pop(newcomer, 0))
+            self.stats["labels_reidentified"] += 1
+        return keep
 
     def _record_events(self, previous: list[int], tracks: list[Track]) -> None:
         """``last_events`` of this step, by label: ``born`` (tracks reported for the first time),

@@ -1,0 +1,118 @@
+"""Tests of tracker/identity.py: the store of lost tracks and the re-identification of newcomers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tracker import Road, TrackerConfig
+from tracker.identity import LostTracks
+from tracker.motion import make_motion
+from tracker.ukf import UnscentedTransform
+
+STRAIGHT = Road.from_curvature([(1000.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+RING = Road.from_curvature([(2 * np.pi * 100.0, 0.01, 0.01)], closed=True, lanes=2, lane_width=3.5)
+
+
+def state(s: float, n: float = 0.0, v: float = 10.0) -> np.ndarray:
+    return np.array([s, n, v, 0.0, 0.0, 4.5, 1.8])
+
+
+def cov(pos_std: float = 0.3) -> np.ndarray:
+    return np.diag([pos_std**2, pos_std**2, 0.3**2, 0.02**2, 0.01**2, 0.2**2, 0.1**2])
+
+
+def store(road: Road = STRAIGHT, window: float = 5.0, period: float | None = None, accel: float = 0.0,
+          cartesian: bool = False) -> LostTracks:
+    config = TrackerConfig(coordinates="cartesian" if cartesian else "curvilinear")
+    return LostTracks(window, 0.99, UnscentedTransform(config.ukf), make_motion(config, road), period, accel, cartesian)
+
+
+def lose(lt: LostTracks, label: int, x: np.ndarray, t: float = 0.0) -> None:
+    """Report ``label`` at ``t`` and not in the next frame (0.1 s later)."""
+    lt.observe(t, np.array([label]), x[None], cov()[None])
+    lt.observe(t + 0.1, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))
+
+
+def test_a_track_no_longer_reported_is_lost_until_reported_again_or_expired():
+    lt = store()
+    lose(lt, 4, state(10.0))
+    assert list(lt.lost) == [4]
+    np.testing.assert_array_equal(lt.lost[4].mean, state(10.0))  # the last reported state
+    lt.observe(0.2, np.array([4]), state(12.0)[None], cov()[None])  # reported again by itself
+    assert lt.lost == {}
+    lose(lt, 5, state(10.0), t=1.0)
+    lt.observe(6.0, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))  # 4.9 s later: kept
+    assert list(lt.lost) == [5]
+    lt.observe(6.2, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))  # 5.1 s: expired
+    assert lt.lost == {}
+
+
+def test_a_newcomer_at_the_predicted_position_takes_the_label_a_far_one_does_not():
+    lt = store()
+    lose(lt, 4, state(10.0, v=10.0))
+    # 2 s later the lost car is predicted at s = 30 m: a newcomer there takes label 4 (once)
+    far = lt.match(2.0, np.stack([state(60.0)]), cov()[None])
+    assert far.tolist() == [-1] and list(lt.lost) == [4]
+    near = lt.match(2.0, np.stack([state(30.5, 0.2)]), cov()[None])
+    assert near.tolist() == [4] and lt.lost == {}
+    # the gate grows with the time lost: 2.5 m off is outside it after 0.2 s, inside after 3 s
+    lt = store()
+    lose(lt, 4, state(10.0, v=10.0))
+    assert lt.match(0.3, state(12.0 + 2.5)[None], cov()[None]).tolist() == [-1]
+    assert lt.match(3.1, state(40.0 + 2.5)[None], cov()[None]).tolist() == [4]
+
+
+def test_newcomers_are_assigned_one_to_one_to_the_nearest_predictions():
+    lt = store()
+    lt.observe(0.0, np.array([1, 2]), np.stack([state(10.0, -1.75), state(10.0, 1.75)]), np.stack([cov(), cov()]))
+    lt.observe(0.1, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))
+    got = lt.match(1.0, np.stack([state(20.0, 1.6), state(20.2, -1.9)]), np.stack([cov(), cov()]))
+    assert got.tolist() == [2, 1]
+
+
+def test_on_a_closed_road_the_position_difference_is_taken_the_short_way_round():
+    length = RING.length
+    for period, expected in ((length, [7]), (None, [-1])):
+        lt = store(RING, period=period)
+        lose(lt, 7, state(length - 4.0, v=10.0))
+        # 0.35 s later the lost car is predicted 0.5 m before the seam; the newcomer is 0.2 m past it
+        assert lt.match(0.35, state(0.2)[None], cov()[None]).tolist() == expected
+
+
+def test_a_coasting_track_is_a_candidate_at_its_current_state():
+    lt = store()
+    coasting = (np.array([9]), state(50.0)[None], cov()[None])
+    assert lt.match(1.0, state(50.4)[None], cov()[None], coasting).tolist() == [9]
+    assert lt.match(1.0, state(56.0)[None], cov()[None], coasting).tolist() == [-1]
+
+
+def test_the_gate_allows_for_acceleration_since_the_last_update_along_the_heading():
+    # lost after 2.4 s without an update (reported, coasting, from t = -2.4 s): a car accelerating at
+    # 2 m/s^2 meanwhile is 5.8 m ahead of the constant-speed prediction
+    for accel, expected in ((0.0, [-1]), (2.0, [4])):
+        lt = store(accel=accel)
+        lt.observe(-2.4, np.array([4]), state(-14.0)[None], cov()[None])
+        lt.observe(0.0, np.array([4]), state(10.0)[None], cov()[None], updated=np.array([False]))
+        lt.observe(0.1, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))
+        assert lt.lost[4].updated == -2.4
+        assert lt.match(0.5, state(15.0 + 5.8)[None], cov()[None]).tolist() == expected
+    # only along the heading: 5.8 m across the road is not allowed for
+    lt = store(accel=2.0)
+    lose(lt, 4, state(10.0))
+    assert lt.match(2.5, state(35.0, 5.8)[None], cov()[None]).tolist() == [-1]
+    # Cartesian states: along psi (here +y)
+    north = np.array([0.0, 10.0, 10.0, np.pi / 2, 0.0, 4.5, 1.8])
+    for offset, expected in (((0.0, 2.0 * 0.5 * 2.4**2), [4]), ((2.0 * 0.5 * 2.4**2, 0.0), [-1])):
+        lt = store(accel=2.0, cartesian=True)
+        lose(lt, 4, north)
+        moved = north + np.array([offset[0], 24.0 + offset[1], 0, 0, 0, 0, 0])  # 2.4 s at 10 m/s, then off
+        assert lt.match(2.4, moved[None], cov()[None]).tolist() == expected
+
+
+@pytest.mark.parametrize("window", [0.0])
+def test_window_zero_never_reidentifies(window):
+    lt = store(window=window)
+    lose(lt, 4, state(10.0))
+    assert lt.lost == {}
+    assert lt.match(0.5, state(15.0)[None], cov()[None]).tolist() == [-1]

@@ -1,0 +1,140 @@
+"""Label continuity across losses: re-identification of a lost track by a newly confirmed one.
+
+A GM-PHD filter's labels live on its components. When a vehicle hides behind another for a few
+seconds, its component's weight decays below the extraction threshold (or the component is pruned or
+merged away) and the vehicle, once it reappears, is confirmed under a new label: an identity switch
+for every planner and every metric, although nothing about the vehicle changed.
+
+``LostTracks`` remembers, for ``window`` seconds, the last reported state of every track that stopped
+being reported. When a label is confirmed for the first time, the lost tracks are predicted to the
+current time with the tracker's own motion model (UKF prediction, so their uncertainty grows with the
+time lost) and the newcomers are assigned to them (``scipy.optimize.linear_sum_assignment``) on the
+squared Mahalanobis distance of the position,
+
+    d^2 = r^T (P_lost[:2, :2] + P_new[:2, :2])^-1 r,    r = position_new - position_lost (predicted),
+
+with the difference along a closed road taken the short way round; a pair is accepted inside the
+chi-square quantile ``probability`` with 2 degrees of freedom. The motion model holds the speed
+constant, and a vehicle hidden while it accelerates or brakes drifts from that prediction by
+``a tau^2 / 2`` after ``tau`` seconds without an update: ``P_lost`` gets ``(accel tau^2 / 2)^2`` along
+the heading (along ``s`` in road coordinates), ``accel`` (m/s^2) the acceleration allowed for. An accepted newcomer takes the lost
+track's label. A lost track whose label is reported again by itself leaves the store.
+
+The same match covers a track that is still reported but coasts (no cluster updated it this frame)
+while a newcomer is confirmed next to it: its prediction missed its vehicle's points, which then
+seeded the newcomer's birth ("replaced by a newborn"). The newcomer takes the coasting track's label
+and the coasting track's components are dropped (``Tracker``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.stats import chi2
+
+from tracker.motion import MotionModel, predict
+from tracker.ukf import UnscentedTransform
+
+#: Cost of an assignment outside the gate (never accepted).
+_INFEASIBLE = 1e12
+
+
+@dataclass
+class _Lost:
+    t: float  # when this state was reported (s)
+    mean: np.ndarray
+    cov: np.ndarray
+    updated: float  # when a cluster last updated the track (s)
+
+
+class LostTracks:
+    """The store of recently lost tracks and the re-identification of newcomers (module docstring).
+
+    ``window`` (s): how long a lost track can be re-identified (0: never); ``probability``: the gate's
+    chi-square quantile; ``accel`` (m/s^2): the acceleration the gate allows for while a track is not
+    updated; ``period`` (m): the length of a closed road for the position ``s`` (``None``: no wrap);
+    ``cartesian``: states are ``[x, y, v, psi, ...]`` (the allowance lies along ``psi``), else road
+    coordinates (along ``s``)."""
+
+    def __init__(self, window: float, probability: float, ut: UnscentedTransform, motion: MotionModel,
+                 period: float | None = None, accel: float = 0.0, cartesian: bool = False) -> None:
+        self.window = float(window)
+        self.gate = float(chi2.ppf(probability, 2))
+        self.ut = ut
+        self.motion = motion
+        self.period = period
+        self.accel = float(accel)
+        self.cartesian = cartesian
+        self.lost: dict[int, _Lost] = {}
+        self._last: dict[int, _Lost] = {}  # last frame's reported tracks
+
+    def observe(self, t: float, labels: np.ndarray, means: np.ndarray, covs: np.ndarray,
+                updated: np.ndarray | None = None) -> None:
+        """Record this frame's reported tracks (``updated (N,)``: which a cluster updated this frame;
+        default all): labels reported last frame and not now become lost; lost labels reported again,
+        and those lost longer than ``window``, leave the store."""
+        updated = np.ones(len(labels), dtype=bool) if updated is None else np.asarray(updated, dtype=bool)
+        now = {}
+        for lab, m, p, up in zip(labels, means, covs, updated):
+            before = self._last.get(int(lab))
+            now[int(lab)] = _Lost(t, m, p, t if up or before is None else before.updated)
+        for lab, last in self._last.items():
+            if lab not in now:
+                self.lost[lab] = last
+        self.lost = {lab: e for lab, e in self.lost.items() if lab not in now and t - e.t <= self.window}
+        self._last = now
+
+    def last_updated(self, label: int, default: float) -> float:
+        """When a cluster last updated the reported track ``label`` (s; ``default`` if unknown)."""
+        entry = self._last.get(int(label))
+        return default if entry is None else entry.updated
+
+    def match(self, t: float, means: np.ndarray, covs: np.ndarray,
+              coasting: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """For newcomers ``means (N, 7)``, ``covs (N, 7, 7)`` at time ``t``: the label each takes, or -1.
+        Candidates are the lost tracks (predicted to ``t``) and ``coasting = (labels, means, covs)``:
+        tracks still reported but not updated this frame, at ``t`` (a track whose prediction missed its
+        vehicle's points, from which the newcomer was born). Matched lost labels leave the store."""
+        out = np.full(len(means), -1, dtype=int)
+        lost = list(self.lost) if self.window > 0.0 else []
+        extra = 0 if coasting is None else len(coasting[0])
+        if not len(means) or not (lost or extra):
+            return out
+        labels = np.array(lost + ([] if coasting is None else [int(x) for x in coasting[0]]), dtype=int)
+        cand_m, cand_p = np.zeros((0, 7)), np.zeros((0, 7, 7))
+        if lost:
+            cand_m, cand_p = self._predicted(t, lost)
+        if extra:
+            cand_m, cand_p = np.concatenate([cand_m, coasting[1]]), np.concatenate([cand_p, coasting[2]])
+        unseen = t - np.array([self.lost[lab].updated for lab in lost] + [self.last_updated(lab, t) for lab in labels[len(lost):]])
+        pos = cand_p[:, :2, :2].copy()
+        if self.accel > 0.0:  # the speed change a hidden vehicle may have made since its last update
+            drift = 0.5 * self.accel * np.maximum(unseen, 0.0) ** 2
+            u = (np.stack([np.cos(cand_m[:, 3]), np.sin(cand_m[:, 3])], axis=1) if self.cartesian
+                 else np.tile([1.0, 0.0], (len(labels), 1)))
+            pos += drift[:, None, None] ** 2 * u[:, :, None] * u[:, None, :]
+        r = means[:, None, :2] - cand_m[None, :, :2]  # (N, K, 2)
+        if self.period is not None:
+            r[..., 0] = np.mod(r[..., 0] + 0.5 * self.period, self.period) - 0.5 * self.period
+        s = covs[:, None, :2, :2] + pos[None]
+        d2 = np.einsum("nki,nki->nk", r, np.linalg.solve(s, r[..., None])[..., 0])
+        cost = np.where(d2 <= self.gate, d2, _INFEASIBLE)
+        rows, cols = linear_sum_assignment(cost)
+        for i, k in zip(rows, cols):
+            if cost[i, k] < _INFEASIBLE:
+                out[i] = labels[k]
+                self.lost.pop(int(labels[k]), None)
+        return out
+
+    def _predicted(self, t: float, labels: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The lost tracks' states predicted to ``t`` (one UKF prediction per distinct loss time)."""
+        means = np.stack([self.lost[lab].mean for lab in labels])
+        covs = np.stack([self.lost[lab].cov for lab in labels])
+        times = np.array([self.lost[lab].t for lab in labels])
+        for t0 in np.unique(times):
+            rows = np.flatnonzero(times == t0)
+            if t - t0 > 0.0:
+                means[rows], covs[rows] = predict(self.ut, self.motion, means[rows], covs[rows], float(t - t0))
+        return means, covs
