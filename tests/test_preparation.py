@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from tracker.config import MeasurementConfig
-from tracker.measurement import prepare_cluster, rectangle_corners
-from tracker.preparation import prepare_clusters
+from tracker.measurement import ClusterBatch, prepare_cluster, rectangle_corners
+from tracker.preparation import prepare_batch, prepare_clusters
 
 FIELDS = ("points", "part", "proj", "chord_start", "chord_end", "chord_dir", "chord_len", "end_margin", "order")
 
@@ -66,6 +66,22 @@ def test_batch_equals_the_one_cluster_reference(seed: int, gap_correction: bool)
     assert_same(batch, [prepare_cluster(c, config, v) for c, v in zip(clusters, velocities)])
     assert sum(c.raw_count > c.size for c in batch) >= 3  # downsampling exercised
     assert sum(c.two_sided for c in batch) >= 5  # corners exercised
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_prepare_batch_equals_the_batch_of_the_prepared_clusters(seed: int) -> None:
+    # the tracker's path (padded arrays straight into a ClusterBatch) against ClusterBatch.of
+    clusters = random_clusters(seed)
+    rng = np.random.default_rng(200 + seed)
+    velocities = [rng.normal(0, 10, 2) if rng.random() < 0.5 else None for _ in clusters]
+    got = prepare_batch(clusters, MeasurementConfig(), velocities)
+    want = ClusterBatch.of([prepare_cluster(c, MeasurementConfig(), v) for c, v in zip(clusters, velocities)])
+    for name in want.__dataclass_fields__:
+        np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9, err_msg=name)
+    # a cluster with a non-finite point takes the reference path for the whole batch
+    clusters[3] = np.vstack([clusters[3], [[np.nan, 1.0]]])
+    mixed = prepare_batch(clusters, MeasurementConfig(), velocities)
+    assert mixed.valid.sum() == want.valid.sum()
 
 
 def test_small_point_budget_downsamples_both_parts_like_the_reference() -> None:

@@ -13,7 +13,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
@@ -57,7 +57,10 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     if n == 0:
         return np.zeros(0, dtype=int)
     pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    # the graph straight in CSR form (rows sorted), which connected_components takes without conversion
+    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=n))])
+    graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], indptr), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
     # relabel in order of first appearance so labels are deterministic and readable
     _, first = np.unique(labels, return_index=True)

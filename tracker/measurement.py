@@ -584,12 +584,10 @@ def build_structure(
     )
     a = np.where(mp == FROM_B, ec, sc)
     b = np.where(mp == FROM_B, sc, ec)
-    c1 = np.select([mp == FULL, mp == CENTRE, mp == FIXED], [frac, np.full_like(frac, 0.5), fixed_frac], 0.0)
-    c2 = np.select(
-        [mp == FROM_A, mp == FROM_B, mp == CENTRE],
-        [proj + e_lo, ln - proj + e_hi, proj - 0.5 * ln + 0.5 * (e_lo - e_hi)],
-        0.0,
-    )
+    full, from_a, from_b, centre = mp == FULL, mp == FROM_A, mp == FROM_B, mp == CENTRE
+    c1 = np.where(full, frac, np.where(centre, 0.5, np.where(mp == FIXED, fixed_frac, 0.0)))
+    c2 = np.where(from_a, proj + e_lo, np.where(from_b, ln - proj + e_hi,
+                                                np.where(centre, proj - 0.5 * ln + 0.5 * (e_lo - e_hi), 0.0)))
     c1, c2 = np.where(valid, c1, 0.0), np.where(valid, c2, 0.0)
     dx, dy = SX[b] - SX[a], SY[b] - SY[a]  # one of them is 0 (adjacent corners)
     coef = np.stack([0.5 * (SX[a] + c1 * dx), c2 * np.sign(dx), 0.5 * (SY[a] + c1 * dy), c2 * np.sign(dy)], axis=-1)
@@ -597,9 +595,9 @@ def build_structure(
     # end-gap noise: the free ends' unknown offsets eps ~ U(-e, e) (var e^2 / 3) move the points along
     # their side by k_lo eps_lo + k_hi eps_hi, with (k_lo, k_hi) = (1 - t, -t) spread over a fully
     # visible side, (1, 0) / (0, -1) anchored at the start / end, (1/2, -1/2) centred, (0, 0) fixed
-    t = np.where(mp == FULL, c1, 0.0)
-    k_lo = np.select([mp == FULL, mp == FROM_A, mp == CENTRE], [1.0 - t, np.ones_like(t), np.full_like(t, 0.5)], 0.0)
-    k_hi = np.select([mp == FULL, mp == FROM_B, mp == CENTRE], [-t, -np.ones_like(t), np.full_like(t, -0.5)], 0.0)
+    t = np.where(full, c1, 0.0)
+    k_lo = np.where(full, 1.0 - t, np.where(from_a, 1.0, np.where(centre, 0.5, 0.0)))
+    k_hi = np.where(full, -t, np.where(from_b, -1.0, np.where(centre, -0.5, 0.0)))
     unit = pq / np.maximum(np.linalg.norm(pq, axis=-1, keepdims=True), 1e-12)  # (P, M, 2) side direction P -> Q
     last_part = np.where(two, 1, 0)[:, None]
     std_lo = np.where(part == 0, e_lo, 0.0) / np.sqrt(3.0)  # the first part's free start

@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from tracker.config import MeasurementConfig
 from tracker.measurement import (
-    CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, _lambda_min, prepare_cluster,
+    CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, ClusterBatch, _lambda_min, prepare_cluster,
 )
 
 
@@ -48,22 +49,23 @@ def _corner_indices(pts: np.ndarray, n: np.ndarray) -> np.ndarray:
     _, centre, *_ = _masked_scatter(pts, valid)
     p = (pts - centre[:, None, :]) * valid[..., None]
     x, y = p[..., 0], p[..., 1]
-    zero = np.zeros((count, 1))
-    cs = [np.concatenate([zero, np.cumsum(v, axis=1)], axis=1) for v in (valid.astype(float), x, y, x * x, y * y, x * y)]
-    k = np.arange(1, max(width - 1, 2))[None, :]  # candidate splits (K, N-2)
-    rows = np.arange(count)[:, None]
+    # prefix sums of (count, x, y, xx, yy, xy), stacked: c[:, :, i] sums points 0..i-1
+    c = np.concatenate([np.zeros((6, count, 1)), np.cumsum(np.stack([valid.astype(float), x, y, x * x, y * y, x * y]), axis=2)], axis=2)
+    k = np.arange(1, max(width - 1, 2))  # candidate splits (N-2,)
+    kk = k[None, :]
 
-    def residual(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:  # points lo..hi inclusive
-        cnt, sx, sy, sxx, syy, sxy = (c[rows, hi + 1] - c[rows, lo] for c in cs)
+    def residual(sums: np.ndarray) -> np.ndarray:  # sums (6, K, N-2) of the points of a part
+        cnt, sx, sy, sxx, syy, sxy = sums
         cnt = np.maximum(cnt, 1.0)
         return np.maximum(_lambda_min(sxx - sx * sx / cnt, syy - sy * sy / cnt, sxy - sx * sy / cnt), 0.0)
 
-    kk = np.broadcast_to(k, (count, k.shape[1]))
-    last = np.broadcast_to((n - 1)[:, None], kk.shape)
-    hi = np.minimum(kk, last)
-    cost = residual(np.zeros_like(kk), hi) + residual(hi, last)
-    cost = np.where(kk <= (n - 2)[:, None], cost, np.inf)
-    return k[0, np.argmin(cost, axis=1)]
+    # part one: points 0..k (sums c[k + 1] - c[0], c[0] = 0); part two: k..n-1 (c[n] - c[k]); a
+    # split k beyond n - 2 is invalid, and its sums (clamped to the row's last point) are never used
+    head = c[:, :, 2 : len(k) + 2]
+    end = np.take_along_axis(c, np.broadcast_to(n[None, :, None], (6, count, 1)), axis=2)
+    tail = end - c[:, :, 1 : len(k) + 1]
+    cost = np.where(kk <= (n - 2)[:, None], residual(head) + residual(tail), np.inf)
+    return k[np.argmin(cost, axis=1)]
 
 
 def _even_mask(mask: np.ndarray, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, count: np.ndarray) -> None:
@@ -81,6 +83,19 @@ def _even_mask(mask: np.ndarray, rows: np.ndarray, lo: np.ndarray, hi: np.ndarra
     mask[r[take], idx[take]] = True
 
 
+def _checked(clusters: Sequence[np.ndarray], velocities: Sequence[np.ndarray | None] | None) -> tuple[list[np.ndarray], list]:
+    arrays = [np.asarray(c, dtype=float) for c in clusters]
+    velocities = list(velocities) if velocities is not None else [None] * len(arrays)
+    if len(velocities) != len(arrays):
+        raise ValueError(f"prepare_clusters: {len(arrays)} clusters but {len(velocities)} velocities")
+    return arrays, velocities
+
+
+def _regular(a: np.ndarray) -> bool:
+    """Whether a cluster takes the batched path (a non-empty ``(n, 2)`` array of finite points)."""
+    return a.ndim == 2 and a.shape[1] == 2 and len(a) > 0 and bool(np.isfinite(a).all())
+
+
 def prepare_clusters(
     clusters: Sequence[np.ndarray], config: MeasurementConfig | None = None,
     velocities: Sequence[np.ndarray | None] | None = None,
@@ -88,24 +103,34 @@ def prepare_clusters(
     """``[prepare_cluster(points, config, velocity) for ...]`` for clusters ``(n_k, 2)`` in E (m),
     vectorised across clusters (module docstring). ``velocities`` per cluster or ``None``."""
     config = config if config is not None else MeasurementConfig()
-    arrays = [np.asarray(c, dtype=float) for c in clusters]
-    velocities = list(velocities) if velocities is not None else [None] * len(arrays)
-    if len(velocities) != len(arrays):
-        raise ValueError(f"prepare_clusters: {len(arrays)} clusters but {len(velocities)} velocities")
+    arrays, velocities = _checked(clusters, velocities)
     out: list[Cluster | None] = [None] * len(arrays)
     fast = []
     for i, a in enumerate(arrays):
-        if a.ndim != 2 or a.shape[1] != 2 or len(a) == 0 or not np.isfinite(a).all():
-            out[i] = prepare_cluster(a, config, velocities[i])  # raises, or drops and counts non-finite points
-        else:
+        if _regular(a):
             fast.append(i)
+        else:
+            out[i] = prepare_cluster(a, config, velocities[i])  # raises, or drops and counts non-finite points
     if fast:
-        for i, c in zip(fast, _prepare_finite([arrays[i] for i in fast], [velocities[i] for i in fast], config)):
+        for i, c in zip(fast, _prepare_finite([arrays[i] for i in fast], [velocities[i] for i in fast], config).records()):
             out[i] = c
     return out  # type: ignore[return-value]
 
 
-def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None], config: MeasurementConfig) -> list[Cluster]:
+def prepare_batch(
+    clusters: Sequence[np.ndarray], config: MeasurementConfig | None = None,
+    velocities: Sequence[np.ndarray | None] | None = None,
+) -> ClusterBatch:
+    """``ClusterBatch.of(prepare_clusters(clusters, config, velocities))`` (at least one cluster), built
+    from the padded arrays directly when every cluster is regular (the tracker's case)."""
+    config = config if config is not None else MeasurementConfig()
+    arrays, velocities = _checked(clusters, velocities)
+    if arrays and all(_regular(a) for a in arrays):
+        return _prepare_finite(arrays, velocities, config).batch()
+    return ClusterBatch.of(prepare_clusters(arrays, config, velocities))
+
+
+def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None], config: MeasurementConfig) -> _Prepared:
     n = np.array([len(a) for a in arrays])
     count, width = len(arrays), int(n.max())
     rows = np.arange(count)
@@ -211,16 +236,63 @@ def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None
     proj0 = np.einsum("kmd,kd->km", kpts - starts[:, None, 0], direction[:, 0])
     proj1 = np.einsum("kmd,kmd->km", kpts - starts[rows[:, None], slot], direction[rows[:, None], slot])
     src = np.take_along_axis(order, pick, axis=1)
-    result = []
-    for i in range(count):  # the Cluster records (no arithmetic here)
-        m = int(kept_count[i])
-        st, en, di, ln, mg = starts[i], ends[i], direction[i], length[i], margin[i]
-        if not two[i]:  # one part: slots 1 and 2 repeat slot 0
-            st, en, di, ln, mg = (np.repeat(a[:1], 3, axis=0) for a in (st, en, di, ln, mg))
-        result.append(Cluster(
-            points=kpts[i, :m], part=part[i, :m], proj=np.stack([proj0[i, :m], proj1[i, :m]]),
-            chord_start=st, chord_end=en, chord_dir=di, chord_len=ln, two_sided=bool(two[i]), corner=int(corner[i]),
-            eigen_ratio=float(ratio[i]), end_margin=mg, velocity=vel_out[i], raw_count=int(n[i]), dropped=0,
-            order=src[i, :m],
-        ))
-    return result
+    kept = np.arange(pick.shape[1])[None, :] < kept_count[:, None]
+    one = ~two  # one part: slots 1 and 2 repeat slot 0
+    for a in (starts, ends, direction, length, margin):
+        a[one, 1:] = a[one, :1]
+    return _Prepared(
+        points=np.where(kept[..., None], kpts, 0.0), valid=kept, part=np.where(kept, part, 0),
+        proj=np.where(kept[:, None, :], np.stack([proj0, proj1], axis=1), 0.0),
+        chord_start=starts, chord_end=ends, chord_dir=direction, chord_len=length, end_margin=margin,
+        two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=src, kept_count=kept_count,
+        velocity=vel_out,
+    )
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """The padded per-cluster arrays of ``_prepare_finite`` (K clusters, M kept points at most)."""
+
+    points: np.ndarray
+    valid: np.ndarray
+    part: np.ndarray
+    proj: np.ndarray
+    chord_start: np.ndarray
+    chord_end: np.ndarray
+    chord_dir: np.ndarray
+    chord_len: np.ndarray
+    end_margin: np.ndarray
+    two_sided: np.ndarray
+    corner: np.ndarray
+    eigen_ratio: np.ndarray
+    raw_count: np.ndarray
+    order: np.ndarray
+    kept_count: np.ndarray
+    velocity: list[np.ndarray | None]
+
+    def records(self) -> list[Cluster]:
+        """One ``Cluster`` per row."""
+        out = []
+        for i in range(len(self.points)):  # no arithmetic here
+            m = int(self.kept_count[i])
+            out.append(Cluster(
+                points=self.points[i, :m], part=self.part[i, :m], proj=self.proj[i, :, :m],
+                chord_start=self.chord_start[i], chord_end=self.chord_end[i], chord_dir=self.chord_dir[i],
+                chord_len=self.chord_len[i], two_sided=bool(self.two_sided[i]), corner=int(self.corner[i]),
+                eigen_ratio=float(self.eigen_ratio[i]), end_margin=self.end_margin[i], velocity=self.velocity[i],
+                raw_count=int(self.raw_count[i]), dropped=0, order=self.order[i, :m],
+            ))
+        return out
+
+    def batch(self) -> ClusterBatch:
+        """The rows as a ``ClusterBatch`` (what ``ClusterBatch.of(self.records())`` gives)."""
+        fused = np.array([v is not None for v in self.velocity], dtype=bool)
+        count = np.maximum(self.kept_count, 1)[:, None]
+        return ClusterBatch(
+            points=self.points, valid=self.valid, part=self.part, proj=self.proj,
+            chord_start=self.chord_start, chord_end=self.chord_end, chord_dir=self.chord_dir,
+            chord_len=self.chord_len, end_margin=self.end_margin, two_sided=self.two_sided.copy(),
+            single=self.chord_len[:, 0] <= MIN_CHORD, fused=fused,
+            velocity=np.stack([v if v is not None else np.zeros(2) for v in self.velocity]),
+            centroid=self.points.sum(axis=1) / count,
+        )

@@ -62,7 +62,7 @@ from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.point import PointTracker
-from tracker.preparation import prepare_clusters
+from tracker.preparation import prepare_batch
 from tracker.preprocess import preprocess_frame
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
@@ -274,7 +274,7 @@ class Tracker:
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
-                prepared = prepare_clusters([clusters[k] for k in used], cfg.measurement,
+                prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
                                             [velocities[k] if cfg.use_radar else None for k in used])
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]

@@ -137,7 +137,7 @@ def state_wrapping(road: Road | None, coordinates: str) -> Wrapping:
 def update_pairs(
     means: np.ndarray,
     covs: np.ndarray,
-    clusters: list[Cluster],
+    clusters: list[Cluster] | ClusterBatch,
     component_index: np.ndarray,
     cluster_index: np.ndarray,
     ego: EgoState | tuple,
@@ -146,7 +146,7 @@ def update_pairs(
     ut: UnscentedTransform | None = None,
 ) -> UpdateResult:
     """Update components ``means (C, 7)``, ``covs (C, 7, 7)`` by prepared ``clusters`` (lidar points in
-    E at the ego pose ``ego``) for the pairs ``(component_index[p], cluster_index[p])``; returns one
+    E at the ego pose ``ego``; a list of ``Cluster`` or their ``ClusterBatch``) for the pairs ``(component_index[p], cluster_index[p])``; returns one
     posterior and log-likelihood per pair. Sigma points and their rectangles in E are computed once per
     component; the measurement structure is built from each component's mean (``tracker.measurement``).
     ``config.coordinates`` selects the curvilinear (needs ``road``) or Cartesian state;
@@ -159,11 +159,13 @@ def update_pairs(
     clu = np.asarray(cluster_index, dtype=np.intp).reshape(-1)
     if comp.shape != clu.shape:
         raise ValueError(f"component_index and cluster_index must pair up; got {comp.shape} and {clu.shape}")
-    if len(comp) and (comp.min() < 0 or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(clusters)):
+    batch = clusters if isinstance(clusters, ClusterBatch) else (ClusterBatch.of(clusters) if len(clusters) else None)
+    n_clusters = 0 if batch is None else len(batch.points)
+    if len(comp) and (comp.min() < 0 or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= n_clusters):
         raise ValueError("update_pairs: a pair refers to a component or cluster that does not exist")
     wrapping = state_wrapping(road, config.coordinates)
     if len(comp) == 0:
-        d = 2 * max((c.size for c in clusters), default=0) + 2
+        d = 2 * (0 if batch is None else batch.points.shape[1]) + 2
         return UpdateResult(np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
                             np.zeros((0, d)), np.zeros((0, d)))
     used, inverse = np.unique(comp, return_inverse=True)
@@ -174,7 +176,6 @@ def update_pairs(
     sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
     rect = to_vehicle(sigma, ego, road, config.coordinates, euler_s0)  # (U, S) rectangles in E
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
-    batch = ClusterBatch.of(clusters)
     structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
     pair_means, pair_covs = means[comp], covs[comp]
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
