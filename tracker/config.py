@@ -381,6 +381,11 @@ class ReductionConfig:
       dropped (only objects on the road are tracked);
     - ``same_label_distance`` (m): components sharing a label whose positions lie this close are
       merged (one track updated by several fragments of a vehicle's points);
+    - ``report_range`` (m or ``None``): tracks are reported only while their centre lies within
+      ``detection.lidar_range`` plus this of the sensor: the field of view DESIGN.md scores (truth
+      vehicles whose centre is within the lidar range). A vehicle whose near side is still in range
+      keeps its components (``fov_margin``) and its label, but is not reported beyond the field of
+      view. ``None`` reports every track the filter keeps (the behaviour before).
     - ``confirm_min_points``: a label is reported for the first time only once a cluster of at least
       this many lidar points has updated it (a birth confirmed from one or two points at the range
       limit does not fix its position along the road: one point fits a grazing side's far corner as
@@ -403,6 +408,7 @@ class ReductionConfig:
     fov_margin: float = 2.0
     road_margin: float = 1.0
     same_label_distance: float = 2.0
+    report_range: float | None = 0.0
     confirm_min_points: int = 2
     reidentify_window: float = 5.0
     reidentify_probability: float = 0.99
@@ -416,6 +422,8 @@ class ReductionConfig:
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
+        if self.report_range is not None:
+            _check("ReductionConfig", "report_range", self.report_range, unit="m")
         _check_int("ReductionConfig", "confirm_min_points", self.confirm_min_points, 1)
         _check("ReductionConfig", "reidentify_window", self.reidentify_window, low=0.0, unit="s")
         _check("ReductionConfig", "reidentify_probability", self.reidentify_probability, low=0.0, high=1.0,

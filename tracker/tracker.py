@@ -34,7 +34,8 @@
    above the extraction threshold) of one label within ``reduction.same_label_distance`` (a track
    updated by fragments of one vehicle's points), cap
    (``tracker.reduction``); and **extract**: components with
-   weight above ``reduction.extraction_threshold`` (0.5) are tracks, a new label only once a cluster of
+   weight above ``reduction.extraction_threshold`` (0.5) whose centre lies within the lidar range
+   (``reduction.report_range``) are tracks, a new label only once a cluster of
    ``reduction.confirm_min_points`` (2) points has updated it, and a newly confirmed track takes the
    label of a track lost within ``reduction.reidentify_window`` whose prediction it matches
    (``tracker.identity``). Labels: births get new ones,
@@ -85,7 +86,9 @@ class Tracker:
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
-    ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``).
+    ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``),
+    ``coasting_tracks_taken_over``, ``tracks_beyond_report_range`` (components above the threshold not
+    reported because their centre lies beyond ``detection.lidar_range + reduction.report_range``).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
@@ -159,7 +162,7 @@ class Tracker:
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
-        tracks = self._extract(frame.t)
+        tracks = self._extract(frame.t, ego)
         self._record_events(previous, tracks)
         return tracks
 
@@ -356,9 +359,15 @@ class Tracker:
             return means[:, 1]
         return np.asarray(self.road.to_frenet(means[:, :2])[1]).reshape(-1)
 
-    def _extract(self, t: float) -> list[Track]:
+    def _extract(self, t: float, ego: EgoState) -> list[Track]:
         mix = self.mixture
-        above = np.flatnonzero(mix.weights > self.config.reduction.extraction_threshold)
+        red = self.config.reduction
+        above = np.flatnonzero(mix.weights > red.extraction_threshold)
+        if len(above) and red.report_range is not None:  # the field of view tracks are reported in
+            centre = to_vehicle(mix.means[above], ego, self.road, self.config.coordinates).center
+            inside = np.hypot(centre[:, 0], centre[:, 1]) <= self.config.detection.lidar_range + red.report_range
+            self.stats["tracks_beyond_report_range"] += int((~inside).sum())
+            above = above[inside]
         above = above[np.argsort(-mix.weights[above], kind="stable")]
         # a label not reported before needs the support of a large enough cluster (confirm_min_points)
         need = self.config.reduction.confirm_min_points
