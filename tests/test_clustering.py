@@ -54,3 +54,38 @@ def test_dense_components_equal_scipys(seed):
     _, want = connected_components(csr_matrix(adj), directed=False)
     np.testing.assert_array_equal(dense_components(adj), want)
     assert dense_components(np.zeros((0, 0), dtype=bool)).shape == (0,)
+
+
+def _oracle_partition(points: np.ndarray, threshold: float) -> np.ndarray:
+    """Connected components of the whole threshold graph (scipy), relabelled by first point."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(points).query_pairs(threshold, output_type="ndarray")
+    n = len(points)
+    labels = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                  directed=False)[1]
+    _, first = np.unique(labels, return_index=True)
+    rank = np.empty(len(first), dtype=int)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[labels]
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("order", ["scan", "shuffled"])
+def test_distance_partition_equals_the_whole_graph_components(seed, order):
+    # a scan-like cloud (objects as dense arcs, clutter) in scan order, and the same shuffled: the run
+    # decomposition must give exactly the components of the full graph (shuffled: hundreds of runs,
+    # the sparse path; scan order: few runs, the dense path)
+    rng = np.random.default_rng(seed)
+    parts = []
+    for _ in range(12):
+        centre = rng.uniform(-60, 60, 2)
+        t = np.sort(rng.uniform(0, 1, rng.integers(1, 60)))
+        parts.append(centre + np.column_stack([4.0 * t, 1.5 * (t > 0.6) * (t - 0.6)]) + rng.normal(0, 0.05, (len(t), 2)))
+    parts.append(rng.uniform(-60, 60, (80 if order == "shuffled" else 10, 2)))  # clutter
+    pts = np.vstack(parts)
+    pts = pts[np.argsort(np.arctan2(pts[:, 1], pts[:, 0]))] if order == "scan" else pts[rng.permutation(len(pts))]
+    for threshold in (0.3, 1.0, 3.0):
+        np.testing.assert_array_equal(distance_partition(pts, threshold), _oracle_partition(pts, threshold))

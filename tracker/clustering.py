@@ -13,11 +13,14 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_matrix
+from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from tracker.frame import RadarDetections
+
+#: Up to this many runs of consecutive linked points, their graph's components are found densely.
+MAX_DENSE_RUNS = 64
 
 
 def points_in_rectangles(
@@ -49,19 +52,34 @@ def points_in_rectangles(
 
 def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     """Cluster label (0..K-1) of each point: connected components of the graph whose edges join
-    points closer than ``threshold`` metres. Labels are ordered by each cluster's first point."""
+    points closer than ``threshold`` metres. Labels are ordered by each cluster's first point.
+
+    The edges come from ``cKDTree.query_pairs``. A lidar scan lists its points in scan order, so most
+    edges join consecutive points: those first cut the points into runs (connected by construction),
+    and only the few edges between runs go into a graph over the runs, whose components
+    (``dense_components``, or ``scipy.sparse.csgraph`` for many runs) are the clusters; any order of
+    the points gives the same partition, only more runs."""
     if not threshold > 0:
         raise ValueError(f"distance threshold must be > 0 m; got {threshold!r}")
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(pts)
     if n == 0:
         return np.zeros(0, dtype=int)
-    pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")
-    # the graph straight in CSR form (rows sorted), which connected_components takes without conversion
-    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(pairs[:, 0], minlength=n))])
-    graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], indptr), shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
+    pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")  # i < j
+    linked = np.zeros(n, dtype=bool)  # linked[i]: an edge joins point i - 1 and point i
+    linked[pairs[pairs[:, 1] - pairs[:, 0] == 1, 1]] = True
+    run = np.cumsum(~linked) - 1  # run index of every point (0..R-1)
+    a, b = run[pairs[:, 0]], run[pairs[:, 1]]
+    across = a != b
+    a, b, runs = a[across], b[across], int(run[-1]) + 1
+    if runs <= MAX_DENSE_RUNS:
+        adjacency = np.zeros((runs, runs), dtype=bool)
+        adjacency[a, b] = True
+        component = dense_components(adjacency)
+    else:
+        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(runs, runs))
+        component = connected_components(graph, directed=False)[1]
+    labels = component[run]
     # relabel in order of first appearance so labels are deterministic and readable
     _, first = np.unique(labels, return_index=True)
     rank = np.empty(len(first), dtype=int)
