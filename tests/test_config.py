@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from tracker.config import MeasurementConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
+from tracker.config import MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
 
 
 def test_defaults_are_the_documented_ones() -> None:
@@ -16,6 +16,8 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.measurement.partial_visibility == 0.9
     assert c.reduction.extraction_threshold == 0.5
     assert c.reduction.confirm_min_points == 2 and c.measurement.single_point_min_apparent == 0.25
+    assert c.reduction.reidentify_window == 5.0 and c.reduction.report_range == 0.0
+    assert not c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
 
 
@@ -27,6 +29,9 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MeasurementConfig(max_cluster_points=2), r"max_cluster_points must be an integer >= 3"),
         (lambda: MeasurementConfig(single_point_min_apparent=2.0), r"single_point_min_apparent must be >= 0.0 and <= 1.0"),
         (lambda: ReductionConfig(confirm_min_points=0), r"ReductionConfig.confirm_min_points must be an integer >= 1"),
+        (lambda: ReductionConfig(reidentify_probability=1.0), r"reidentify_probability must be > 0.0 and < 1.0"),
+        (lambda: MotionConfig(acceleration_time=0.0), r"MotionConfig.acceleration_time must be > 0.0 s"),
+        (lambda: MotionConfig(acceleration="yes"), r"MotionConfig.acceleration must be true or false"),
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tracker import Road, TrackerConfig
+from tracker.config import MotionConfig
 from tracker.identity import LostTracks
 from tracker.motion import make_motion
 from tracker.ukf import UnscentedTransform
@@ -24,7 +25,7 @@ def cov(pos_std: float = 0.3) -> np.ndarray:
 
 def store(road: Road = STRAIGHT, window: float = 5.0, period: float | None = None, accel: float = 0.0,
           cartesian: bool = False) -> LostTracks:
-    config = TrackerConfig(coordinates="cartesian" if cartesian else "curvilinear")
+    config = TrackerConfig(coordinates="cartesian" if cartesian else "curvilinear", motion=MotionConfig(acceleration=False))
     return LostTracks(window, 0.99, UnscentedTransform(config.ukf), make_motion(config, road), period, accel, cartesian)
 
 

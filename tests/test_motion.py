@@ -238,3 +238,30 @@ def test_rk4_sub_steps_shrink_for_fast_decay_rates() -> None:
         out = motion.propagate(x, 5.0)
         assert out[4] == pytest.approx(0.1 * np.exp(-rate * 5.0), abs=1e-6)
     assert FrenetMotion(road, MotionConfig()).step_limit == MotionConfig().max_step  # defaults unchanged
+
+
+def test_acceleration_state_follows_the_singer_mean_and_noise() -> None:
+    # straight road, lane keeping: v(t) = v0 + a0 tau (1 - e^{-t/tau}), s(t) = v0 t + a0 tau (t - tau (1 - e^{-t/tau}))
+    road = Road.from_curvature([(2000.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tau, a0, v0, t = 3.0, 2.0, 10.0, 2.5
+    model = FrenetMotion(road, MotionConfig(acceleration=True, acceleration_time=tau, jerk=0.7, residual_accel=0.3))
+    assert model.dim == 8 and FrenetMotion(road, MotionConfig(acceleration=False)).dim == 7
+    x = np.array([100.0, 1.0, v0, 0.0, 0.0, 4.5, 1.8, a0])
+    out = model.propagate(x, t)
+    decay = 1.0 - np.exp(-t / tau)
+    np.testing.assert_allclose(out[2], v0 + a0 * tau * decay, atol=1e-6)
+    np.testing.assert_allclose(out[0], 100.0 + v0 * t + a0 * tau * (t - tau * decay), atol=1e-5)
+    np.testing.assert_allclose(out[7], a0 * np.exp(-t / tau), atol=1e-7)
+    np.testing.assert_allclose(out[[1, 3, 4, 5, 6]], x[[1, 3, 4, 5, 6]], atol=1e-12)
+    # the noise: the 7-state block without the acceleration state and with the white acceleration
+    # residual_accel, plus the Singer (v, a) block, whose acceleration variance tends to its stationary
+    # value jerk^2 tau / 2
+    q8 = model.process_noise(x, 0.1)
+    q7 = FrenetMotion(road, MotionConfig(acceleration=False), ProcessNoise(accel=0.3)).process_noise(x[:7], 0.1)
+    assert q8.shape == (8, 8)
+    extra = q8[:7, :7] - q7
+    extra[2, 2] = 0.0
+    np.testing.assert_allclose(extra, 0.0, atol=1e-15)
+    assert q8[2, 2] > q7[2, 2] and q8[2, 7] > 0.0
+    assert np.all(np.linalg.eigvalsh(q8) > -1e-12)
+    np.testing.assert_allclose(model.process_noise(x, 200.0)[7, 7], 0.7**2 * tau / 2.0, rtol=1e-6)

@@ -181,8 +181,9 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, speed, accel=accel)], radar=True)
     for window, same in ((5.0, True), (0.0, False)):
-        config = TrackerConfig()
-        config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=window))
+        config = TrackerConfig()  # constant speed (with the acceleration state B's track is not lost at all)
+        config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=window),
+                                     motion=dataclasses.replace(config.motion, acceleration=False))
         frames, tracker = run(scene, config, 9.0)
         labels = []
         for k in range(len(frames)):
@@ -193,6 +194,28 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
         assert None in labels[int(2.0 / DT): int(8.5 / DT)]  # B was lost in between
         assert (len(set(seen)) == 1) == same, (window, sorted(set(seen)))
         assert (tracker.stats["labels_reidentified"] >= 1) == same
+
+
+@pytest.mark.parametrize("acceleration", [False, True], ids=["constant-speed", "acceleration-state"])
+def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(acceleration):
+    # B accelerates at 1 m/s^2 from 12 m/s throughout, hidden behind the van from 1.4 s to about 4.7 s:
+    # with MotionConfig.acceleration the coasting track keeps accelerating and stays within ~1 m of B;
+    # at constant speed it falls ~4 m behind and B is without a track for a while
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, -3.5, 20.0),
+                  [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=1.0)], radar=True)
+    config = TrackerConfig()
+    config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=acceleration,
+                                                                    acceleration_time=6.0))
+    frames, tracker = run(scene, config, 8.0)
+    assert tracker.mixture.means.shape[1] == (8 if acceleration else 7)
+    assert all(tr.mean.shape == (7,) and tr.cov.shape == (7, 7) for tracks in frames for tr in tracks)
+    errors = np.array([min((abs(tr.s - scene.cars[1].s_at(k * DT)) for tr in tracks if abs(tr.n - 3.5) < 2.0), default=np.inf)
+                       for k, tracks in enumerate(frames)])[int(1.0 / DT):]
+    if acceleration:
+        assert np.isfinite(errors).all() and errors.max() < 1.5, errors.max()
+    else:
+        assert (~np.isfinite(errors)).sum() >= 3 or errors[np.isfinite(errors)].max() > 3.0
 
 
 @pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])

@@ -103,7 +103,8 @@ class LostTracks:
         if not len(means) or not (lost or extra):
             return out
         labels = np.array(lost + ([] if coasting is None else [int(x) for x in coasting[0]]), dtype=int)
-        cand_m, cand_p = np.zeros((0, 7)), np.zeros((0, 7, 7))
+        dim = means.shape[1]
+        cand_m, cand_p = np.zeros((0, dim)), np.zeros((0, dim, dim))
         if lost:
             cand_m, cand_p = self._predicted(t, lost)
         if extra:

@@ -170,8 +170,8 @@ def to_vehicle(
     polynomial around ``euler_s0``), the ``paper`` variant's measurement model."""
     ego = EgoState.coerce(ego)
     x = np.asarray(states, dtype=float)
-    if x.shape[-1] != 7:
-        raise ValueError(f"states must have shape (..., 7); got {x.shape}")
+    if x.shape[-1] not in (7, 8):
+        raise ValueError(f"states must have shape (..., 7) (or (..., 8) with the acceleration state); got {x.shape}")
     if coordinates == "curvilinear":
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")

@@ -8,6 +8,8 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
 
       s' = v cos(xi) / (1 - kappa(s) n),   n' = v sin(xi),   v' = 0,   xi' = xi_dot,   xi_dot' = 0
 
+  with the acceleration state (``MotionConfig.acceleration``, off by default) an eighth, internal state ``a``:
+  ``v' = a``, ``a' = -a / acceleration_time`` (Singer);
   plus the road-following prior (``MotionConfig.heading_decay``, ``yaw_rate_decay``): ``xi' = xi_dot -
   heading_decay (xi + beta)``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0 give the constant turn above),
   integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps (with ``MotionConfig.slip_lever > 0``
@@ -35,6 +37,7 @@ construction in both coordinate systems (see ``process_noise``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from functools import lru_cache
 from typing import Protocol
@@ -46,8 +49,9 @@ from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
-# state indices (curvilinear names; the Cartesian state uses the same slots for x, y, psi, psi_dot)
-S, N, V, XI, XI_DOT, LENGTH, WIDTH = range(7)
+# state indices (curvilinear names; the Cartesian state uses the same slots for x, y, psi, psi_dot);
+# ACCEL: the internal acceleration state of ``FrenetMotion`` with ``MotionConfig.acceleration``
+S, N, V, XI, XI_DOT, LENGTH, WIDTH, ACCEL = range(8)
 
 
 #: Largest ``rate * h`` of an RK4 sub-step ``h`` on the road-following prior's decay (``FrenetMotion.step_limit``).
@@ -140,6 +144,7 @@ class MotionModel(Protocol):
 
     wrapping: Wrapping
     noise: ProcessNoise
+    dim: int  # state dimension (7, or 8 with FrenetMotion's acceleration state)
 
     def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
         """States ``x (..., 7)`` moved forward by ``dt`` seconds."""
@@ -165,6 +170,12 @@ class FrenetMotion:
             self._table_s[-1] = 0.0  # the road's own wrap; restored below
         self._table_k = road.curvature(self._table_s)
         self._table_s[-1] = road.length
+        #: the tracker's state dimension: 8 with the acceleration state (``MotionConfig.acceleration``),
+        #: else 7; ``propagate`` and ``process_noise`` take either (seven states: constant speed)
+        self.dim = 8 if self.config.acceleration else 7
+        # the white acceleration on v: lower with the acceleration state (MotionConfig.residual_accel)
+        self._noise7 = (dataclasses.replace(self.noise, accel=self.config.residual_accel) if self.dim == 8
+                        else self.noise)
 
     def curvature(self, s: np.ndarray) -> np.ndarray:
         """The road's curvature (1/m) at ``s`` from the table: wrapped on a closed road, 0 beyond the
@@ -191,6 +202,9 @@ class FrenetMotion:
         d[..., N] = x[..., V] * np.sin(course)
         d[..., XI] = x[..., XI_DOT] - self.config.heading_decay * course  # relaxes to lane keeping: course 0
         d[..., XI_DOT] = -self.config.yaw_rate_decay * x[..., XI_DOT]
+        if x.shape[-1] == 8:  # the acceleration state: v' = a, a' = -a / acceleration_time
+            d[..., V] = x[..., ACCEL]
+            d[..., ACCEL] = -x[..., ACCEL] / self.config.acceleration_time
         return d
 
     @property
@@ -198,7 +212,8 @@ class FrenetMotion:
         """Largest RK4 sub-step (s): ``max_step``, and at most ``MAX_DECAY_STEP / rate`` for the
         road-following prior's rates (RK4 on ``x' = -rate x`` is accurate for ``rate h <= 0.5`` and
         unstable beyond ``rate h ~ 2.8``; the defaults, 2/s at 0.1 s, are 0.2)."""
-        rate = max(self.config.heading_decay, self.config.yaw_rate_decay)
+        rate = max(self.config.heading_decay, self.config.yaw_rate_decay,
+                   1.0 / self.config.acceleration_time if self.dim == 8 else 0.0)
         return min(self.config.max_step, MAX_DECAY_STEP / rate) if rate > 0.0 else self.config.max_step
 
     def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
@@ -220,11 +235,25 @@ class FrenetMotion:
 
     def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
         """See ``process_noise``; with the road-following prior (``heading_decay`` or
-        ``yaw_rate_decay`` > 0) the ``(xi, xi_dot)`` block is ``heading_noise_block``'s exact one."""
-        q = process_noise(mean, dt, self.noise)
+        ``yaw_rate_decay`` > 0) the ``(xi, xi_dot)`` block is ``heading_noise_block``'s exact one; with
+        the acceleration state ``(8, 8)``: the white acceleration ``residual_accel`` instead of
+        ``ProcessNoise.accel``, plus the Singer block of ``(v, a)``."""
+        mean = np.asarray(mean, dtype=float)
+        with_accel = mean.shape[-1] == 8
+        q = process_noise(mean[..., :7], dt, self._noise7 if with_accel else self.noise)
         if self.config.heading_decay > 0.0 or self.config.yaw_rate_decay > 0.0:
             q[..., XI:XI_DOT + 1, XI:XI_DOT + 1] = heading_noise_block(
                 dt, self.config.heading_decay, self.config.yaw_rate_decay, self.noise)
+        if with_accel:  # (v, a): the Singer block of white jerk, on top of the white acceleration on v
+            q8 = np.zeros(q.shape[:-2] + (8, 8))
+            q8[..., :7, :7] = q
+            block = _heading_noise_block(float(_check_dt(dt)), 0.0, 1.0 / self.config.acceleration_time,
+                                         0.0, float(self.config.jerk))
+            q8[..., V, V] += block[0, 0]
+            q8[..., V, ACCEL] += block[0, 1]
+            q8[..., ACCEL, V] += block[1, 0]
+            q8[..., ACCEL, ACCEL] += block[1, 1]
+            q = q8
         return q
 
 
@@ -238,6 +267,8 @@ def heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, 
 @lru_cache(maxsize=256)
 def _heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, heading: float, yaw_accel: float) -> np.ndarray:
     """Covariance ``(2, 2)`` of ``(xi, xi_dot)`` added over ``dt`` by the mean-reverting heading model
+    (also the Singer block of ``(v, a)``: ``a = 0``, ``b = 1 / acceleration_time``, ``heading = 0``,
+    ``yaw_accel = jerk``)
 
         d xi = (xi_dot - a xi) dt + heading dW_1,     d xi_dot = -b xi_dot dt + yaw_accel dW_2
 
@@ -269,6 +300,8 @@ class PaperMotion:
     """The paper's flat constant-turn model in ``(s, n)`` (module docstring); ``road`` only sets the
     wrapping of ``s`` on a closed road."""
 
+    dim = 7
+
     def __init__(self, road: Road, noise: ProcessNoise | None = None) -> None:
         self.road = road
         self.noise = noise if noise is not None else ProcessNoise()
@@ -288,6 +321,8 @@ class CartesianMotion:
 
         x += 2 v / psi_dot sin(psi_dot dt / 2) cos(psi + psi_dot dt / 2),  y += ... sin(...),  psi += psi_dot dt
     """
+
+    dim = 7
 
     def __init__(self, noise: ProcessNoise | None = None) -> None:
         self.noise = noise if noise is not None else ProcessNoise()

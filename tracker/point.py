@@ -33,6 +33,8 @@ the sensor (for a car seen from behind about half its length short).
 
 from __future__ import annotations
 
+import dataclasses
+
 from collections import Counter
 
 import numpy as np
@@ -76,7 +78,8 @@ class PointTracker:
         self.road = road
         self.config = config
         self.ut = UnscentedTransform(config.ukf)
-        self.motion = make_motion(config, road)
+        # the point tracker keeps the seven states of DESIGN.md (no internal acceleration state)
+        self.motion = make_motion(dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=False)), road)
         self.wrapping = state_wrapping(road, "curvilinear")
         self.means = np.zeros((0, 7))
         self.covs = np.zeros((0, 7, 7))

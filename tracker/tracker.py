@@ -109,16 +109,17 @@ class Tracker:
         self.road = road
         self.config = config
         self.cartesian = config.coordinates == "cartesian"
-        self.ut = UnscentedTransform(config.ukf)
         self.motion = make_motion(config, road)
+        self.dim = self.motion.dim  # 7, or 8 with the acceleration state (MotionConfig.acceleration)
+        self.ut = UnscentedTransform(config.ukf, n=self.dim)
         self.wrapping = state_wrapping(road, config.coordinates)
-        self.mixture = Mixture(np.zeros(0), np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0, dtype=int))
+        self.mixture = Mixture(np.zeros(0), np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)), np.zeros(0, dtype=int))
         self.t: float | None = None
         self.stats: Counter[str] = Counter()
         self._next_label = 1
         self._s_ego: float | None = None
         self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
-        self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))  # cluster births for the next frame
+        self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))  # cluster births for the next frame
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
@@ -176,7 +177,7 @@ class Tracker:
             mix = Mixture(np.concatenate([mix.weights, weights]), np.concatenate([mix.means, pending_m]),
                           np.concatenate([mix.covs, pending_p]), np.concatenate([mix.labels, labels]))
             self.stats["births_cluster"] += len(pending_m)
-            self._pending = (np.zeros((0, 7)), np.zeros((0, 7, 7)))
+            self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
         if dt > 0.0 and len(mix):
             means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
@@ -189,6 +190,7 @@ class Tracker:
         means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
+        means, covs = self._with_acceleration(means, covs)
         occ = self._reported
         if len(means) and len(occ):
             # a vehicle can enter the view only where the view is not blocked and no track already is
@@ -332,7 +334,18 @@ class Tracker:
                                      ego, self.road, self.config.birth)
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
-        self._pending = (means, covs)
+        self._pending = self._with_acceleration(means, covs)
+
+    def _with_acceleration(self, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Birth components ``(B, 7)`` with the acceleration state appended when the motion model has
+        one (``a = 0``, std ``MotionConfig.acceleration_std``)."""
+        if self.dim == 7:
+            return means, covs
+        m = np.zeros((len(means), self.dim))
+        p = np.zeros((len(means), self.dim, self.dim))
+        m[:, :7], p[:, :7, :7] = means, covs
+        p[:, 7, 7] = self.config.motion.acceleration_std ** 2
+        return m, p
 
     def _reduce(self, ego: EgoState) -> None:
         red = self.config.reduction
@@ -401,7 +414,7 @@ class Tracker:
                 tracks.append(Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road,
                                                    float(mix.weights[i]), self.ut))
             else:
-                tracks.append(Track(int(mix.labels[i]), t, mix.means[i], mix.covs[i], float(mix.weights[i])))
+                tracks.append(Track(int(mix.labels[i]), t, mix.means[i, :7], mix.covs[i, :7, :7], float(mix.weights[i])))
         return tracks
 
     def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:

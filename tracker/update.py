@@ -145,16 +145,18 @@ def update_pairs(
     config: TrackerConfig | None = None,
     ut: UnscentedTransform | None = None,
 ) -> UpdateResult:
-    """Update components ``means (C, 7)``, ``covs (C, 7, 7)`` by prepared ``clusters`` (lidar points in
+    """Update components ``means (C, D)``, ``covs (C, D, D)`` (``D = 7``, or 8 with the acceleration state) by prepared ``clusters`` (lidar points in
     E at the ego pose ``ego``; a list of ``Cluster`` or their ``ClusterBatch``) for the pairs ``(component_index[p], cluster_index[p])``; returns one
     posterior and log-likelihood per pair. Sigma points and their rectangles in E are computed once per
     component; the measurement structure is built from each component's mean (``tracker.measurement``).
     ``config.coordinates`` selects the curvilinear (needs ``road``) or Cartesian state;
     ``config.use_radar`` the velocity rows of fused clusters."""
     config = config if config is not None else TrackerConfig()
-    ut = ut if ut is not None else UnscentedTransform(config.ukf)
-    means = np.asarray(means, dtype=float).reshape(-1, 7)
-    covs = np.asarray(covs, dtype=float).reshape(-1, 7, 7)
+    means = np.asarray(means, dtype=float)
+    dim = means.shape[-1]  # 7, or 8 with the motion model's acceleration state
+    means = means.reshape(-1, dim)
+    ut = ut if ut is not None else UnscentedTransform(config.ukf, n=dim)
+    covs = np.asarray(covs, dtype=float).reshape(-1, dim, dim)
     comp = np.asarray(component_index, dtype=np.intp).reshape(-1)
     clu = np.asarray(cluster_index, dtype=np.intp).reshape(-1)
     if comp.shape != clu.shape:
@@ -166,7 +168,7 @@ def update_pairs(
     wrapping = state_wrapping(road, config.coordinates)
     if len(comp) == 0:
         d = 2 * (0 if batch is None else batch.points.shape[1]) + 2
-        return UpdateResult(np.zeros((0, 7)), np.zeros((0, 7, 7)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
+        return UpdateResult(np.zeros((0, dim)), np.zeros((0, dim, dim)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
                             np.zeros((0, d)), np.zeros((0, d)))
     used, inverse = np.unique(comp, return_inverse=True)
     euler_s0 = None
@@ -242,7 +244,7 @@ def grow_extent(
         if not hit.any():
             continue
         sgn = np.where(np.einsum("pd,pd->p", centre, direction) >= 0.0, 1.0, -1.0)
-        d = np.zeros((len(means), 7))
+        d = np.zeros(means.shape)
         d[:, :2] = 0.5 * sgn[:, None] * unit
         d[:, index] = 1.0
         add = np.where(hit, e, 0.0)[:, None, None] ** 2 * d[:, :, None] * d[:, None, :]
