@@ -420,8 +420,9 @@ class Tracker:
     def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:
         """Components about to be reported under a label never reported before take the label of a
         recently lost track, or of a reported track that coasts this frame, that they match
-        (``tracker.identity.LostTracks``), with all their label's components; a coasting track's own
-        components are dropped. Returns the mask of components kept."""
+        (``tracker.identity.LostTracks``), with all their label's components; the old track's own
+        components (a coasting track's, or a lost track's remaining low-weight hypotheses) are dropped.
+        Returns the mask of components kept."""
         mix = self.mixture
         keep = np.ones(len(mix), dtype=bool)
         fresh = np.array([int(mix.labels[i]) not in self._ever_reported for i in above], dtype=bool)
@@ -438,7 +439,7 @@ class Tracker:
             if lab < 0:
                 continue
             newcomer = int(mix.labels[i])
-            keep &= mix.labels != lab  # the coasting track's hypotheses (none for a lost track)
+            keep &= mix.labels != lab  # the old track's hypotheses: a coasting track's, a lost one's low-weight ones
             mix.labels[mix.labels == newcomer] = lab
             self._support[int(lab)] = max(self._support.get(int(lab), 0), self._support.pop(newcomer, 0))
             self.stats["labels_reidentified"] += 1
