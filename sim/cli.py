@@ -204,7 +204,7 @@ def summary_table(metrics: dict) -> str:
 
 
 def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: bool, duration: float | None,
-                   roadside: bool | None, quiet: bool) -> int:
+                   roadside: bool | None, quiet: bool, lidar_model: str | None = None) -> int:
     import time
     from pathlib import Path
 
@@ -212,12 +212,14 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     from sim.plots import write_figures
     from sim.progress import ProgressBar
     from sim.results import write_results
-    from sim.runner import check_scenario_settings, run_scenario
+    from sim.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
     from sim.scenario import ScenarioError, load_scenario
     from sim.variants import check_variant
 
     spec = load_scenario(scenario)
     try:  # usage errors are checked here; an error inside the run is a bug and keeps its traceback
+        if lidar_model is not None:
+            spec = with_lidar_model(spec, lidar_model)
         check_variant(variant)
         if duration is not None and not (0.0 < duration <= spec.duration):
             raise ValueError(f"--duration must be in (0, {spec.duration:g}] s for {spec.name}; got {duration:g}")
@@ -229,10 +231,11 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
         print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     start = time.perf_counter()
+    cloud = rig_config_for(spec)[0].lidar.model == "vlp16"  # the 3-D pipeline's figure needs a kept frame
     with ProgressBar(0, f"{spec.name} / {variant} / seed {seed}", enabled=not quiet) as bar:
         try:
-            result = run_scenario(spec, seed, variant, duration=duration, roadside=roadside, keep_sensor_data=gif,
-                                  progress=bar)
+            result = run_scenario(spec, seed, variant, duration=duration, roadside=roadside,
+                                  keep_sensor_data=gif or cloud, progress=bar)
         except ScenarioError as exc:  # e.g. a bad [sensors] / [tracker] override in the file
             bar.close()
             print(f"eot: {' '.join(str(exc).split())}", file=sys.stderr)
@@ -266,7 +269,7 @@ def _run(args: argparse.Namespace) -> int:
     name = Path(paths[0]).stem
     out = args.out or f"out/{name}-{variant}-seed{args.seed}"
     return _run_and_write(paths[0], seed=args.seed, variant=variant, out=out, gif=args.gif, duration=args.duration,
-                          roadside=False if args.no_roadside else None, quiet=args.quiet)
+                          roadside=False if args.no_roadside else None, quiet=args.quiet, lidar_model=args.lidar_model)
 
 
 def _inspect(args: argparse.Namespace) -> int:
@@ -316,7 +319,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
     _check_backend(args)
     try:
         tasks = plan(paths, args.runs, variants, seed0=args.seed, duration=args.duration,
-                     roadside=False if args.no_roadside else None)
+                     roadside=False if args.no_roadside else None, lidar_model=args.lidar_model)
     except ValueError as exc:
         raise UsageError(" ".join(str(exc).split())) from None
     out = Path(args.out)
@@ -601,6 +604,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds (default: the scenario's)")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
+    p.add_argument("--lidar-model", choices=("2d", "vlp16"),
+                   help="lidar model, replacing the scenario's sensors.lidar.model: 2d (default) or vlp16 (3-D, "
+                        "with the tracker's ground removal; writes cloud.png)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -623,6 +629,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
+    p.add_argument("--lidar-model", choices=("2d", "vlp16"),
+                   help="lidar model for every scenario, replacing sensors.lidar.model: 2d or vlp16 (3-D)")
     p.add_argument("--resume", action="store_true",
                    help="keep the runs already in OUT/runs.csv (an interrupted study) and run only the missing ones")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

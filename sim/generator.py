@@ -107,11 +107,13 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
     for _ in range(_integer(rng, gen.vehicles)):
         u = float(rng.uniform())
         behaviour = "scripted" if u < gen.scripted_fraction else "constant" if u < gen.scripted_fraction + gen.constant_fraction else "idm"
+        height = None
         if classes is None:
             length, width = round(_uniform(rng, gen.length), 3), round(_uniform(rng, gen.width), 3)
         else:
             k = min(int(np.searchsorted(classes[0], rng.uniform(), side="right")), len(classes[0]) - 1)
             length, width = round(_uniform(rng, tuple(classes[1][k])), 3), round(_uniform(rng, tuple(classes[2][k])), 3)
+            height = gen.classes[k].height_of(length)  # type: ignore[index]  (no draw: the stream is unchanged)
         for _attempt in range(PLACEMENT_ATTEMPTS):
             lane = _integer(rng, (0, lanes - 1))
             s = ego_s + _uniform(rng, gen.spawn)
@@ -139,6 +141,8 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
             "length": length,
             "width": width,
         }
+        if height is not None:
+            vehicle["height"] = height
         if behaviour == "scripted":
             vehicle["maneuvers"] = _maneuvers(gen, rng, lane, lanes, duration)
         placed.append((lane, vehicle["s"], length))

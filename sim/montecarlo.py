@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario
+from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
 from sim.scenario import ScenarioError, parse_scenario, resolve_scenario_path
 from sim.variants import DEFAULT_VARIANT, check_variant
 
@@ -63,8 +63,9 @@ ID_COLUMNS = ("scenario", "variant", "seed", "sim_s")
 class RunTask:
     """One run of a study: the scenario (its parsed TOML ``data`` and where it came from, ``source``),
     the ``variant``, the ``seed``, an optional shorter ``duration`` (s), a ``roadside`` override
-    (``None``: the scenario's) and an optional ``tracker_factory(road, config)`` (default
-    ``tracker.Tracker``; a custom tracker must be picklable by reference for process workers)."""
+    (``None``: the scenario's), an optional ``tracker_factory(road, config)`` (default
+    ``tracker.Tracker``; a custom tracker must be picklable by reference for process workers) and
+    an optional ``lidar_model`` replacing the scenario's ``sensors.lidar.model``."""
 
     name: str
     source: str
@@ -74,6 +75,7 @@ class RunTask:
     duration: float | None = None
     roadside: bool | None = None
     tracker_factory: Callable[..., Any] | None = None
+    lidar_model: str | None = None
 
 
 def scenario_task_data(path: str | Path) -> tuple[str, str, dict[str, Any]]:
@@ -97,6 +99,7 @@ def plan(
     duration: float | None = None,
     roadside: bool | None = None,
     tracker_factory: Callable[..., Any] | None = None,
+    lidar_model: str | None = None,
 ) -> list[RunTask]:
     """The tasks of a study: every scenario x variant x seed in ``seed0 .. seed0 + runs - 1``."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -108,6 +111,8 @@ def plan(
     loaded = [scenario_task_data(s) for s in scenarios]
     for name, source, data in loaded:  # bad [sensors] / [tracker] / [faults] settings: an error now, not in a worker
         spec = parse_scenario(data, source)
+        if lidar_model is not None:
+            spec = with_lidar_model(spec, lidar_model)
         for v in variants:
             check_scenario_settings(spec, v)
     if duration is not None:
@@ -117,7 +122,7 @@ def plan(
                     f"duration must be in (0, {float(data['duration']):g}] s for scenario {name!r}; got {duration!r}"
                 )
     return [
-        RunTask(name, source, data, variant, seed0 + k, duration, roadside, tracker_factory)
+        RunTask(name, source, data, variant, seed0 + k, duration, roadside, tracker_factory, lidar_model)
         for name, source, data in loaded
         for variant in variants
         for k in range(runs)
@@ -133,7 +138,7 @@ def run_task(task: RunTask) -> dict[str, Any]:
     metrics of ``sim.runner`` (``None`` where undefined)."""
     spec = parse_scenario(task.data, task.source)
     result = run_scenario(spec, task.seed, task.variant, duration=task.duration, roadside=task.roadside,
-                          tracker_factory=task.tracker_factory)
+                          tracker_factory=task.tracker_factory, lidar_model=task.lidar_model)
     row: dict[str, Any] = {"scenario": task.name, "variant": task.variant, "seed": task.seed, "sim_s": result.duration}
     for key, value in result.metrics.items():
         if _scalar(value):

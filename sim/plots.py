@@ -13,6 +13,9 @@ backend of an interactive session. Colours: one per track label (tab10 cycle); t
   below, three snapshots with truth and track rectangles and labels;
 - ``targets.png``: yaw (deg), speed (m/s), length and width (m) over time per truth vehicle (lines)
   with the estimates of the tracks assigned to it by GOSPA (dots);
+- ``cloud.png`` (runs with the 3-D lidar, ``sensors.lidar.model = "vlp16"``): the paper's Fig. 2 for
+  one frame: the raw cloud, the cloud without the ground (and above the height ceiling), and the 2-D
+  points projected onto the road plane, with the truth rectangles (``plot_cloud_pipeline``);
 - ``run.gif`` (``gif=True``): the run seen from above, following the ego: road, lidar points, radar
   detections with velocity arrows, truth outlines, track rectangles with labels (Pillow, which
   comes with matplotlib).
@@ -308,7 +311,7 @@ def write_gif(
         f = frames[i]
         e = f.truth.ego
         pose = ((e.x, e.y), e.yaw)
-        pts = to_global(np.asarray(f.frame.lidar), *pose).reshape(-1, 2) if f.frame is not None else np.zeros((0, 2))
+        pts = to_global(_lidar_xy(f.frame, result.config), *pose).reshape(-1, 2) if f.frame is not None else np.zeros((0, 2))
         lidar.set_offsets(pts)
         if f.frame is not None and len(f.frame.radar):
             rxy = to_global(f.frame.radar.xy, *pose).reshape(-1, 2)
@@ -354,6 +357,88 @@ def write_gif(
     return Path(path)
 
 
+def _lidar_xy(frame, config) -> np.ndarray:  # noqa: ANN001
+    """The frame's lidar as 2-D points in E: as given, or a 3-D cloud through the tracker's pipeline."""
+    pts = np.asarray(frame.lidar)
+    if pts.ndim == 2 and pts.shape[1] == 3:
+        from tracker.cloud import process_cloud
+
+        return process_cloud(pts, config.cloud).points_2d
+    return pts.reshape(-1, 2)
+
+
+def cloud_frame(result: Result) -> FrameRecord | None:
+    """The kept frame with a 3-D cloud and the most scored vehicles (the earliest of those), or None."""
+    best, most = None, -1
+    for f in result.frames:
+        if f.frame is None or np.asarray(f.frame.lidar).shape[1] != 3:
+            continue
+        if f.n_truth > most:
+            best, most = f, f.n_truth
+    return best
+
+
+def plot_cloud_pipeline(result: Result, path: str | Path, frame: FrameRecord | None = None, *, half_window: float = 40.0) -> Path:
+    """The 3-D pipeline on one frame (the paper's Fig. 2): (a) the raw cloud in E, coloured by height;
+    (b) what is left after RANSAC ground removal and the height ceiling; (c) those points projected
+    onto the fitted road plane (2-D, E) with the truth rectangles; within ``half_window`` m of the
+    ego. ``frame`` defaults to ``cloud_frame(result)``; raises ``ValueError`` when the run kept no 3-D
+    frame (``run_scenario(..., keep_sensor_data=True)`` with the vlp16 lidar)."""
+    from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
+
+    from tracker.cloud import process_cloud
+    from tracker.transforms import to_local
+
+    f = cloud_frame(result) if frame is None else frame
+    if f is None or f.frame is None or np.asarray(f.frame.lidar).shape[1] != 3:
+        raise ValueError("plot_cloud_pipeline needs a run that kept its 3-D lidar frames (the vlp16 model, keep_sensor_data=True)")
+    cloud = process_cloud(np.asarray(f.frame.lidar), result.config.cloud)
+    pe = cloud.points_e
+    near = cloud.finite & (np.abs(pe[:, 0]) <= half_window) & (np.abs(pe[:, 1]) <= half_window)
+    fig = _figure(15.0, 5.2)
+    z_lo, z_hi = -1.0, 4.0
+    panels = [
+        ("a. raw cloud", near),
+        ("b. ground and points above the ceiling removed", near & cloud.kept),
+    ]
+    for i, (title, mask) in enumerate(panels):
+        ax = fig.add_subplot(1, 3, i + 1, projection="3d")
+        p = pe[mask]
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=np.clip(p[:, 2], z_lo, z_hi), cmap="viridis", vmin=z_lo, vmax=z_hi,
+                   s=0.6, depthshade=False)
+        ax.set_xlim(-half_window, half_window)
+        ax.set_ylim(-half_window, half_window)
+        ax.set_zlim(z_lo, 6.0)
+        ax.set_box_aspect((1.0, 1.0, 0.25))
+        ax.view_init(elev=28.0, azim=-120.0)
+        ax.set_xlabel("x (m)", fontsize=7)
+        ax.set_ylabel("y (m)", fontsize=7)
+        ax.set_zlabel("z (m)", fontsize=7)
+        ax.tick_params(labelsize=6)
+        ax.set_title(f"{title}\n{int(mask.sum())} points", fontsize=9)
+    ax = fig.add_subplot(1, 3, 3)
+    e = f.truth.ego
+    corners = rectangle_corners(f.truth.xy, f.truth.yaw, f.truth.length, f.truth.width)
+    local = to_local(corners.reshape(-1, 2), (e.x, e.y), e.yaw).reshape(-1, 4, 2)
+    ax.add_collection(PolyCollection(local, facecolors="none", edgecolors="0.3", linewidths=0.8, label="truth"))
+    ego_c = rectangle_corners(np.zeros((1, 2)), np.zeros(1), np.array([e.length]), np.array([e.width]))
+    ax.add_collection(PolyCollection(ego_c, facecolors="k", alpha=0.75))
+    q = cloud.points_2d
+    ax.scatter(q[:, 0], q[:, 1], s=1.5, c="#d62728", label="projected points")
+    ax.set_xlim(-half_window, half_window)
+    ax.set_ylim(-half_window, half_window)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x in E (m)")
+    ax.set_ylabel("y in E (m)")
+    st = cloud.stats
+    ax.set_title(f"c. projected onto the road plane (2-D)\n{st.kept} of {st.points_in} points; "
+                 f"ground {st.ground}, below {st.below_ground}, above ceiling {st.above_ceiling}", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    fig.suptitle(f"{result.spec.name} / seed {result.seed}, t = {f.t:.1f} s: the 3-D lidar pipeline "
+                 f"(mount transform, RANSAC ground removal, projection)", fontsize=10)
+    return _save(fig, Path(path))
+
+
 def write_figures(
     result: Result,
     out: str | Path,
@@ -371,9 +456,11 @@ def write_figures(
         "birdseye": plot_birdseye(result, folder / "birdseye.png"),
         "targets": plot_targets(result, folder / "targets.png"),
     }
+    if cloud_frame(result) is not None:
+        paths["cloud"] = plot_cloud_pipeline(result, folder / "cloud.png")
     if gif:
         paths["gif"] = write_gif(result, folder / "run.gif", progress=progress)
     return paths
 
 
-__all__ = ["label_color", "plot_birdseye", "plot_gospa", "plot_targets", "write_figures", "write_gif"]
+__all__ = ["cloud_frame", "label_color", "plot_birdseye", "plot_cloud_pipeline", "plot_gospa", "plot_targets", "write_figures", "write_gif"]

@@ -58,6 +58,9 @@ from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_out
 from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
+from sim.ground import RoadGround
+from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
+from sim.sensors.lidar3d import LidarScan3D
 from sim.truth import Snapshot
 from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world import World
@@ -177,10 +180,11 @@ def _where(spec: ScenarioSpec) -> str:
 
 
 def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road, seed: int,
-              roadside: bool | None = None) -> SensorRig:
+              roadside: bool | None = None, grade: float = 0.0, bank: float = 0.0) -> SensorRig:
     """The sensor rig of a run with seed ``seed``: ``roadside`` False drops the scenario's roadside
     objects, True adds the default ones (``ClutterConfig()``) where the scenario has none, None keeps
-    what the scenario says; the objects are drawn from the run's own clutter stream."""
+    what the scenario says; the objects are drawn from the run's own clutter stream. ``grade`` and
+    ``bank`` (the road's, ``RoadSpec``) shape the ground the 3-D lidar sees (``sim.ground``)."""
     if roadside is False:
         clutter_cfg = None
     elif roadside is True and clutter_cfg is None:
@@ -189,7 +193,10 @@ def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road,
     if clutter_cfg is not None:
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
         objects = generate_roadside(road, clutter_cfg, rng=rng)
-    return SensorRig(rig_cfg, objects)
+    ground = None
+    if rig_cfg.lidar.model == "vlp16" and (grade != 0.0 or bank != 0.0):
+        ground = RoadGround(road, grade, bank)
+    return SensorRig(rig_cfg, objects, ground)
 
 
 def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]:
@@ -209,6 +216,22 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
             f"{_where(spec)}: sensors.roadside = {roadside!r}: use true, false or a table of ClutterConfig fields"
         )
     return rig, clutter
+
+
+def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
+    """``spec`` with its ``sensors.lidar.model`` set to ``model`` (``"2d"`` or ``"vlp16"``); with
+    ``"2d"`` the 3-D-only lidar settings are dropped."""
+    if model not in LIDAR_MODELS:
+        raise ValueError(f"lidar model must be one of {list(LIDAR_MODELS)}; got {model!r}")
+    sensors = dict(spec.sensors)
+    lidar = dict(sensors.get("lidar", {}) or {})
+    if model == "2d":
+        lidar = {k: v for k, v in lidar.items() if k not in VLP16_FIELDS}
+    lidar["model"] = model
+    sensors["lidar"] = lidar
+    out = spec.model_copy(update={"sensors": sensors})
+    out._road, out._source = spec._road, spec._source
+    return out
 
 
 def check_scenario_settings(spec: ScenarioSpec, variant: str = DEFAULT_VARIANT) -> None:
@@ -237,6 +260,11 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
             lidar_resolution=math.radians(rig.lidar.resolution_deg),
         )
         config = replace(config, detection=detection)
+        lidar = rig.lidar
+        if lidar.model == "vlp16":  # the tracker is told where the lidar sits (its 3-D pipeline's mount transform)
+            mount = {name: float(getattr(lidar, name)) for name in
+                     ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")}
+            config = replace(config, cloud=replace(config.cloud, **mount))
     if spec.tracker:
         config = apply_overrides(config, dict(spec.tracker), f"{_where(spec)}: tracker")
     return config
@@ -300,11 +328,53 @@ def track_states(tracks: list[Track], road: Road) -> np.ndarray:
     return curvilinear_to_cartesian(road, np.stack([tr.mean for tr in tracks])).reshape(-1, 7)
 
 
-def _lidar_counts(snap: Snapshot, vehicle_id: np.ndarray) -> np.ndarray:
+def _lidar_counts(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray:
+    """Lidar returns on each truth vehicle; of a 3-D scan, the azimuth columns with a return on it
+    (what the tracker keeps of a vehicle after its bearing filter, and what the 2-D scan counts), so
+    that "visible" means the same with either lidar model."""
     if len(snap) == 0:
         return np.zeros(0, dtype=int)
-    hit = vehicle_id[vehicle_id >= 0]
+    on = scan.vehicle_id >= 0
+    hit = scan.vehicle_id[on]
+    if isinstance(scan, LidarScan3D) and len(hit):
+        hit = np.unique(np.stack([hit.astype(float), scan.azimuth[on]], axis=1), axis=0)[:, 0].astype(np.int64)
     return np.array([int(np.count_nonzero(hit == i)) for i in snap.ids], dtype=int)
+
+
+class CloudScore:
+    """Ground removal scored against the 3-D lidar's truth labels over a run: ``ground`` returns
+    removed (as ground or below it) and ``vehicle`` returns kept, summed over frames."""
+
+    def __init__(self) -> None:
+        self.ground = self.ground_removed = self.removed = self.vehicle = self.vehicle_kept = 0
+        self.frames = 0
+
+    def update(self, scan: LidarScan | LidarScan3D, cloud: Any) -> None:
+        """Add a frame: its ``scan`` and the tracker's ``last_cloud`` (``tracker.cloud.CloudResult``)."""
+        if cloud is None or not isinstance(scan, LidarScan3D) or len(cloud.kept) != len(scan):
+            return
+        removed = cloud.ground | cloud.below_ground
+        vehicle = scan.vehicle_id >= 0
+        self.frames += 1
+        self.ground += int(scan.ground.sum())
+        self.ground_removed += int((removed & scan.ground).sum())
+        self.removed += int(removed.sum())
+        self.vehicle += int(vehicle.sum())
+        self.vehicle_kept += int((cloud.kept & vehicle).sum())
+
+    def metrics(self) -> dict[str, Any]:
+        """``cloud_ground_recall`` (true ground returns removed / all), ``cloud_ground_precision``
+        (removed returns that were ground / all removed) and ``cloud_vehicle_kept`` (vehicle returns
+        kept / all); empty when no frame had a cloud."""
+        if not self.frames:
+            return {}
+
+        def ratio(a: int, b: int) -> float | None:
+            return a / b if b else None
+
+        return {"cloud_ground_recall": ratio(self.ground_removed, self.ground),
+                "cloud_ground_precision": ratio(self.ground_removed, self.removed),
+                "cloud_vehicle_kept": ratio(self.vehicle_kept, self.vehicle)}
 
 
 def _mean(values: list[float] | np.ndarray) -> float | None:
@@ -386,6 +456,7 @@ def run_scenario(
     gospa_p: float = GOSPA_P,
     progress: Callable[[int, int], None] | None = None,
     tracker_factory: TrackerFactory | None = None,
+    lidar_model: str | None = None,
 ) -> Result:
     """Run ``spec`` with ``seed`` through the tracker of ``variant`` and score it (module docstring).
 
@@ -394,7 +465,8 @@ def run_scenario(
     on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
     ``progress(done, total)`` is called after every frame; ``tracker_factory(road, config)`` builds
     the tracker (default: the variant's own factory, ``sim.variants.variant_factory``, else
-    ``tracker.Tracker``). Raises ``ValueError`` (``UnknownVariantError``,
+    ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or ``"vlp16"``) replaces the scenario's
+    ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
         raise ValueError(f"run_scenario needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
@@ -410,13 +482,15 @@ def run_scenario(
         raise ValueError(f"min_visible_points must be an integer >= 1; got {min_visible_points!r}")
 
     start = time.perf_counter()
+    if lidar_model is not None:
+        spec = with_lidar_model(spec, lidar_model)
     check_scenario_settings(spec, variant)
     rig_cfg, clutter_cfg = rig_config_for(spec)  # the file's overrides; errors name the file
     config = tracker_config_for(spec, variant, rig_cfg)
     world = World(spec, seed)
     spec = world.spec  # the realised scenario when a generator drew it
     road = world.road
-    rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside)
+    rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside, spec.road.grade, spec.road.bank)
     objects = rig.roadside
     tracker = (tracker_factory or variant_factory(variant) or default_tracker_factory)(road, config)
     # a point tracker (the variant says so, or the tracker: ``estimates_extent = False``) has no L, W to score
@@ -436,6 +510,7 @@ def run_scenario(
         injector = FaultInjector(faults, rig_cfg.lidar, fault_rng)
         stream = injector.apply(stream)
         total += sum(1 for t in faults.duplicate_frames if t <= duration)
+    cloud_score = CloudScore()
     for k, sf in enumerate(stream):
         t0 = time.perf_counter()
         tracks = list(tracker.step(sf.frame))
@@ -444,7 +519,8 @@ def run_scenario(
         snap = sf.truth
         t_state = truth_state(snap)
         scored = truth_set(snap, road, max_range)
-        counts = _lidar_counts(snap, sf.lidar.vehicle_id)
+        counts = _lidar_counts(snap, sf.lidar)
+        cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None))
         visible = scored & (counts >= min_visible_points)
         est = track_states(tracks, road)
         g = gospa(t_state[scored, :2], est[:, :2], gospa_c, gospa_p)
@@ -478,6 +554,7 @@ def run_scenario(
             progress(k + 1, total)
     wall = time.perf_counter() - start
     metrics = summarize(records, switches.switches, wall_s=wall, extent=extent)
+    metrics.update(cloud_score.metrics())
     if injector is not None and faults is not None:
         metrics.update(fault_metrics(injector.counts))
         if faults.lidar_dropout:

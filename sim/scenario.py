@@ -14,6 +14,8 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     segments = [[100, 0, 0], [40, 0, 0.01]]  # rows (length m, kappa_start 1/m, kappa_end 1/m)
     # waypoints = [[0, 0], [50, 5]]       # or a cubic Hermite spline through points (m)
     # headings = [0.0, 0.1]               # optional, rad, one per waypoint
+    grade = 0.0                           # optional: rise per m of s (|grade| <= 0.15; open roads)
+    bank = 0.0                            # optional: rise per m of n to the left (|bank| <= 0.15)
 
     [ego]                                 # the vehicle that carries the sensors
     lane = 0
@@ -30,8 +32,10 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     #        brake (speed m/s, default 0 = stop; decel m/s^2 <= 9, constant until the speed is reached)
     length = 4.8                          # m; 2-20 (a 2.2 m motorcycle, an 18 m bus)
     width = 2.0                           # m; 0.6-3.0 and <= lane_width - 0.5
+    height = 1.5                          # m; 0.8-5.0, optional (default by length); 3-D lidar only
 
     [sensors]                             # optional overrides, applied by the runner
+    lidar = { model = "vlp16" }           #   "2d" (default) or "vlp16": the 3-D lidar (sim.sensors.lidar3d)
     [tracker]                             # optional overrides, applied by the runner
     [faults]                              # optional sensor faults, applied by the runner (sim.faults)
     lidar_dropout = [[6.0, 8.0]]          # intervals [start, end) s: lidar frames carry no points
@@ -77,7 +81,7 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
 
-from sim.truth import rectangle_corners
+from sim.truth import default_height, rectangle_corners
 from tracker import Road
 
 StrictFloat = Annotated[float, Strict()]
@@ -122,7 +126,12 @@ class RoadSpec(_Model):
     ``(length m, kappa_start 1/m, kappa_end 1/m)`` starting at ``start = (x m, y m, heading rad)``)
     or from ``waypoints`` (m, with optional ``headings`` rad). ``closed`` roads wrap ``s``. The
     centerline runs down the middle of the carriageway. |curvature| <= 0.05 1/m and below
-    1 / (2 x half-width of the road), so the edges never fold over."""
+    1 / (2 x half-width of the road), so the edges never fold over.
+
+    ``grade`` (0; |grade| <= 0.15) and ``bank`` (0; |bank| <= 0.15): the road surface rises ``grade`` m
+    per m of ``s`` and ``bank`` m per m of ``n`` (toward the left); beside the road the ground is level
+    across (``sim.ground.RoadGround``). Only the 3-D lidar and the vehicles' heights see them (the
+    vehicles drive the 2-D road); a closed road cannot have a grade."""
 
     lanes: StrictInt = Field(default=2, ge=1, le=6)
     lane_width: StrictFloat = Field(default=3.5, ge=2.5, le=5.0)
@@ -131,9 +140,13 @@ class RoadSpec(_Model):
     segments: list[tuple[StrictFloat, StrictFloat, StrictFloat]] | None = Field(default=None, min_length=1)
     waypoints: list[tuple[StrictFloat, StrictFloat]] | None = Field(default=None, min_length=2)
     headings: list[StrictFloat] | None = None
+    grade: StrictFloat = Field(default=0.0, ge=-0.15, le=0.15)
+    bank: StrictFloat = Field(default=0.0, ge=-0.15, le=0.15)
 
     @model_validator(mode="after")
     def _shape(self) -> RoadSpec:
+        if self.closed and self.grade != 0.0:
+            raise ValueError(f"road.grade = {self.grade!r}: a closed road cannot climb all the way round; use 0 (bank is allowed)")
         if (self.segments is None) == (self.waypoints is None):
             raise ValueError("road: give exactly one of `segments` (curvature profile) or `waypoints`")
         if self.waypoints is not None and self.start is not None:
@@ -160,8 +173,13 @@ class RoadSpec(_Model):
         return self
 
     def to_config(self) -> dict[str, Any]:
-        """Plain-data form (JSON-serialisable) from which ``RoadSpec.model_validate`` rebuilds it."""
-        return self.model_dump(exclude_none=True)
+        """Plain-data form (JSON-serialisable) from which ``RoadSpec.model_validate`` rebuilds it (a
+        level road leaves out ``grade`` and ``bank``)."""
+        out = self.model_dump(exclude_none=True)
+        for key in ("grade", "bank"):
+            if out.get(key) == 0.0:
+                del out[key]
+        return out
 
     def build(self) -> Road:
         """The ``tracker.Road`` this spec describes (raises ``ValueError`` if it cannot be built)."""
@@ -236,7 +254,9 @@ class VehicleSpec(_Model):
       braking) at their times; IDM car following keeps it from running into the vehicle ahead.
 
     ``length`` (4.8 m; 2-20 m) and ``width`` (2.0 m; 0.6-3 m) size its rectangle: a 2.2 x 0.8 m
-    motorcycle, a 6 x 2.1 m van, a 12-18 x 2.5 m truck or bus. ``behaviour = "constant"`` with
+    motorcycle, a 6 x 2.1 m van, a 12-18 x 2.5 m truck or bus. ``height`` (m, 0.8-5; default by
+    length, ``sim.truth.default_height``: motorcycle 1.2, car 1.5, van 2.0, truck 3.5) is seen only by
+    the 3-D lidar. ``behaviour = "constant"`` with
     ``speed = 0`` is a vehicle standing still on the road (broken down, parked)."""
 
     lane: StrictInt = Field(ge=0)
@@ -247,6 +267,7 @@ class VehicleSpec(_Model):
     lane_changes: StrictBool | None = None
     length: StrictFloat = Field(default=4.8, ge=2.0, le=20.0)
     width: StrictFloat = Field(default=2.0, ge=0.6, le=3.0)
+    height: StrictFloat | None = Field(default=None, ge=0.8, le=5.0)
     maneuvers: list[Maneuver] = Field(default_factory=list)
 
     @model_validator(mode="after")
@@ -261,6 +282,11 @@ class VehicleSpec(_Model):
         if times != sorted(times):
             raise ValueError(f"maneuvers must be in time order; got t = {times}")
         return self
+
+    @property
+    def box_height(self) -> float:
+        """The vehicle's height (m): ``height``, else the default for its length."""
+        return float(self.height) if self.height is not None else float(default_height(self.length))
 
     @property
     def cruise_speed(self) -> float:
@@ -317,12 +343,21 @@ class VehicleClass(_Model):
     unique), ``length`` and ``width`` (m; a number, or a range ``[low, high]`` drawn uniformly;
     stored as ``(low, high)``; lengths 2-20 m, widths 0.6-3 m and at most the lane width - 0.5 m)
     and ``share`` (the probability that a drawn vehicle is of this class, in (0, 1]; the shares of
-    all classes sum to 1 within 1e-6). Checked by ``GeneratorSpec``, which knows the class's index."""
+    all classes sum to 1 within 1e-6); ``height`` (m, 0.8-5; default: the class's by ``name`` when it
+    is car, van, truck, bus or motorcycle (``sim.truth.CLASS_HEIGHTS``), else by each vehicle's
+    length). Checked by ``GeneratorSpec``, which knows the class's index."""
 
     name: StrictStr = Field(min_length=1, max_length=32)
     length: Extent
     width: Extent
     share: StrictFloat = Field(gt=0.0, le=1.0)
+    height: StrictFloat | None = Field(default=None, ge=0.8, le=5.0)
+
+    def height_of(self, length: float) -> float:
+        """The height (m) of a vehicle of this class with ``length`` (m)."""
+        if self.height is not None:
+            return float(self.height)
+        return float(default_height(length, self.name))
 
 
 class GeneratorSpec(_Model):

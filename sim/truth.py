@@ -13,6 +13,21 @@ import numpy as np
 
 from tracker.measurement import rectangle_corners as tracker_rectangle_corners
 
+#: Default heights (m) of vehicle classes, for the 3-D lidar (``sim.sensors.lidar3d``): the issue's
+#: car 1.5, van 2.0, truck 3.5 and motorcycle 1.2 m, and a bus 3.2 m.
+CLASS_HEIGHTS = {"car": 1.5, "van": 2.0, "truck": 3.5, "bus": 3.2, "motorcycle": 1.2}
+
+
+def default_height(length: float | np.ndarray, name: str | None = None) -> float | np.ndarray:
+    """A vehicle's height (m) when the scenario gives none: its class's (``CLASS_HEIGHTS``) when
+    ``name`` is a known class, else by length: below 3 m a motorcycle (1.2 m), below 5.6 m a car
+    (1.5 m), below 8 m a van (2.0 m), else a truck (3.5 m)."""
+    if name is not None and name in CLASS_HEIGHTS:
+        return CLASS_HEIGHTS[name]
+    length_arr = np.asarray(length, dtype=float)
+    out = np.select([length_arr < 3.0, length_arr < 5.6, length_arr < 8.0], [1.2, 1.5, 2.0], 3.5)
+    return float(out) if out.ndim == 0 else out
+
 
 @dataclass(frozen=True)
 class EgoPose:
@@ -26,6 +41,7 @@ class EgoPose:
     yaw_rate: float = 0.0
     length: float = 4.8
     width: float = 2.0
+    z: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -36,7 +52,9 @@ class Snapshot:
     ``ids`` (int), ``xy`` (N, 2) rectangle centres in G (m), ``yaw`` (rad), ``v`` speed (m/s),
     ``yaw_rate`` (rad/s), ``length``, ``width`` (m), and the road coordinates ``s``, ``n`` (m),
     ``xi`` heading relative to the road tangent (rad), ``xi_dot`` (rad/s). Road coordinates may be
-    NaN when a snapshot is built without a road (e.g. sensor tests on bare rectangles).
+    NaN when a snapshot is built without a road (e.g. sensor tests on bare rectangles). For the 3-D
+    lidar: ``height`` (m; default ``default_height(length)``) and ``z`` (m; the ground height under
+    the centre, default 0).
     """
 
     t: float
@@ -52,6 +70,8 @@ class Snapshot:
     n: np.ndarray = field(default=None)  # type: ignore[assignment]
     xi: np.ndarray = field(default=None)  # type: ignore[assignment]
     xi_dot: np.ndarray = field(default=None)  # type: ignore[assignment]
+    height: np.ndarray = field(default=None)  # type: ignore[assignment]
+    z: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         count = len(self.ids)
@@ -63,6 +83,12 @@ class Snapshot:
         for name in ("yaw", "v", "yaw_rate", "length", "width", "s", "n", "xi", "xi_dot"):
             value = getattr(self, name)
             arr = np.full(count, np.nan) if value is None else np.asarray(value, dtype=float)
+            if arr.shape != (count,):
+                raise ValueError(f"Snapshot: {name} has shape {arr.shape}, expected ({count},)")
+            object.__setattr__(self, name, arr)
+        for name, default in (("height", default_height(self.length) if count else np.zeros(0)), ("z", np.zeros(count))):
+            value = getattr(self, name)
+            arr = np.broadcast_to(np.asarray(default, dtype=float), (count,)).copy() if value is None else np.asarray(value, dtype=float)
             if arr.shape != (count,):
                 raise ValueError(f"Snapshot: {name} has shape {arr.shape}, expected ({count},)")
             object.__setattr__(self, name, arr)

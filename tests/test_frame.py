@@ -53,7 +53,7 @@ def test_non_finite_lidar_points_are_allowed_for_the_tracker_to_drop():
         ({"ego": (0.0, 0.0)}, "3 to 5 numbers"),
         ({"ego": (0.0, float("inf"), 0.0)}, "EgoState.y must be finite"),
         ({"ego": object()}, "Frame.ego must be"),
-        ({"lidar": np.zeros((3, 3))}, r"Frame.lidar must have shape \(N, 2\)"),
+        ({"lidar": np.zeros((3, 4))}, r"Frame.lidar must have shape \(N, 2\)"),
         ({"lidar": [["a", "b"]]}, "Frame.lidar must be a numeric"),
         ({"radar": np.zeros((2, 4))}, r"shape \(N, 5\)"),
         ({"radar": [[1.5, 0, 0, 0, 0]]}, "after the frame time"),

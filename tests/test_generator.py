@@ -222,3 +222,20 @@ def test_long_drawn_vehicles_keep_the_bumper_gap() -> None:
             for b in cars[i + 1 :]:
                 if a["lane"] == b["lane"]:
                     assert abs(a["s"] - b["s"]) >= 0.5 * (a["length"] + b["length"]) + MIN_BUMPER_GAP - 1e-3
+
+
+def test_drawn_classes_carry_their_heights() -> None:
+    """A class's height (given, or the default of its name) goes to each drawn vehicle; the draws are
+    those of the same classes without heights (a height draws nothing)."""
+    gen = _classed_generator(vehicles=[30, 30], spawn=[-50.0, 3000.0])
+    _, vehicles = draw_traffic(gen, np.random.default_rng(3), 3, 4000.0, False, 10.0, 100.0)
+    named = {c.name: c.height_of(4.8) for c in gen.classes}
+    for v in vehicles:
+        name = _class_of(v["length"], v["width"])
+        assert v["height"] == named[name], (name, v)
+    assert {"car": 1.5, "truck": 3.5} == {k: named[k] for k in ("car", "truck")}
+    given = GeneratorSpec.model_validate({**gen.model_dump(exclude={"length", "width"}),
+                                          "classes": [{**c.model_dump(), "height": 2.4} for c in gen.classes]})
+    _, same = draw_traffic(given, np.random.default_rng(3), 3, 4000.0, False, 10.0, 100.0)
+    assert [(v["length"], v["width"], v["s"]) for v in same] == [(v["length"], v["width"], v["s"]) for v in vehicles]
+    assert {v["height"] for v in same} == {2.4}

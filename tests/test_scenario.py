@@ -392,3 +392,28 @@ def test_generator_classes_exclude_length_and_fit_the_lanes(tmp_path: Path) -> N
     fixed_road = 'name = "g"\ndescription = "d"\nduration = 10.0\n[road]\nlanes = 2\nlane_width = 2.8\nsegments = [[500.0, 0.0, 0.0]]\n'
     message = load_error(tmp_path, fixed_road + "[generator]\n" + CLASSES)
     assert "generator.classes[1].width = 2.5: must be <= 2.3 m (this road's lane width - 0.5 m)" in message
+
+
+def test_vehicle_heights_default_by_class_and_can_be_given(tmp_path: Path) -> None:
+    """Heights for the 3-D lidar: by length when not given (motorcycle 1.2, car 1.5, van 2.0, truck
+    3.5 m), as given otherwise, and bounded."""
+    text = GOOD + '\n[[vehicles]]\nlane = 0\ns = 120.0\nspeed = 10.0\nlength = 2.2\nwidth = 0.8\n'
+    text += '\n[[vehicles]]\nlane = 1\ns = 160.0\nspeed = 10.0\nlength = 6.0\nwidth = 2.1\n'
+    text += '\n[[vehicles]]\nlane = 0\ns = 200.0\nspeed = 10.0\nlength = 12.0\nwidth = 2.5\n'
+    text += '\n[[vehicles]]\nlane = 1\ns = 240.0\nspeed = 10.0\nlength = 12.0\nwidth = 2.5\nheight = 4.2\n'
+    spec = load_scenario(write(tmp_path, text))
+    assert [v.box_height for v in spec.vehicles] == [1.5, 1.2, 2.0, 3.5, 4.2]
+    message = load_error(tmp_path, text.replace("height = 4.2", "height = 5.5"))
+    assert "vehicles[4].height = 5.5" in message and "less than or equal to 5" in message
+
+
+def test_road_grade_and_bank(tmp_path: Path) -> None:
+    text = GOOD.replace("lane_width = 3.5\n", "lane_width = 3.5\ngrade = 0.04\nbank = -0.03\n")
+    spec = load_scenario(write(tmp_path, text))
+    assert (spec.road.grade, spec.road.bank) == (0.04, -0.03)
+    assert spec.road.to_config()["grade"] == 0.04
+    assert "grade" not in load_scenario(write(tmp_path, GOOD)).road.to_config()  # a level road's data is unchanged
+    message = load_error(tmp_path, text.replace("grade = 0.04", "grade = 0.2"))
+    assert "road.grade = 0.2" in message and "less than or equal to 0.15" in message
+    closed = load_error(tmp_path, load_scenario("circuit").source.read_text().replace("[road]\n", "[road]\ngrade = 0.01\n"))
+    assert "road.grade = 0.01: a closed road cannot climb" in closed

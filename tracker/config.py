@@ -28,6 +28,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from tracker.cloud import CloudConfig
+
 #: Dimension of the target state ``[s, n, v, xi, xi_dot, L, W]`` (or ``[x, y, v, psi, psi_dot, L, W]``).
 STATE_DIM = 7
 
@@ -527,6 +529,7 @@ _SECTIONS: dict[str, type] = {
     "reduction": ReductionConfig,
     "clustering": ClusteringConfig,
     "point": PointConfig,
+    "cloud": CloudConfig,
 }
 
 
@@ -540,7 +543,8 @@ class TrackerConfig:
       cluster centroids, global nearest neighbour, a UKF in curvilinear coordinates: ``tracker.point``;
       curvilinear only);
     - ``use_radar``: fuse radar velocity rows into clusters with an associated radar detection;
-    - the sections (see their classes for units and defaults).
+    - the sections (see their classes for units and defaults); ``cloud`` (``tracker.cloud.CloudConfig``)
+      is used only for frames whose lidar is a 3-D cloud: the lidar's mount pose and the ground removal.
     """
 
     coordinates: Literal["curvilinear", "cartesian"] = "curvilinear"
@@ -556,6 +560,7 @@ class TrackerConfig:
     reduction: ReductionConfig = field(default_factory=ReductionConfig)
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
     point: PointConfig = field(default_factory=PointConfig)
+    cloud: CloudConfig = field(default_factory=CloudConfig)
 
     def __post_init__(self) -> None:
         _check_choice("TrackerConfig", "coordinates", self.coordinates, ("curvilinear", "cartesian"))

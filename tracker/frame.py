@@ -6,7 +6,10 @@ A ``Frame(t, ego, lidar, radar)`` holds
 - ``ego``: the ego pose in the global frame G at ``t`` (``EgoState``: ``x, y`` m, ``yaw`` rad,
   ``v`` m/s, ``yaw_rate`` rad/s);
 - ``lidar``: ``(N, 2)`` points (m) in the vehicle reference frame E at ``t`` (origin at the ego's
-  geometric centre, x forward, y left). Non-finite points are allowed here (real drivers emit them);
+  geometric centre, x forward, y left), or ``(N, 3)``: a raw 3-D cloud (x, y, z, m) in the lidar's
+  own frame, which the tracker first takes through the paper's 3-D pipeline (``tracker.cloud``:
+  the mount transform, RANSAC ground removal, projection to the road plane; the mount pose is
+  ``TrackerConfig.cloud``). Non-finite points are allowed here (real drivers emit them);
   the tracker drops and counts them;
 - ``radar``: ``RadarDetections``, arrays ``t, x, y, vx, vy``, one entry per detection received since
   the previous frame, each with its own timestamp ``t <= frame.t``. Positions ``x, y`` (m) are the
@@ -160,7 +163,7 @@ class RadarDetections:
 class Frame:
     """One tracker input at time ``t`` (s): the ego pose in G (``EgoState``, or anything
     ``EgoState.coerce`` accepts), the lidar scan as ``(N, 2)`` points in E (m; ``None`` or an empty
-    array for no points), and the radar detections received since the previous frame
+    array for no points) or an ``(N, 3)`` cloud in the lidar's frame (module docstring), and the radar detections received since the previous frame
     (``RadarDetections``, an ``(N, 5)`` array ``t, x, y, vx, vy``, or ``None``); see the module
     docstring for the frames the values are expressed in."""
 
@@ -176,11 +179,13 @@ class Frame:
         try:
             pts = np.array(lidar, dtype=float)
         except (TypeError, ValueError):
-            raise ValueError("Frame.lidar must be a numeric (N, 2) array of points in E") from None
+            raise ValueError("Frame.lidar must be a numeric (N, 2) array of points in E (or an (N, 3) cloud)") from None
         if pts.size == 0:
-            pts = pts.reshape(0, 2)
-        if pts.ndim != 2 or pts.shape[1] != 2:
-            raise ValueError(f"Frame.lidar must have shape (N, 2) (x, y in E, m); got {pts.shape}")
+            pts = pts.reshape(0, pts.shape[1] if pts.ndim == 2 and pts.shape[1] == 3 else 2)
+        if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+            raise ValueError(
+                f"Frame.lidar must have shape (N, 2) (x, y in E, m) or (N, 3) (a cloud x, y, z in the lidar's frame, m); got {pts.shape}"
+            )
         object.__setattr__(self, "lidar", _readonly(pts))
         radar = self.radar
         if radar is None:

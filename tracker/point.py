@@ -116,7 +116,7 @@ class PointTracker:
         if len(self.labels) and dt > 0.0:
             self.means, self.covs = predict(self.ut, self.motion, self.means, self.covs, dt)
             self._pin_extent()
-        scan, points, counts = preprocess_frame(frame, self.road, self.config.clustering)
+        scan, points, counts = preprocess_frame(frame, self.road, self.config.clustering, self.config.cloud)
         self.stats.update(counts)
         clusters = self._clusters(points)
         velocities = cluster_velocities(clusters, frame.radar, frame.t, self.config.clustering.radar_gate) \

@@ -1,6 +1,8 @@
 """Lidar preprocessing before clustering (the paper's "sensor data preprocessing").
 
-Three steps, each vectorised and each reporting what it removed so nothing is lost silently:
+Three steps, each vectorised and each reporting what it removed so nothing is lost silently
+(a frame whose lidar is a 3-D cloud first goes through ``tracker.cloud``: the mount transform, RANSAC
+ground removal, the height ceiling and the projection to the road plane, ``lidar_points``):
 
 1. ``drop_nonfinite``: NaN/inf points are dropped and counted (real drivers emit them).
 2. ``road_bound_mask``: points outside the road bounds widened by a margin are discarded, using the
@@ -13,8 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker.cloud import CloudConfig, CloudResult, process_cloud
 from tracker.config import ClusteringConfig
-from tracker.frame import Frame
+from tracker.frame import EgoState, Frame
 from tracker.road import Road
 from tracker.transforms import to_global
 
@@ -24,6 +27,25 @@ def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     keep = np.isfinite(pts).all(axis=1)
     return pts[keep], int(len(pts) - keep.sum())
+
+
+def lidar_points(frame: Frame, cloud: CloudConfig | None = None) -> tuple[np.ndarray, dict[str, int], CloudResult | None]:
+    """The frame's lidar as finite 2-D points ``(M, 2)`` in E, what was removed, and the cloud result.
+
+    ``(N, 2)`` points are taken as they are (non-finite rows dropped and counted as
+    ``points_nonfinite``); an ``(N, 3)`` cloud in the lidar's frame goes through
+    ``tracker.cloud.process_cloud`` with ``cloud`` (``CloudConfig()`` by default), which counts
+    ``cloud_points``, ``cloud_ground``, ``cloud_below_ground``, ``cloud_above_ceiling`` and
+    ``cloud_segments_fallback`` (its non-finite rows are ``points_nonfinite``)."""
+    if frame.lidar.shape[1] == 2:
+        pts, dropped = drop_nonfinite(frame.lidar)
+        return pts, {"points_nonfinite": dropped}, None
+    result = process_cloud(frame.lidar, cloud)
+    st = result.stats
+    counts = {"points_nonfinite": st.non_finite, "cloud_points": st.points_in, "cloud_ground": st.ground,
+              "cloud_below_ground": st.below_ground, "cloud_above_ceiling": st.above_ceiling,
+              "cloud_segments_fallback": st.segments_fallback}
+    return result.points_2d, counts, result
 
 
 def road_bound_mask(points_g: np.ndarray, road: Road, margin: float = 0.5) -> np.ndarray:
@@ -50,18 +72,27 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
     return order[first]
 
 
-def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig,
+                     cloud: CloudConfig | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """The three steps on one frame's lidar points (E): returns ``(scan, points, counts)`` -- every
-    finite return (occluders for the detection model), the points kept for clustering, and how many
-    each step removed (``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``)."""
-    ego = frame.ego
-    scan, dropped = drop_nonfinite(frame.lidar)
-    counts = {"points_nonfinite": dropped, "points_off_road": 0, "points_bearing_filtered": 0}
+    finite return (occluders for the detection model; of a 3-D cloud, the points left after ground
+    removal and the ceiling, projected: ``lidar_points``), the points kept for clustering, and how
+    many each step removed (``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``,
+    and the ``cloud_*`` counts of a 3-D cloud)."""
+    scan, removed, _ = lidar_points(frame, cloud)
+    points, counts = filter_points(scan, frame.ego, road, config)
+    return scan, points, {**removed, **counts}
+
+
+def filter_points(scan: np.ndarray, ego: EgoState, road: Road, config: ClusteringConfig) -> tuple[np.ndarray, dict[str, int]]:
+    """Steps 2 and 3 on finite points ``scan (N, 2)`` in E seen from ``ego``: the points kept for
+    clustering and the counts ``points_off_road``, ``points_bearing_filtered``."""
+    counts = {"points_off_road": 0, "points_bearing_filtered": 0}
     if len(scan) == 0:
-        return scan, scan, counts
+        return scan, counts
     on_road = road_bound_mask(to_global(scan, (ego.x, ego.y), ego.yaw), road, config.road_margin)
     counts["points_off_road"] = int((~on_road).sum())
     pts = scan[on_road]
     keep = bearing_filter(pts, config.bearing_bin)
     counts["points_bearing_filtered"] = len(pts) - len(keep)
-    return scan, pts[keep], counts
+    return pts[keep], counts

@@ -55,6 +55,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
+from tracker.cloud import CloudResult
 from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
@@ -64,7 +65,7 @@ from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import make_motion, predict
 from tracker.point import PointTracker
 from tracker.preparation import prepare_batch
-from tracker.preprocess import preprocess_frame
+from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
 from tracker.track import Track
@@ -116,6 +117,8 @@ class Tracker:
         self.mixture = Mixture(np.zeros(0), np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)), np.zeros(0, dtype=int))
         self.t: float | None = None
         self.stats: Counter[str] = Counter()
+        #: the 3-D pipeline's result for the last frame (``tracker.cloud.CloudResult``; None when its lidar was 2-D)
+        self.last_cloud: CloudResult | None = None
         self._next_label = 1
         self._s_ego: float | None = None
         self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
@@ -209,8 +212,11 @@ class Tracker:
         self.stats["births_road"] += len(means)
 
     def _preprocess(self, frame: Frame) -> tuple[np.ndarray, bool]:
-        """Points kept for clustering, and whether the frame had any finite lidar point at all."""
-        self._scan, points, counts = preprocess_frame(frame, self.road, self.config.clustering)
+        """Points kept for clustering, and whether the frame had any finite lidar point at all (of a
+        3-D cloud: any point left after ground removal; ``last_cloud`` keeps the pipeline's result)."""
+        self._scan, removed, self.last_cloud = lidar_points(frame, self.config.cloud)
+        points, counts = filter_points(self._scan, frame.ego, self.road, self.config.clustering)
+        self.stats.update(removed)
         self.stats.update(counts)
         return points, len(self._scan) > 0
 

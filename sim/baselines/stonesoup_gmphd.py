@@ -43,7 +43,7 @@ import numpy as np
 
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.clustering import distance_partition
-from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
+from tracker.preprocess import bearing_filter, lidar_points, road_bound_mask
 from tracker.transforms import to_global
 
 #: How to install Stone Soup when it is missing.
@@ -171,8 +171,8 @@ class StoneSoupGMPHD:
         """Cluster centroids ``(K, 2)`` in G of ``frame``'s lidar points (module docstring)."""
         cl = self.config.clustering
         ego = frame.ego
-        pts, dropped = drop_nonfinite(frame.lidar)
-        self.stats["points_nonfinite"] += dropped
+        pts, removed, _ = lidar_points(frame, self.config.cloud)  # a 3-D cloud: ground removal first
+        self.stats.update(removed)
         if len(pts) == 0:
             return np.zeros((0, 2))
         pts_g = to_global(pts, (ego.x, ego.y), ego.yaw)

@@ -70,7 +70,11 @@ class Renderer:
             pose = ((snap.ego.x, snap.ego.y), snap.ego.yaw)
             if len(snap):
                 ax.add_collection(PolyCollection(snap.corners(), facecolors="none", edgecolors="0.35", linewidths=1.2))
-            pts = to_global(np.asarray(frame.frame.lidar).reshape(-1, 2), *pose).reshape(-1, 2)
+            if np.asarray(frame.frame.lidar).shape[1] == 3:  # the 3-D lidar: its returns off the ground, from above
+                scan = frame.lidar
+                pts = scan.points_global()[~scan.ground, :2]
+            else:
+                pts = to_global(np.asarray(frame.frame.lidar).reshape(-1, 2), *pose).reshape(-1, 2)
             ax.scatter(pts[:, 0], pts[:, 1], s=2.0, c="#2ca02c", zorder=6)
             radar = frame.frame.radar
             if len(radar):

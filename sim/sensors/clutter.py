@@ -26,6 +26,9 @@ from sim.sensors.raycast import Segments
 from sim.truth import rectangle_corners
 
 KINDS = ("post", "tree", "parked_car")
+#: Height (m) of each kind above the ground, for the 3-D lidar (``sim.sensors.lidar3d``): a guard-rail
+#: post 1.0 m, a tree (its trunk's octagon, crown not modelled) 6.0 m, a parked car 1.5 m.
+KIND_HEIGHTS = {"post": 1.0, "tree": 6.0, "parked_car": 1.5}
 SIDES = ("left", "right")
 
 
@@ -100,6 +103,11 @@ class RoadsideObjects:
 
     def __len__(self) -> int:
         return int(self.kind.shape[0])
+
+    @property
+    def height(self) -> np.ndarray:
+        """Height (m) of each object above the ground (``KIND_HEIGHTS`` by kind), (K,)."""
+        return np.array([KIND_HEIGHTS[k] for k in self.kind.tolist()], dtype=float)
 
     @classmethod
     def empty(cls) -> RoadsideObjects:

@@ -12,7 +12,7 @@ below ``min_range``. Points are returned in E (m). Every scan draws the same num
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
@@ -21,6 +21,13 @@ from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import CASTERS, RayGrid
 from sim.sensors.scene import scene_segments
 from sim.truth import Snapshot
+
+
+#: Lidar models: the planar scan of this module, or the 3-D VLP-16 of ``sim.sensors.lidar3d``.
+LIDAR_MODELS = ("2d", "vlp16")
+#: ``LidarConfig`` fields that only the 3-D model uses.
+VLP16_FIELDS = ("beams", "elevation_min_deg", "elevation_max_deg", "mount_x", "mount_y", "mount_z",
+                "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")
 
 
 def _positive(owner: str, name: str, value: float, *, allow_zero: bool = False) -> None:
@@ -39,7 +46,15 @@ class LidarConfig:
     - ``range_noise_std`` (0.03 m): Gaussian noise on each range, along the ray;
     - ``dropout_probability`` (0.01): chance that a ray which hits returns nothing;
     - ``rate_hz`` (10 Hz) and ``phase_s`` (0 s): scans at ``t0 + phase_s + k / rate_hz``;
-    - ``caster`` ("numpy"): ``"numpy"`` (vectorised, the fast one) or ``"pymunk"`` (the oracle).
+    - ``caster`` ("numpy"): ``"numpy"`` (vectorised, the fast one) or ``"pymunk"`` (the oracle);
+    - ``model`` ("2d"): ``"2d"``, this planar scan at the E origin, or ``"vlp16"``, a 3-D Velodyne
+      VLP-16 (``sim.sensors.lidar3d``) that shares the fields above (resolution, ranges, noise, dropout,
+      rate, phase) and adds the fields below, which only it uses (setting them with ``"2d"`` is an error):
+    - ``beams`` (16), ``elevation_min_deg`` (-15) and ``elevation_max_deg`` (15): the beams, evenly
+      spaced (every 2 deg);
+    - ``mount_x``, ``mount_y`` (0 m), ``mount_z`` (1.9 m, the roof) and ``mount_roll_deg``,
+      ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (origin on the ground under the
+      ego's centre, z up), ``p_E = Rz(yaw) Ry(pitch) Rx(roll) p_sensor + t``.
     """
 
     resolution_deg: float = 0.2
@@ -50,6 +65,16 @@ class LidarConfig:
     rate_hz: float = 10.0
     phase_s: float = 0.0
     caster: str = "numpy"
+    model: str = "2d"
+    beams: int = 16
+    elevation_min_deg: float = -15.0
+    elevation_max_deg: float = 15.0
+    mount_x: float = 0.0
+    mount_y: float = 0.0
+    mount_z: float = 1.9
+    mount_roll_deg: float = 0.0
+    mount_pitch_deg: float = 0.0
+    mount_yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
         _positive("LidarConfig", "resolution_deg", self.resolution_deg)
@@ -66,6 +91,23 @@ class LidarConfig:
         if self.caster not in CASTERS:
             raise ValueError(f"LidarConfig.caster must be one of {sorted(CASTERS)}; got {self.caster!r}")
         RayGrid.full_circle(math.radians(self.resolution_deg))  # raises if 360 is not a whole number of rays
+        if self.model not in LIDAR_MODELS:
+            raise ValueError(f"LidarConfig.model must be one of {list(LIDAR_MODELS)}; got {self.model!r}")
+        if self.model == "2d":
+            changed = [f.name for f in fields(self) if f.name in VLP16_FIELDS and getattr(self, f.name) != f.default]
+            if changed:
+                raise ValueError(
+                    f"LidarConfig.{changed[0]} applies to the 3-D lidar only; set model = \"vlp16\" or drop {changed[0]}"
+                )
+        else:
+            self.vlp16_config()  # the 3-D fields' own checks
+
+    def vlp16_config(self):  # -> sim.sensors.lidar3d.Vlp16Config
+        """The ``sim.sensors.lidar3d.Vlp16Config`` of these settings (``model = "vlp16"``)."""
+        from sim.sensors.lidar3d import Vlp16Config
+
+        shared = ("resolution_deg", "max_range", "min_range", "range_noise_std", "dropout_probability", "rate_hz", "phase_s")
+        return Vlp16Config(**{name: getattr(self, name) for name in shared + VLP16_FIELDS})
 
     @property
     def rays(self) -> int:

@@ -9,6 +9,11 @@ the detection time into E at the frame time with the true ego poses (perfect odo
 after the last frame are not delivered. The truth ``Snapshot`` at the frame time travels beside the
 frame, never inside it.
 
+The lidar is the 2-D scan of ``sim.sensors.lidar`` or, with ``lidar.model = "vlp16"``, the 3-D VLP-16
+of ``sim.sensors.lidar3d`` over the rig's ``ground`` (``sim.ground``; level by default): the frame
+then carries the raw cloud ``(N, 3)`` in the lidar's frame, as a real VLP-16 driver delivers it, and
+the tracker's own 3-D pipeline (``tracker.cloud``) removes the ground.
+
 ``truth_at(t)`` is called with non-decreasing times, once per distinct time, so a world that can
 only advance forward can serve it. Randomness: one ``numpy.random.SeedSequence(seed)`` spawns an
 independent generator for the lidar and for each radar unit, so the same seed gives identical
@@ -23,9 +28,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.ground import FlatGround, Ground
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
+from sim.sensors.lidar3d import LidarScan3D, Prisms, Vlp16
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
+from sim.sensors.scene import vehicle_prisms
 from tracker.transforms import rotate, to_global, to_local
 from sim.truth import Snapshot
 from tracker.frame import EgoState, Frame, RadarDetections
@@ -57,8 +65,38 @@ class SensorFrame:
 
     frame: Frame
     truth: Snapshot
-    lidar: LidarScan
+    lidar: LidarScan | LidarScan3D
     radar: RadarScan
+
+
+class SceneVlp16:
+    """The 3-D lidar (``LidarConfig.model = "vlp16"``) seeing a snapshot's vehicles (upright boxes,
+    ``sim.sensors.scene.vehicle_prisms``) and the static ``roadside`` objects (prisms of their
+    ``height`` standing on the ground at their centre) over ``ground``; ``scan`` has the 2-D
+    ``Lidar.scan``'s signature (the roadside objects are fixed at construction)."""
+
+    def __init__(self, config: LidarConfig, roadside: RoadsideObjects | None, ground: Ground) -> None:
+        self.config = config
+        self.sensor = Vlp16(config.vlp16_config())
+        self.ground = ground
+        self.roadside_count = 0 if roadside is None else len(roadside)
+        if self.roadside_count:
+            base = ground.height(roadside.centre)
+            self._static = Prisms.from_polygons(roadside.vertices, roadside.offsets, base, base + roadside.height)
+        else:
+            self._static = Prisms.empty()
+
+    def scan(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> LidarScan3D:
+        """One scan of ``snapshot`` from the ego pose at its ground height ``ego.z`` (``roadside`` is
+        ignored: the objects given at construction are seen)."""
+        ego = snapshot.ego
+        vehicles = vehicle_prisms(snapshot, (ego.x, ego.y), self.config.max_range)
+        parts = [vehicles]
+        if self.roadside_count:
+            st = self._static  # roadside object j is owner V + j
+            parts.append(st.relabel(st.owner + len(snapshot)))
+        return self.sensor.scan(np.array([ego.x, ego.y, ego.z]), ego.yaw, Prisms.concatenate(parts), self.ground,
+                                vehicle_ids=snapshot.ids, rng=rng, t=float(snapshot.t))
 
 
 def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
@@ -71,17 +109,24 @@ def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence
 
 class SensorRig:
     """Lidar and radar units of ``config`` (``RigConfig()`` by default) seeing the vehicles of the
-    truth and the static ``roadside`` objects (may be ``None``)."""
+    truth and the static ``roadside`` objects (may be ``None``); ``ground`` (``sim.ground``, level by
+    default) is seen by the 3-D lidar only."""
 
-    def __init__(self, config: RigConfig | None = None, roadside: RoadsideObjects | None = None) -> None:
+    def __init__(self, config: RigConfig | None = None, roadside: RoadsideObjects | None = None,
+                 ground: Ground | None = None) -> None:
         config = RigConfig() if config is None else config
         if not isinstance(config, RigConfig):
             raise ValueError(f"SensorRig needs a RigConfig; got {type(config).__name__}")
         if roadside is not None and not isinstance(roadside, RoadsideObjects):
             raise ValueError(f"SensorRig.roadside must be RoadsideObjects or None; got {type(roadside).__name__}")
+        if ground is not None and not isinstance(ground, Ground):
+            raise ValueError(f"SensorRig.ground must be a sim.ground.Ground or None; got {type(ground).__name__}")
         self.config = config
         self.roadside = roadside
-        self.lidar = Lidar(config.lidar)
+        self.ground = FlatGround() if ground is None else ground
+        self.lidar: Lidar | SceneVlp16 = (
+            Lidar(config.lidar) if config.lidar.model == "2d" else SceneVlp16(config.lidar, roadside, self.ground)
+        )
         self.radars = [RadarUnit(unit, index) for index, unit in enumerate(config.radar.units)]
 
     def frame_times(self, duration: float, t0: float = 0.0) -> np.ndarray:
@@ -144,7 +189,7 @@ class SensorRig:
                 return
             pending: list[tuple[RadarScan, np.ndarray, np.ndarray]] = []  # scan, xy in G, velocity in G
             t_scan = max(t_frame - lidar_delay, t0)  # the world does not exist before t0
-            lidar_scan: LidarScan | None = None
+            lidar_scan: LidarScan | LidarScan3D | None = None
             while self.radars:
                 times = [radar_time(i) for i in range(len(self.radars))]
                 i = int(np.argmin(times))  # ties: the lower unit index first

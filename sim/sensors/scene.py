@@ -60,3 +60,25 @@ def scene_segments(
     rot = np.array([[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, c, -s], [0.0, 0.0, s, c]])
     local = all_edges @ rot
     return Segments(local[:, :2], local[:, 2:], np.concatenate(owner))
+
+
+#: The open gap (m) under every vehicle's box for the 3-D lidar: wheels and underbody are not
+#: modelled, so beams below it pass under the vehicle (as they do under a truck's chassis).
+VEHICLE_CLEARANCE = 0.25
+
+
+def vehicle_prisms(snapshot: Snapshot, origin: tuple[float, float], max_range: float | None = None):
+    """The snapshot's vehicles as upright boxes (``sim.sensors.lidar3d.Prisms``) for the 3-D lidar:
+    footprint = the rectangle, from ``z + VEHICLE_CLEARANCE`` to ``z + height`` (m, G; ``Snapshot.z``
+    the ground under the centre). Owners are the snapshot rows ``0 .. V-1``; with ``max_range`` the
+    vehicles wholly beyond it from ``origin`` (m, G) are left out."""
+    from sim.sensors.lidar3d import Prisms
+
+    rows = np.arange(len(snapshot), dtype=np.int64)
+    if max_range is not None and len(rows):
+        dx, dy = snapshot.xy[:, 0] - float(origin[0]), snapshot.xy[:, 1] - float(origin[1])
+        reach = np.sqrt(dx * dx + dy * dy) - 0.5 * np.sqrt(snapshot.length**2 + snapshot.width**2)
+        rows = rows[reach <= max_range]
+    base = snapshot.z[rows] + np.minimum(VEHICLE_CLEARANCE, 0.5 * snapshot.height[rows])
+    return Prisms.from_rectangles(snapshot.xy[rows], snapshot.yaw[rows], snapshot.length[rows], snapshot.width[rows],
+                                  base, snapshot.z[rows] + snapshot.height[rows], owner=rows)

@@ -1,0 +1,503 @@
+"""Tests of tracker/cloud.py (3-D lidar preprocessing) on synthetic VLP-16 scans.
+
+The scans are made here, analytically: the 16 beams of a VLP-16 (-15 to +15 deg every 2 deg) at a
+set of azimuths, from the mount in E, intersected with a piecewise-planar ground (a list of planes
+``z = a x + b y + c``, each valid over an x interval) and with boxes standing on the ground (their
+axes aligned with the local road plane, as a car on a sloped road); the nearest hit of each ray
+within 100 m is its return, with Gaussian range noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from tracker.cloud import (CloudConfig, CloudStats, GroundModel, fit_ground, mount_rotation,
+                           mount_transform, process_cloud, to_ground_plane)
+
+MAX_RANGE = 100.0  # m, the VLP-16's
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Ground plane ``z = a x + b y + c`` (E, m) over ``x_lo < x <= x_hi``."""
+
+    a: float
+    b: float
+    c: float
+    x_lo: float = -math.inf
+    x_hi: float = math.inf
+
+    def z(self, x, y):
+        return self.a * x + self.b * y + self.c
+
+
+@dataclass(frozen=True)
+class Box:
+    """A vehicle: footprint centre ``(x, y)`` on the ground, heading ``yaw`` (rad, in the x-y plane),
+    ``length x width``, body between ``bottom`` and ``top`` (m above the ground, along its normal)."""
+
+    x: float
+    y: float
+    yaw: float
+    length: float
+    width: float
+    bottom: float
+    top: float
+
+
+def car(x, y, yaw=0.0):
+    return Box(x, y, yaw, 4.8, 2.0, 0.3, 1.5)
+
+
+def truck(x, y, yaw=0.0):
+    return Box(x, y, yaw, 12.0, 2.5, 0.5, 3.5)
+
+
+def ground_at(pieces, x, y):
+    for p in pieces:
+        if p.x_lo < x <= p.x_hi:
+            return p
+    raise AssertionError("no ground piece at x")
+
+
+def box_frame(box, pieces):
+    """Origin (on the ground under the centre) and axes (rows u, v, w) of a box: w the ground normal,
+    u the heading projected on the ground plane, v = w x u."""
+    p = ground_at(pieces, box.x, box.y)
+    w = np.array([-p.a, -p.b, 1.0])
+    w /= np.linalg.norm(w)
+    h = np.array([math.cos(box.yaw), math.sin(box.yaw), 0.0])
+    u = h - (h @ w) * w
+    u /= np.linalg.norm(u)
+    v = np.cross(w, u)
+    return np.array([box.x, box.y, p.z(box.x, box.y)]), np.array([u, v, w])
+
+
+def footprint_xy(box, pieces):
+    """Corners (4, 2) of the box's footprint on the ground, x-y in E, in order around it."""
+    origin, axes = box_frame(box, pieces)
+    corners = [origin + sl * box.length / 2 * axes[0] + sw * box.width / 2 * axes[1]
+               for sl, sw in ((1, 1), (-1, 1), (-1, -1), (1, -1))]
+    return np.array(corners)[:, :2]
+
+
+def vlp16_directions(az_step_deg=0.2):
+    """Unit ray directions (K, 3) in the sensor frame: 16 beams x azimuths."""
+    elev = np.radians(np.arange(-15.0, 16.0, 2.0))
+    az = np.radians(np.arange(0.0, 360.0, az_step_deg))
+    e, a = np.meshgrid(elev, az, indexing="ij")
+    return np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1).reshape(-1, 3)
+
+
+def scan(pieces, boxes=(), config=None, noise=0.03, seed=0, az_step_deg=0.2):
+    """A synthetic scan: points (M, 3) in the sensor frame, labels (M,) (0 ground, k + 1 box k) and
+    the face hit (M,) (box axis 0/1 sides, 2 roof; -1 ground)."""
+    cfg = CloudConfig() if config is None else config
+    rot = mount_rotation(math.radians(cfg.mount_roll_deg), math.radians(cfg.mount_pitch_deg),
+                         math.radians(cfg.mount_yaw_deg))
+    origin = cfg.mount_translation
+    dirs = vlp16_directions(az_step_deg) @ rot.T  # in E
+    k = len(dirs)
+    best_t = np.full(k, np.inf)
+    label = np.full(k, -1)
+    face = np.full(k, -1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for p in pieces:  # first crossing of the height field: the nearest valid piece hit
+            den = dirs[:, 2] - p.a * dirs[:, 0] - p.b * dirs[:, 1]
+            t = (p.z(origin[0], origin[1]) - origin[2]) / den
+            x = origin[0] + t * dirs[:, 0]
+            hit = (t > 0) & (x > p.x_lo) & (x <= p.x_hi) & (t < best_t)
+            best_t[hit], label[hit], face[hit] = t[hit], 0, -1
+        for i, box in enumerate(boxes):  # slab method in the box's frame
+            o, axes = box_frame(box, pieces)
+            lo = np.array([-box.length / 2, -box.width / 2, box.bottom])
+            hi = np.array([box.length / 2, box.width / 2, box.top])
+            ol = axes @ (origin - o)
+            dl = dirs @ axes.T
+            t1 = (lo - ol) / dl
+            t2 = (hi - ol) / dl
+            near = np.minimum(t1, t2)
+            t_near = near.max(axis=1)
+            t_far = np.maximum(t1, t2).min(axis=1)
+            hit = (t_near <= t_far) & (t_near > 0) & (t_near < best_t)
+            best_t[hit], label[hit], face[hit] = t_near[hit], i + 1, near.argmax(axis=1)[hit]
+    ok = best_t <= MAX_RANGE
+    rng = np.random.default_rng(seed)
+    r = best_t[ok] + (rng.normal(0.0, noise, ok.sum()) if noise > 0 else 0.0)
+    points_e = origin + r[:, None] * dirs[ok]
+    points_s = (points_e - origin) @ rot  # p_S = R^T (p_E - t)
+    return points_s, label[ok], face[ok]
+
+
+# the scenes
+TILTED = (Piece(0.04, 0.03, 0.0),)  # 4 % grade along x, 3 % bank along y
+
+
+def piecewise(kink=15.0, grade=0.06):
+    """Level up to x = kink, then rising at ``grade``."""
+    return (Piece(0.0, 0.0, 0.0, x_hi=kink), Piece(grade, 0.0, -grade * kink, x_lo=kink))
+
+
+TRAFFIC = (car(12.0, 0.0), car(-14.0, 3.5), car(30.0, -3.5, 0.05), car(4.0, 5.0, 0.1), truck(-4.0, -6.0),
+           car(45.0, 3.5, -0.05))
+
+
+def removal_rates(result, labels):
+    """(fraction of ground returns removed, fraction of vehicle returns kept)."""
+    ground = labels == 0
+    return float(np.mean(~result.kept[ground])), float(np.mean(result.kept[~ground]))
+
+
+def boundary_distance(points, quad):
+    """Distance (M,) of 2-D points to the boundary of the polygon ``quad`` (4, 2)."""
+    d = np.full(len(points), np.inf)
+    for a, b in zip(quad, np.roll(quad, -1, axis=0)):
+        ab = b - a
+        t = np.clip((points - a) @ ab / (ab @ ab), 0.0, 1.0)
+        d = np.minimum(d, np.linalg.norm(points - (a + t[:, None] * ab), axis=1))
+    return d
+
+
+def inside(points, quad, tol=0.0):
+    """Whether 2-D points lie inside the convex polygon ``quad`` (counter-clockwise), within ``tol``."""
+    ok = np.ones(len(points), dtype=bool)
+    for a, b in zip(quad, np.roll(quad, -1, axis=0)):
+        ab = b - a
+        cross = ab[0] * (points[:, 1] - a[1]) - ab[1] * (points[:, 0] - a[0])
+        ok &= cross / np.linalg.norm(ab) >= -tol
+    return ok
+
+
+# --------------------------------------------------------------------------------------------------
+# configuration and mount
+
+
+def test_config_defaults():
+    cfg = CloudConfig()
+    assert (cfg.mount_x, cfg.mount_y, cfg.mount_z) == (0.0, 0.0, 1.9)
+    assert cfg.segment_edges == tuple(float(e) for e in range(-50, 51, 10))
+    assert 0.15 <= cfg.distance_threshold <= 0.2
+    assert CloudConfig(segment_edges=[0, 10]).segment_edges == (0.0, 10.0)  # a list becomes a tuple
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(distance_threshold=-1), "distance_threshold"),
+    (dict(distance_threshold=0.0), "distance_threshold"),
+    (dict(mount_z=float("nan")), "mount_z"),
+    (dict(mount_pitch_deg="2"), "mount_pitch_deg"),
+    (dict(segment_edges=(10.0, 0.0)), "segment_edges"),
+    (dict(segment_edges=(0.0, 0.0)), "segment_edges"),
+    (dict(segment_edges=(0.0, float("inf"))), "segment_edges"),
+    (dict(segment_edges=5.0), "segment_edges"),
+    (dict(seed_fraction=0.0), "seed_fraction"),
+    (dict(seed_strip_width=-2.0), "seed_strip_width"),
+    (dict(seed_fraction=1.5), "seed_fraction"),
+    (dict(seed_height=0.0), "seed_height"),
+    (dict(ransac_iterations=0), "ransac_iterations"),
+    (dict(ransac_iterations=6.0), "ransac_iterations"),
+    (dict(refine_iterations=-1), "refine_iterations"),
+    (dict(max_slope_deg=90.0), "max_slope_deg"),
+    (dict(min_spread=-0.1), "min_spread"),
+    (dict(max_step=0.0), "max_step"),
+    (dict(max_slope_change_deg=0.0), "max_slope_change_deg"),
+    (dict(min_points=2), "min_points"),
+    (dict(max_fit_points=10), "max_fit_points"),
+    (dict(height_ceiling=0.1), "height_ceiling"),
+    (dict(seed=-1), "seed"),
+    (dict(seed=True), "seed"),
+])
+def test_config_rejects_bad_values_by_name(kwargs, field):
+    with pytest.raises(ValueError, match=f"CloudConfig.{field}"):
+        CloudConfig(**kwargs)
+
+
+def test_mount_rotation_conventions():
+    deg = math.radians
+    np.testing.assert_allclose(mount_rotation(0, 0, deg(90)) @ [1, 0, 0], [0, 1, 0], atol=1e-15)  # yaw left
+    p = deg(10)
+    np.testing.assert_allclose(mount_rotation(0, p, 0) @ [1, 0, 0], [math.cos(p), 0, -math.sin(p)], atol=1e-15)
+    np.testing.assert_allclose(mount_rotation(p, 0, 0) @ [0, 1, 0], [0, math.cos(p), math.sin(p)], atol=1e-15)
+    r = mount_rotation(0.1, -0.2, 2.5)
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-14)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    # intrinsic z-y'-x'': yaw first, then pitch about the yawed y axis
+    np.testing.assert_allclose(r, mount_rotation(0, 0, 2.5) @ mount_rotation(0, -0.2, 0) @ mount_rotation(0.1, 0, 0))
+
+
+def test_mount_transform_round_trip():
+    cfg = CloudConfig(mount_x=1.0, mount_y=-0.2, mount_z=1.7, mount_roll_deg=1.0, mount_pitch_deg=2.0,
+                      mount_yaw_deg=5.0)
+    rng = np.random.default_rng(1)
+    points_e = rng.uniform(-50, 50, size=(500, 3))
+    rot = mount_rotation(math.radians(1.0), math.radians(2.0), math.radians(5.0))
+    points_s = (points_e - [1.0, -0.2, 1.7]) @ rot  # p_S = R^T (p_E - t)
+    np.testing.assert_allclose(mount_transform(points_s, cfg), points_e, atol=1e-12)
+    # the default mount only lifts by 1.9 m
+    np.testing.assert_allclose(mount_transform(points_s), points_s + [0, 0, 1.9], atol=1e-12)
+    # a point straight ahead of a sensor pitched down 2 deg is below the sensor in E
+    ahead = mount_transform([[10.0, 0.0, 0.0]], CloudConfig(mount_pitch_deg=2.0))
+    assert ahead[0, 2] == pytest.approx(1.9 - 10 * math.sin(math.radians(2.0)))
+
+
+# --------------------------------------------------------------------------------------------------
+# ground removal on synthetic scans
+
+
+def test_ground_removal_on_graded_banked_road():
+    points, labels, _ = scan(TILTED, TRAFFIC)
+    assert len(points) > 15_000 and (labels > 0).sum() > 5_000
+    res = process_cloud(points)
+    removed, kept = removal_rates(res, labels)
+    assert removed >= 0.99 and kept >= 0.99
+    # every fitted plane is the road's: normal (-0.04, -0.03, 1)/|.| through the origin
+    truth = np.array([-0.04, -0.03, 1.0]) / math.hypot(0.04, 0.03, 1.0)
+    own = ~res.model.fallback
+    assert own.sum() >= 10
+    angle = np.degrees(np.arccos(np.clip(res.model.normals[own] @ truth, -1, 1)))
+    assert angle.max() < 0.3
+    x = np.array([-45.0, -5.0, 5.0, 45.0])
+    np.testing.assert_allclose(res.model.ground_z(x, 2.0), 0.04 * x + 0.03 * 2.0, atol=0.05)
+
+
+@pytest.mark.parametrize("grade, bank", [(0.0, 0.08), (-0.06, 0.10)])
+def test_ground_removal_on_steep_banks(grade, bank):
+    pieces = (Piece(grade, bank, 0.0),)
+    points, labels, _ = scan(pieces, TRAFFIC, az_step_deg=0.4)
+    removed, kept = removal_rates(process_cloud(points), labels)
+    assert removed >= 0.99 and kept >= 0.99
+
+
+def test_ground_removal_on_changing_grade_needs_segments():
+    pieces = piecewise(kink=15.0, grade=0.06)  # level, then rising 6 % from x = 15 m (inside a segment)
+    points, labels, _ = scan(pieces, TRAFFIC)
+    removed, kept = removal_rates(process_cloud(points), labels)
+    assert removed >= 0.99 and kept >= 0.99
+    # one plane for the whole cloud: the rising road ahead is left in as obstacles
+    single = process_cloud(points, CloudConfig(segment_edges=()))
+    removed_single, kept_single = removal_rates(single, labels)
+    assert removed_single < 0.9
+    assert kept_single >= 0.99
+
+
+def test_ground_removal_with_a_pitched_yawed_mount():
+    cfg = CloudConfig(mount_x=1.0, mount_pitch_deg=2.0, mount_yaw_deg=5.0)
+    points, labels, faces = scan(TILTED, TRAFFIC, config=cfg, noise=0.0, az_step_deg=0.4)  # in the sensor frame
+    res = process_cloud(points, cfg)
+    removed, kept = removal_rates(res, labels)
+    assert removed >= 0.99 and kept >= 0.99
+    # the 2-D points are in E: on the footprints with the mount applied, 1 m and 5 deg off without it
+    wrong = process_cloud(points, CloudConfig())
+    for k, box in enumerate(TRAFFIC[:5]):
+        quad = footprint_xy(box, TILTED)
+        side = (labels == k + 1) & (faces != 2)
+        assert boundary_distance(res.points_2d[side[res.kept]], quad).max() < 0.05
+        assert boundary_distance(wrong.points_2d[side[wrong.kept]], quad).max() > 0.5
+
+
+def test_projected_points_lie_on_the_footprints():
+    points, labels, faces = scan(TILTED, TRAFFIC, noise=0.0)
+    res = process_cloud(points)
+    kept_labels, kept_faces = labels[res.kept], faces[res.kept]
+    for k, box in enumerate(TRAFFIC):
+        quad = footprint_xy(box, TILTED)
+        mine = kept_labels == k + 1
+        assert mine.sum() > 10
+        xy = res.points_2d[mine]
+        assert inside(xy, quad, tol=0.02).all()
+        side = kept_faces[mine] != 2  # side and end faces; roof returns project inside the footprint
+        assert boundary_distance(xy[side], quad).max() < 0.05
+
+
+def test_projected_points_with_range_noise():
+    points, labels, faces = scan(TILTED, TRAFFIC, noise=0.03, seed=3)
+    res = process_cloud(points)
+    kept_labels, kept_faces = labels[res.kept], faces[res.kept]
+    d = np.concatenate([boundary_distance(res.points_2d[(kept_labels == k + 1) & (kept_faces != 2)],
+                                          footprint_xy(box, TILTED)) for k, box in enumerate(TRAFFIC)])
+    assert len(d) > 5000
+    # the 3 cm range noise, seen across the faces (at most all of it for a face hit head-on)
+    assert math.sqrt(np.mean(d ** 2)) < 0.035
+    assert np.mean(d < 0.05) > 0.85
+    assert d.max() < 0.15
+
+
+# --------------------------------------------------------------------------------------------------
+# the ground model
+
+
+def test_fit_ground_recovers_an_exact_plane_and_the_model_math():
+    x, y = np.meshgrid(np.linspace(-60, 60, 121), np.linspace(-20, 20, 41))
+    x, y = x.ravel(), y.ravel()
+    ground = np.column_stack([x, y, 0.04 * x + 0.03 * y - 0.1])
+    model = fit_ground(ground)
+    assert not model.fallback.any()
+    truth = np.array([-0.04, -0.03, 1.0]) / math.hypot(0.04, 0.03, 1.0)
+    np.testing.assert_allclose(model.normals, np.tile(truth, (model.n_segments, 1)), atol=1e-9)
+    np.testing.assert_allclose(model.offsets, 0.1 * truth[2], atol=1e-9)
+    np.testing.assert_allclose(model.slopes_deg, math.degrees(math.atan(0.05)), atol=1e-6)
+    # heights along the normal, and projection back onto the plane
+    lifted = ground + np.linspace(-1.0, 3.0, len(ground))[:, None] * truth
+    np.testing.assert_allclose(model.height(lifted), np.linspace(-1.0, 3.0, len(ground)), atol=1e-9)
+    np.testing.assert_allclose(model.project(lifted), ground, atol=1e-9)
+    np.testing.assert_allclose(model.ground_z(x, y), ground[:, 2], atol=1e-9)
+    assert model.segment_of([[-50.0, 0, 0], [-49.9, 0, 0], [50.1, 0, 0]]).tolist() == [0, 1, 11]
+
+
+def test_segments_without_ground_borrow_a_neighbours_plane():
+    rng = np.random.default_rng(2)
+    ground = np.column_stack([rng.uniform(-48, 48, 4000), rng.uniform(-15, 15, 4000), np.zeros(4000)])
+    wall = np.column_stack([np.full(300, 55.0), rng.uniform(-5, 5, 300), rng.uniform(0.0, 3.0, 300)])
+    ramp_x = rng.uniform(-60, -50.5, 300)  # a 30 deg embankment behind
+    ramp = np.column_stack([ramp_x, rng.uniform(-5, 5, 300), np.tan(math.radians(30)) * (-50.5 - ramp_x)])
+    cloud = np.vstack([ground, wall, ramp])
+    model = fit_ground(cloud)
+    assert model.fallback.tolist() == [True] + [False] * 10 + [True]
+    assert model.source.tolist() == [1] + list(range(1, 11)) + [10]
+    np.testing.assert_allclose(model.normals[[0, -1]], [[0, 0, 1], [0, 0, 1]], atol=1e-9)
+    # a steeper max_slope_deg accepts the embankment (the wall stays rejected)
+    steep = fit_ground(cloud, CloudConfig(max_slope_deg=45.0, max_step=2.0, max_slope_change_deg=45.0))
+    assert not steep.fallback[0] and steep.slopes_deg[0] == pytest.approx(30.0, abs=0.01)
+    _, stats = to_ground_plane(cloud - [0, 0, 1.9])
+    assert stats.segments_fallback == 2
+    # nothing but a wall: the level plane z = 0, from no segment
+    only_wall = fit_ground(wall)
+    assert only_wall.fallback.all() and (only_wall.source == -1).all()
+    np.testing.assert_allclose(only_wall.normals, np.tile([0, 0, 1.0], (12, 1)))
+
+
+def test_a_raised_flat_patch_is_not_ground():
+    # segment (40, 50] holds no ground, only a flat load 0.8 m up (a flat-bed trailer seen from above)
+    rng = np.random.default_rng(4)
+    ground = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(-15, 15, 4000), rng.normal(0, 0.01, 4000)])
+    patch = np.column_stack([rng.uniform(41, 49, 400), rng.uniform(-3, 3, 400), np.full(400, 0.8)])
+    cloud = np.vstack([ground, patch]) - [0, 0, 1.9]
+    res = process_cloud(cloud)
+    assert res.model.fallback[10] and res.model.source[10] == 9
+    assert res.kept[len(ground):].all() and not res.kept[:len(ground)].any()
+    # without the continuity check the load would be taken for the ground
+    loose = process_cloud(cloud, CloudConfig(max_step=10.0))
+    assert not loose.model.fallback[10] and not loose.kept[len(ground):].any()
+
+
+def test_ground_along_a_single_line_is_not_a_plane():
+    # segment (40, 50] sees the ground only along one scan line at x = 40.5, and a car's sill 0.5 m up
+    rng = np.random.default_rng(6)
+    ground = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(-15, 15, 4000), np.zeros(4000)])
+    line = np.column_stack([40.5 + rng.normal(0, 0.05, 60), np.linspace(-6, 6, 60), rng.normal(0, 0.01, 60)])
+    sill = np.column_stack([np.linspace(47, 48, 6), np.full(6, 2.0), np.full(6, 0.5)])
+    cloud = np.vstack([ground, line, sill])
+    model = fit_ground(cloud)
+    assert model.fallback[10] and model.source[10] == 9
+    np.testing.assert_allclose(model.height(sill), 0.5, atol=0.01)
+    # without the spread check: a plane tilted about the line through the sill (4 deg, no step, no kink)
+    loose = fit_ground(cloud, CloudConfig(min_spread=0.0))
+    assert not loose.fallback[10] and 3.0 < loose.slopes_deg[10] < 5.0
+    assert np.abs(loose.height(sill)).max() < 0.15
+
+
+def test_a_plane_tilted_into_a_vehicle_is_not_ground():
+    # segment (40, 50] sees the ground along one scan line at x = 40.5, and a truck's side behind it:
+    # a plane through the line tilted 6-8 deg crosses the side in a line, so the inliers are spread
+    rng = np.random.default_rng(7)
+    ground = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(-15, 15, 4000), np.zeros(4000)])
+    line = np.column_stack([40.5 + rng.normal(0, 0.05, 60), np.linspace(-6, 6, 60), rng.normal(0, 0.01, 60)])
+    side = np.column_stack([rng.uniform(44, 49, 200), np.full(200, 2.0), rng.uniform(0.4, 3.5, 200)])
+    cloud = np.vstack([ground, line, side])
+    model = fit_ground(cloud)
+    assert model.fallback[10] and model.source[10] == 9
+    assert (model.height(side) > 0.35).all()
+    loose = fit_ground(cloud, CloudConfig(max_slope_change_deg=45.0))
+    assert not loose.fallback[10] and loose.slopes_deg[10] > 5.0
+    assert (np.abs(loose.height(side)) <= 0.15).sum() > 10  # side returns taken for the ground
+
+
+# --------------------------------------------------------------------------------------------------
+# the pipeline's bookkeeping
+
+
+def test_stats_add_up_and_masks_partition_the_cloud():
+    points, labels, _ = scan(TILTED, TRAFFIC, az_step_deg=0.4)
+    clean = process_cloud(points).stats
+    assert clean.below_ground == 0 and clean.above_ceiling == 0 and clean.non_finite == 0
+    rng = np.random.default_rng(5)
+    x, y = rng.uniform(5, 30, 50), rng.uniform(-5, 5, 50)
+    below = np.column_stack([x, y, 0.04 * x + 0.03 * y - 1.0]) - [0, 0, 1.9]  # reflections 1 m under
+    bridge = np.column_stack([x, y, 0.04 * x + 0.03 * y + 6.0]) - [0, 0, 1.9]  # 6 m up
+    bad = np.array([[np.nan, 0, 0], [0, np.inf, 0], [0, 0, -np.inf], [np.nan] * 3])
+    cloud = np.vstack([points, below, bridge, bad])
+    res = process_cloud(cloud)
+    s = res.stats
+    assert s.points_in == len(cloud)
+    assert s.non_finite == 4 and s.below_ground == 50 and s.above_ceiling == 50
+    assert (s.ground, s.kept) == (clean.ground, clean.kept)
+    assert s.kept + s.ground + s.below_ground + s.above_ceiling + s.non_finite == s.points_in
+    assert s.as_dict() == {"points_in": len(cloud), "non_finite": 4, "ground": s.ground, "below_ground": 50,
+                           "above_ceiling": 50, "kept": s.kept, "segments_fallback": s.segments_fallback}
+    masks = np.stack([res.ground, res.below_ground, res.above_ceiling, res.kept, ~res.finite])
+    assert (masks.sum(axis=0) == 1).all()
+    assert res.points_2d.shape == (s.kept, 2)
+    assert np.isnan(res.heights[~res.finite]).all() and np.isfinite(res.heights[res.finite]).all()
+    # the 2-D points are the kept points' projections, in input order
+    np.testing.assert_allclose(res.points_2d, res.model.project(res.points_e[res.kept])[:, :2])
+
+
+def test_deterministic():
+    points, _, _ = scan(piecewise(), TRAFFIC, az_step_deg=0.4)
+    a, b = process_cloud(points), process_cloud(points.copy())
+    np.testing.assert_array_equal(a.points_2d, b.points_2d)
+    np.testing.assert_array_equal(a.model.normals, b.model.normals)
+    np.testing.assert_array_equal(a.model.offsets, b.model.offsets)
+    assert a.stats == b.stats
+    xy, stats = to_ground_plane(points)
+    np.testing.assert_array_equal(xy, a.points_2d)
+    assert stats == a.stats
+    # another RANSAC seed: other hypotheses, the same classification here
+    c = process_cloud(points, CloudConfig(seed=7))
+    np.testing.assert_array_equal(c.kept, a.kept)
+
+
+def test_empty_cloud():
+    xy, stats = to_ground_plane(np.zeros((0, 3)))
+    assert xy.shape == (0, 2)
+    assert stats == CloudStats()
+    res = process_cloud(np.zeros((0, 3)))
+    level = GroundModel.level(CloudConfig().segment_edges)
+    assert res.model.fallback.all() and (res.model.source == -1).all()
+    np.testing.assert_array_equal(res.model.normals, level.normals)
+    np.testing.assert_array_equal(res.model.offsets, level.offsets)
+    assert res.points_e.shape == (0, 3) and res.kept.shape == (0,)
+    assert fit_ground(np.zeros((0, 3))).n_segments == 12
+    assert to_ground_plane([[np.nan, 0.0, 0.0]])[1].non_finite == 1
+
+
+@pytest.mark.parametrize("bad, problem", [
+    (np.zeros((5, 2)), r"shape \(N, 3\)"),
+    (np.zeros(6), r"shape \(N, 3\)"),
+    (np.zeros((2, 3, 3)), r"shape \(N, 3\)"),
+    (np.zeros(0), r"shape \(N, 3\)"),
+    ([["a", "b", "c"]], "real numbers"),
+    ([[1.0, None, 2.0]], "real numbers"),
+    (np.ones((2, 3), dtype=complex), "real numbers"),
+    (np.ones((2, 3), dtype=bool), "real numbers"),
+    ([[1.0, 2.0, 3.0], [1.0, 2.0]], "points_sensor"),
+])
+def test_bad_input_is_named(bad, problem):
+    with pytest.raises(ValueError, match=problem):
+        to_ground_plane(bad)
+
+
+def test_bad_config_type():
+    with pytest.raises(TypeError, match="CloudConfig"):
+        to_ground_plane(np.zeros((0, 3)), config={"seed": 1})
+
+
+def test_integer_and_float32_input():
+    points, _, _ = scan(TILTED, TRAFFIC, az_step_deg=0.8)
+    a = to_ground_plane(points)[0]
+    b = to_ground_plane(points.astype(np.float32))[0]
+    assert abs(len(a) - len(b)) <= 2
+    assert to_ground_plane(np.array([[10, 0, -2], [10, 1, 0]]))[1].points_in == 2
