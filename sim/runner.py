@@ -364,8 +364,9 @@ class CloudScore:
 
     def metrics(self) -> dict[str, Any]:
         """``cloud_ground_recall`` (true ground returns removed / all), ``cloud_ground_precision``
-        (removed returns that were ground / all removed) and ``cloud_vehicle_kept`` (vehicle returns
-        kept / all); empty when no frame had a cloud."""
+        (removed returns that were ground / all removed; the others are mostly the lowest
+        ``distance_threshold`` of roadside objects standing on the ground) and ``cloud_vehicle_kept``
+        (vehicle returns kept / all); empty when no frame had a cloud."""
         if not self.frames:
             return {}
 

@@ -65,7 +65,7 @@ def test_quick_run_writes_every_section(quick):
     assert result["command"].startswith("eot bench --quick")
     assert set(result["section_wall_s"]) == set(SECTIONS)
     assert f"wrote {out}" in printed
-    assert "tracker ms per frame" in printed and "Monte Carlo curvy-multi" in printed
+    assert "tracker ms per frame" in printed and "Monte Carlo curvy-multi" in printed and "VLP-16 scan" in printed
 
 
 def test_quick_run_numbers_are_finite(quick):
@@ -93,6 +93,10 @@ def test_quick_run_tracker_rows(quick):
 def test_quick_run_other_sections(quick):
     result = json.loads(quick[1].read_text(encoding="utf-8"))
     assert _positive(result["lidar"]["scan_ms"]) and result["lidar"]["rays"] == 1800
+    v16 = result["lidar3d"]
+    assert v16["scene"]["rays"] == 28800 and v16["scene"]["ground_points"] > 1000 and v16["scene"]["vehicle_points"] > 100
+    assert _positive(v16["scan"]["median_ms"]) and _positive(v16["preprocess"]["median_ms"])
+    assert all(0.9 <= v <= 1.0 for v in v16["ground_removal"].values()), v16["ground_removal"]
     assert set(result["world"]) == {"curvy-multi", "dense-highway"}
     assert all(_positive(w["ms_per_simulated_s"]) for w in result["world"].values())
     e2e = result["end_to_end"]

@@ -10,7 +10,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from sim import cli
 
@@ -178,3 +180,25 @@ def test_progress_bar_lines():
         bars.done("a"), bars.done("b"), bars.done("a")
         assert bars.outer.done == 3 and bars.inner["a"].done == 2 and bars.inner["b"].done == 1
     assert "3/3" in log.getvalue() and "  a" not in log.getvalue()  # in a log only the outer bar
+
+
+def test_run_and_montecarlo_with_the_vlp16_lidar(capsys, tmp_path):
+    """--lidar-model vlp16: raw 3-D clouds through the tracker's ground removal; `eot run` writes the
+    pipeline figure cloud.png and the ground-removal metrics; the Monte Carlo rows carry them."""
+    code, out, _ = _main(capsys, "run", "curve-single", "--duration", "0.5", "--lidar-model", "vlp16",
+                         "--out", str(tmp_path / "run"), "--quiet")
+    assert code == 0 and "cloud.png" in out
+    with Image.open(tmp_path / "run" / "cloud.png") as im:
+        rgb = np.asarray(im.convert("RGB"))
+    assert im.size[0] >= 1200 and rgb.std() > 10  # three panels, not blank
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["cloud_ground_recall"] > 0.99 and metrics["cloud_vehicle_kept"] > 0.99
+    code, out, _ = _main(capsys, "montecarlo", "curve-single", "--runs", "1", "--duration", "0.5", "--lidar-model", "vlp16",
+                         "--out", str(tmp_path / "mc"), "--quiet")
+    assert code == 0
+    with open(tmp_path / "mc" / "runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert float(rows[0]["cloud_ground_recall"]) > 0.99
+    with pytest.raises(SystemExit) as info:  # argparse's own usage error
+        cli.main(["run", "curve-single", "--lidar-model", "hdl64"])
+    assert info.value.code == 2 and "invalid choice: 'hdl64'" in capsys.readouterr().err

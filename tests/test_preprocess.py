@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker import Road
+from tracker import Road, TrackerConfig
 from tracker.preprocess import bearing_filter, drop_nonfinite, road_bound_mask
 from tracker.transforms import to_global, to_local
 
@@ -45,3 +45,29 @@ def test_bearing_filter_keeps_closest_point_per_bin():
     assert np.all(np.diff(bearings) > 0)
     with pytest.raises(ValueError, match="bin_width"):
         bearing_filter(pts, 0.0)
+
+
+def test_lidar_points_take_a_3d_cloud_through_the_ground_removal():
+    """An (N, 3) cloud in the lidar's frame (1.9 m up): the level ground ring goes, a wall of points
+    1 m up stays and is projected to (x, y) in E; counts name every removal; a 2-D frame passes as is."""
+    from tracker.cloud import CloudConfig
+    from tracker.frame import Frame
+    from tracker.preprocess import lidar_points, preprocess_frame
+
+    az = np.radians(np.arange(-180.0, 180.0, 0.5))
+    ground = np.stack([20.0 * np.cos(az), 20.0 * np.sin(az), np.full(az.shape, -1.9)], axis=1)  # z = 0 in E
+    ground = np.concatenate([ground * [r / 20.0, r / 20.0, 1.0] for r in (8.0, 12.0, 20.0)])
+    wall = np.stack([np.full(20, 15.0), np.linspace(-2, 2, 20), np.full(20, -0.9)], axis=1)  # 1 m up
+    cloud = np.concatenate([ground, wall, [[np.nan, 0.0, 0.0]]])
+    frame = Frame(0.0, (0.0, 0.0, 0.0), cloud)
+    pts, counts, result = lidar_points(frame, CloudConfig())
+    np.testing.assert_allclose(pts, wall[:, :2], atol=1e-9)
+    assert counts == {"points_nonfinite": 1, "cloud_points": len(cloud), "cloud_ground": len(ground),
+                      "cloud_below_ground": 0, "cloud_above_ceiling": 0, "cloud_segments_fallback": counts["cloud_segments_fallback"]}
+    assert result.kept.sum() == 20
+    road = Road.from_curvature([(200.0, 0.0, 0.0)], start=(-50.0, 0.0, 0.0), lanes=2)
+    scan, kept, all_counts = preprocess_frame(frame, road, TrackerConfig().clustering)
+    assert len(scan) == 20 and all_counts["cloud_ground"] == len(ground) and all_counts["points_off_road"] == 0
+    flat = Frame(0.0, (0.0, 0.0, 0.0), wall[:, :2])
+    pts2, counts2, none = lidar_points(flat)
+    assert none is None and counts2 == {"points_nonfinite": 0} and np.array_equal(pts2, wall[:, :2])

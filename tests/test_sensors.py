@@ -621,3 +621,58 @@ def test_reusing_a_seed_sequence_gives_identical_output():
     for fa, fb in zip(a, b):
         np.testing.assert_array_equal(fa.frame.lidar, fb.frame.lidar)
         np.testing.assert_array_equal(fa.frame.radar.as_array(), fb.frame.radar.as_array())
+
+
+# -- the 3-D lidar in the rig (issue 15) -----------------------------------------------------------
+VLP16 = LidarConfig(model="vlp16", range_noise_std=0.0, dropout_probability=0.0)
+
+
+def test_lidar_config_keeps_3d_settings_for_the_vlp16_model():
+    assert VLP16.vlp16_config().rays == 28_800 and VLP16.vlp16_config().mount_z == 1.9
+    with pytest.raises(ValueError, match=r'LidarConfig.mount_z applies to the 3-D lidar only; set model = "vlp16"'):
+        LidarConfig(mount_z=2.0)
+    with pytest.raises(ValueError, match="LidarConfig.model must be one of"):
+        LidarConfig(model="hdl64")
+
+
+def test_rig_with_the_vlp16_delivers_raw_clouds_labelled_by_what_they_hit():
+    """Frames carry (N, 3) clouds in the lidar's frame: ground rings within the beams' reach, the car's
+    side, nothing else; the same seed gives the same clouds."""
+    snap = snapshot([(15.0, 3.5, 0.0, 4.8, 2.0)])
+    rig = SensorRig(RigConfig(lidar=replace(VLP16, range_noise_std=0.03)))
+    frames = rig.run(lambda t: replace(snap, t=t), 0.2, seed=4)
+    scan = frames[0].lidar
+    assert frames[0].frame.lidar.shape == (len(scan), 3)
+    assert np.array_equal(frames[0].frame.lidar, scan.points)
+    assert scan.ground.sum() > 10_000 and (scan.vehicle_id == 1).sum() > 100
+    assert set(np.unique(scan.vehicle_id)) == {-1, 1}
+    # ground returns lie on z = 0 in G (the sensor 1.9 m up), within the noise along slanted rays
+    z = scan.points_global()[scan.ground, 2]
+    assert np.abs(z).max() < 0.03 * 5
+    again = SensorRig(RigConfig(lidar=replace(VLP16, range_noise_std=0.03))).run(lambda t: replace(snap, t=t), 0.2, seed=4)
+    assert np.array_equal(again[1].frame.lidar, frames[1].frame.lidar)
+
+
+def test_projected_3d_returns_of_a_box_agree_with_the_2d_lidar_of_its_rectangle():
+    """The tracker's pipeline (ground removal, projection) turns the VLP-16's cloud of two vehicles
+    into the 2-D lidar's points of the same rectangles: per azimuth the nearest projected return is
+    the 2-D lidar's point at that azimuth (exactly without noise; within the noise with it)."""
+    from tracker.cloud import process_cloud
+
+    snap = snapshot([(14.0, -4.0, 0.3, 4.8, 2.0), (-20.0, 3.5, 0.0, 12.0, 2.5)])
+    flat = Lidar(EXACT).scan(snap, rng=np.random.default_rng(0))
+    key2 = np.round(np.degrees(flat.azimuth) / 0.2).astype(int)
+    for noise, tol in ((0.0, 1e-9), (0.03, 0.12)):
+        rig = SensorRig(RigConfig(lidar=replace(VLP16, range_noise_std=noise)))
+        scan = rig.run(lambda t: replace(snap, t=t), 0.0, seed=1)[0].lidar
+        result = process_cloud(scan.points)
+        assert (result.kept == (scan.vehicle_id >= 0)).all()  # the ground goes, the vehicles stay
+        key3 = np.round(np.degrees(scan.azimuth[result.kept]) / 0.2).astype(int)
+        pts = result.points_2d
+        order = np.lexsort((np.hypot(pts[:, 0], pts[:, 1]), key3))  # per azimuth, nearest first
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = key3[order][1:] != key3[order][:-1]
+        nearest = dict(zip(key3[order][first].tolist(), pts[order][first]))
+        assert sorted(nearest) == sorted(key2.tolist())
+        gap = np.array([np.linalg.norm(nearest[k] - p) for k, p in zip(key2.tolist(), flat.points)])
+        assert gap.max() < tol, (noise, gap.max())

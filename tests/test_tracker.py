@@ -295,3 +295,32 @@ def test_bad_and_degenerate_input(curve):
         TrackerConfig(object_model="point", coordinates="cartesian")
     with pytest.raises(ValueError, match="needs a tracker.Road"):
         Tracker("not a road", TrackerConfig(object_model="point"))  # type: ignore[arg-type]
+
+
+def test_raw_3d_clouds_give_the_tracks_of_their_2d_points(curve):
+    """A frame whose lidar is an (N, 3) cloud in the lidar's frame (1.9 m up; every return of the 2-D
+    scan seen at two heights, plus three rings of level ground) goes through the mount transform and
+    the ground removal and gives exactly the tracks of the 2-D scan itself. (A rotated mount is
+    checked in tests/test_cloud.py: its rounding moves points by 1e-14 m, which can flip a point
+    across a bearing-filter bin edge, so its tracks are not bit-identical.)"""
+    az = np.radians(np.arange(-180.0, 180.0, 0.4))
+    rings = np.concatenate([np.stack([r * np.cos(az), r * np.sin(az), np.zeros_like(az)], axis=1) for r in (8.0, 12.0, 20.0)])
+
+    def lift(points_e: np.ndarray) -> np.ndarray:
+        body = np.concatenate([np.column_stack([points_e, np.full(len(points_e), h)]) for h in (0.6, 1.2)])
+        return np.concatenate([body, rings]) - np.array([0.0, 0.0, 1.9])  # E -> the lidar's frame
+
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, -3.5, 16.0), Car(35.0, 3.5, 14.0)], radar=True)
+    flat, deep = Tracker(curve, TrackerConfig()), Tracker(curve, TrackerConfig())
+    rng = np.random.default_rng(5)
+    for k in range(30):
+        frame = scene.frame(k * DT, rng)
+        a = flat.step(frame)
+        b = deep.step(Frame(frame.t, frame.ego, lift(frame.lidar), frame.radar))
+        assert [tr.label for tr in a] == [tr.label for tr in b]
+        for x, y in zip(a, b):
+            np.testing.assert_allclose(x.mean, y.mean, atol=1e-9)
+            np.testing.assert_allclose(x.cov, y.cov, atol=1e-9)
+    assert deep.stats["cloud_ground"] == 30 * len(rings) and deep.stats["cloud_points"] > deep.stats["cloud_ground"]
+    assert deep.last_cloud is not None and flat.last_cloud is None and "cloud_points" not in flat.stats
+    assert len(a) == 2

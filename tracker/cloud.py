@@ -123,9 +123,9 @@ class CloudConfig:
     min_spread: float = 1.0
     max_step: float = 0.25
     max_slope_change_deg: float = 5.0
-    hinge_prior: float = 10.0
+    hinge_prior_length: float = 2.0
     min_points: int = 30
-    max_fit_points: int = 256
+    max_fit_points: int = 128
     height_ceiling: float = 4.0
     seed: int = 0
 
@@ -160,7 +160,7 @@ class CloudConfig:
         _real("min_spread", self.min_spread, low=0.0, unit="m")
         _real("max_step", self.max_step, low=0.0, low_open=True, unit="m")
         _real("max_slope_change_deg", self.max_slope_change_deg, low=0.0, high=90.0, low_open=True, high_open=True, unit="deg")
-        _real("hinge_prior", self.hinge_prior, low=0.0, low_open=True, unit="m^2")
+        _real("hinge_prior_length", self.hinge_prior_length, low=0.0, low_open=True, unit="m")
         _integer("min_points", self.min_points, 3)
         _integer("max_fit_points", self.max_fit_points, self.min_points)
         ceiling = _real("height_ceiling", self.height_ceiling, low=0.0, low_open=True, unit="m")
@@ -411,19 +411,26 @@ class GroundModel:
         return -(n[..., 0] * x + n[..., 1] * y + self.offsets[patch]) / n[..., 2]
 
 
-def _fit_slots(patch: np.ndarray, counts: np.ndarray, rows: np.ndarray, cap: int
+def _fit_slots(patch: np.ndarray, counts: np.ndarray, rows: np.ndarray, cap: int, rng: np.random.Generator
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """The fit points of the patches with a row (``rows[p] >= 0``): an even stride subsample of at
-    most ``cap`` of each patch's points, in input order. Returns the point indices, their rows and
-    slots (column in the padded ``(rows, C, 3)`` array) and ``C``."""
+    """The fit points of the patches with a row (``rows[p] >= 0``): all of a patch's ``m_p`` points
+    when ``m_p <= cap``, else a random subsample (each point drawn with probability ``cap / m_p``, at
+    most ``cap`` kept; not an even stride, which aliases with the scan order: a VLP-16 interleaves its
+    beams, so every other point of a patch may lie on the same ring). Returns the point indices
+    (by patch, in input order within one), their rows and slots (columns of the padded
+    ``(rows, C, .)`` arrays, each row's points first) and ``C``."""
     order = np.argsort(patch, kind="stable")
     p_sorted = patch[order]
-    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
-    rank = np.arange(len(order)) - starts[p_sorted]
-    stride = np.maximum(1, -(-counts // cap))[p_sorted]  # ceil
-    keep = (rows[p_sorted] >= 0) & (rank % stride == 0)
-    slot = rank[keep] // stride[keep]
-    return order[keep], rows[p_sorted[keep]], slot, int(slot.max()) + 1 if len(slot) else 0
+    keep = rows[p_sorted] >= 0
+    big = counts[p_sorted] > cap
+    if big.any():
+        keep &= ~big | (rng.random(len(order)) * counts[p_sorted] < cap)
+    order, p_sorted = order[keep], p_sorted[keep]
+    starts = np.concatenate(([0], np.cumsum(np.bincount(p_sorted, minlength=len(counts)))[:-1]))
+    slot = np.arange(len(order)) - starts[p_sorted]
+    keep = slot < cap
+    order, p_sorted, slot = order[keep], p_sorted[keep], slot[keep]
+    return order, rows[p_sorted], slot, int(slot.max()) + 1 if len(slot) else 0
 
 
 def _seed_mask(z: np.ndarray, valid: np.ndarray, cfg: CloudConfig) -> np.ndarray:
@@ -453,63 +460,60 @@ def _sample_seeds(seeds: np.ndarray, k: int, rng: np.random.Generator) -> np.nda
     return np.take_along_axis(seed_slots, idx, axis=1)
 
 
-def _pca_planes(pts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Total-least-squares planes of padded point sets (m, C, 3), each over its points with ``w``
-    (m, C): through the centroid ``c``, normal the eigenvector of the smallest eigenvalue of the
-    scatter ``S = sum (q - c)(q - c)^T``, pointing up. Returns ``(n, d, c)`` with ``d = -n . c``."""
-    count = np.maximum(w.sum(axis=1), 1)
-    wp = np.where(w[..., None], pts, 0.0)
-    c = wp.sum(axis=1) / count[:, None]
-    q = np.where(w[..., None], pts - c[:, None, :], 0.0)
-    _, vecs = np.linalg.eigh(np.einsum("pci,pcj->pij", q, q))
-    n = vecs[:, :, 0]
-    n *= np.where(n[:, 2] < 0.0, -1.0, 1.0)[:, None]
-    return n, -np.einsum("pi,pi->p", n, c), c
-
-
 def _spreads(xy: np.ndarray, inl: np.ndarray) -> np.ndarray:
-    """The spread (m,) (m) of each row's inliers ``inl`` (m, C) in x-y ``xy`` (m, C, 2): the standard
-    deviation ``sqrt(lambda_min / k_c)`` along the minor axis of the ``k_c`` "core" inliers, the
-    ``_CORE_PERCENT`` % nearest to the inliers' (coordinate-wise) median; 0 without inliers."""
-    m = len(xy)
+    """The spread (m,) (m) of each row's inliers ``inl`` (m, C) in x-y ``xy`` (m, C, 2): half the
+    interdecile range of their offsets ``o_i = (p_i - c) . v`` along their minor axis ``v`` (the
+    eigenvector of the smaller eigenvalue of their x-y scatter about their centroid ``c``),
+    ``(o_(90 %) - o_(10 %)) / 2``; 0 without inliers.
+
+    One scan-ring arc gives about its sagitta's 0.4 (a few stray inliers, under 10 %, do not count);
+    two rings ``D`` apart (each with over 10 % of the inliers) about ``D / 2``; a patch covered evenly
+    ``W`` wide across its minor axis ``0.4 W``."""
+    m, c, _ = xy.shape
     rows = np.arange(m)
     count = inl.sum(axis=1)
-    med = np.empty((m, 2))
-    for i in range(2):
-        s = np.sort(np.where(inl, xy[..., i], np.inf), axis=1)
-        med[:, i] = s[rows, np.minimum(count // 2, xy.shape[1] - 1)]
-    off = xy - np.where(np.isfinite(med), med, 0.0)[:, None, :]
-    r = np.where(inl, np.hypot(off[..., 0], off[..., 1]), np.inf)
-    j = np.maximum(0, np.ceil(count * (_CORE_PERCENT / 100.0)).astype(np.intp) - 1)
-    core = inl & (r <= np.sort(r, axis=1)[rows, np.minimum(j, xy.shape[1] - 1)][:, None])
-    k = np.maximum(core.sum(axis=1), 1)
-    c = np.where(core[..., None], xy, 0.0).sum(axis=1) / k[:, None]
-    q = np.where(core[..., None], xy - c[:, None, :], 0.0)
-    a = np.einsum("pc,pc->p", q[..., 0], q[..., 0])
-    b = np.einsum("pc,pc->p", q[..., 0], q[..., 1])
-    e = np.einsum("pc,pc->p", q[..., 1], q[..., 1])
-    lam = 0.5 * (a + e) - np.sqrt(0.25 * (a - e) ** 2 + b * b)  # the smaller eigenvalue of [[a, b], [b, e]]
-    return np.where(count > 0, np.sqrt(np.maximum(lam, 0.0) / k), 0.0)
+    k = np.maximum(count, 1)
+    q = np.where(inl[..., None], xy - (np.where(inl[..., None], xy, 0.0).sum(axis=1) / k[:, None])[:, None, :], 0.0)
+    s = q.transpose(0, 2, 1) @ q  # (m, 2, 2) scatter
+    a, b, e = s[:, 0, 0], s[:, 0, 1], s[:, 1, 1]
+    lam = 0.5 * (a + e) - np.sqrt(0.25 * (a - e) ** 2 + b * b)  # its smaller eigenvalue
+    v = np.stack([b, lam - a], axis=1)  # its eigenvector ...
+    v = np.where((np.abs(b) > 1e-12 * (a + e + 1e-300))[:, None], v, np.where((a <= e)[:, None], [1.0, 0.0], [0.0, 1.0]))
+    v /= np.linalg.norm(v, axis=1)[:, None]  # ... (axis-aligned when the scatter is diagonal)
+    off = np.sort(np.where(inl, (q @ v[:, :, None])[..., 0], np.inf), axis=1)
+    lo = off[rows, np.floor(0.1 * (k - 1)).astype(np.intp)]
+    hi = off[rows, np.ceil(0.9 * (k - 1)).astype(np.intp)]
+    return np.where(count > 0, 0.5 * (hi - lo), 0.0)
 
 
-def _free_fits(pts: np.ndarray, valid: np.ndarray, seeds: np.ndarray, cfg: CloudConfig,
-               rng: np.random.Generator, cos_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Free RANSAC planes of padded patches (m, C, 3) (fit points ``valid``), all at once.
+def _free_fits(ph: np.ndarray, valid: np.ndarray, seeds: np.ndarray, scale: np.ndarray, cfg: CloudConfig,
+               rng: np.random.Generator, cos_max: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Free RANSAC planes of padded patches, all at once: ``ph`` (m, C, 4) the fit points ``[q 1]``
+    (``valid`` (m, C); padding rows 0), ``seeds`` (m, C).
 
     Per patch, ``H`` hypotheses through 3 random seeds ``(a, b, c)``:
     ``n = (b - a) x (c - a) / |(b - a) x (c - a)|`` (pointing up), ``d = -n . a``; a hypothesis is
-    invalid when degenerate or steeper than ``max_slope_deg`` (``n_z < cos(max_slope)``). Scores are
-    the inlier counts ``sum_i [|n_h . q_i + d_h| <= tau]`` of the ``(m, C, H)`` distance array; the
-    best hypothesis's inliers are refitted by total least squares (:func:`_pca_planes`)
-    ``refine_iterations`` times, the inliers recomputed after each refit. Returns ``(n, d, inliers,
-    ok)``: ``ok`` when the plane has ``n_z >= cos(max_slope)``, at least ``min_points`` inliers and
-    a spread (:func:`_spreads`) of at least ``min_spread``.
+    invalid when degenerate or steeper than ``max_slope_deg`` (``n_z < cos(max_slope)``). Each is
+    scored on an even subsample of at most ``_SCORE_POINTS`` fit points, by its inliers less the
+    points below it,
+
+    .. math::  \\text{score}_h = \\#\\{i : |n_h \\cdot q_i + d_h| \\le \\tau\\}
+                               - \\#\\{i : n_h \\cdot q_i + d_h < -\\tau\\}
+
+    (the ground is the lowest surface: a plane tilted up into a vehicle's lowest scan line leaves
+    ground returns under it). The best hypothesis's inliers among all fit points are refitted by
+    total least squares ``refine_iterations`` times (through their centroid ``c``, normal the
+    eigenvector of the smallest eigenvalue of their scatter ``sum (q - c)(q - c)^T``, pointing up),
+    the inliers recomputed after each refit. Returns ``(n, d, inliers, ok, c)``: ``ok`` when the
+    plane has ``n_z >= cos(max_slope)``, at least ``min_points`` inliers and a spread
+    (:func:`_spreads`) of at least ``min_spread``; ``c`` the inliers' centroid.
     """
-    m, c, _ = pts.shape
+    m, c, _ = ph.shape
     rows = np.arange(m)
     tau = cfg.distance_threshold
     h = cfg.ransac_iterations
-    sample = pts[rows[:, None], _sample_seeds(seeds, 3 * h, rng)].reshape(m, h, 3, 3)
+    sample = ph[rows[:, None], _sample_seeds(seeds, 3 * h, rng), :3].reshape(m, h, 3, 3)
     a = sample[:, :, 0]
     e1 = sample[:, :, 1] - a
     e2 = sample[:, :, 2] - a
@@ -523,103 +527,114 @@ def _free_fits(pts: np.ndarray, valid: np.ndarray, seeds: np.ndarray, cfg: Cloud
     normals *= np.where(normals[..., 2] < 0.0, -1.0, 1.0)[..., None]
     good &= normals[..., 2] >= cos_max
     offsets = -np.einsum("phi,phi->ph", normals, a)
-    # scores of all hypotheses at once: |[q 1] [n; d]|, (m, C, H) in float32 (mm accuracy at 100 m)
+    # scores of all hypotheses at once: [q 1] [n; d], (m, C', H) in float32 (mm accuracy at 100 m)
     hyp = np.empty((m, 4, h), dtype=np.float32)
     hyp[:, :3, :] = normals.transpose(0, 2, 1)
     hyp[:, 3, :] = offsets
-    sub = slice(None, None, -(-c // _SCORE_POINTS))  # hypotheses are scored on an even subsample
-    ph = np.empty((m, len(range(c)[sub]), 4), dtype=np.float32)
-    ph[..., :3] = np.where(valid[:, sub, None], pts[:, sub], (0.0, 0.0, 1e6))  # padding: far above any plane
-    ph[..., 3] = 1.0
-    dist = ph @ hyp
-    below = dist < -tau
+    sub = slice(None, None, -(-c // _SCORE_POINTS))
+    ps = ph[:, sub].astype(np.float32)
+    ps[..., 2][~valid[:, sub]] = 1e6  # padding: far above any plane
+    dist = ps @ hyp
+    score = np.add.reduce((dist < -tau).view(np.uint8), axis=1, dtype=np.int32)
     np.abs(dist, out=dist)
-    within = dist <= tau
-    score = np.add.reduce(within.view(np.uint8), axis=1, dtype=np.int32)
-    score -= np.add.reduce(below.view(np.uint8), axis=1, dtype=np.int32)
+    score = np.add.reduce((dist <= tau).view(np.uint8), axis=1, dtype=np.int32) - score
     score[~good] = -1 - c
     best = np.argmax(score, axis=1)
     found = good[rows, best]
-    n, d = normals[rows, best], offsets[rows, best]
-    inl = valid & (np.abs(np.einsum("pci,pi->pc", np.where(valid[..., None], pts, 0.0), n) + d[:, None]) <= tau)
-    for _ in range(cfg.refine_iterations):
-        refit = found & (inl.sum(axis=1) >= 3)
+    plane = np.concatenate([normals[rows, best], offsets[rows, best][:, None]], axis=1)  # (m, 4)
+    inl = valid & (np.abs((ph @ plane[:, :, None])[..., 0]) <= tau)
+    centroid = np.zeros((m, 3))
+    for it in range(cfg.refine_iterations + 1):
+        mom = (ph * inl[..., None]).transpose(0, 2, 1) @ ph  # sum [q 1][q 1]^T over the inliers
+        count = mom[:, 3, 3]
+        centroid = mom[:, :3, 3] / np.maximum(count, 1.0)[:, None]
+        if it == cfg.refine_iterations:
+            break
+        refit = found & (count >= 3)
         if not refit.any():
             break
-        n2, d2, _ = _pca_planes(pts, inl)
-        n = np.where(refit[:, None], n2, n)
-        d = np.where(refit, d2, d)
-        inl = valid & (np.abs(np.einsum("pci,pi->pc", np.where(valid[..., None], pts, 0.0), n) + d[:, None]) <= tau)
-    count = inl.sum(axis=1)
-    ok = found & (n[:, 2] >= cos_max) & (count >= max(cfg.min_points, 3))
+        scatter = mom[:, :3, :3] - count[:, None, None] * centroid[:, :, None] * centroid[:, None, :]
+        n = np.linalg.eigh(scatter[refit])[1][:, :, 0]
+        n *= np.where(n[:, 2] < 0.0, -1.0, 1.0)[:, None]
+        plane[refit, :3] = n
+        plane[refit, 3] = -np.einsum("pi,pi->p", n, centroid[refit])
+        inl = valid & (np.abs((ph @ plane[:, :, None])[..., 0]) <= tau)
+    ok = found & (plane[:, 2] >= cos_max) & (inl.sum(axis=1) * scale >= cfg.min_points) & (inl.sum(axis=1) >= 3)
     if ok.any():
-        ok[ok] = _spreads(pts[ok][..., :2], inl[ok]) >= cfg.min_spread
-    return n, d, inl, ok
+        ok[ok] = _spreads(ph[ok][..., :2], inl[ok]) >= cfg.min_spread
+    return plane[:, :3], plane[:, 3], inl, ok, centroid
 
 
-def _hinged_fits(pts: np.ndarray, valid: np.ndarray, seeds: np.ndarray, hinge: np.ndarray,
+def _hinged_fits(ph: np.ndarray, valid: np.ndarray, seeds: np.ndarray, scale: np.ndarray, hinge: np.ndarray,
                  prior: np.ndarray, cfg: CloudConfig, rng: np.random.Generator,
                  tan_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Hinged planes of padded patches (m, C, 3): each through its hinge point ``hinge`` (m, 3),
-    its gradient ``g = (dz/dx, dz/dy)`` the one free parameter pair, pulled towards ``prior`` (m, 2).
+    """Hinged planes of padded patches (``ph``, ``valid``, ``seeds`` as :func:`_free_fits`): each
+    through its hinge point ``hinge`` (m, 3), its gradient ``g = (dz/dx, dz/dy)`` free, pulled
+    towards ``prior`` (m, 2).
 
-    With ``(u_i, w_i) = (x_i - x_h, y_i - y_h)``, ``v_i = z_i - z_h`` relative to the hinge point, the
-    plane is ``v = g . (u, w)``. RANSAC: hypothesis 0 is ``g = prior``, the others the planes through
-    the hinge point and 2 random seeds (a 2 x 2 solve; invalid when the three are nearly collinear in
-    x-y or the plane is steeper than ``max_slope_deg``), scored by their inlier counts (point-to-plane
-    distance ``|v_i - g . (u_i, w_i)| / sqrt(1 + |g|^2) <= tau``). The best is refined
-    ``max(1, refine_iterations)`` times by ridge regression on its inliers,
+    With ``d_i = (x_i - x_h, y_i - y_h)`` and ``v_i = z_i - z_h`` relative to the hinge point, the plane
+    is ``v = g . d``. RANSAC: hypothesis 0 is ``g = prior``, the others the planes through the hinge
+    point and 2 random seeds (a 2 x 2 solve; invalid when the three are nearly in a line in x-y or the
+    plane is steeper than ``max_slope_deg``), scored as in :func:`_free_fits` with the point-to-plane
+    distance ``(v_i - g . d_i) / sqrt(1 + |g|^2)``. The best is refined ``max(1, refine_iterations)``
+    times by ridge regression on its inliers,
 
-    .. math::  g = \\left(\\sum_i d_i d_i^T + \\lambda I\\right)^{-1}
-                   \\left(\\sum_i d_i v_i + \\lambda g_0\\right), \\qquad d_i = (u_i, w_i),
+    .. math::  g = \\Big(\\sum_i d_i d_i^T + \\lambda I\\Big)^{-1}
+                   \\Big(\\sum_i v_i d_i + \\lambda g_0\\Big),
 
     ``lambda = hinge_prior`` (m^2), ``g_0 = prior``: a direction in which the inliers do not reach
-    out (a ring arc seen across) keeps the prior's slope. Returns ``(g, inliers, ok)``, ``ok`` when
-    the plane has at least ``min_points`` inliers and ``|g| <= tan(max_slope)``.
+    out from the hinge point (along a ring arc seen end-on, or all of them for a short arc) keeps the
+    prior's slope. Returns ``(g, inliers, ok)``, ``ok`` when the plane has at least ``min_points``
+    inliers and ``|g| <= tan(max_slope)``.
     """
-    c = int(valid.sum(axis=1).max()) if valid.size else 0  # the slots in use (the fit points come first)
-    pts, valid, seeds = pts[:, :c], valid[:, :c], seeds[:, :c]
-    m = len(pts)
+    c = int(valid.sum(axis=1).max()) if valid.size else 0  # the slots in use (each row's points come first)
+    ph, valid, seeds = ph[:, :c], valid[:, :c], seeds[:, :c]
+    m = len(ph)
     rows = np.arange(m)
     tau = cfg.distance_threshold
     h = cfg.ransac_iterations
-    du = np.where(valid, pts[..., 0] - hinge[:, None, 0], 0.0)
-    dw = np.where(valid, pts[..., 1] - hinge[:, None, 1], 0.0)
-    dv = np.where(valid, pts[..., 2] - hinge[:, None, 2], 1e6)  # padding: far above any plane
-    pair = _sample_seeds(seeds, 2 * h, rng).reshape(m, h, 2)
-    ui, uj = du[rows[:, None], pair[..., 0]], du[rows[:, None], pair[..., 1]]
-    wi, wj = dw[rows[:, None], pair[..., 0]], dw[rows[:, None], pair[..., 1]]
-    vi, vj = dv[rows[:, None], pair[..., 0]], dv[rows[:, None], pair[..., 1]]
+    rel = np.where(valid[..., None], ph[..., :3] - hinge[:, None, :], 0.0)  # (m, C, 3): d_i and v_i
+    pair = _sample_seeds(seeds, 2 * h, rng)
+    s = rel[rows[:, None], pair].reshape(m, h, 2, 3)
+    ui, wi, vi = s[:, :, 0, 0], s[:, :, 0, 1], s[:, :, 0, 2]
+    uj, wj, vj = s[:, :, 1, 0], s[:, :, 1, 1], s[:, :, 1, 2]
     det = ui * wj - wi * uj
     good = np.abs(det) > _HINGE_MIN_SINE * np.hypot(ui, wi) * np.hypot(uj, wj)
     det = np.where(good, det, 1.0)
-    gx = np.where(good, (vi * wj - vj * wi) / det, 0.0)
-    gy = np.where(good, (ui * vj - uj * vi) / det, 0.0)
-    gx[:, 0], gy[:, 0] = prior[:, 0], prior[:, 1]
+    grad = np.empty((m, h, 2))
+    grad[..., 0] = np.where(good, (vi * wj - vj * wi) / det, 0.0)
+    grad[..., 1] = np.where(good, (ui * vj - uj * vi) / det, 0.0)
+    grad[:, 0] = prior
     good[:, 0] = True
-    good &= gx * gx + gy * gy <= tan_max * tan_max
-    lim = tau * np.sqrt(1.0 + gx * gx + gy * gy)
-    sub = slice(None, None, -(-c // _SCORE_POINTS))  # hypotheses are scored on an even subsample
-    res = dv[:, sub, None] - du[:, sub, None] * gx[:, None, :] - dw[:, sub, None] * gy[:, None, :]
-    score = np.add.reduce((np.abs(res) <= lim[:, None, :]).view(np.uint8), axis=1, dtype=np.int32)
-    score -= np.add.reduce((res < -lim[:, None, :]).view(np.uint8), axis=1, dtype=np.int32)
+    slope2 = np.einsum("phi,phi->ph", grad, grad)
+    good &= slope2 <= tan_max * tan_max
+    lim = (tau * np.sqrt(1.0 + slope2)).astype(np.float32)
+    sub = slice(None, None, -(-c // _SCORE_POINTS))
+    rs = rel[:, sub].astype(np.float32)
+    rs[..., 2][~valid[:, sub]] = 1e6  # padding: far above any plane
+    hyp = np.empty((m, 3, h), dtype=np.float32)
+    hyp[:, :2, :] = -grad.transpose(0, 2, 1)
+    hyp[:, 2, :] = 1.0
+    res = rs @ hyp  # v_i - g . d_i, (m, C', H)
+    score = np.add.reduce((res < -lim[:, None, :]).view(np.uint8), axis=1, dtype=np.int32)
+    np.abs(res, out=res)
+    score = np.add.reduce((res <= lim[:, None, :]).view(np.uint8), axis=1, dtype=np.int32) - score
     score[~good] = -1 - c
     best = np.argmax(score, axis=1)
-    g = np.column_stack([gx[rows, best], gy[rows, best]])
-    inl = valid & (np.abs(dv - du * g[:, :1] - dw * g[:, 1:]) <= lim[rows, best][:, None])
-    lam = cfg.hinge_prior
-    for _ in range(max(1, cfg.refine_iterations)):
-        wu, ww = np.where(inl, du, 0.0), np.where(inl, dw, 0.0)
-        suu = np.einsum("pc,pc->p", wu, du) + lam
-        suw = np.einsum("pc,pc->p", wu, dw)
-        sww = np.einsum("pc,pc->p", ww, dw) + lam
-        bu = np.einsum("pc,pc->p", wu, np.where(inl, dv, 0.0)) + lam * prior[:, 0]
-        bw = np.einsum("pc,pc->p", ww, np.where(inl, dv, 0.0)) + lam * prior[:, 1]
-        det2 = suu * sww - suw * suw
-        g = np.column_stack([(sww * bu - suw * bw) / det2, (suu * bw - suw * bu) / det2])
-        lim = tau * np.sqrt(1.0 + (g * g).sum(axis=1))
-        inl = valid & (np.abs(dv - du * g[:, :1] - dw * g[:, 1:]) <= lim[:, None])
-    ok = (inl.sum(axis=1) >= max(cfg.min_points, 3)) & ((g * g).sum(axis=1) <= tan_max * tan_max)
+    g = grad[rows, best]
+    lever2 = cfg.hinge_prior_length ** 2
+    for it in range(max(1, cfg.refine_iterations) + 1):
+        vec = np.concatenate([-g, np.ones((m, 1))], axis=1)
+        inl = valid & (np.abs((rel @ vec[:, :, None])[..., 0]) <= (tau * np.sqrt(1.0 + (g * g).sum(axis=1)))[:, None])
+        if it == max(1, cfg.refine_iterations):
+            break
+        mom = (rel * inl[..., None]).transpose(0, 2, 1) @ rel  # sum [d v][d v]^T over the inliers
+        lam = np.maximum(inl.sum(axis=1), 1) * lever2
+        a, b, e = mom[:, 0, 0] + lam, mom[:, 0, 1], mom[:, 1, 1] + lam
+        ru, rw = mom[:, 0, 2] + lam * prior[:, 0], mom[:, 1, 2] + lam * prior[:, 1]
+        det2 = a * e - b * b
+        g = np.column_stack([(e * ru - b * rw) / det2, (a * rw - b * ru) / det2])
+    ok = (inl.sum(axis=1) * scale >= cfg.min_points) & (inl.sum(axis=1) >= 3) & ((g * g).sum(axis=1) <= tan_max * tan_max)
     return g, inl, ok
 
 
@@ -641,23 +656,31 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
     cos_max = math.cos(math.radians(cfg.max_slope_deg))
     tan_max = math.tan(math.radians(cfg.max_slope_deg))
     cos_change = math.cos(math.radians(cfg.max_slope_change_deg))
-    tan_change = math.tan(math.radians(cfg.max_slope_change_deg))
 
-    # the fit points of every patch with enough points, padded to (rows, C, 3)
+    # the fit points of every patch with enough of them, padded to (rows, C, .), relative to an
+    # origin per row (their mean: keeps the moments' cancellation small)
     cand = np.flatnonzero(counts >= max(cfg.min_points, 3))
     row = np.full(n_patch, -1, dtype=np.intp)
     row[cand] = np.arange(len(cand))
-    idx, r_of, slot, c = _fit_slots(patch, counts, row, cfg.max_fit_points)
-    fp = np.full((len(cand), c, 3), np.nan)
-    fp[r_of, slot] = pts[idx]
+    idx, r_of, slot, c = _fit_slots(patch, counts, row, cfg.max_fit_points, np.random.default_rng((cfg.seed, 0)))
     valid = np.zeros((len(cand), c), dtype=bool)
     valid[r_of, slot] = True
-    seeds = _seed_mask(fp[..., 2], valid, cfg)
-    radius = np.where(valid, np.hypot(fp[..., 0] - centre[0], fp[..., 1] - centre[1]), -np.inf)
+    origin = np.zeros((len(cand), 3))
+    np.add.at(origin, r_of, pts[idx])  # few rows: cheap
+    origin /= np.maximum(valid.sum(axis=1), 1)[:, None]
+    ph = np.zeros((len(cand), c, 4))
+    ph[r_of, slot, :3] = pts[idx] - origin[r_of]
+    ph[r_of, slot, 3] = 1.0
+    seeds = _seed_mask(ph[..., 2], valid, cfg)
+    scale = counts[cand] / np.maximum(valid.sum(axis=1), 1)  # points per fit point
+    radius = np.where(valid, np.hypot(ph[..., 0] + (origin[:, 0] - centre[0])[:, None],
+                                      ph[..., 1] + (origin[:, 1] - centre[1])[:, None]), np.nan)
     if len(cand):
-        free_n, free_d, free_inl, free_ok = _free_fits(fp, valid, seeds, cfg, np.random.default_rng((cfg.seed, 0)), cos_max)
+        free_n, free_d, free_inl, free_ok, free_c = _free_fits(ph, valid, seeds, scale, cfg, np.random.default_rng((cfg.seed, 1)), cos_max)
+        free_d = free_d - np.einsum("pi,pi->p", free_n, origin)  # back to E
+        free_c = free_c + origin
     else:
-        free_n, free_d = np.zeros((0, 3)), np.zeros(0)
+        free_n, free_d, free_c = np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
         free_inl, free_ok = np.zeros((0, c), dtype=bool), np.zeros(0, dtype=bool)
 
     normals = np.tile([0.0, 0.0, 1.0], (n_patch, 1))
@@ -666,7 +689,7 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
     fitted = np.zeros(n_patch, dtype=bool)
     hinged = np.zeros(n_patch, dtype=bool)
     inlier_counts = np.zeros(n_patch, dtype=int)
-    reach = np.zeros(n_patch)  # the radius out to which a patch's plane is supported by its inliers
+    reach = np.zeros(n_patch)  # how far out from the centre a patch's plane is supported by inliers
 
     def own(p: np.ndarray, rp: np.ndarray, n: np.ndarray, d: np.ndarray, inl: np.ndarray) -> None:
         normals[p], offsets[p], source[p], fitted[p] = n, d, p, True
@@ -674,54 +697,53 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
         reach[p] = np.where(inl, radius[rp, :inl.shape[1]], -np.inf).max(axis=1)
 
     if row[0] >= 0 and free_ok[row[0]]:
-        own(np.array([0]), row[[0]], free_n[row[[0]]], free_d[row[[0]]], free_inl[row[[0]]])
+        r0 = row[[0]]
+        own(np.array([0]), r0, free_n[r0], free_d[r0], free_inl[r0])
     for j in range(1, len(sectors)):
         s_j, s_in = int(sectors[j]), int(sectors[j - 1])
         ps = first[j] + np.arange(s_j)
         phi = 2.0 * math.pi * np.arange(s_j) / s_j
         qs = first[j - 1] + np.mod(np.floor(phi * (s_in / (2.0 * math.pi)) + 0.5).astype(np.intp), s_in)
         nq, dq = normals[qs], offsets[qs]
-        # the hinge point: the inner neighbour's plane at the end of its support, on the sector's axis
-        hx = centre[0] + reach[qs] * np.cos(phi)
-        hy = centre[1] + reach[qs] * np.sin(phi)
-        hinge = np.column_stack([hx, hy, _plane_z(nq, dq, hx, hy)])
         rp = row[ps]
         todo = rp >= 0
-        # free fits: no kink and no step to the inner neighbour's plane where they meet
-        free = todo & np.where(todo, free_ok[np.maximum(rp, 0)], False)
+        # free fits: no kink to the inner neighbour's plane, and the two meet (within max_step)
+        # between where the neighbour's support ends and where this patch's begins
+        free = todo & free_ok[np.maximum(rp, 0)] if len(cand) else todo
         if free.any():
             f = np.flatnonzero(free)
-            n, d, inl = free_n[rp[f]], free_d[rp[f]], free_inl[rp[f]]
-            cx = np.where(inl, fp[rp[f], :, 0], 0.0).sum(axis=1) - centre[0] * inl.sum(axis=1)
-            cy = np.where(inl, fp[rp[f], :, 1], 0.0).sum(axis=1) - centre[1] * inl.sum(axis=1)
-            az = np.arctan2(cy, cx)
-            near = np.where(inl, radius[rp[f]], np.inf).min(axis=1)
-            gaps = []
-            for rad in (reach[qs[f]], near):
-                bx, by = centre[0] + rad * np.cos(az), centre[1] + rad * np.sin(az)
-                gaps.append(_plane_z(n, d, bx, by) - _plane_z(nq[f], dq[f], bx, by))
-            step = np.where(gaps[0] * gaps[1] <= 0.0, 0.0, np.minimum(np.abs(gaps[0]), np.abs(gaps[1])))
+            rf = rp[f]
+            n, d, inl = free_n[rf], free_d[rf], free_inl[rf]
+            az = np.arctan2(free_c[rf, 1] - centre[1], free_c[rf, 0] - centre[0])
+            ends = [reach[qs[f]], np.where(inl, radius[rf], np.inf).min(axis=1)]
+            gap = [_plane_z(n, d, centre[0] + e * np.cos(az), centre[1] + e * np.sin(az))
+                   - _plane_z(nq[f], dq[f], centre[0] + e * np.cos(az), centre[1] + e * np.sin(az)) for e in ends]
+            step = np.where(gap[0] * gap[1] <= 0.0, 0.0, np.minimum(np.abs(gap[0]), np.abs(gap[1])))
             accept = (np.einsum("pi,pi->p", n, nq[f]) >= cos_change) & (step <= cfg.max_step)
             if accept.any():
                 a = f[accept]
                 own(ps[a], rp[a], n[accept], d[accept], inl[accept])
                 todo[a] = False
-        # hinged fits where there is no free one
+        # hinged fits where there is none: through the inner neighbour's plane where its support
+        # ends, on the sector's axis
         if todo.any():
             f = np.flatnonzero(todo)
+            rf = rp[f]
+            hx = centre[0] + reach[qs[f]] * np.cos(phi[f])
+            hy = centre[1] + reach[qs[f]] * np.sin(phi[f])
+            hinge = np.column_stack([hx, hy, _plane_z(nq[f], dq[f], hx, hy)])
             prior = -nq[f, :2] / nq[f, 2:]
-            g, inl, ok = _hinged_fits(fp[rp[f]], valid[rp[f]], seeds[rp[f]], hinge[f], prior, cfg,
-                                      np.random.default_rng((cfg.seed, j)), tan_max)
+            g, inl, ok = _hinged_fits(ph[rf], valid[rf], seeds[rf], scale[rf], hinge - origin[rf], prior, cfg,
+                                      np.random.default_rng((cfg.seed, j + 1)), tan_max)
             n = np.column_stack([-g, np.ones(len(f))]) / np.sqrt(1.0 + (g * g).sum(axis=1))[:, None]
             ok &= np.einsum("pi,pi->p", n, nq[f]) >= cos_change
             if ok.any():
                 a = f[ok]
-                own(ps[a], rp[a], n[ok], -np.einsum("pi,pi->p", n[ok], hinge[a]), inl[ok])
+                own(ps[a], rp[a], n[ok], -np.einsum("pi,pi->p", n[ok], hinge[ok]), inl[ok])
                 hinged[ps[a]] = True
         # the rest borrow the inner neighbour's plane (and where it is supported)
-        rest = ~fitted[ps]
-        b, q = ps[rest], qs[rest]
-        normals[b], offsets[b], source[b], reach[b] = normals[q], offsets[q], source[q], reach[q]
+        b = ~fitted[ps]
+        normals[ps[b]], offsets[ps[b]], source[ps[b]], reach[ps[b]] = nq[b], dq[b], source[qs[b]], reach[qs[b]]
     model = GroundModel(ring_edges=tuple(edges.tolist()), sectors=tuple(sectors.tolist()), centre=centre,
                         normals=normals, offsets=offsets, fallback=~fitted, hinged=hinged, source=source,
                         point_counts=counts, inlier_counts=inlier_counts)

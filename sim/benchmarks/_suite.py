@@ -7,6 +7,9 @@ Sections (the keys of the JSON, in the order they run):
 - ``stonesoup``: Stone Soup's GM-PHD (UKF, 10 point targets, 200 frames) and ours on the same frames,
   and the ratio (``sim.benchmarks._stonesoup``); ``{"skipped": reason}`` when Stone Soup is missing;
 - ``lidar``: one ``Lidar.scan`` (1800 rays, 20 vehicles, 300 roadside objects) and one radar cycle, ms;
+- ``lidar3d``: one VLP-16 scan (28,800 rays, a sloped road, 20 vehicles, 300 roadside objects) and the
+  tracker's 3-D preprocessing of it, ms, with the ground removal's recall and precision
+  (``sim.benchmarks.lidar3d``);
 - ``world``: ms of wall time per simulated second, traffic only (``sim.benchmarks.world``);
 - ``end_to_end``: ``run_scenario`` (world + sensors + tracker + scoring) of ``curvy-multi`` and
   ``dense-highway``, simulated seconds per wall second on one core;
@@ -43,7 +46,7 @@ from typing import Any
 
 from sim.benchmarks._machine import machine, one_core, peak_memory_mb, usable_cpus
 
-SECTIONS = ("tracker", "stonesoup", "lidar", "world", "end_to_end", "montecarlo", "env")
+SECTIONS = ("tracker", "stonesoup", "lidar", "lidar3d", "world", "end_to_end", "montecarlo", "env")
 E2E_SCENARIOS = ("curvy-multi", "dense-highway")
 MC_SCENARIO = "curvy-multi"
 DEFAULT_OUT = "results/bench.json"
@@ -123,6 +126,12 @@ def lidar_section(s: Settings) -> dict[str, Any]:
     }
 
 
+def lidar3d_section(s: Settings) -> dict[str, Any]:
+    from sim.benchmarks.lidar3d import bench_vlp16
+
+    return bench_vlp16(s.lidar_repeats if not s.quick else 3, pin=False, verbose=False)  # run_all pins
+
+
 def world_section(s: Settings) -> dict[str, Any]:
     from sim.benchmarks import world
 
@@ -190,6 +199,7 @@ RUNNERS: dict[str, Callable[[Settings], dict[str, Any]]] = {
     "end_to_end": end_to_end_section,
     "montecarlo": montecarlo_section,
     "env": env_section,
+    "lidar3d": lidar3d_section,
 }
 #: Sections that run with the process's own affinity (they start worker processes).
 UNPINNED = ("montecarlo",)
