@@ -71,3 +71,17 @@ def test_lidar_points_take_a_3d_cloud_through_the_ground_removal():
     flat = Frame(0.0, (0.0, 0.0, 0.0), wall[:, :2])
     pts2, counts2, none = lidar_points(flat)
     assert none is None and counts2 == {"points_nonfinite": 0} and np.array_equal(pts2, wall[:, :2])
+
+
+def test_bearing_filter_keeps_every_ray_of_the_lidar_grid():
+    """Every ray of a 0.2 deg full-circle scan (bearings -180 + 0.2 k deg) keeps its own bin, whatever
+    the range; a second point on a ray (behind the first) is dropped; +-180 deg is one bin."""
+    b = -np.pi + np.radians(0.2) * np.arange(1, 1801)
+    r = 5.0 + 90.0 * np.random.default_rng(1).random(1800)
+    pts = r[:, None] * np.stack([np.cos(b), np.sin(b)], axis=1)
+    kept = bearing_filter(pts, np.radians(0.2))
+    assert len(kept) == 1800
+    behind = np.vstack([pts, 1.5 * pts])
+    assert sorted(bearing_filter(behind, np.radians(0.2)).tolist()) == list(range(1800))
+    wrap = np.array([[-10.0, 1e-9], [-20.0, -1e-9]])  # just either side of +-180 deg
+    assert bearing_filter(wrap).tolist() == [0]

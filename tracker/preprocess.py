@@ -57,7 +57,13 @@ def road_bound_mask(points_g: np.ndarray, road: Road, margin: float = 0.5) -> np
 
 def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> np.ndarray:
     """Indices of the closest point in each bearing bin of ``bin_width`` rad (seen from the E origin),
-    in increasing bearing order. ``bin_width`` should be at least the lidar's azimuth resolution."""
+    in increasing bearing order. ``bin_width`` should be at least the lidar's azimuth resolution.
+
+    Bin ``k`` is centred on the bearing ``k * bin_width`` (``k = floor(bearing / bin_width + 1/2)``,
+    taken modulo the bin count when ``bin_width`` divides the circle), so a lidar whose rays sit at
+    multiples of its resolution puts each ray in the middle of its own bin. (Bins with edges on the
+    rays, ``floor((bearing + pi) / bin_width)``, let float rounding put two neighbouring rays into one
+    bin: 1,620 of a full circle's 1,800 rays survived the filter.)"""
     if not bin_width > 0:
         raise ValueError(f"bin_width must be > 0 rad; got {bin_width!r}")
     pts = np.asarray(points_e, dtype=float).reshape(-1, 2)
@@ -65,11 +71,15 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
         return np.zeros(0, dtype=int)
     bearing = np.arctan2(pts[:, 1], pts[:, 0])
     rng = np.hypot(pts[:, 0], pts[:, 1])
-    bins = np.floor((bearing + np.pi) / bin_width).astype(np.int64)
+    bins = np.floor(bearing / bin_width + 0.5).astype(np.int64)
+    count = round(2.0 * np.pi / bin_width)
+    if abs(count * bin_width - 2.0 * np.pi) <= 1e-9:  # the bins tile the circle: -pi and pi are one bin
+        bins = np.mod(bins, count)
     order = np.lexsort((rng, bins))  # by bin, then by range
     first = np.ones(len(order), dtype=bool)
     first[1:] = bins[order][1:] != bins[order][:-1]
-    return order[first]
+    kept = order[first]
+    return kept[np.argsort(bearing[kept], kind="stable")]
 
 
 def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig,
