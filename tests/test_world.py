@@ -306,3 +306,20 @@ def test_world_records_collisions(tmp_path: Path) -> None:
     world.advance(4.0)
     assert [(a, b) for _, a, b in world.collisions] == [(1, 2)]
     assert 1.5 < world.collisions[0][0] < 2.5
+
+
+def test_vehicles_stand_on_the_sloped_road_with_their_heights():
+    """hill-vlp16: a 4 % grade and 3 % bank; the snapshot's ground heights are the road surface's
+    (sim.ground.RoadGround gives the same at the vehicles' centres) and the heights the scenario's."""
+    from sim.ground import RoadGround
+
+    spec = load_scenario("hill-vlp16")
+    world = World(spec, 0)
+    snap = world.truth_at(2.0)
+    surface = RoadGround(world.road, spec.road.grade, spec.road.bank)
+    np.testing.assert_allclose(snap.z, surface.height(snap.xy), atol=1e-6)
+    np.testing.assert_allclose(snap.z, 0.04 * snap.s + 0.03 * snap.n, atol=1e-9)  # all within the road's edges
+    assert snap.ego.z == pytest.approx(0.04 * world.ego_state().s + 0.03 * world.ego_state().n)
+    assert snap.height.tolist() == [3.6, 2.0, 1.5, 1.2, 1.5]  # truck (given), van, car, motorcycle, car
+    flat = World(load_scenario("curve-single"), 0).truth_at(0.0)
+    assert flat.z.tolist() == [0.0] and flat.height.tolist() == [1.5] and flat.ego.z == 0.0
