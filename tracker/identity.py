@@ -92,12 +92,20 @@ class LostTracks:
         return default if entry is None else entry.updated
 
     def match(self, t: float, means: np.ndarray, covs: np.ndarray,
-              coasting: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+              coasting: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+              reported: np.ndarray | None = None) -> np.ndarray:
         """For newcomers ``means (N, 7)``, ``covs (N, 7, 7)`` at time ``t``: the label each takes, or -1.
-        Candidates are the lost tracks (predicted to ``t``) and ``coasting = (labels, means, covs)``:
-        tracks still reported but not updated this frame, at ``t`` (a track whose prediction missed its
-        vehicle's points, from which the newcomer was born). Matched lost labels leave the store."""
+        Candidates are the lost tracks (predicted to ``t``), the tracks reported last frame whose
+        labels are not among ``reported`` (this frame's; lost in this very frame, which ``observe``
+        has not stored yet) and ``coasting = (labels, means, covs)``: tracks still reported but not
+        updated this frame, at ``t`` (a track whose prediction missed its vehicle's points, from which
+        the newcomer was born). Matched lost labels leave the store."""
         out = np.full(len(means), -1, dtype=int)
+        if reported is not None and self.window > 0.0:  # lost this frame: candidates like the stored ones
+            now = set(int(x) for x in np.asarray(reported).reshape(-1))
+            for lab, last in self._last.items():
+                if lab not in now and lab not in self.lost:
+                    self.lost[lab] = last
         lost = list(self.lost) if self.window > 0.0 else []
         extra = 0 if coasting is None else len(coasting[0])
         if not len(means) or not (lost or extra):

@@ -440,7 +440,7 @@ class Tracker:
         if self.config.reduction.reidentify_window <= 0.0:
             coasting = coasting[:0]
         old = self._lost.match(t, mix.means[new], mix.covs[new],
-                               (mix.labels[coasting], mix.means[coasting], mix.covs[coasting]))
+                               (mix.labels[coasting], mix.means[coasting], mix.covs[coasting]), mix.labels[above])
         for i, lab in zip(new, old):
             if lab < 0:
                 continue
