@@ -368,7 +368,10 @@ class RoadGround(Ground):
     def __repr__(self) -> str:
         return f"RoadGround(grade={self.grade!r}, bank={self.bank!r}, cell={self.cell!r}, margin={self.margin!r})"
 
-    def _from_frenet(self, s: np.ndarray, n: np.ndarray) -> np.ndarray:
+    def height_at(self, s: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """Heights (m) at road coordinates ``s``, ``n`` (m), the formula of the module docstring
+        (no projection: for callers that already have them, e.g. the world's vehicles)."""
+        s, n = np.asarray(s, dtype=float), np.asarray(n, dtype=float)
         h = self.bank * np.clip(n, float(self.road.right_edge), float(self.road.left_edge))
         if self.grade != 0.0:
             h = h + self.grade * s
@@ -378,7 +381,7 @@ class RoadGround(Ground):
         """Exact heights (N,) in m (one ``to_frenet`` of all points)."""
         pts = _as_xy(xy, "RoadGround.height")
         s, n = self.road.to_frenet(pts)
-        return self._from_frenet(np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1))
+        return self.height_at(np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1))
 
     def gradient(self, xy: np.ndarray) -> np.ndarray:
         """Exact gradients (N, 2) (module docstring); on a road edge the bank term counts as off."""

@@ -58,7 +58,7 @@ from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_out
 from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
-from sim.ground import RoadGround
+from sim.ground import Ground
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.truth import Snapshot
@@ -180,11 +180,11 @@ def _where(spec: ScenarioSpec) -> str:
 
 
 def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road, seed: int,
-              roadside: bool | None = None, grade: float = 0.0, bank: float = 0.0) -> SensorRig:
+              roadside: bool | None = None, ground: Ground | None = None) -> SensorRig:
     """The sensor rig of a run with seed ``seed``: ``roadside`` False drops the scenario's roadside
     objects, True adds the default ones (``ClutterConfig()``) where the scenario has none, None keeps
-    what the scenario says; the objects are drawn from the run's own clutter stream. ``grade`` and
-    ``bank`` (the road's, ``RoadSpec``) shape the ground the 3-D lidar sees (``sim.ground``)."""
+    what the scenario says; the objects are drawn from the run's own clutter stream. ``ground`` (the
+    world's ``World.ground``; ``None``: level) is what the 3-D lidar sees (``sim.ground``)."""
     if roadside is False:
         clutter_cfg = None
     elif roadside is True and clutter_cfg is None:
@@ -193,9 +193,6 @@ def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road,
     if clutter_cfg is not None:
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(CLUTTER_STREAM,)))
         objects = generate_roadside(road, clutter_cfg, rng=rng)
-    ground = None
-    if rig_cfg.lidar.model == "vlp16" and (grade != 0.0 or bank != 0.0):
-        ground = RoadGround(road, grade, bank)
     return SensorRig(rig_cfg, objects, ground)
 
 
@@ -491,7 +488,7 @@ def run_scenario(
     world = World(spec, seed)
     spec = world.spec  # the realised scenario when a generator drew it
     road = world.road
-    rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside, spec.road.grade, spec.road.bank)
+    rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside, world.ground)
     objects = rig.roadside
     tracker = (tracker_factory or variant_factory(variant) or default_tracker_factory)(road, config)
     # a point tracker (the variant says so, or the tracker: ``estimates_extent = False``) has no L, W to score

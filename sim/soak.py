@@ -227,7 +227,7 @@ def run_soak(
     tracker_cfg = tracker_config_for(spec, config.variant, rig_cfg)
     world = World(spec, config.seed)
     road = world.road
-    rig = build_rig(rig_cfg, clutter_cfg, road, config.seed, config.roadside, world.spec.road.grade, world.spec.road.bank)
+    rig = build_rig(rig_cfg, clutter_cfg, road, config.seed, config.roadside, world.ground)
     tracker = default_tracker_factory(road, tracker_cfg)
     max_range = rig_cfg.lidar.max_range
     duration = config.duration

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.ground import RoadGround
 from sim.lanes import build_network
 from sim.scenario import ScenarioSpec, polygons_overlap
 from sim.traffic import TrafficRoad, make_vehicle
@@ -98,9 +99,10 @@ class World:
         others = [make_vehicle(self.traffic, i + 1, v, v.mobil) for i, v in enumerate(spec.vehicles)]
         self.traffic.vehicles = [ego, *others]
         self.ego = ego
-        #: heights (m) by vehicle id, and the road surface's grade and bank (3-D lidar only)
+        #: heights (m) by vehicle id, and the road surface when it has a grade or bank (3-D lidar only)
         self.heights = {0: spec.ego.box_height, **{i + 1: v.box_height for i, v in enumerate(spec.vehicles)}}
-        self.grade, self.bank = float(spec.road.grade), float(spec.road.bank)
+        sloped = spec.road.grade != 0.0 or spec.road.bank != 0.0
+        self.ground = RoadGround(self.road, spec.road.grade, spec.road.bank) if sloped else None
         self._k = 0
         self.t = 0.0
         self.removed: dict[int, float] = {}
@@ -222,23 +224,15 @@ class World:
         fraction = max(self.t - self.grid_time, 0.0)
         return [self._state(v, fraction) for v in self.traffic.vehicles]
 
-    def ground_height(self, s: np.ndarray | float, n: np.ndarray | float) -> np.ndarray:
-        """Height (m) of the road surface at road coordinates ``(s, n)``: ``grade s + bank n`` with
-        ``n`` clipped to the road's edges (beside the road the ground is level across);
-        ``sim.ground.RoadGround`` is the same surface for the lidar."""
-        n_c = np.clip(np.asarray(n, dtype=float), self.road.right_edge, self.road.left_edge)
-        return self.grade * np.asarray(s, dtype=float) + self.bank * n_c
-
     def snapshot(self) -> Snapshot:
         """The truth ``Snapshot`` at the current time ``t``: the ego pose and the other vehicles."""
         states = self.states()
         ego, others = states[0], states[1:]
-        level = self.grade == 0.0 and self.bank == 0.0
         s_arr, n_arr = np.array([o.s for o in others]), np.array([o.n for o in others])
         return Snapshot(
             t=self.t,
             ego=EgoPose(x=ego.x, y=ego.y, yaw=ego.yaw, v=ego.v, yaw_rate=ego.yaw_rate, length=ego.length, width=ego.width,
-                        z=0.0 if level else float(self.ground_height(ego.s, ego.n))),
+                        z=0.0 if self.ground is None else float(self.ground.height_at(ego.s, ego.n))),
             ids=np.array([o.vid for o in others], dtype=int),
             xy=np.array([[o.x, o.y] for o in others], dtype=float).reshape(-1, 2),
             yaw=np.array([o.yaw for o in others]),
@@ -251,7 +245,7 @@ class World:
             xi=np.array([o.xi for o in others]),
             xi_dot=np.array([o.xi_dot for o in others]),
             height=np.array([self.heights.get(o.vid, 1.5) for o in others]),
-            z=np.zeros(len(others)) if level else self.ground_height(s_arr, n_arr),
+            z=np.zeros(len(others)) if self.ground is None else self.ground.height_at(s_arr, n_arr),
         )
 
     def truth_at(self, t: float) -> Snapshot:

@@ -58,6 +58,8 @@ from typing import Any
 
 import numpy as np
 
+from tracker.checks import check_real
+
 __all__ = [
     "CloudConfig",
     "CloudResult",
@@ -101,21 +103,12 @@ _MIN_HYPOTHESES = 8
 
 def _real(name: str, value: Any, *, low: float | None = None, high: float | None = None,
           low_open: bool = False, high_open: bool = False, unit: str = "") -> float:
-    """``value`` as a float, or ``ValueError`` naming ``CloudConfig.<name>`` and the allowed range."""
-    where = f"CloudConfig.{name}"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{where} must be a real number{(' in ' + unit) if unit else ''}; got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{where} must be finite; got {value!r}")
-    bad_low = low is not None and (v <= low if low_open else v < low)
-    bad_high = high is not None and (v >= high if high_open else v > high)
-    if bad_low or bad_high:
-        lo = "" if low is None else (f"> {low}" if low_open else f">= {low}")
-        hi = "" if high is None else (f"< {high}" if high_open else f"<= {high}")
-        rng = " and ".join(part for part in (lo, hi) if part)
-        raise ValueError(f"{where} must be {rng}{(' ' + unit) if unit else ''}; got {value!r}")
-    return v
+    """``value`` as a float, or ``ValueError`` naming ``CloudConfig.<name>`` and the allowed range
+    (``tracker.checks.check_real``; numpy scalars are taken as Python numbers)."""
+    if isinstance(value, (np.integer, np.floating)):
+        value = value.item()
+    check_real("CloudConfig", name, value, low=low, high=high, low_open=low_open, high_open=high_open, unit=unit)
+    return float(value)
 
 
 def _integer(name: str, value: Any, low: int) -> int:

@@ -165,7 +165,7 @@ class TrackedRoadEnv(AbstractEnv):
         self.road = world.traffic
         self.controlled_vehicles = [ego]
         rig_cfg, clutter_cfg = rig_config_for(spec)
-        self.rig = build_rig(rig_cfg, clutter_cfg, world.road, seed, s.roadside, spec.road.grade, spec.road.bank)
+        self.rig = build_rig(rig_cfg, clutter_cfg, world.road, seed, s.roadside, world.ground)
         self.tracker = None
         if s.perception == "tracks":
             self.tracker = default_tracker_factory(world.road, tracker_config_for(spec, s.variant, rig_cfg))

@@ -138,6 +138,29 @@ class LidarScan:
         return self.points[self.vehicle_id == vehicle_id]
 
 
+def ray_returns(hit: np.ndarray, true_range: np.ndarray, owner: np.ndarray, vehicle_ids: np.ndarray,
+                config: LidarConfig, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """The returns of one cast of ``R`` rays (``hit``, ``true_range`` m, ``owner`` per ray: owners
+    ``0 .. V-1`` the vehicles ``vehicle_ids``, ``V + j`` roadside object ``j``, -1 none or the ground):
+    two draws per ray (a normal, then a uniform), whatever the scene; a ray that hits returns unless it
+    drops out (``dropout_probability``) or is nearer than ``min_range``, at the true range plus
+    Gaussian noise (``range_noise_std``). Returns the returning rays' indices, their measured ranges,
+    ``vehicle_id`` (-1 unless a vehicle) and ``roadside_index`` (-1 unless a roadside object).
+    ``config`` is any lidar configuration with those three fields (2-D or the VLP-16's)."""
+    count = len(hit)
+    noise = rng.standard_normal(count)
+    dropped = rng.random(count) < config.dropout_probability
+    idx = np.flatnonzero(hit & ~dropped & (true_range >= config.min_range))
+    measured = true_range[idx] + config.range_noise_std * noise[idx]
+    ids = np.asarray(vehicle_ids, dtype=np.int64).reshape(-1)
+    own = owner[idx]
+    vehicles = ids.shape[0]
+    is_vehicle = (own >= 0) & (own < vehicles)
+    vehicle_id = np.full(idx.size, -1, dtype=np.int64)
+    vehicle_id[is_vehicle] = ids[own[is_vehicle]]
+    return idx, measured, vehicle_id, np.where(own >= vehicles, own - vehicles, -1).astype(np.int64)
+
+
 class Lidar:
     """The lidar of ``config`` (``LidarConfig()`` by default); ``scan`` makes one scan."""
 
@@ -164,23 +187,13 @@ class Lidar:
         segments = scene_segments(snapshot, roadside, (ego.x, ego.y), ego.yaw, cfg.max_range)
         cast = CASTERS[cfg.caster](segments, self.grid, cfg.max_range)
         count = self.grid.count
-        noise = rng.standard_normal(count)
-        dropped = rng.random(count) < cfg.dropout_probability
-        keep = cast.hit & ~dropped & (cast.range >= cfg.min_range)
-        idx = np.flatnonzero(keep)
-        measured = cast.range[idx] + cfg.range_noise_std * noise[idx]
-        directions = self.grid.directions[idx]
-        owner = cast.owner[idx]
-        vehicles = len(snapshot)
-        is_vehicle = owner < vehicles
-        vehicle_id = np.full(idx.size, -1, dtype=np.int64)
-        vehicle_id[is_vehicle] = snapshot.ids[owner[is_vehicle]]
+        idx, measured, vehicle_id, roadside_index = ray_returns(cast.hit, cast.range, cast.owner, snapshot.ids, cfg, rng)
         return LidarScan(
             t=float(snapshot.t),
             azimuth=self.grid.angles[idx],
             range=measured,
-            points=directions * measured[:, None],
+            points=self.grid.directions[idx] * measured[:, None],
             vehicle_id=vehicle_id,
-            roadside_index=np.where(is_vehicle, -1, owner - vehicles).astype(np.int64),
+            roadside_index=roadside_index,
             rays=count,
         )

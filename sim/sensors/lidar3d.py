@@ -84,7 +84,9 @@ from functools import cached_property
 import numpy as np
 
 from sim.ground import Ground
+from sim.sensors.lidar import ray_returns
 from sim.sensors.raycast import RayGrid
+from tracker.cloud import mount_rotation
 
 TWO_PI = 2.0 * math.pi
 #: Smallest step (m, horizontal) of the ground march; see the module docstring (step 6).
@@ -215,7 +217,7 @@ class Vlp16Config:
     @cached_property
     def mount_rotation(self) -> np.ndarray:
         """``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (3, 3): sensor frame to E."""
-        return _rotation(
+        return mount_rotation(
             math.radians(self.mount_roll_deg), math.radians(self.mount_pitch_deg), math.radians(self.mount_yaw_deg)
         )
 
@@ -223,17 +225,6 @@ class Vlp16Config:
     def mount_translation(self) -> np.ndarray:
         """The sensor's origin (3,) in E (m)."""
         return np.array([self.mount_x, self.mount_y, self.mount_z], dtype=float)
-
-
-def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (angles in rad)."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    return rz @ ry @ rx
 
 
 def _column(value: object, count: int, name: str, dtype: type = float) -> np.ndarray:
@@ -857,7 +848,7 @@ class Vlp16:
             raise ValueError(f"Vlp16: origin must be 3 finite numbers (x, y, z in G); got {origin!r}")
         if not (isinstance(ego_yaw, (int, float, np.floating)) and math.isfinite(ego_yaw)):
             raise ValueError(f"Vlp16: ego_yaw must be a finite angle in rad; got {ego_yaw!r}")
-        rz = _rotation(0.0, 0.0, float(ego_yaw))
+        rz = mount_rotation(0.0, 0.0, float(ego_yaw))
         return o + rz @ self.config.mount_translation, rz @ self.config.mount_rotation
 
     def scan(
@@ -877,23 +868,12 @@ class Vlp16:
         Noise and dropout from ``rng`` (two draws per ray)."""
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"Vlp16.scan needs rng, a numpy.random.Generator; got {type(rng).__name__}")
-        ids = np.asarray(vehicle_ids, dtype=np.int64).reshape(-1)
         cfg = self.config
         position, rotation = self.pose(origin, ego_yaw)
-        rz = _rotation(0.0, 0.0, float(ego_yaw))
+        rz = mount_rotation(0.0, 0.0, float(ego_yaw))
         directions = self._directions_ego @ rz.T
         cast = cast_3d(position, directions, prisms, ground, cfg.max_range)
-        count = cfg.rays
-        noise = rng.standard_normal(count)
-        dropped = rng.random(count) < cfg.dropout_probability
-        keep = cast.hit & ~dropped & (cast.range >= cfg.min_range)
-        idx = np.flatnonzero(keep)
-        measured = cast.range[idx] + cfg.range_noise_std * noise[idx]
-        owner = cast.owner[idx]
-        vehicles = ids.shape[0]
-        is_vehicle = (owner >= 0) & (owner < vehicles)
-        vehicle_id = np.full(idx.size, -1, dtype=np.int64)
-        vehicle_id[is_vehicle] = ids[owner[is_vehicle]]
+        idx, measured, vehicle_id, roadside_index = ray_returns(cast.hit, cast.range, cast.owner, vehicle_ids, cfg, rng)
         azimuth, elevation, beam = self._ray_angles
         return LidarScan3D(
             t=float(t),
@@ -903,9 +883,9 @@ class Vlp16:
             beam=beam[idx],
             range=measured,
             vehicle_id=vehicle_id,
-            roadside_index=np.where(owner >= vehicles, owner - vehicles, -1).astype(np.int64),
+            roadside_index=roadside_index,
             ground=cast.ground[idx],
-            rays=count,
+            rays=cfg.rays,
             origin=position,
             rotation=rotation,
         )

@@ -1,0 +1,24 @@
+"""Validation shared by the tracker's configuration dataclasses (``tracker.config``, ``tracker.cloud``):
+errors name the class, the field, the allowed range and the value."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+
+def check_real(cls_name: str, name: str, value: Any, *, low: float | None = None, high: float | None = None,
+               low_open: bool = False, high_open: bool = False, unit: str = "") -> None:
+    """Raise ``ValueError`` unless ``value`` is a finite real within the given bounds."""
+    where = f"{cls_name}.{name}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where} must be a real number{(' in ' + unit) if unit else ''}; got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{where} must be finite; got {value!r}")
+    bad_low = low is not None and (value <= low if low_open else value < low)
+    bad_high = high is not None and (value >= high if high_open else value > high)
+    if bad_low or bad_high:
+        lo = "" if low is None else (f"> {low}" if low_open else f">= {low}")
+        hi = "" if high is None else (f"< {high}" if high_open else f"<= {high}")
+        rng = " and ".join(part for part in (lo, hi) if part)
+        raise ValueError(f"{where} must be {rng}{(' ' + unit) if unit else ''}; got {value!r}")
