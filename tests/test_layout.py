@@ -29,7 +29,29 @@ def test_tracker_imports_only_numpy_and_scipy():
     assert bad == "", f"tracker pulled in: {bad}"
     # anything else outside the standard library must be a dependency of numpy/scipy themselves
     allowed_transitive = {"packaging", "typing_extensions", "cython_runtime"}  # cython_runtime: made by scipy's extensions
-    assert set(filter(None, third.split(","))) <= allowed_transitive, f"tracker imports third-party: {third}"
+    optional = {"numba", "llvmlite"}  # the `fast` extra, imported by tracker/compiled only (when installed)
+    assert set(filter(None, third.split(","))) <= allowed_transitive | optional, f"tracker imports third-party: {third}"
+
+
+def test_tracker_runs_without_numba():
+    """numba is optional: with it hidden, ``tracker`` imports, runs its numpy code, and says so."""
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "import numpy as np\n"
+        "from tracker import Road, Tracker, TrackerConfig, Frame, EgoState, compiled\n"
+        "assert not compiled.available() and not compiled.enabled()\n"
+        "road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)\n"
+        "tr = Tracker(road, TrackerConfig())\n"
+        "pts = np.column_stack([np.full(20, 15.0), np.linspace(-1.0, 1.0, 20)])\n"
+        "for k in range(3): tr.step(Frame(t=0.1 * k, ego=EgoState(10.0, 0.0, 0.0, 10.0), lidar=pts))\n"
+        "try:\n"
+        "    compiled.require()\n"
+        "except RuntimeError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "pip install" in out.stdout
 
 
 def test_scenarios_ship_inside_the_package():

@@ -80,6 +80,7 @@ from typing import Literal
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
 from tracker.road import Road
@@ -515,11 +516,19 @@ def build_structure(
     mean_corners: np.ndarray,
     config: MeasurementConfig,
     use_radar: bool = True,
+    *,
+    compiled: bool | None = None,
 ) -> Structure:
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
-    as in the module docstring. Vectorised over pairs."""
+    as in the module docstring. Vectorised over pairs; by the compiled kernel
+    (``tracker.compiled.structure``) when ``compiled`` (default: ``tracker.compiled.enabled()``)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
+    if compiled is None:
+        compiled = compiled_kernels.enabled()
+    if compiled and len(ci):
+        compiled_kernels.require()
+        return _build_structure_compiled(batch, ci, mean_corners, config, use_radar)
     p_count = len(ci)
     rows = np.arange(p_count)
     nrm = side_normals(mean_corners)  # (P, 4, 2)
@@ -633,6 +642,20 @@ def build_structure(
     return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors,
                      excess=np.where(single[:, None], -np.inf, chord_len - side_len[rows[:, None], sides]))
+
+
+def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
+                              use_radar: bool) -> Structure:
+    from tracker.compiled.structure import structure_kernel
+
+    fields = structure_kernel(
+        batch.points, batch.valid, batch.part, batch.proj, batch.chord_start, batch.chord_end, batch.chord_dir,
+        batch.chord_len, batch.end_margin, batch.two_sided, batch.single, batch.fused, batch.velocity, batch.centroid,
+        ci, np.ascontiguousarray(mean_corners, dtype=float), float(config.single_point_min_apparent),
+        float(config.partial_visibility), float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2,
+        bool(use_radar), config.radar_rows == "speed", MIN_CHORD,
+    )
+    return Structure(*fields)
 
 
 def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:

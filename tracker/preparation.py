@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.config import MeasurementConfig
 from tracker.measurement import (
     CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, ClusterBatch, _lambda_min, prepare_cluster,
@@ -130,22 +131,60 @@ def prepare_batch(
     return ClusterBatch.of(prepare_clusters(arrays, config, velocities))
 
 
-def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None], config: MeasurementConfig) -> _Prepared:
+def _checked_velocities(velocities: list[np.ndarray | None]) -> list[np.ndarray | None]:
+    out: list[np.ndarray | None] = []
+    for v in velocities:
+        if v is None:
+            out.append(None)
+            continue
+        v = np.asarray(v, dtype=float).reshape(-1)
+        if v.shape != (2,) or not np.isfinite(v).all():
+            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {v!r}")
+        out.append(v)
+    return out
+
+
+def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None], config: MeasurementConfig,
+                    *, compiled: bool | None = None) -> _Prepared:
+    """The padded arrays of finite, non-empty clusters: by the compiled kernel
+    (``tracker.compiled.preparation``) when ``compiled`` (default: ``tracker.compiled.enabled()``), else
+    by numpy (the reference)."""
+    vel_out = _checked_velocities(velocities)
+    if compiled is None:
+        compiled = compiled_kernels.enabled()
+    if compiled:
+        compiled_kernels.require()
+        return _prepare_compiled(arrays, vel_out, config)
+    return _prepare_numpy(arrays, vel_out, config)
+
+
+def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], config: MeasurementConfig) -> _Prepared:
+    from tracker.compiled.preparation import prepare_kernel
+
+    n = np.array([len(a) for a in arrays])
+    offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
+    np.cumsum(n, out=offsets[1:])
+    (points, valid, part, proj, starts, ends, direction, length, margin, two, corner, ratio, order,
+     kept_count) = prepare_kernel(np.concatenate(arrays), offsets, int(config.max_cluster_points),
+                                  int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
+                                  bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
+                                  CORNER_MAX_SHIFT, MAX_END_GAP)
+    m = int(kept_count.max())
+    return _Prepared(
+        points=points[:, :m], valid=valid[:, :m], part=part[:, :m], proj=proj[:, :, :m],
+        chord_start=starts, chord_end=ends, chord_dir=direction, chord_len=length, end_margin=margin,
+        two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=order[:, :m], kept_count=kept_count,
+        velocity=vel_out,
+    )
+
+
+def _prepare_numpy(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], config: MeasurementConfig) -> _Prepared:
     n = np.array([len(a) for a in arrays])
     count, width = len(arrays), int(n.max())
     rows = np.arange(count)
     valid = np.arange(width)[None, :] < n[:, None]
     raw = np.zeros((count, width, 2))
     raw[valid] = np.concatenate(arrays)
-    vel_out: list[np.ndarray | None] = []
-    for v in velocities:
-        if v is None:
-            vel_out.append(None)
-            continue
-        v = np.asarray(v, dtype=float).reshape(-1)
-        if v.shape != (2,) or not np.isfinite(v).all():
-            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {v!r}")
-        vel_out.append(v)
     # centroid, scatter, bearing order
     _, centroid, sxx, syy, sxy = _masked_scatter(raw, valid)
     cx, cy = centroid[:, 0], centroid[:, 1]

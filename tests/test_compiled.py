@@ -1,0 +1,97 @@
+"""Tests of tracker/compiled: every numba kernel against its numpy reference (the same discrete
+decisions exactly, the numbers within 1e-9), on random clusters and on the pairs of a tracked scene; and
+the switch (``EOT_NUMBA``). Skipped where numba is not installed (the ``fast`` extra)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scenes import Car, Scene
+from test_preparation import random_clusters
+
+from tracker import Road, Tracker, TrackerConfig
+from tracker import compiled
+from tracker.config import MeasurementConfig
+from tracker.measurement import build_structure
+from tracker.preparation import _prepare_finite
+
+pytest.importorskip("numba")
+
+
+def assert_fields_equal(a, b, skip=()) -> None:
+    """Dataclasses ``a`` (numpy) and ``b`` (compiled): integer and boolean fields equal, float fields
+    within 1e-9 with the same non-finite entries, the same shapes and dtypes."""
+    for name in a.__dataclass_fields__:
+        if name in skip:
+            continue
+        x, y = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))
+        assert x.shape == y.shape and x.dtype == y.dtype, (name, x.shape, y.shape, x.dtype, y.dtype)
+        if x.dtype.kind in "bi":
+            np.testing.assert_array_equal(x, y, err_msg=name)
+        else:
+            np.testing.assert_array_equal(np.isfinite(x), np.isfinite(y), err_msg=name)
+            fin = np.isfinite(x)
+            np.testing.assert_allclose(y[fin], x[fin], rtol=0.0, atol=1e-9, err_msg=name)
+            np.testing.assert_array_equal(x[~fin], y[~fin], err_msg=name)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("config", [MeasurementConfig(), MeasurementConfig(end_gap_correction=False),
+                                    MeasurementConfig(max_cluster_points=12)], ids=["default", "no-gap", "12-points"])
+def test_compiled_preparation_equals_numpy(seed, config):
+    clusters = random_clusters(seed)
+    rng = np.random.default_rng(seed)
+    velocities = [rng.normal(size=2) if rng.random() < 0.5 else None for _ in clusters]
+    ref = _prepare_finite(clusters, velocities, config, compiled=False)
+    got = _prepare_finite(clusters, velocities, config, compiled=True)
+    valid = ref.valid
+    assert_fields_equal(dataclasses.replace(ref, order=np.where(valid, ref.order, 0)),
+                        dataclasses.replace(got, order=np.where(got.valid, got.order, 0)), skip=("velocity",))
+    assert all((r is None and g is None) or np.array_equal(r, g) for r, g in zip(ref.velocity, got.velocity))
+    assert ref.two_sided.any() and (~ref.two_sided).any() and (ref.raw_count > config.max_cluster_points).any()
+
+
+def _scene_pairs(monkeypatch):
+    """The batches, pairs and predicted mean rectangles ``build_structure`` sees in 30 frames of a
+    tracker on a 3-lane curve with a truck and radar (recorded from ``tracker.update``)."""
+    import tracker.update
+
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0),
+                  [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5), Car(50.0, 3.5, 18.0),
+                   Car(95.0, 0.0, 12.0)], radar=True)
+    seen = []
+
+    def record(batch, ci, corners, *args, **kwargs):
+        seen.append((batch, np.array(ci), np.array(corners)))
+        return build_structure(batch, ci, corners, *args, **kwargs)
+
+    monkeypatch.setattr(tracker.update, "build_structure", record)
+    tr = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(3)
+    for k in range(30):
+        tr.step(scene.frame(0.1 * k, rng))
+    return seen
+
+
+@pytest.mark.parametrize("radar_rows", ["speed", "velocity"])
+def test_compiled_structure_equals_numpy(radar_rows, monkeypatch):
+    config = MeasurementConfig(radar_rows=radar_rows)
+    pairs = _scene_pairs(monkeypatch)
+    assert len(pairs) >= 20
+    for batch, clu, corners in pairs:
+        fused = dataclasses.replace(batch, fused=np.arange(len(batch.fused)) % 2 == 0,
+                                    velocity=np.random.default_rng(len(clu)).normal(size=batch.velocity.shape))
+        for use_radar in (True, False):
+            ref = build_structure(fused, clu, corners, config, use_radar, compiled=False)
+            got = build_structure(fused, clu, corners, config, use_radar, compiled=True)
+            assert_fields_equal(ref, got)
+
+
+def test_switch(monkeypatch):
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+    assert not compiled.enabled()
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    assert compiled.enabled() == compiled.available()
