@@ -13,8 +13,9 @@ from test_preparation import random_clusters
 
 from tracker import Road, Tracker, TrackerConfig
 from tracker import compiled
-from tracker.config import MeasurementConfig
+from tracker.config import MeasurementConfig, MotionConfig
 from tracker.measurement import build_structure
+from tracker.motion import FrenetMotion
 from tracker.preparation import _prepare_finite
 
 pytest.importorskip("numba")
@@ -95,3 +96,51 @@ def test_switch(monkeypatch):
     assert not compiled.enabled()
     monkeypatch.setenv(compiled.ENV_SWITCH, "1")
     assert compiled.enabled() == compiled.available()
+
+
+def _roads():
+    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
+                                    lanes=3, lane_width=3.5)
+    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
+    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
+                               lane_width=3.5)
+    return {"clothoid-open": open_road, "hermite-closed": ring}
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_compiled_centerline_frame_equals_numpy(name, monkeypatch):
+    curve = _roads()[name]._curve
+    s = np.concatenate([np.random.default_rng(0).uniform(0.0, curve.length, 3000), [0.0, curve.length],
+                        curve.starts[:-1], np.nextafter(curve.starts[1:], 0.0)])
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+    ref = curve.frame(s)
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    got = curve.frame(s)
+    for a, b in zip(ref, got):
+        assert a.shape == b.shape
+        np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+@pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True), MotionConfig(slip_lever=0.0)],
+                         ids=["default", "acceleration", "no-slip"])
+def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
+    """States on and beyond the road (open ends extrapolate straight), backwards and standing, over
+    one frame and over several RK4 sub-steps."""
+    road = _roads()[name]
+    model = FrenetMotion(road, motion)
+    rng = np.random.default_rng(1)
+    count = 240
+    cols = [rng.uniform(-30.0, road.length + 30.0, count), rng.uniform(-6.0, 6.0, count),
+            rng.uniform(-3.0, 35.0, count), rng.normal(0.0, 0.4, count), rng.normal(0.0, 0.3, count),
+            rng.uniform(3.0, 16.0, count), rng.uniform(1.5, 2.6, count)]
+    if model.dim == 8:
+        cols.append(rng.normal(0.0, 2.0, count))
+    x = np.column_stack(cols).reshape(16, 15, -1)
+    for dt in (0.1, 1.0 / 14.0, 1.3):
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = model.propagate(x, dt)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = model.propagate(x, dt)
+        assert got.shape == ref.shape
+        np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)

@@ -25,6 +25,8 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from tracker import compiled as compiled_kernels
+
 #: Gauss-Legendre nodes and weights on [0, 1] used to integrate inside one cell.
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 GL_NODES = 0.5 * (_GL_X + 1.0)
@@ -68,6 +70,10 @@ class _Cells:
         self._bucket_cell = first[:-1]
         self._bucket_hops = int(np.max(first[1:] - first[:-1])) if n_buckets > 0 else 0
         self._starts_next = np.append(starts[1:], np.inf)
+
+    def _lookup(self) -> tuple:
+        """The bucket lookup's arrays and numbers, for the compiled kernels."""
+        return (self._bucket_cell, self._starts_next, 1.0 / self._bucket, self._bucket_hops)
 
     def locate(self, s: np.ndarray) -> np.ndarray:
         """Cell index of each ``s`` in [0, length] (vectorised)."""
@@ -174,7 +180,12 @@ class HermiteCenterline(_Cells):
 
     # -- evaluation -----------------------------------------------------------------------------
     def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]."""
+        """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]
+        (by ``tracker.compiled.centerline`` when the compiled kernels are on)."""
+        if compiled_kernels.enabled():
+            from tracker.compiled.centerline import hermite_frame
+
+            return hermite_frame(np.ascontiguousarray(s, dtype=float), self._table, *self._lookup())
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         tau = ((row[:, 4] * d + row[:, 3]) * d + row[:, 2]) * d + row[:, 1]
@@ -331,8 +342,13 @@ class ClothoidCenterline(_Cells):
 
         In the cell's own frame the heading change ``phi(u) = kappa0 u + rate u^2 / 2`` is small
         (cells are short enough that ``|phi| <= CLOTHOID_MAX_TURN``), so ``cos phi`` and ``sin phi``
-        are evaluated by their Taylor series (error < 1e-14) instead of trigonometric calls.
+        are evaluated by their Taylor series (error < 1e-14) instead of trigonometric calls
+        (by ``tracker.compiled.centerline`` when the compiled kernels are on).
         """
+        if compiled_kernels.enabled():
+            from tracker.compiled.centerline import clothoid_frame
+
+            return clothoid_frame(np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         cell_xy, cos0, sin0, k0, kr = row[:, 1:3], row[:, 3], row[:, 4], row[:, 5], row[:, 6]

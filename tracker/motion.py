@@ -45,6 +45,7 @@ from typing import Protocol
 import numpy as np
 from scipy.linalg import expm
 
+from tracker import compiled as compiled_kernels
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -225,6 +226,15 @@ class FrenetMotion:
             return x
         steps = max(1, int(math.ceil(dt / self.step_limit - 1e-9)))
         h = dt / steps
+        if compiled_kernels.enabled() and x.ndim >= 1 and x.shape[-1] in (7, 8):
+            from tracker.compiled.motion import rk4_propagate
+
+            cfg = self.config
+            flat = rk4_propagate(np.ascontiguousarray(x.reshape(-1, x.shape[-1])), steps, h, self._table_s,
+                                 self._table_k, bool(self.road.closed), float(self.road.length), float(cfg.min_denominator),
+                                 float(cfg.slip_lever), float(cfg.heading_decay), float(cfg.yaw_rate_decay),
+                                 float(cfg.acceleration_time), MAX_SIN_SLIP, SLIP_MIN_SPEED)
+            return self.wrapping.wrap(flat.reshape(x.shape))
         for _ in range(steps):
             k1 = self.derivative(x)
             k2 = self.derivative(x + 0.5 * h * k1)
