@@ -144,3 +144,20 @@ def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
         got = model.propagate(x, dt)
         assert got.shape == ref.shape
         np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
+    """Scattered points, a dense random walk (cells holding many points) and points exactly on the
+    grid's cell boundaries; thresholds from 0.2 to 3 m."""
+    from tracker.clustering import distance_partition
+
+    rng = np.random.default_rng(seed)
+    clouds = [rng.uniform(-80.0, 80.0, (600, 2)), np.cumsum(rng.normal(0.0, 0.4, (700, 2)), axis=0),
+              np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2))]
+    for pts in clouds:
+        for threshold in (0.2, 0.5 * np.sqrt(2.0), 1.0, 3.0):
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref = distance_partition(pts, threshold)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            np.testing.assert_array_equal(distance_partition(pts, threshold), ref)

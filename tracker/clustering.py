@@ -17,6 +17,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from tracker import compiled as compiled_kernels
 from tracker.frame import RadarDetections
 
 #: Up to this many runs of consecutive linked points, their graph's components are found densely.
@@ -58,13 +59,23 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     edges join consecutive points: those first cut the points into runs (connected by construction),
     and only the few edges between runs go into a graph over the runs, whose components
     (``dense_components``, or ``scipy.sparse.csgraph`` for many runs) are the clusters; any order of
-    the points gives the same partition, only more runs."""
+    the points gives the same partition, only more runs. The compiled kernel
+    (``tracker.compiled.clustering``, when on) finds the same components by union-find on a grid."""
     if not threshold > 0:
         raise ValueError(f"distance threshold must be > 0 m; got {threshold!r}")
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(pts)
     if n == 0:
         return np.zeros(0, dtype=int)
+    if compiled_kernels.enabled() and np.isfinite(pts).all():
+        cell = np.floor(pts * (np.sqrt(2.0) / threshold)).astype(np.int64)  # side threshold / sqrt(2)
+        cell -= cell.min(axis=0) - 2  # cells from 2: the neighbours two cells away have keys >= 0
+        span = cell.max(axis=0) + 4
+        if float(span[0]) * float(span[1]) < 2.0**62:  # else the keys could overflow: the numpy path
+            from tracker.compiled.clustering import partition_kernel
+
+            return partition_kernel(np.ascontiguousarray(pts), float(threshold), cell[:, 0].copy(), cell[:, 1].copy(),
+                                    int(span[1]))
     pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")  # i < j
     linked = np.zeros(n, dtype=bool)  # linked[i]: an edge joins point i - 1 and point i
     linked[pairs[pairs[:, 1] - pairs[:, 0] == 1, 1]] = True

@@ -1,0 +1,91 @@
+"""Compiled distance partition: ``tracker.clustering.distance_partition`` in one numba call.
+
+The same graph (points joined when at most ``threshold`` apart, as ``cKDTree.query_pairs``) and its
+connected components, found on a grid of square cells of side ``threshold / sqrt(2)``: the points of
+one cell are all within ``threshold`` of each other (one component), and two cells at most two apart
+along each axis are joined as soon as one pair of their points is close enough (union-find; a pair of
+cells already in one component is skipped). Components are labelled in order of their first point."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.compiled import njit
+
+
+@njit
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit
+def _union(parent, a, b):
+    a = _root(parent, a)
+    b = _root(parent, b)
+    if a != b:
+        parent[max(a, b)] = min(a, b)
+
+
+@njit
+def partition_kernel(pts, threshold, cx, cy, span_y):
+    """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
+    shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
+    every cell and of its neighbours two cells away are then distinct and non-negative)."""
+    n = len(pts)
+    key = cx * span_y + cy
+    order = np.argsort(key)
+    sorted_key = key[order]
+    parent = np.arange(n)
+    # the cells: unique keys with the range of their points in ``order``
+    cell_key = np.empty(n, dtype=np.int64)
+    cell_start = np.empty(n + 1, dtype=np.int64)
+    cells = 0
+    for j in range(n):
+        if j == 0 or sorted_key[j] != sorted_key[j - 1]:
+            cell_key[cells] = sorted_key[j]
+            cell_start[cells] = j
+            cells += 1
+        else:
+            _union(parent, order[j], order[cell_start[cells - 1]])  # one cell: one component
+    cell_start[cells] = n
+    cell_key = cell_key[:cells]
+    r2 = threshold * threshold
+    for a in range(cells):
+        pa = order[cell_start[a]]
+        ka = cell_key[a]
+        for dx in range(0, 3):
+            for dy in range(-2, 3):
+                if dx == 0 and dy <= 0:
+                    continue  # each pair of cells once
+                b = np.searchsorted(cell_key, ka + dx * span_y + dy)
+                if b >= cells or cell_key[b] != ka + dx * span_y + dy:
+                    continue
+                pb = order[cell_start[b]]
+                if _root(parent, pa) == _root(parent, pb):
+                    continue
+                joined = False
+                for u in range(cell_start[a], cell_start[a + 1]):
+                    i = order[u]
+                    for w in range(cell_start[b], cell_start[b + 1]):
+                        q = order[w]
+                        ddx = pts[q, 0] - pts[i, 0]
+                        ddy = pts[q, 1] - pts[i, 1]
+                        if ddx * ddx + ddy * ddy <= r2:
+                            _union(parent, pa, pb)
+                            joined = True
+                            break
+                    if joined:
+                        break
+    labels = np.empty(n, dtype=np.int64)
+    rank = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        r = _root(parent, i)
+        if rank[r] < 0:
+            rank[r] = count
+            count += 1
+        labels[i] = rank[r]
+    return labels
