@@ -161,3 +161,21 @@ def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
             ref = distance_partition(pts, threshold)
             monkeypatch.setenv(compiled.ENV_SWITCH, "1")
             np.testing.assert_array_equal(distance_partition(pts, threshold), ref)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_radar_association_equals_numpy(seed, monkeypatch):
+    """Clusters (some empty) and detections scattered so that gates overlap and many pairs compete."""
+    from tracker.clustering import associate_radar
+
+    rng = np.random.default_rng(seed)
+    for _ in range(100):
+        clusters = [rng.normal(rng.uniform(-20.0, 20.0, 2), 1.0, (int(rng.integers(0, 30)), 2))
+                    for _ in range(int(rng.integers(1, 12)))]
+        radar = rng.uniform(-20.0, 20.0, (int(rng.integers(0, 15)), 2))
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = associate_radar(clusters, radar, 3.0)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = associate_radar(clusters, radar, 3.0)
+        assert got.dtype == ref.dtype
+        np.testing.assert_array_equal(got, ref)

@@ -123,13 +123,21 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
     The distance from a detection to a cluster is the distance to the cluster's nearest point (the
     radar reports a point near the target's visible surface). Pairs are taken in increasing distance;
     each cluster and each detection is used at most once; pairs farther than ``gate`` metres are
-    never taken. Returns, per cluster, the index of its detection or -1.
+    never taken. Returns, per cluster, the index of its detection or -1. (By
+    ``tracker.compiled.clustering`` when the compiled kernels are on.)
     """
     radar = np.asarray(radar_xy, dtype=float).reshape(-1, 2)
     out = np.full(len(cluster_points), -1, dtype=int)
     if len(radar) == 0 or len(cluster_points) == 0:
         return out
     sizes = np.array([len(p) for p in cluster_points])
+    if compiled_kernels.enabled():
+        from tracker.compiled.clustering import radar_association_kernel
+
+        offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        pts = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in cluster_points])
+        return radar_association_kernel(pts, offsets, np.ascontiguousarray(radar), float(gate))
     dist = np.full((len(cluster_points), len(radar)), np.inf)
     if sizes.sum():
         pts = np.concatenate([p for p in cluster_points if len(p)])

@@ -55,12 +55,14 @@ def bearing_spans(rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def occluded_fraction(
-    rect: Rectangles, labels: np.ndarray, occluders: Rectangles, occluder_labels: np.ndarray
+    rect: Rectangles, labels: np.ndarray, occluders: Rectangles, occluder_labels: np.ndarray,
+    *, spans: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Fraction (C,) of each rectangle's bearing span hidden by a nearer occluder of another label."""
+    """Fraction (C,) of each rectangle's bearing span hidden by a nearer occluder of another label
+    (``spans``: ``bearing_spans(rect)`` when the caller has them)."""
     if len(occluder_labels) == 0 or len(labels) == 0:
         return np.zeros(len(labels))
-    lo, hi, rng = bearing_spans(rect)
+    lo, hi, rng = bearing_spans(rect) if spans is None else spans
     olo, ohi, orng = bearing_spans(occluders)
     # overlap of [lo, hi] and [olo, ohi] on the circle: shift the occluder by the nearest turn
     shift = 2.0 * np.pi * np.round((0.5 * (lo + hi))[:, None] / (2.0 * np.pi) - (0.5 * (olo + ohi))[None, :] / (2.0 * np.pi))
@@ -72,16 +74,19 @@ def occluded_fraction(
     return np.clip(frac.max(axis=1), 0.0, 1.0)
 
 
-def scan_occluded_fraction(rect: Rectangles, scan: np.ndarray, resolution: float) -> np.ndarray:
+def scan_occluded_fraction(rect: Rectangles, scan: np.ndarray, resolution: float, *,
+                           spans: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                           near: np.ndarray | None = None) -> np.ndarray:
     """Fraction (C,) of each rectangle's bearing span hidden by lidar returns ``scan (N, 2)`` in E that
     lie nearer than its nearest corner by more than ``SCAN_OCCLUSION_MARGIN``; each return covers one
-    ray of ``resolution`` rad. Vectorised over (component, return) pairs."""
+    ray of ``resolution`` rad. Vectorised over (component, return) pairs. (``spans``, ``near``:
+    ``bearing_spans(rect)`` and ``nearest_range(rect)`` when the caller has them.)"""
     count = len(rect.center)
     scan = np.asarray(scan, dtype=float).reshape(-1, 2)
     if count == 0 or len(scan) == 0:
         return np.zeros(count)
-    lo, hi, _ = bearing_spans(rect)
-    near = nearest_range(rect)
+    lo, hi, _ = bearing_spans(rect) if spans is None else spans
+    near = nearest_range(rect) if near is None else near
     centre = 0.5 * (lo + hi)
     r_scan = np.hypot(scan[:, 0], scan[:, 1])
     b_scan = np.arctan2(scan[:, 1], scan[:, 0])
@@ -105,15 +110,18 @@ def detection_model(
     """``(gamma, p_d)`` per component (C,) from its predicted rectangle in E (module docstring);
     ``scan`` (N, 2): the frame's lidar returns in E (all finite ones, on and off the road) for the
     scan-based occlusion."""
-    lo, hi, rng = bearing_spans(rect)
+    spans = bearing_spans(rect)
+    lo, hi, _ = spans
+    near = nearest_range(rect)
     gamma = np.maximum((hi - lo) / config.lidar_resolution, 1.0)
-    p_d = np.where(nearest_range(rect) <= config.lidar_range, config.p_detection, 0.0)
+    p_d = np.where(near <= config.lidar_range, config.p_detection, 0.0)
     if config.occlusion:
         hidden = np.zeros(len(labels))
         if occluders is not None and occluder_labels is not None:
-            hidden = occluded_fraction(rect, labels, occluders, occluder_labels)
+            hidden = occluded_fraction(rect, labels, occluders, occluder_labels, spans=spans)
         if scan is not None:
-            hidden = np.maximum(hidden, scan_occluded_fraction(rect, scan, config.lidar_resolution))
+            hidden = np.maximum(hidden, scan_occluded_fraction(rect, scan, config.lidar_resolution, spans=spans,
+                                                               near=near))
         visible = 1.0 - hidden
         p_d = p_d * np.clip(visible / VISIBLE_FOR_DETECTION, 0.0, 1.0)
         gamma = np.maximum(gamma * visible, 1.0)

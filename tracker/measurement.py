@@ -120,8 +120,15 @@ class Rectangles:
     width: np.ndarray
 
     def corners(self) -> np.ndarray:
-        """Corners ``(..., 4, 2)``: front-right, front-left, rear-left, rear-right (counter-clockwise)."""
-        return rectangle_corners(self.center, self.psi, self.length, self.width)
+        """Corners ``(..., 4, 2)``: front-right, front-left, rear-left, rear-right (counter-clockwise).
+        Computed once per ``Rectangles`` and returned read-only (the detection model, clustering and the
+        update all ask for them)."""
+        cached = self.__dict__.get("_corners")
+        if cached is None:
+            cached = rectangle_corners(self.center, self.psi, self.length, self.width)
+            cached.flags.writeable = False
+            object.__setattr__(self, "_corners", cached)
+        return cached
 
     def velocity(self) -> np.ndarray:
         """Absolute velocity in E's axes ``(..., 2)``: ``v (cos psi_E, sin psi_E)``."""

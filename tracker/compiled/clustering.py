@@ -89,3 +89,36 @@ def partition_kernel(pts, threshold, cx, cy, span_y):
             count += 1
         labels[i] = rank[r]
     return labels
+
+
+@njit
+def radar_association_kernel(points, offsets, radar, gate):
+    """``tracker.clustering.associate_radar`` for clusters ``points[offsets[k]:offsets[k + 1]]``: the
+    distance of a detection to a cluster is that to its nearest point; gated pairs are taken greedily in
+    increasing distance (ties in row-major order, as a stable sort of the flattened matrix), each cluster
+    and each detection at most once. Returns the detection index per cluster, or -1."""
+    count = len(offsets) - 1
+    n_radar = len(radar)
+    dist = np.full(count * n_radar, np.inf)
+    for k in range(count):
+        for r in range(n_radar):
+            best = np.inf
+            for i in range(offsets[k], offsets[k + 1]):
+                dx = points[i, 0] - radar[r, 0]
+                dy = points[i, 1] - radar[r, 1]
+                d = np.sqrt(dx * dx + dy * dy)
+                if d < best:
+                    best = d
+            dist[k * n_radar + r] = best
+    order = np.argsort(dist, kind="mergesort")
+    out = np.full(count, -1, dtype=np.int64)
+    used = np.zeros(n_radar, dtype=np.bool_)
+    for f in order:
+        if not dist[f] <= gate:
+            break
+        k = f // n_radar
+        r = f % n_radar
+        if out[k] < 0 and not used[r]:
+            out[k] = r
+            used[r] = True
+    return out

@@ -13,12 +13,24 @@ from tracker.compiled import njit
 
 
 @njit
+def _interp(x, xp, fp):
+    """``numpy.interp`` at one ``x`` inside ``[xp[0], xp[-1]]`` (the same formula, no allocation)."""
+    last = len(xp) - 1
+    if x >= xp[last]:
+        return fp[last]
+    j = np.searchsorted(xp, x, side="right") - 1
+    if j < 0:
+        return fp[0]
+    return (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j]) + fp[j]
+
+
+@njit
 def _curvature(s, table_s, table_k, closed, length):
     if closed:
-        return np.interp(s % length, table_s, table_k)  # Python's float modulo: numpy's np.mod
+        return _interp(s % length, table_s, table_k)  # Python's float modulo: numpy's np.mod
     if s < table_s[0] or s > table_s[-1]:
         return 0.0
-    return np.interp(s, table_s, table_k)
+    return _interp(s, table_s, table_k)
 
 
 @njit
