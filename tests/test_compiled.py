@@ -179,3 +179,33 @@ def test_compiled_radar_association_equals_numpy(seed, monkeypatch):
         got = associate_radar(clusters, radar, 3.0)
         assert got.dtype == ref.dtype
         np.testing.assert_array_equal(got, ref)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_merge_equals_numpy(seed, monkeypatch):
+    """Mixtures of clumps of components (so that groups form), headings across +-pi and arc lengths
+    across a closed road's seam, with and without wrapping."""
+    from tracker.reduction import Mixture, merge
+    from tracker.ukf import Wrapping
+
+    rng = np.random.default_rng(seed)
+    wrappings = [Wrapping(), Wrapping(angles=(3,), periods=((0, 500.0),))]
+    for _ in range(60):
+        n = int(rng.integers(2, 40))
+        centre = rng.choice([0.5, 250.0, 499.6], size=n)
+        means = np.column_stack([centre + rng.normal(0, 1.0, n), rng.normal(0, 1.0, n), rng.uniform(5, 30, n),
+                                 rng.choice([-3.1, 0.0, 3.1], size=n) + rng.normal(0, 0.05, n), rng.normal(0, 0.1, n),
+                                 rng.uniform(3, 12, n), rng.uniform(1.5, 2.6, n)])
+        a = rng.normal(size=(n, 7, 7)) * rng.uniform(0.1, 1.0, (n, 1, 1))
+        covs = a @ np.swapaxes(a, 1, 2) + 0.05 * np.eye(7)
+        mix = Mixture(rng.uniform(0.01, 1.0, n), np.mod(means, [500.0, 1e9, 1e9, 1e9, 1e9, 1e9, 1e9]), covs,
+                      rng.integers(0, 50, n))
+        for wrapping in wrappings:
+            for gate in (4.0, 30.0):
+                monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+                ref = merge(mix, gate, wrapping)
+                monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+                got = merge(mix, gate, wrapping)
+                np.testing.assert_array_equal(got.labels, ref.labels)
+                for name in ("weights", "means", "covs"):
+                    np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9)

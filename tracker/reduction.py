@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.ukf import NO_WRAP, Wrapping
 
 
@@ -107,11 +108,20 @@ def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
     ``i`` within the gate) is then a loop of boolean operations, and all groups are moment-matched in
     one batched pass (``_moment_match_groups``). The merged mean is the weighted mean (circular for
     angles, about the group's heaviest component), the covariance the weighted spread plus the weighted
-    covariances.
+    covariances. (By ``tracker.compiled.reduction`` when the compiled kernels are on.)
     """
     n = len(mix)
     if n <= 1:
         return mix
+    if compiled_kernels.enabled():
+        from tracker.compiled.reduction import merge_kernel
+
+        weights, means, covs, anchor = merge_kernel(
+            np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
+            np.ascontiguousarray(mix.covs, dtype=float), float(gate), np.array(wrapping.angles, dtype=np.int64),
+            np.array([i for i, _ in wrapping.periods], dtype=np.int64),
+            np.array([p for _, p in wrapping.periods], dtype=float))
+        return Mixture(weights, means, covs, mix.labels[anchor])
     inv = np.linalg.inv(mix.covs)
     d = wrapping.residual(mix.means[:, None, :] - mix.means[None, :, :])  # (i, j, D): m_i - m_j
     maha = np.einsum("ijd,ide,ije->ij", d, inv, d)

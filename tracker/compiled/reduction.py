@@ -1,0 +1,98 @@
+"""Compiled mixture merging: ``tracker.reduction.merge`` in one numba call.
+
+The same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T P_i^-1 d_ij``
+(``d_ij = m_i - m_j``, wrapped coordinates wrapped), the greedy grouping (the heaviest remaining
+component takes every remaining one within the gate; ties of weight in index order), and the moment
+match of each group about its heaviest component (weighted mean, circular for angles; weighted
+covariances plus the weighted spread, symmetrised)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tracker.compiled import njit
+
+
+@njit
+def _residual(x, angles, period_index, periods):
+    for a in angles:
+        x[a] = np.pi - ((np.pi - x[a]) % (2.0 * np.pi))
+    for k in range(len(period_index)):
+        i = period_index[k]
+        x[i] -= periods[k] * math.floor(x[i] / periods[k] + 0.5)
+
+
+@njit
+def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
+    """Merged weights ``(G,)``, means ``(G, D)``, covariances ``(G, D, D)`` and the index of each
+    group's heaviest component ``(G,)``."""
+    n, dim = means.shape
+    inv = np.empty((n, dim, dim))
+    for i in range(n):
+        inv[i] = np.linalg.inv(covs[i])
+    order = np.argsort(-weights, kind="mergesort")
+    remaining = np.ones(n, dtype=np.bool_)
+    group = np.full(n, -1, dtype=np.int64)
+    anchors = np.empty(n, dtype=np.int64)
+    count = 0
+    d = np.empty(dim)
+    for j in order:
+        if not remaining[j]:
+            continue
+        for i in range(n):
+            if not remaining[i] or i == j:
+                continue
+            for k in range(dim):
+                d[k] = means[i, k] - means[j, k]
+            _residual(d, angles, period_index, periods)
+            maha = 0.0
+            for a in range(dim):
+                row = 0.0
+                for b in range(dim):
+                    row += inv[i, a, b] * d[b]
+                maha += d[a] * row
+            if maha <= gate:
+                group[i] = count
+                remaining[i] = False
+        group[j] = count
+        remaining[j] = False
+        anchors[count] = j
+        count += 1
+    w_sum = np.zeros(count)
+    mean_dev = np.zeros((count, dim))
+    dev = np.empty((n, dim))
+    for i in range(n):
+        g = group[i]
+        w_sum[g] += weights[i]
+        for k in range(dim):
+            dev[i, k] = means[i, k] - means[anchors[g], k]
+        _residual(dev[i], angles, period_index, periods)
+        for k in range(dim):
+            mean_dev[g, k] += weights[i] * dev[i, k]
+    out_means = np.empty((count, dim))
+    for g in range(count):
+        for k in range(dim):
+            mean_dev[g, k] /= w_sum[g]
+            out_means[g, k] = means[anchors[g], k] + mean_dev[g, k]
+        for a in angles:  # wrap: angles to (-pi, pi], periodic coordinates to [0, P)
+            out_means[g, a] = np.pi - ((np.pi - out_means[g, a]) % (2.0 * np.pi))
+        for k in range(len(period_index)):
+            out_means[g, period_index[k]] = out_means[g, period_index[k]] % periods[k]
+    cov = np.zeros((count, dim, dim))
+    for i in range(n):
+        g = group[i]
+        for a in range(dim):
+            sa = dev[i, a] - mean_dev[g, a]
+            for b in range(dim):
+                cov[g, a, b] += weights[i] * (covs[i, a, b] + sa * (dev[i, b] - mean_dev[g, b]))
+    out_covs = np.empty((count, dim, dim))
+    for g in range(count):
+        for a in range(dim):
+            for b in range(dim):
+                cov[g, a, b] /= w_sum[g]
+        for a in range(dim):
+            for b in range(dim):
+                out_covs[g, a, b] = 0.5 * (cov[g, a, b] + cov[g, b, a])
+    return w_sum, out_means, out_covs, anchors[:count].copy()
