@@ -70,3 +70,27 @@ def test_relative_s_wraps_on_a_closed_road(circle: Road) -> None:
     t = Track(1, 0.0, [2.0, 0, 10, 0, 0, 4.5, 1.8], np.eye(7))
     assert t.relative_s(circle, circle.length - 3.0) == pytest.approx(5.0)
     assert t.relative_s(circle, 10.0) == pytest.approx(-8.0)
+
+
+def test_checked_batch_equals_one_by_one() -> None:
+    rng = np.random.default_rng(0)
+    means = rng.normal(size=(4, 7))
+    a = rng.normal(size=(4, 7, 7))
+    covs = a @ np.swapaxes(a, 1, 2)
+    labels, weights = np.array([3, 9, 1, 4]), rng.uniform(0.5, 1.0, 4)
+    batch = Track.checked_batch(labels, 2.5, means, covs, weights)
+    for k, tr in enumerate(batch):
+        one = Track(int(labels[k]), 2.5, means[k], covs[k], float(weights[k]))
+        assert (tr.label, tr.t, tr.weight, tr.extent) == (one.label, one.t, one.weight, one.extent)
+        assert type(tr.label) is int and type(tr.weight) is float
+        np.testing.assert_array_equal(tr.mean, one.mean)
+        np.testing.assert_array_equal(tr.cov, one.cov)
+        assert not tr.mean.flags.writeable and not tr.cov.flags.writeable
+    means[0, 0] = 1e9  # copied: the caller's arrays stay the caller's
+    assert batch[0].s != 1e9
+    bad = means.copy()
+    bad[2, 4] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        Track.checked_batch(labels, 0.0, bad, covs, weights)
+    with pytest.raises(ValueError, match=r"\(K, 7\)"):
+        Track.checked_batch(labels, 0.0, means[:, :6], covs, weights)

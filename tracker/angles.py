@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 
+_TWO_PI = 2.0 * np.pi
+
+
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
     """Wrap ``angle`` (rad) to (-pi, pi]; arrays element-wise, floats stay floats."""
-    wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
+    if type(angle) is np.ndarray and angle.dtype == np.float64 and angle.ndim:  # the common case, no checks
+        return np.pi - np.mod(np.pi - angle, _TWO_PI)
+    wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), _TWO_PI)
     return float(wrapped) if np.ndim(wrapped) == 0 else wrapped

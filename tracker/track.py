@@ -94,6 +94,32 @@ class Track:
         object.__setattr__(self, "mean", _readonly(mean))
         object.__setattr__(self, "cov", _readonly(cov))
 
+    @classmethod
+    def checked_batch(cls, labels: np.ndarray, t: float, means: np.ndarray, covs: np.ndarray,
+                      weights: np.ndarray) -> list[Track]:
+        """Tracks of ``means (K, 7)``, ``covs (K, 7, 7)`` checked at once (shapes, finiteness) instead of
+        one by one: what ``Track(...)`` gives for each row, for the tracker's per-frame report."""
+        means = np.array(means, dtype=float)
+        covs = np.array(covs, dtype=float)
+        if means.ndim != 2 or means.shape[1:] != (7,) or covs.shape != (len(means), 7, 7):
+            raise ValueError(f"Track.checked_batch needs means (K, 7) and covs (K, 7, 7); got {means.shape}, {covs.shape}")
+        if not (np.isfinite(means).all() and np.isfinite(covs).all()):
+            raise ValueError("Track.mean and Track.cov must be finite")
+        means.flags.writeable = False
+        covs.flags.writeable = False
+        out = []
+        t = float(t)
+        for lab, m, p, w in zip(np.asarray(labels).tolist(), means, covs, np.asarray(weights, dtype=float).tolist()):
+            track = object.__new__(cls)
+            object.__setattr__(track, "label", int(lab))
+            object.__setattr__(track, "t", t)
+            object.__setattr__(track, "mean", m)
+            object.__setattr__(track, "cov", p)
+            object.__setattr__(track, "weight", float(w))
+            object.__setattr__(track, "extent", True)
+            out.append(track)
+        return out
+
     s = property(lambda self: float(self.mean[0]), doc="Arc length of the rectangle centre (m).")
     n = property(lambda self: float(self.mean[1]), doc="Lateral offset, positive left (m).")
     v = property(lambda self: float(self.mean[2]), doc="Speed along the heading (m/s).")

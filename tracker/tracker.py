@@ -273,7 +273,8 @@ class Tracker:
         missed_w = mix.weights * (1.0 - (1.0 - np.exp(-gamma)) * p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
-            centroid = np.stack([c.mean(axis=0) for c in clusters])
+            size = np.array([len(c) for c in clusters])
+            centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
             # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
@@ -299,7 +300,7 @@ class Tracker:
                 self.stats["pairs_updated"] += len(comp)
                 self._updated_labels.update(int(lab) for lab in mix.labels[comp])
                 if len(comp):
-                    size = np.array([len(c) for c in clusters])[clu]
+                    size = size[clu]
                     for lab, n_pts in zip(mix.labels[comp].tolist(), size.tolist()):
                         if n_pts > self._support.get(lab, 0):
                             self._support[lab] = n_pts
@@ -414,14 +415,11 @@ class Tracker:
         self._reported = above
         self._lost.observe(t, mix.labels[above], mix.means[above], mix.covs[above],
                            np.array([int(lab) in self._updated_labels for lab in mix.labels[above]], dtype=bool))
-        tracks = []
-        for i in above:
-            if self.cartesian:
-                tracks.append(Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road,
-                                                   float(mix.weights[i]), self.ut))
-            else:
-                tracks.append(Track(int(mix.labels[i]), t, mix.means[i, :7], mix.covs[i, :7, :7], float(mix.weights[i])))
-        return tracks
+        if not self.cartesian:
+            return Track.checked_batch(mix.labels[above], t, mix.means[above, :7], mix.covs[above, :7, :7],
+                                       mix.weights[above])
+        return [Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road, float(mix.weights[i]),
+                                     self.ut) for i in above]
 
     def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:
         """Components about to be reported under a label never reported before take the label of a

@@ -224,23 +224,27 @@ def grow_extent(
     body axis), and likewise ``W`` with the left normal ``(-sin h, cos h)`` for a short side; the update
     then learns the extent from the side itself. Returns the mask of widened pairs ``(P,)`` and the
     covariances (a copy; unchanged where the mask is False)."""
+    long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
+    excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
+    out = covs.copy()
+    grown = np.zeros(len(means), dtype=bool)
+    hits = []
+    for index, is_part in ((LENGTH, long_part), (WIDTH, ~long_part)):
+        e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
+        sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
+        hits.append((e, e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)))
+    if not (hits[0][1].any() or hits[1][1].any()):  # the common case: no side longer than predicted
+        return grown, out
     corners = np.asarray(mean_corners, dtype=float)
     centre = corners.mean(axis=1)  # (P, 2) in E
     axis = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis
     axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
     left = np.stack([-axis[:, 1], axis[:, 0]], axis=-1)
-    long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
-    excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
     h = means[:, XI]
-    out = covs.copy()
-    grown = np.zeros(len(means), dtype=bool)
-    for index, is_part, direction, unit in (
-        (LENGTH, long_part, axis, np.stack([np.cos(h), np.sin(h)], -1)),
-        (WIDTH, ~long_part, left, np.stack([-np.sin(h), np.cos(h)], -1)),
+    for index, (e, hit), direction, unit in (
+        (LENGTH, hits[0], axis, np.stack([np.cos(h), np.sin(h)], -1)),
+        (WIDTH, hits[1], left, np.stack([-np.sin(h), np.cos(h)], -1)),
     ):
-        e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
-        sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
-        hit = e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
         if not hit.any():
             continue
         sgn = np.where(np.einsum("pd,pd->p", centre, direction) >= 0.0, 1.0, -1.0)
