@@ -209,3 +209,28 @@ def test_compiled_merge_equals_numpy(seed, monkeypatch):
                 np.testing.assert_array_equal(got.labels, ref.labels)
                 for name in ("weights", "means", "covs"):
                     np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_points_in_rectangles_and_overlap_groups_equal_numpy(seed, monkeypatch):
+    """Overlapping and disjoint rectangles of every heading (duplicate hypotheses of one vehicle, trucks
+    beside cars), points inside, between and outside them."""
+    from tracker.clustering import points_in_rectangles
+    from tracker.measurement import Rectangles
+    from tracker.tracker import _duplicate_groups
+
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        t = int(rng.integers(1, 16))
+        centre = rng.uniform(-15.0, 15.0, (t, 2))
+        rect = Rectangles(centre, rng.uniform(-np.pi, np.pi, t), np.zeros(t), rng.uniform(2.0, 14.0, t),
+                          rng.uniform(0.8, 2.6, t))
+        pts = np.concatenate([rng.uniform(-20.0, 20.0, (300, 2)), centre + rng.normal(0.0, 1.0, (t, 2))])
+        results = {}
+        for mode in ("0", "1"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, mode)
+            results[mode] = (points_in_rectangles(pts, rect.center, rect.psi, rect.length, rect.width, 0.7),
+                             _duplicate_groups(rect))
+        for ref, got in zip(results["0"], results["1"]):
+            np.testing.assert_array_equal(got, ref)
+        assert results["0"][1].max() < t or t == 1

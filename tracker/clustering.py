@@ -42,6 +42,15 @@ def points_in_rectangles(
     if len(pts) == 0 or len(ctr) == 0:
         return np.full(len(pts), -1, dtype=int)
     c, s = np.cos(yaw), np.sin(yaw)
+    if compiled_kernels.enabled():
+        from tracker.compiled.clustering import points_in_rectangles_kernel
+
+        half_l = np.broadcast_to(0.5 * np.asarray(length, dtype=float) + margin, (len(ctr),))
+        half_w = np.broadcast_to(0.5 * np.asarray(width, dtype=float) + margin, (len(ctr),))
+        return points_in_rectangles_kernel(np.ascontiguousarray(pts), np.ascontiguousarray(ctr),
+                                           np.ascontiguousarray(np.broadcast_to(c, (len(ctr),)), dtype=float),
+                                           np.ascontiguousarray(np.broadcast_to(s, (len(ctr),)), dtype=float),
+                                           np.ascontiguousarray(half_l), np.ascontiguousarray(half_w))
     d = pts[:, None, :] - ctr[None, :, :]  # (N, M, 2)
     u = (d[..., 0] * c + d[..., 1] * s) / (0.5 * np.asarray(length) + margin)
     v = (-d[..., 0] * s + d[..., 1] * c) / (0.5 * np.asarray(width) + margin)

@@ -56,6 +56,7 @@ from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
+from tracker import compiled as compiled_kernels
 from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
@@ -493,6 +494,10 @@ def _duplicate_groups(rect: Rectangles) -> np.ndarray:
     if count <= 1:
         return np.zeros(count, dtype=int)
     corners = rect.corners()  # (T, 4, 2)
+    if compiled_kernels.enabled():
+        from tracker.compiled.clustering import overlap_groups_kernel
+
+        return overlap_groups_kernel(np.ascontiguousarray(corners), np.ascontiguousarray(rect.psi, dtype=float))
     axes = np.concatenate([np.stack([np.cos(rect.psi), np.sin(rect.psi)], -1),
                            np.stack([-np.sin(rect.psi), np.cos(rect.psi)], -1)], axis=0)  # (2T, 2)
     proj = np.einsum("tkd,ad->tak", corners, axes)  # (T, 2T, 4): every rectangle on every axis

@@ -122,3 +122,67 @@ def radar_association_kernel(points, offsets, radar, gate):
             out[k] = r
             used[r] = True
     return out
+
+
+@njit
+def points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w):
+    """``tracker.clustering.points_in_rectangles``: per point the rectangle (widened: ``half_l``,
+    ``half_w`` include the margin) whose normalised score ``max(|u|, |v|)`` is smallest, if <= 1."""
+    n = len(pts)
+    m = len(ctr)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        best = np.inf
+        arg = 0
+        for k in range(m):
+            dx = pts[i, 0] - ctr[k, 0]
+            dy = pts[i, 1] - ctr[k, 1]
+            u = abs((dx * c[k] + dy * s[k]) / half_l[k])
+            v = abs((-dx * s[k] + dy * c[k]) / half_w[k])
+            score = max(u, v)
+            if score < best:
+                best = score
+                arg = k
+        if best <= 1.0:
+            out[i] = arg
+    return out
+
+
+@njit
+def overlap_groups_kernel(corners, psi):
+    """Group per rectangle: overlapping rectangles (no separating axis among their own four) are
+    one group; groups numbered in order of their first rectangle (``tracker.tracker._duplicate_groups``)."""
+    t = len(corners)
+    parent = np.arange(t)
+    for i in range(t):
+        for j in range(i + 1, t):
+            separated = False
+            for owner in (i, j):
+                for turn in range(2):
+                    ax = np.cos(psi[owner]) if turn == 0 else -np.sin(psi[owner])
+                    ay = np.sin(psi[owner]) if turn == 0 else np.cos(psi[owner])
+                    lo_i = np.inf
+                    hi_i = -np.inf
+                    lo_j = np.inf
+                    hi_j = -np.inf
+                    for k in range(4):
+                        pi_ = corners[i, k, 0] * ax + corners[i, k, 1] * ay
+                        pj = corners[j, k, 0] * ax + corners[j, k, 1] * ay
+                        lo_i = min(lo_i, pi_)
+                        hi_i = max(hi_i, pi_)
+                        lo_j = min(lo_j, pj)
+                        hi_j = max(hi_j, pj)
+                    if hi_i < lo_j or hi_j < lo_i:
+                        separated = True
+            if not separated:
+                _union(parent, i, j)
+    labels = np.empty(t, dtype=np.int64)
+    rank = np.full(t, -1, dtype=np.int64)
+    count = 0
+    for i in range(t):
+        r = _root(parent, i)
+        if rank[r] < 0:
+            rank[r] = count
+            count += 1
+        labels[i] = rank[r]
+    return labels
