@@ -45,6 +45,7 @@ import numpy as np
 
 from sim.scenario import load_scenario, resolve_scenario_path
 from sim.variants import check_variant
+from tracker.compiled import warm_up
 
 #: Mode name of the ground-truth perception.
 TRUTH = "truth"
@@ -253,6 +254,7 @@ def run_tasks(tasks: Sequence[Task], *, workers: int = 1,
             if progress is not None:
                 progress(i + 1, len(tasks))
     else:
+        warm_up()  # the tracker's compiled kernels, once, before the workers load them from the cache
         with ProcessPoolExecutor(max_workers=workers) as pool:
             futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
             for done, future in enumerate(as_completed(futures), start=1):

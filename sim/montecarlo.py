@@ -53,6 +53,7 @@ import numpy as np
 from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
 from sim.scenario import ScenarioError, parse_scenario, resolve_scenario_path
 from sim.variants import DEFAULT_VARIANT, check_variant
+from tracker.compiled import warm_up
 
 BACKENDS = ("local", "ray")
 #: Columns of runs.csv that identify a run (the metrics follow).
@@ -188,6 +189,7 @@ def _run_local(tasks: list[RunTask], workers: int, progress: Callable[[int, int]
         except KeyboardInterrupt:
             raise StudyInterrupted(rows) from None
         return rows  # type: ignore[return-value]
+    warm_up()  # the tracker's compiled kernels, once, before the workers load them from the cache
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_ignore_sigint)
     try:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}

@@ -40,6 +40,7 @@ from scipy import stats
 
 from sim.montecarlo import plan, read_runs, run_study, write_runs
 from sim.scenario import load_scenario, load_suite, resolve_scenario_path
+from tracker.compiled import warm_up
 
 #: The variants of the study, in report order (DESIGN.md / issue 12).
 STUDY_VARIANTS: tuple[str, ...] = (
@@ -220,6 +221,7 @@ def run_series(tasks: Sequence[SeriesTask], workers: int) -> list[tuple[list[dic
     """``series_of`` for every task, in ``workers`` processes (1: in this process), in task order."""
     if workers <= 1 or len(tasks) <= 1:
         return [series_of(t) for t in tasks]
+    warm_up()  # the tracker's compiled kernels, once, before the workers load them from the cache
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
         return list(pool.map(series_of, tasks))
 

@@ -655,10 +655,11 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
                               use_radar: bool) -> Structure:
     from tracker.compiled.structure import structure_kernel
 
+    c = np.ascontiguousarray  # one compiled signature: C-contiguous arrays
     fields = structure_kernel(
-        batch.points, batch.valid, batch.part, batch.proj, batch.chord_start, batch.chord_end, batch.chord_dir,
-        batch.chord_len, batch.end_margin, batch.two_sided, batch.single, batch.fused, batch.velocity, batch.centroid,
-        ci, np.ascontiguousarray(mean_corners, dtype=float), float(config.single_point_min_apparent),
+        c(batch.points), c(batch.valid), c(batch.part), c(batch.proj), c(batch.chord_start), c(batch.chord_end),
+        c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.two_sided), c(batch.single), c(batch.fused),
+        c(batch.velocity), c(batch.centroid), ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
         float(config.partial_visibility), float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2,
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD,
     )

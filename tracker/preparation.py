@@ -170,8 +170,9 @@ def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None]
                                   bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
                                   CORNER_MAX_SHIFT, MAX_END_GAP)
     m = int(kept_count.max())
+    c = np.ascontiguousarray  # the kernels downstream take C-contiguous arrays (one compiled signature)
     return _Prepared(
-        points=points[:, :m], valid=valid[:, :m], part=part[:, :m], proj=proj[:, :, :m],
+        points=c(points[:, :m]), valid=c(valid[:, :m]), part=c(part[:, :m]), proj=c(proj[:, :, :m]),
         chord_start=starts, chord_end=ends, chord_dir=direction, chord_len=length, end_margin=margin,
         two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=order[:, :m], kept_count=kept_count,
         velocity=vel_out,

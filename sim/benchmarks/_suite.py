@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from sim.benchmarks._machine import machine, one_core, peak_memory_mb, usable_cpus
+from tracker import compiled as compiled_kernels
 
 SECTIONS = ("tracker", "stonesoup", "lidar", "lidar3d", "world", "end_to_end", "montecarlo", "env")
 E2E_SCENARIOS = ("curvy-multi", "dense-highway")
@@ -92,9 +93,12 @@ def mc_worker_counts(cpus: int) -> list[int]:
 
 # -- the sections ---------------------------------------------------------------------------------
 def tracker_section(s: Settings) -> dict[str, Any]:
+    from sim.benchmarks._tracking import kernel_modes
     from sim.benchmarks.tracker import VARIANTS, measure
 
-    return {"frames": s.tracker_frames, "results": measure(s.tracker_counts, VARIANTS, s.tracker_frames)}
+    modes = kernel_modes("both")  # the compiled kernels and the numpy code (numpy only without numba)
+    return {"frames": s.tracker_frames, "kernels": list(modes),
+            "results": measure(s.tracker_counts, VARIANTS, s.tracker_frames, modes=modes)}
 
 
 def stonesoup_section(s: Settings) -> dict[str, Any]:
@@ -223,6 +227,8 @@ def run_all(settings: Settings, sections: tuple[str, ...] = SECTIONS, *, pin: bo
         "section_wall_s": {},
     }
     total = time.perf_counter()
+    t0 = time.perf_counter()  # compile (or load) the tracker's kernels before anything is timed
+    result["kernels"] = {"compiled": compiled_kernels.warm_up(), "warm_up_s": round(time.perf_counter() - t0, 2)}
     for name in (x for x in SECTIONS if x in sections):
         if log is not None:
             log(f"eot bench: {name} ...")

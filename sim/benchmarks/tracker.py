@@ -25,7 +25,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from sim.benchmarks._tracking import in_view, sensor_frames, time_variant
+from sim.benchmarks._tracking import in_view, kernel_modes, kernels, sensor_frames, time_variant
 
 COUNTS = (1, 5, 10, 20, 50)
 VARIANTS = ("curvilinear-fused", "curvilinear-lidar")
@@ -39,25 +39,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), help="tracker variants (default: fused and lidar-only)")
     parser.add_argument("--lanes", type=int, default=None, help="force this many lanes (default: the narrowest that fits)")
     parser.add_argument("--seed", type=int, default=0, help="scene and sensor seed (default 0)")
+    parser.add_argument("--kernels", choices=("both", "auto", "compiled", "numpy"), default="both",
+                        help="code paths to time: both (default; numpy only without numba), the one in use (auto), "
+                             "the compiled kernels or the numpy code")
     parser.add_argument("--compare-stonesoup", action="store_true",
                         help="also time Stone Soup's GM-PHD (UKF, 10 point targets) on the same frames and print the ratio")
     parser.add_argument("--stonesoup-frames", type=int, default=STONESOUP_FRAMES,
                         help=f"frames of the Stone Soup comparison (default {STONESOUP_FRAMES})")
 
 
+def result_key(variant: str, mode: str, modes: tuple[str, ...]) -> str:
+    """The result's key of a variant timed with ``mode``: the variant's name, with ``/numpy`` when
+    both code paths were timed and this is the numpy one."""
+    return f"{variant}/numpy" if mode == "numpy" and len(modes) > 1 else variant
+
+
 def measure(counts: list[int] | tuple[int, ...], variants: list[str] | tuple[str, ...], frames: int, *,
-            seed: int = 0, lanes: int | None = None) -> dict[str, dict[str, dict[str, Any]]]:
-    """``{variant: {str(count): row}}``: each row the ``frame_stats`` numbers plus ``lanes``."""
+            seed: int = 0, lanes: int | None = None, modes: tuple[str, ...] = ("compiled", "numpy"),
+            ) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{key: {str(count): row}}`` (``result_key``: per variant and code path in ``modes``, compiled
+    kernels or numpy): each row the ``frame_stats`` numbers plus ``lanes``."""
     from sim.variants import check_variant
 
     for v in variants:
         check_variant(v)
-    out: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
+    out: dict[str, dict[str, dict[str, Any]]] = {result_key(v, m, modes): {} for m in modes for v in variants}
     for count in counts:
         scene, stream = sensor_frames(int(count), frames, seed=seed, lanes=lanes)
         visible = in_view(stream)
-        for v in variants:
-            out[v][str(count)] = {"targets": int(count), "lanes": scene.lanes, **time_variant(v, scene, stream, visible)}
+        for mode in modes:
+            with kernels(mode):
+                for v in variants:
+                    out[result_key(v, mode, modes)][str(count)] = {
+                        "targets": int(count), "lanes": scene.lanes, **time_variant(v, scene, stream, visible)}
     return out
 
 
@@ -67,11 +81,13 @@ def run(args: argparse.Namespace) -> dict:
         from sim.benchmarks._stonesoup import require_stonesoup
 
         require_stonesoup()
+    modes = kernel_modes(getattr(args, "kernels", "both"))
     out: dict[str, Any] = {
         "scene": "ring road R 500 m, lanes 3.5 m, all cars in view (sim.benchmarks._traffic)",
         "frames": args.frames,
         "seed": args.seed,
-        "results": measure(args.targets, args.variants, args.frames, seed=args.seed, lanes=args.lanes),
+        "kernels": list(modes),
+        "results": measure(args.targets, args.variants, args.frames, seed=args.seed, lanes=args.lanes, modes=modes),
     }
     if compare:
         from sim.benchmarks._stonesoup import compare as compare_stonesoup

@@ -49,3 +49,37 @@ def njit(*args, **kwargs):
             return args[0]
         return lambda f: f
     return _numba.njit(*args, **kwargs)
+
+
+def warm_up() -> bool:
+    """Compile every kernel now (or load it from the cache): a few frames of a small tracked scene
+    and one call of each kernel the scene may not reach. Call it before starting worker processes, so
+    that they load the cache instead of each compiling (~20 s on a fresh checkout), and before timing.
+    Returns whether the kernels are on (nothing is done when they are off)."""
+    if not enabled():
+        return False
+    import numpy as np
+
+    from tracker.clustering import points_in_rectangles
+    from tracker.config import TrackerConfig
+    from tracker.frame import EgoState, Frame, RadarDetections
+    from tracker.measurement import Rectangles, rectangle_corners, rectangle_scan
+    from tracker.road import Road
+    from tracker.tracker import Tracker, _duplicate_groups
+
+    ring = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True)
+    ring.frame(np.array([1.0, 2.0]))
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tracker = Tracker(road, TrackerConfig())
+    bearings = np.arange(-np.pi, np.pi, np.radians(0.2))
+    for k in range(4):
+        t = 0.1 * k
+        cars = np.array([[15.0 + 12.0 * t, 1.75], [22.0 + 10.0 * t, -1.75]])
+        scan = [rectangle_scan(rectangle_corners(c, np.array(0.0), np.array(4.5), np.array(1.9)), bearings)[0]
+                for c in cars]
+        radar = RadarDetections(t=np.full(2, t), x=cars[:, 0], y=cars[:, 1], vx=np.array([12.0, 10.0]), vy=np.zeros(2))
+        tracker.step(Frame(t, EgoState(100.0, 0.0, 0.0, 10.0, 0.0), np.concatenate(scan), radar))
+    rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
+    _duplicate_groups(rect)
+    points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    return True
