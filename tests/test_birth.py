@@ -52,6 +52,31 @@ def test_cluster_birth_from_an_l_shape(road):
     assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig())[0]) == 0
 
 
+@pytest.mark.parametrize("long_width", [2.35, None], ids=["long-vehicle-prior", "off"])
+def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(long_width):
+    """A 2.5 m wide rear straight ahead on a straight road (a bus): with the long-vehicle prior the birth
+    has its length (12 m, std 3.5 m) and its centre 6 m beyond the rear; without it a car's 4.5 m. A
+    2 m rear stays a car."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego_s, n_lane = 40.0, road.lane_centers[1]
+    ego_xy = road.to_cartesian(ego_s, n_lane)
+    ego_yaw = float(road.heading(ego_s))
+    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 15.0)
+    cfg = BirthConfig(long_width=long_width)
+    for width, long in ((2.5, long_width is not None), (2.0, False)):
+        s_rear = 60.0  # the rear's arc length; the vehicle is 16 m long, only its rear in view
+        centre = road.to_cartesian(s_rear + 8.0, n_lane)
+        theta = float(road.heading(s_rear + 8.0))
+        corners = to_local(rectangle_corners(centre, np.array(theta), np.array(16.0), np.array(width)), ego_xy, ego_yaw)
+        points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+        means, covs = cluster_births([points], [None], ego, road, cfg)
+        s, n, _, _, _, length, w = means[0]
+        assert w == pytest.approx(width, abs=0.15)
+        expected = cfg.long_length if long else cfg.length
+        assert length == pytest.approx(expected) and s == pytest.approx(s_rear + 0.5 * expected, abs=0.4)
+        assert covs[0, 5, 5] == pytest.approx((cfg.long_length_std if long else cfg.length_std) ** 2)
+
+
 def test_cartesian_births_match_the_exact_conversion(road):
     means = np.array([[30.0, 3.5, 20.0, 0.1, 0.02, 4.8, 2.0]])
     covs = np.diag([1e-6] * 7)[None]

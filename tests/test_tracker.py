@@ -324,3 +324,25 @@ def test_raw_3d_clouds_give_the_tracks_of_their_2d_points(curve):
     assert deep.stats["cloud_ground"] == 30 * len(rings) and deep.stats["cloud_points"] > deep.stats["cloud_ground"]
     assert deep.last_cloud is not None and flat.last_cloud is None and "cloud_points" not in flat.stats
     assert len(a) == 2
+
+
+@pytest.mark.parametrize("long_width", [2.35, None], ids=["long-vehicle-prior", "car-prior"])
+def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(long_width):
+    """A 16 m, 2.5 m wide bus 25 m straight ahead in the ego's lane: only its rear is ever seen. With
+    the long-vehicle prior (BirthConfig.long_width) its track takes a truck's or bus's length and its
+    centre lies within a few metres of the bus's; with a car's prior it keeps 4.5 m and its centre
+    trails the bus's by ~6 m (beyond GOSPA's 5 m cut-off). A car ahead keeps a car's length."""
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, 0.0, 10.0), [Car(125.0, 0.0, 10.0, length=16.0, width=2.5),
+                                               Car(130.0, 3.5, 10.0)])
+    config = TrackerConfig(birth=dataclasses.replace(TrackerConfig().birth, long_width=long_width))
+    frames, _ = run(scene, config, 3.0)
+    truth = scene.truth(3.0)
+    bus, d_bus = nearest(frames[-1], road, truth[0, :2])
+    car, d_car = nearest(frames[-1], road, truth[1, :2])
+    assert bus is not None and car is not None and bus.label != car.label
+    assert abs(car.length - 4.8) < 1.0 and d_car < 1.0
+    if long_width is None:
+        assert bus.length < 6.0 and d_bus > 5.0
+    else:
+        assert bus.length > 10.0 and d_bus < 3.0 and abs(bus.width - 2.5) < 0.2

@@ -286,3 +286,34 @@ def test_a_truck_side_longer_than_the_prior_grows_the_length_and_passes_the_gate
     assert abs(m[5] - 12.0) < 0.5 and abs(res_plain.mean[0, 5] - 12.0) > 3.0
     assert abs((m[0] - m[5] / 2) - rear) < 0.3
     assert np.linalg.eigvalsh(res_grow.cov[0]).min() > 0.0
+
+
+def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
+    """``long_vehicle_prior`` replaces a car's never-measured length by a long vehicle's (centre moved
+    away from the sensor by half the change, variance added along that direction), and leaves alone a
+    track that already carries it and one whose length was measured."""
+    from tracker.config import BirthConfig
+    from tracker.measurement import rectangle_corners
+    from tracker.update import UpdateResult, long_vehicle_prior
+
+    cfg = BirthConfig()
+    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.5]] * 4)
+    mean[1, 5] = 12.0  # already long
+    mean[3, 6] = 2.0  # a car's width
+    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.01]), (4, 1, 1))
+    cov[2, 5, 5] = 0.05**2  # measured
+    res = UpdateResult(mean.copy(), cov.copy(), np.zeros(4), np.zeros(4), np.zeros(4, dtype=int), np.zeros((4, 2)),
+                       np.zeros((4, 2)))
+    corners = rectangle_corners(np.array([[20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # ahead, in E
+    hit = long_vehicle_prior(res, np.ones(4, dtype=bool), corners, cfg)
+    np.testing.assert_array_equal(hit, [True, False, False, False])
+    e = cfg.long_length - 4.5
+    assert res.mean[0, 5] == pytest.approx(cfg.long_length) and res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
+    assert res.cov[0, 5, 5] == pytest.approx(cfg.length_std**2 + cfg.long_length_std**2)
+    assert res.cov[0, 0, 5] == pytest.approx(0.5 * cfg.long_length_std**2)
+    np.testing.assert_array_equal(res.mean[1:], mean[1:])
+    np.testing.assert_array_equal(res.cov[1:], cov[1:])
+    behind = rectangle_corners(np.array([[-20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # the rear is far
+    res2 = UpdateResult(mean.copy(), cov.copy(), *(np.zeros(4),) * 2, np.zeros(4, dtype=int), *(np.zeros((4, 2)),) * 2)
+    long_vehicle_prior(res2, np.ones(4, dtype=bool), behind, cfg)
+    assert res2.mean[0, 0] == pytest.approx(100.0 - 0.5 * e)  # the front (nearest the sensor) stays put

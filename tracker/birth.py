@@ -64,7 +64,7 @@ def cluster_births(
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
     optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
     ``config.min_cluster_points`` points are skipped."""
-    means, stds = [], []
+    means, stds, length_stds = [], [], []
     for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
         if len(pts) < config.min_cluster_points:
             continue
@@ -82,6 +82,9 @@ def cluster_births(
         axis = np.array([np.cos(psi_e), np.sin(psi_e)])
         lateral = np.array([-axis[1], axis[0]])
         length, width = max(fit_len, config.length), max(fit_wid, config.width)
+        long = config.long_width is not None and fit_wid >= config.long_width and length < config.long_length
+        if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen
+            length = config.long_length
         centre = fit.center.copy()
         for direction, missing in ((axis, length - fit_len), (lateral, width - fit_wid)):
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
@@ -96,10 +99,12 @@ def cluster_births(
             speed, speed_std = ego.v if config.speed is None else config.speed, config.speed_std
         means.append([s, n, speed, xi, 0.0, length, width])
         stds.append(speed_std if speed_std is not None else 1.0)
+        length_stds.append(config.long_length_std if long else config.length_std)
     if not means:
         return np.zeros((0, 7)), np.zeros((0, 7, 7))
     covs = birth_covariance(config, len(means))
     covs[:, 2, 2] = np.array(stds) ** 2
+    covs[:, 5, 5] = np.array(length_stds) ** 2
     covs[:, 0, 0] = covs[:, 1, 1] = 0.5**2  # the fit locates a cluster's rectangle to a few decimetres
     return np.array(means), covs
 

@@ -331,7 +331,13 @@ class BirthConfig:
       ``heading_rate_std`` (rad/s): prior spreads of a birth component;
     - ``min_cluster_points``: an unexplained cluster needs at least this many points to seed a birth
       (single clutter points do not);
-    - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used.
+    - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used;
+    - ``long_width`` (m, None: off), ``long_length`` (m), ``long_length_std`` (m): the long-vehicle
+      prior. A vehicle at least ``long_width`` wide is a truck or a bus (cars and vans are at most
+      ~2.2 m wide, trucks and buses 2.5-2.55 m), whose length the rear alone does not show: a cluster
+      birth that wide, and a track whose width reaches it while its length is still unobserved, take the
+      length ``long_length`` +- ``long_length_std`` instead of a car's, the end nearest the sensor
+      staying put (``tracker.update.long_vehicle_prior``). A side seen later sets the length as usual.
     """
 
     weight: float = 0.05
@@ -348,9 +354,16 @@ class BirthConfig:
     heading_rate_std: float = 0.05
     min_cluster_points: int = 3
     road: bool = True
+    long_width: float | None = 2.35
+    long_length: float = 12.0
+    long_length_std: float = 3.5
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
+        if self.long_width is not None:
+            _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
+        _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
+        _check("BirthConfig", "long_length_std", self.long_length_std, low=0.0, low_open=True, unit="m")
         if not isinstance(self.road, bool):
             raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker.config import TrackerConfig
+from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
@@ -192,7 +192,9 @@ def update_pairs(
     res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
                         structure.mask, wrapping, structure.factors)
     if config.measurement.hold_unobserved_extent:
-        hold_unobserved_extent(res, pair_means, pair_covs, structure)
+        held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
+        if config.birth.long_width is not None:
+            long_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
     return res
 
 
@@ -257,7 +259,7 @@ def grow_extent(
     return grown, out
 
 
-def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> None:
+def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> np.ndarray:
     """Keep ``L`` (``W``) of a pair at its prior mean and variance unless the cluster shows a long
     (short) side fully -- the Schmidt ("consider") update of an unobserved extent, in place.
 
@@ -268,7 +270,8 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
     prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
     everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
-    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite."""
+    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite. Returns the
+    mask of pairs whose ``L`` was held."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
     held = {}
@@ -279,6 +282,44 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     both = held[LENGTH] & held[WIDTH]  # both consider parameters: their joint block stays the prior's
     res.cov[both, LENGTH, WIDTH] = prior_cov[both, LENGTH, WIDTH]
     res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
+    return held[LENGTH]
+
+
+def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
+    """A car's length prior replaced by a truck's or a bus's where the width says so, in place.
+
+    Seen from behind, a bus is a 2.5 m wide rear: its width is measured, its length never (the Schmidt
+    update holds it, ``hold_unobserved_extent``), and a track born with a car's 4.5 m puts its centre
+    ~6 m behind the bus's (stop-and-go: length RMSE 3.3 m, GOSPA 6.9 m). Cars and vans are at most
+    ~2.2 m wide, trucks and buses 2.5-2.55 m, so a pair whose length was held this update, whose
+    posterior width is at least ``config.long_width`` and whose length is still a car's prior (below
+    ``long_length - long_length_std``, its standard deviation at least half of ``length_std``: never
+    measured) takes the length ``long_length``, with the variance ``long_length_std^2``, while the end
+    nearest the sensor stays put: with ``e = long_length - L`` and ``d`` as in ``grow_extent``
+    (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in the ``L`` slot)::
+
+        m += e d,   P += long_length_std^2 d d^T
+
+    (a shift of the length by an uncertain ``e``, the centre moving by half of it away from the sensor).
+    A track that already carries the long prior, or whose length was measured, is left alone (applied
+    again each frame, the added variance had let a truck's track drift off it: truck-hairpin seed 6).
+    Returns the mask of the pairs changed."""
+    hit = (held_length & (res.mean[:, WIDTH] >= config.long_width)
+           & (res.mean[:, LENGTH] < config.long_length - config.long_length_std)
+           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
+    if not hit.any():
+        return hit
+    corners = np.asarray(mean_corners, dtype=float)[hit]
+    axis = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis in E
+    sgn = np.where(np.einsum("pd,pd->p", corners.mean(axis=1), axis) >= 0.0, 1.0, -1.0)
+    h = res.mean[hit, XI]
+    d = np.zeros((int(hit.sum()), res.mean.shape[1]))
+    d[:, 0], d[:, 1] = 0.5 * sgn * np.cos(h), 0.5 * sgn * np.sin(h)
+    d[:, LENGTH] = 1.0
+    e = config.long_length - res.mean[hit, LENGTH]
+    res.mean[hit] += e[:, None] * d
+    res.cov[hit] += config.long_length_std**2 * d[:, :, None] * d[:, None, :]
+    return hit
 
 
 def update(
