@@ -30,6 +30,22 @@ def _union(parent, a, b):
 
 
 @njit
+def _labels_in_order(parent):
+    """Component label per node of a union-find forest, numbered in order of each component's first node."""
+    n = len(parent)
+    labels = np.empty(n, dtype=np.int64)
+    rank = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        r = _root(parent, i)
+        if rank[r] < 0:
+            rank[r] = count
+            count += 1
+        labels[i] = rank[r]
+    return labels
+
+
+@njit
 def partition_kernel(pts, threshold, cx, cy, span_y):
     """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
     shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
@@ -79,16 +95,7 @@ def partition_kernel(pts, threshold, cx, cy, span_y):
                             break
                     if joined:
                         break
-    labels = np.empty(n, dtype=np.int64)
-    rank = np.full(n, -1, dtype=np.int64)
-    count = 0
-    for i in range(n):
-        r = _root(parent, i)
-        if rank[r] < 0:
-            rank[r] = count
-            count += 1
-        labels[i] = rank[r]
-    return labels
+    return _labels_in_order(parent)
 
 
 @njit
@@ -176,13 +183,4 @@ def overlap_groups_kernel(corners, psi):
                         separated = True
             if not separated:
                 _union(parent, i, j)
-    labels = np.empty(t, dtype=np.int64)
-    rank = np.full(t, -1, dtype=np.int64)
-    count = 0
-    for i in range(t):
-        r = _root(parent, i)
-        if rank[r] < 0:
-            rank[r] = count
-            count += 1
-        labels[i] = rank[r]
-    return labels
+    return _labels_in_order(parent)

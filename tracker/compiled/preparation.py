@@ -37,6 +37,29 @@ def _even(keep: np.ndarray, lo: int, hi: int, count: int) -> None:
 
 
 @njit
+def _mean_scatter(pts, j0, j1):
+    """Centroid and biased scatter ``(cx, cy, sxx, syy, sxy)`` of ``pts[j0:j1 + 1]``."""
+    cnt = j1 - j0 + 1
+    cx = 0.0
+    cy = 0.0
+    for j in range(j0, j1 + 1):
+        cx += pts[j, 0]
+        cy += pts[j, 1]
+    cx /= cnt
+    cy /= cnt
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    for j in range(j0, j1 + 1):
+        dx = pts[j, 0] - cx
+        dy = pts[j, 1] - cy
+        sxx += dx * dx
+        syy += dy * dy
+        sxy += dx * dy
+    return cx, cy, sxx / cnt, syy / cnt, sxy / cnt
+
+
+@njit
 def _corner_split(pts: np.ndarray, n: int) -> int:
     cx = 0.0
     cy = 0.0
@@ -94,26 +117,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
         o = offsets[i]
         n = offsets[i + 1] - o
         raw = flat[o : o + n]
-        # centroid, biased scatter
-        cx = 0.0
-        cy = 0.0
-        for j in range(n):
-            cx += raw[j, 0]
-            cy += raw[j, 1]
-        cx /= n
-        cy /= n
-        sxx = 0.0
-        syy = 0.0
-        sxy = 0.0
-        for j in range(n):
-            dx = raw[j, 0] - cx
-            dy = raw[j, 1] - cy
-            sxx += dx * dx
-            syy += dy * dy
-            sxy += dx * dy
-        sxx /= n
-        syy /= n
-        sxy /= n
+        cx, cy, sxx, syy, sxy = _mean_scatter(raw, 0, n - 1)  # centroid, biased scatter
         # bearing order about the centroid's bearing
         ref = math.atan2(cy, cx) if math.hypot(cx, cy) > 1e-9 else 0.0
         rel0 = np.empty(n)
@@ -161,25 +165,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
             if two and s == 2:
                 j0 = k
             cnt = j1 - j0 + 1
-            ox = 0.0
-            oy = 0.0
-            for j in range(j0, j1 + 1):
-                ox += pts[j, 0]
-                oy += pts[j, 1]
-            ox /= cnt
-            oy /= cnt
-            mxx = 0.0
-            myy = 0.0
-            mxy = 0.0
-            for j in range(j0, j1 + 1):
-                dx = pts[j, 0] - ox
-                dy = pts[j, 1] - oy
-                mxx += dx * dx
-                myy += dy * dy
-                mxy += dx * dy
-            mxx /= cnt
-            myy /= cnt
-            mxy /= cnt
+            ox, oy, mxx, myy, mxy = _mean_scatter(pts, j0, j1)
             if cnt < 2 or mxx + myy <= min_chord * min_chord:
                 ux = -cy / norm
                 uy = cx / norm
