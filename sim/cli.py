@@ -188,6 +188,7 @@ def summary_table(metrics: dict) -> str:
         ("  localisation / missed / false (m^2, p-th-power sums)",
          " / ".join(_fmt_value(m.get(k), 2) for k in ("gospa_localization_mean", "gospa_missed_mean", "gospa_false_mean"))),
         ("GOSPA mean, visible vehicles only (m)", _fmt_value(m.get("gospa_visible_mean"))),
+        ("  the same without tracks kept on hidden vehicles (m)", _fmt_value(m.get("gospa_seen_mean"))),
         ("true / estimated count (mean)",
          f"{_fmt_value(m.get('truth_count_mean'), 2)} / {_fmt_value(m.get('track_count_mean'), 2)}"),
         ("cardinality error mean |N_est - N_true|", _fmt_value(m.get("cardinality_error_mean"))),

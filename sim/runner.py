@@ -17,7 +17,11 @@ Unknown keys are errors naming the file and the allowed keys (``sim.scenario.app
 (lateral offset within the road bounds; on an open road, ``0 <= s <= length``), occluded ones
 included (a tracker should keep them). A second scoring uses only the *visible* ones: those of the
 truth set with at least ``min_visible_points`` lidar points in the frame's scan. Both score all the
-tracks the tracker reports.
+tracks the tracker reports, so the visible-only scoring counts a track correctly kept on a hidden
+vehicle as false. A third, the *seen* scoring (``gospa_seen_*``, ``cardinality_error_seen_mean``),
+scores the visible vehicles against the tracks that the first scoring does not assign to a hidden
+vehicle (``tracks_on_hidden_mean`` counts those): what the tracker makes of what it can see, without
+penalising its memory of what it cannot.
 
 **Metrics** (``sim.metrics``; GOSPA with alpha = 2, p = 2, c = 5 m on the rectangle centres in G;
 its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` per frame; the
@@ -108,6 +112,10 @@ class FrameRecord:
     - ``tracks``: the tracker's output; ``track_state`` (K, 7): their ``Track.cartesian`` views;
     - ``gospa`` / ``gospa_visible``: ``GospaResult`` against the scored / visible truth (indices into
       ``np.flatnonzero(scored)`` / ``np.flatnonzero(visible)`` and into ``tracks``);
+    - ``on_hidden`` (K,): tracks that ``gospa`` assigns to a scored vehicle that is not visible (a
+      track kept through an occlusion); ``gospa_seen``: the visible truth against the other tracks
+      (indices into ``np.flatnonzero(visible)`` and ``np.flatnonzero(~on_hidden)``), the visible-only
+      score that does not count a kept track of a hidden vehicle as false;
     - ``track_truth_id`` (K,): the truth id each track is assigned to in ``gospa`` (-1: none);
     - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
     - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF);
@@ -129,6 +137,8 @@ class FrameRecord:
     ego_s: float
     frame: Frame | None = None
     tracker_events: dict[str, list] | None = None
+    on_hidden: np.ndarray | None = None
+    gospa_seen: GospaResult | None = None
 
     @property
     def n_truth(self) -> int:
@@ -385,6 +395,23 @@ def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
     return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
 
 
+def _seen_metrics(frames: list[FrameRecord], n_est: np.ndarray, n_vis: np.ndarray) -> dict[str, float | None]:
+    """The visible-only scores without the tracks kept on hidden vehicles (``FrameRecord.gospa_seen``):
+    ``gospa_seen_mean`` and its parts, ``cardinality_error_seen_mean`` and ``tracks_on_hidden_mean``
+    (``None`` when the frames carry no such score)."""
+    if not frames or any(f.gospa_seen is None or f.on_hidden is None for f in frames):
+        return {}
+    hidden = np.array([int(f.on_hidden.sum()) for f in frames])
+    return {
+        "gospa_seen_mean": _mean([f.gospa_seen.gospa for f in frames]),
+        "gospa_seen_localization_mean": _mean([f.gospa_seen.localization for f in frames]),
+        "gospa_seen_missed_mean": _mean([f.gospa_seen.missed for f in frames]),
+        "gospa_seen_false_mean": _mean([f.gospa_seen.false for f in frames]),
+        "cardinality_error_seen_mean": _mean(np.abs(n_est - hidden - n_vis)),
+        "tracks_on_hidden_mean": _mean(hidden),
+    }
+
+
 def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None,
               extent: bool = True) -> dict[str, Any]:
     """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames. ``extent=False``
@@ -426,6 +453,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "gospa_visible_missed_mean": _mean([f.gospa_visible.missed for f in frames]),
         "gospa_visible_false_mean": _mean([f.gospa_visible.false for f in frames]),
         "cardinality_error_visible_mean": _mean(np.abs(n_est - n_vis)),
+        **_seen_metrics(frames, n_est, n_vis),
         "truth_count_mean": _mean(n_truth),
         "visible_count_mean": _mean(n_vis),
         "track_count_mean": _mean(n_est),
@@ -528,6 +556,9 @@ def run_scenario(
         switches.update(scored_ids[g.truth_index], labels[g.estimate_index])
         assigned = np.full(len(tracks), -1, dtype=int)
         assigned[g.estimate_index] = scored_ids[g.truth_index]
+        on_hidden = np.zeros(len(tracks), dtype=bool)
+        on_hidden[g.estimate_index] = ~visible[np.flatnonzero(scored)[g.truth_index]]
+        gs = gospa(t_state[visible, :2], est[~on_hidden, :2], gospa_c, gospa_p)
         ego_s = float(np.asarray(road.to_frenet((snap.ego.x, snap.ego.y))[0]).reshape(-1)[0])
         records.append(
             FrameRecord(
@@ -546,6 +577,8 @@ def run_scenario(
                 ego_s=ego_s,
                 frame=sf.frame if keep_sensor_data else None,
                 tracker_events=events,
+                on_hidden=on_hidden,
+                gospa_seen=gs,
             )
         )
         if progress is not None:

@@ -100,6 +100,13 @@ def test_visible_scoring_drops_hidden_vehicles():
         assert f.gospa.gospa < 1e-9
         assert f.gospa_visible.false == pytest.approx(12.5 * (f.n_truth - f.n_visible))
         assert np.array_equal(f.visible, f.scored & (f.lidar_points >= 1))
+        # the seen scoring: the oracle's tracks of the hidden vehicles are set aside, not counted false
+        assert int(f.on_hidden.sum()) == f.n_truth - f.n_visible
+        assert f.gospa_seen.gospa < 1e-9 and f.gospa_seen.false == 0.0
+    m = result.metrics
+    assert m["gospa_seen_mean"] < 1e-9 and m["cardinality_error_seen_mean"] == 0.0
+    assert m["tracks_on_hidden_mean"] == pytest.approx(np.mean([f.n_truth - f.n_visible for f in result.frames]))
+    assert m["tracks_on_hidden_mean"] > 0.0 and m["gospa_visible_mean"] > 0.5
 
 
 def _snapshot(xy, s, n):
