@@ -69,6 +69,7 @@ from sim.truth import Snapshot
 from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world import World
 from tracker import Frame, Road, Track, TrackerConfig
+from tracker.compiled import warm_up
 from tracker.track import curvilinear_to_cartesian
 
 #: Stream tags mixed into the seed for the sensors' and the clutter's random generators.
@@ -507,6 +508,7 @@ def run_scenario(
     if not (isinstance(min_visible_points, int) and min_visible_points >= 1):
         raise ValueError(f"min_visible_points must be an integer >= 1; got {min_visible_points!r}")
 
+    warm_up()  # the tracker's compiled kernels (once per process), so no frame's time includes loading them
     start = time.perf_counter()
     if lidar_model is not None:
         spec = with_lidar_model(spec, lidar_model)

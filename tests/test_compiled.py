@@ -234,3 +234,30 @@ def test_compiled_points_in_rectangles_and_overlap_groups_equal_numpy(seed, monk
         for ref, got in zip(results["0"], results["1"]):
             np.testing.assert_array_equal(got, ref)
         assert results["0"][1].max() < t or t == 1
+
+
+def test_warm_up_compiles_every_kernel_once_per_process():
+    """After warm_up() every kernel has exactly one compiled signature, and a tracked scene adds none
+    (no compilation inside a timed frame); a second warm_up() returns at once."""
+    import tracker.compiled.centerline as kc
+    import tracker.compiled.clustering as kl
+    import tracker.compiled.motion as km
+    import tracker.compiled.preparation as kp
+    import tracker.compiled.reduction as kr
+    import tracker.compiled.structure as ks
+
+    assert compiled.warm_up()
+    kernels = [kp.prepare_kernel, ks.structure_kernel, kc.clothoid_frame, kc.hermite_frame, km.rk4_propagate,
+               kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
+               kl.overlap_groups_kernel, kr.merge_kernel]
+    before = [len(k.signatures) for k in kernels]
+    assert all(n >= 1 for n in before)
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
+                                                 Car(50.0, 3.5, 18.0)], radar=True)
+    tr = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(0)
+    for k in range(15):
+        tr.step(scene.frame(0.1 * k, rng))
+    assert [len(k.signatures) for k in kernels] == before
+    assert compiled.warm_up()

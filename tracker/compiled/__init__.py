@@ -22,6 +22,7 @@ except ImportError:  # pragma: no cover
     _numba = None
 
 ENV_SWITCH = "EOT_NUMBA"
+_WARM = False  # warm_up() has compiled or loaded every kernel in this process
 
 
 def available() -> bool:
@@ -55,9 +56,13 @@ def warm_up() -> bool:
     """Compile every kernel now (or load it from the cache): a few frames of a small tracked scene
     and one call of each kernel the scene may not reach. Call it before starting worker processes, so
     that they load the cache instead of each compiling (~20 s on a fresh checkout), and before timing.
-    Returns whether the kernels are on (nothing is done when they are off)."""
+    Returns whether the kernels are on (nothing is done when they are off). Once per process: later
+    calls return at once."""
+    global _WARM
     if not enabled():
         return False
+    if _WARM:
+        return True
     import numpy as np
 
     from tracker.clustering import points_in_rectangles
@@ -82,4 +87,5 @@ def warm_up() -> bool:
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    _WARM = True
     return True
