@@ -317,3 +317,26 @@ def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
     res2 = UpdateResult(mean.copy(), cov.copy(), *(np.zeros(4),) * 2, np.zeros(4, dtype=int), *(np.zeros((4, 2)),) * 2)
     long_vehicle_prior(res2, np.ones(4, dtype=bool), behind, cfg)
     assert res2.mean[0, 0] == pytest.approx(100.0 - 0.5 * e)  # the front (nearest the sensor) stays put
+
+
+@pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])
+def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None:
+    """Two vehicles' rears side by side form one 8 m line; with a loose width prior the update alone
+    makes the track ~8 m wide. With ``BirthConfig.max_width`` the width is projected back onto 3 m."""
+    import dataclasses
+
+    from tracker.config import BirthConfig
+
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = (100.0, 0.0, 0.0)
+    line = np.column_stack([np.full(41, 25.0), np.linspace(-4.0, 4.0, 41)])  # 8 m of rear, 25 m ahead
+    cluster = prepare_cluster(line, MeasurementConfig())
+    mean = np.array([126.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.5])
+    cov = np.diag([0.5, 0.5, 1.0, 0.01, 0.01, 1.0, 9.0])
+    base = TrackerConfig()
+    config = dataclasses.replace(base, birth=BirthConfig(long_width=None, max_width=max_width))
+    post, _, _ = update(mean, cov, cluster, ego, road, config)
+    if max_width is None:
+        assert post[6] > 6.0
+    else:
+        assert post[6] == pytest.approx(max_width)

@@ -337,7 +337,11 @@ class BirthConfig:
       ~2.2 m wide, trucks and buses 2.5-2.55 m), whose length the rear alone does not show: a cluster
       birth that wide, and a track whose width reaches it while its length is still unobserved, take the
       length ``long_length`` +- ``long_length_std`` instead of a car's, the end nearest the sensor
-      staying put (``tracker.update.long_vehicle_prior``). A side seen later sets the length as usual.
+      staying put (``tracker.update.long_vehicle_prior``). A side seen later sets the length as usual;
+    - ``max_length``, ``max_width`` (m, None: no limit): the largest vehicle. An updated estimate beyond
+      either is projected back onto it (the mean's ``L`` or ``W`` set to the limit; the covariance
+      kept): road vehicles are at most 2.55 m wide and 25.25 m long (EU), and a cluster of two vehicles
+      side by side or nose to tail must not become one 8 m wide or 33 m long rectangle.
     """
 
     weight: float = 0.05
@@ -357,6 +361,8 @@ class BirthConfig:
     long_width: float | None = 2.35
     long_length: float = 12.0
     long_length_std: float = 3.5
+    max_length: float | None = 25.0
+    max_width: float | None = 3.0
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
@@ -364,6 +370,9 @@ class BirthConfig:
             _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length_std", self.long_length_std, low=0.0, low_open=True, unit="m")
+        for name in ("max_length", "max_width"):
+            if getattr(self, name) is not None:
+                _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
         if not isinstance(self.road, bool):
             raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)

@@ -195,6 +195,9 @@ def update_pairs(
         held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
         if config.birth.long_width is not None:
             long_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
+    for index, limit in ((LENGTH, config.birth.max_length), (WIDTH, config.birth.max_width)):
+        if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
+            np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
     return res
 
 
