@@ -29,14 +29,18 @@ def _cos_sin_small(phi):
 
 
 @njit
+def _frame_arrays(count):
+    """Empty outputs of a frame kernel: positions and unit tangents ``(count, 2)``, curvatures ``(count,)``."""
+    return np.empty((count, 2)), np.empty((count, 2)), np.empty(count)
+
+
+@njit
 def clothoid_frame(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """Position ``(N, 2)``, unit tangent ``(N, 2)``, curvature ``(N,)`` at ``s (N,)`` in [0, length];
     ``table`` rows ``(start, x, y, cos0, sin0, kappa0, rate)`` per cell."""
     count = len(s)
     last = len(table) - 1
-    p = np.empty((count, 2))
-    tangent = np.empty((count, 2))
-    kappa = np.empty(count)
+    p, tangent, kappa = _frame_arrays(count)
     for i in range(count):
         row = table[_locate(s[i], bucket_cell, starts_next, inv_bucket, hops, last)]
         d = s[i] - row[0]
@@ -62,9 +66,7 @@ def hermite_frame(s, table, bucket_cell, starts_next, inv_bucket, hops):
     """As ``clothoid_frame``; ``table`` rows ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)``."""
     count = len(s)
     last = len(table) - 1
-    p = np.empty((count, 2))
-    tangent = np.empty((count, 2))
-    kappa = np.empty(count)
+    p, tangent, kappa = _frame_arrays(count)
     for i in range(count):
         row = table[_locate(s[i], bucket_cell, starts_next, inv_bucket, hops, last)]
         d = s[i] - row[0]
