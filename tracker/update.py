@@ -240,26 +240,32 @@ def grow_extent(
         hits.append((e, e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)))
     if not (hits[0][1].any() or hits[1][1].any()):  # the common case: no side longer than predicted
         return grown, out
-    corners = np.asarray(mean_corners, dtype=float)
-    centre = corners.mean(axis=1)  # (P, 2) in E
-    axis = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis
-    axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
-    left = np.stack([-axis[:, 1], axis[:, 0]], axis=-1)
-    h = means[:, XI]
-    for index, (e, hit), direction, unit in (
-        (LENGTH, hits[0], axis, np.stack([np.cos(h), np.sin(h)], -1)),
-        (WIDTH, hits[1], left, np.stack([-np.sin(h), np.cos(h)], -1)),
-    ):
+    for index, (e, hit) in zip((LENGTH, WIDTH), hits):
         if not hit.any():
             continue
-        sgn = np.where(np.einsum("pd,pd->p", centre, direction) >= 0.0, 1.0, -1.0)
-        d = np.zeros(means.shape)
-        d[:, :2] = 0.5 * sgn[:, None] * unit
-        d[:, index] = 1.0
+        d = extent_growth_direction(mean_corners, means[:, XI], means.shape[1], index)
         add = np.where(hit, e, 0.0)[:, None, None] ** 2 * d[:, :, None] * d[:, None, :]
         out += add
         grown |= hit
     return grown, out
+
+
+def extent_growth_direction(mean_corners: np.ndarray, heading: np.ndarray, dim: int, index: int) -> np.ndarray:
+    """The state direction ``d (P, dim)`` in which rectangles grow their length (``index = LENGTH``) or
+    width (``WIDTH``) by 1 m while the end nearest the sensor stays put: ``0.5 sgn u`` in the position
+    slots (``u = (cos h, sin h)`` along the body for the length, ``(-sin h, cos h)`` across it for the
+    width, ``h`` the ``heading`` state ``xi`` or ``psi``), 1 in the extent slot; ``sgn = +1`` when the
+    sensor (the E origin) lies behind the centre along that axis of ``mean_corners (P, 4, 2)`` in E.
+    Used by ``grow_extent`` and ``long_vehicle_prior``."""
+    corners = np.asarray(mean_corners, dtype=float)
+    body = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis in E
+    axis = body if index == LENGTH else np.stack([-body[:, 1], body[:, 0]], axis=-1)
+    sgn = np.where(np.einsum("pd,pd->p", corners.mean(axis=1), axis) >= 0.0, 1.0, -1.0)
+    c, s = np.cos(heading), np.sin(heading)
+    d = np.zeros((len(corners), dim))
+    d[:, 0], d[:, 1] = (0.5 * sgn * c, 0.5 * sgn * s) if index == LENGTH else (0.5 * sgn * -s, 0.5 * sgn * c)
+    d[:, index] = 1.0
+    return d
 
 
 def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> np.ndarray:
@@ -312,13 +318,7 @@ def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners:
            & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
     if not hit.any():
         return hit
-    corners = np.asarray(mean_corners, dtype=float)[hit]
-    axis = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis in E
-    sgn = np.where(np.einsum("pd,pd->p", corners.mean(axis=1), axis) >= 0.0, 1.0, -1.0)
-    h = res.mean[hit, XI]
-    d = np.zeros((int(hit.sum()), res.mean.shape[1]))
-    d[:, 0], d[:, 1] = 0.5 * sgn * np.cos(h), 0.5 * sgn * np.sin(h)
-    d[:, LENGTH] = 1.0
+    d = extent_growth_direction(np.asarray(mean_corners, dtype=float)[hit], res.mean[hit, XI], res.mean.shape[1], LENGTH)
     e = config.long_length - res.mean[hit, LENGTH]
     res.mean[hit] += e[:, None] * d
     res.cov[hit] += config.long_length_std**2 * d[:, :, None] * d[:, None, :]

@@ -34,8 +34,10 @@ def _curvature(s, table_s, table_k, closed, length):
 
 
 @njit
-def _derivative(x, out, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
-                yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed):
+def _derivative(x, out, params):
+    """``FrenetMotion.derivative`` of one state ``x`` into ``out``; ``params`` as ``rk4_propagate``'s."""
+    (table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay, yaw_rate_decay,
+     acceleration_time, max_sin_slip, slip_min_speed) = params
     s, n, v, xi, xi_dot = x[0], x[1], x[2], x[3], x[4]
     kappa = _curvature(s, table_s, table_k, closed, length)
     denom = max(1.0 - kappa * n, min_denominator)
@@ -59,6 +61,8 @@ def _derivative(x, out, table_s, table_k, closed, length, min_denominator, slip_
 def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
                   yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed):
     """States ``x (N, D)`` (D = 7 or 8) after ``steps`` RK4 steps of ``h`` seconds (a new array)."""
+    params = (table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay, yaw_rate_decay,
+              acceleration_time, max_sin_slip, slip_min_speed)
     count, dim = x.shape
     out = x.copy()
     k1 = np.empty(dim)
@@ -69,20 +73,16 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
     for i in range(count):
         xi = out[i]
         for _ in range(steps):
-            _derivative(xi, k1, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
-                        yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed)
+            _derivative(xi, k1, params)
             for j in range(dim):
                 tmp[j] = xi[j] + 0.5 * h * k1[j]
-            _derivative(tmp, k2, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
-                        yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed)
+            _derivative(tmp, k2, params)
             for j in range(dim):
                 tmp[j] = xi[j] + 0.5 * h * k2[j]
-            _derivative(tmp, k3, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
-                        yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed)
+            _derivative(tmp, k3, params)
             for j in range(dim):
                 tmp[j] = xi[j] + h * k3[j]
-            _derivative(tmp, k4, table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay,
-                        yaw_rate_decay, acceleration_time, max_sin_slip, slip_min_speed)
+            _derivative(tmp, k4, params)
             for j in range(dim):
                 xi[j] = xi[j] + (h / 6.0) * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     return out

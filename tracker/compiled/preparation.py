@@ -61,13 +61,7 @@ def _mean_scatter(pts, j0, j1):
 
 @njit
 def _corner_split(pts: np.ndarray, n: int) -> int:
-    cx = 0.0
-    cy = 0.0
-    for j in range(n):
-        cx += pts[j, 0]
-        cy += pts[j, 1]
-    cx /= n
-    cy /= n
+    cx, cy, _, _, _ = _mean_scatter(pts, 0, n - 1)
     c = np.zeros((n + 1, 6))
     for j in range(n):
         x = pts[j, 0] - cx
