@@ -380,3 +380,9 @@ def test_one_point_in_any_shape_takes_the_fast_path_and_agrees_with_the_batch():
         assert isinstance(st, float) and abs(st - s_batch[k]) < 1e-9 and abs(nt - n_batch[k]) < 1e-9
     with pytest.raises(ValueError, match="scalar"):
         road.to_frenet(pts[:1], s_hint=np.array([1.0, 2.0]))
+    s_int, _ = road.to_frenet(np.array([[300, 20]]))  # integers take the same path
+    assert s_int.shape == (1,) and abs(s_int[0] - road.to_frenet((300.0, 20.0))[0]) < 1e-12
+    with pytest.raises(ValueError, match="xy must be finite"):
+        road.to_frenet(np.array([[np.nan, 1.0]]))
+    with pytest.raises(ValueError, match="xy must be finite"):
+        road.to_frenet((np.inf, 1.0))

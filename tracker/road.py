@@ -51,9 +51,7 @@ POLY_SAMPLES = 61
 
 
 def _is_point(xy: object) -> bool:
-    """Whether ``xy`` is one point: a length-2 sequence or a shape-(2,) array of numbers."""
-    if isinstance(xy, np.ndarray):
-        return xy.shape == (2,)
+    """Whether ``xy`` is one point given as a length-2 tuple or list of numbers."""
     return isinstance(xy, (tuple, list)) and len(xy) == 2 and all(isinstance(v, (int, float)) for v in xy)
 
 
@@ -360,13 +358,26 @@ class Road:
         point takes a pure-Python fast path whatever its shape: given as a tuple or shape (2,) it
         returns two floats, given as (1, 2) (or (1, ..., 1, 2)) two arrays of shape ``xy.shape[:-1]``.
         """
-        if (s_hint is None or isinstance(s_hint, (float, int))) and _is_point(xy):
-            x, y = float(xy[0]), float(xy[1])  # type: ignore[index]
-            hint = None if s_hint is None else float(s_hint)
-            if math.isfinite(x) and math.isfinite(y) and (hint is None or math.isfinite(hint)):
-                result = self._to_frenet1(x, y, hint)
-                if result is not None:
-                    return result  # type: ignore[return-value]
+        if s_hint is None or isinstance(s_hint, (float, int)):
+            # one point, as a tuple or an array of any shape (..., 2) holding two numbers: pure Python
+            # (the same cost for a tuple and a (1, 2) array; the array answer wraps the two floats)
+            if isinstance(xy, np.ndarray):
+                one = xy.size == 2 and xy.ndim >= 1 and xy.shape[-1] == 2 and xy.dtype.kind in "fiu"
+                if one:
+                    x, y = float(xy.item(0)), float(xy.item(1))
+            else:
+                one = _is_point(xy)
+                if one:
+                    x, y = float(xy[0]), float(xy[1])  # type: ignore[index]
+            if one:
+                hint = None if s_hint is None else float(s_hint)
+                if math.isfinite(x) and math.isfinite(y) and (hint is None or math.isfinite(hint)):
+                    result = self._to_frenet1(x, y, hint)
+                    if result is not None:
+                        if not isinstance(xy, np.ndarray) or xy.ndim == 1:
+                            return result  # type: ignore[return-value]
+                        both = np.array(result).reshape((2,) + xy.shape[:-1])
+                        return both[0], both[1]
         pts = _as_float_array(xy, "xy")
         if pts.ndim == 0 or pts.shape[-1] != 2:
             raise ValueError(f"xy must have shape (..., 2); got {pts.shape}")

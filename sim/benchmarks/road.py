@@ -34,10 +34,12 @@ def run(args: argparse.Namespace) -> dict:
         xy = road.to_cartesian(s, n)
         p, s1, n1 = xy[12345], float(s[12345]), float(n[12345])
         p_list = tuple(float(v) for v in p)
+        p_row = np.ascontiguousarray(p[None, :])  # the same point as a (1, 2) array
         out[name] = {
             "length_m": round(road.length, 1),
             "to_frenet_1pt_hint_us": 1e6 * median_seconds(lambda: road.to_frenet(p_list, s_hint=s1 - 0.5), 15, args.repeat // 15),
             "to_frenet_1pt_no_hint_us": 1e6 * median_seconds(lambda: road.to_frenet(p_list), 15, args.repeat // 15),
+            "to_frenet_1pt_array_us": 1e6 * median_seconds(lambda: road.to_frenet(p_row), 15, args.repeat // 15),
             "to_cartesian_1pt_us": 1e6 * median_seconds(lambda: road.to_cartesian(s1, n1), 15, args.repeat // 15),
             "to_frenet_1e5_ms": 1e3 * median_seconds(lambda: road.to_frenet(xy), args.batch_repeat),
             "to_cartesian_1e5_ms": 1e3 * median_seconds(lambda: road.to_cartesian(s, n), args.batch_repeat),
