@@ -147,6 +147,32 @@ def test_numpy_caster_matches_pymunk_oracle(seed):
         assert np.array_equal(cast_numpy(segments, grid, 100.0, cull_back_faces=False).range, fast.range)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_caster_matches_the_numpy_caster(seed):
+    """``sim.sensors.cast_kernel`` (numba) against ``cast_numpy``: the same owners and ranges, on full
+    circles and fans (narrow and wider than a half turn), with and without back-face culling, for a
+    loose segment set too, and for segments wholly or partly beyond ``max_range``."""
+    pytest.importorskip("numba")
+    from sim.sensors.cast_kernel import cast_kernel
+
+    snap, objects = random_scene(seed)
+    segments = scene_segments(snap, objects, (0.0, 0.0), snap.ego.yaw)
+    rng = np.random.default_rng(100 + seed)
+    loose = Segments(rng.uniform(-60, 60, (40, 2)), rng.uniform(-60, 60, (40, 2)), np.arange(40))
+    fan_centre = float(rng.uniform(-3.0, 3.0))
+    grids = [RayGrid.full_circle(RES), RayGrid(7.3 + fan_centre, RES, 1800), RayGrid.fan(fan_centre, math.radians(60), RES),
+             RayGrid.fan(fan_centre, math.radians(150), RES), RayGrid.fan(math.pi, math.radians(45), math.radians(0.1))]
+    for grid in grids:
+        for segs, cull in [(segments, True), (segments, False), (loose, False)]:
+            for max_range in (100.0, 25.0):
+                ref = cast_numpy(segs, grid, max_range, cull_back_faces=cull)
+                ranges, owners = cast_kernel(segs.a, segs.b, segs.owner, math.remainder(grid.start, 2 * math.pi),
+                                             grid.resolution, grid.cos, grid.sin, grid.is_full_circle, max_range, cull)
+                assert ref.hit.sum() > 0.05 * grid.count
+                assert np.array_equal(owners, ref.owner)
+                assert np.array_equal(ranges, ref.range)
+
+
 def test_lidar_with_pymunk_caster_gives_the_same_scan():
     snap, objects = random_scene(11)
     fast = Lidar(EXACT).scan(snap, objects, rng=np.random.default_rng(0))

@@ -29,7 +29,7 @@ from functools import cached_property
 import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
-from sim.sensors.raycast import RayGrid, cast_numpy
+from sim.sensors.raycast import RayGrid, cast as cast_rays
 from sim.sensors.scene import scene_segments
 from tracker.transforms import rotate, to_global
 from sim.truth import Snapshot
@@ -177,7 +177,7 @@ class RadarUnit:
         segments = scene_segments(
             snapshot, roadside, (float(mount_g[0]), float(mount_g[1])), ego.yaw + cfg.boresight, cfg.max_range
         )
-        cast = cast_numpy(segments, self.grid, cfg.max_range)
+        cast = cast_rays(segments, self.grid, cfg.max_range)
         on_vehicle = np.flatnonzero((cast.owner >= 0) & (cast.owner < len(snapshot)) & (cast.range >= cfg.min_range))
         if on_vehicle.size == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 2))

@@ -34,6 +34,9 @@ from functools import cached_property
 
 import numpy as np
 
+from sim.sensors.cast_kernel import cast_kernel
+from tracker import compiled
+
 TWO_PI = 2.0 * math.pi
 
 
@@ -292,4 +295,30 @@ def cast_pymunk(segments: Segments, grid: RayGrid, max_range: float) -> CastResu
     return PymunkScene(segments).cast(grid, max_range)
 
 
-CASTERS = {"numpy": cast_numpy, "pymunk": cast_pymunk}
+def cast(segments: Segments, grid: RayGrid, max_range: float, *, cull_back_faces: bool = True) -> CastResult:
+    """``cast_numpy``'s answer, from its compiled twin (``sim.sensors.cast_kernel``) when the compiled
+    kernels are on (numba installed, ``EOT_NUMBA`` not ``0``; see ``tracker.compiled``), else from
+    ``cast_numpy`` itself."""
+    if not compiled.enabled():
+        return cast_numpy(segments, grid, max_range, cull_back_faces=cull_back_faces)
+    max_range = _check_range(max_range)
+    ranges, owners = cast_kernel(
+        np.ascontiguousarray(segments.a, dtype=float), np.ascontiguousarray(segments.b, dtype=float),
+        np.ascontiguousarray(segments.owner, dtype=np.int64), math.remainder(grid.start, TWO_PI),
+        float(grid.resolution), grid.cos, grid.sin, bool(grid.is_full_circle), max_range, bool(cull_back_faces),
+    )
+    return CastResult(ranges, owners)
+
+
+def _warm_up_cast() -> None:
+    square = Segments.from_polygons(np.array([[5.0, -1.0], [7.0, -1.0], [7.0, 1.0], [5.0, 1.0]]), np.array([0, 4]),
+                                    np.array([0]))
+    cast(square, RayGrid.full_circle(math.radians(1.0)), 50.0)
+    cast(square, RayGrid.fan(0.0, 0.5, math.radians(1.0)), 50.0)
+
+
+compiled.register_warm_up(_warm_up_cast)
+
+#: The casters by name (``LidarConfig.caster``): "numpy" is the vectorised caster (``cast``: compiled
+#: when the kernels are on), "pymunk" the oracle.
+CASTERS = {"numpy": cast, "pymunk": cast_pymunk}

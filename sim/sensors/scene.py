@@ -14,6 +14,7 @@ import numpy as np
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import Segments
 from sim.truth import Snapshot, rectangle_corners
+from tracker.measurement import NEXT_CORNER
 
 # corner signs along (length, width) of the corners front-right, front-left, rear-left, rear-right
 # (counter-clockwise), and of each corner's successor (the edge's end point)
@@ -22,7 +23,7 @@ from sim.truth import Snapshot, rectangle_corners
 def _vehicle_edges(snapshot: Snapshot, rows: np.ndarray) -> np.ndarray:
     """Edges (4 V, 4) ``[ax, ay, bx, by]`` in G of the vehicles ``rows``, counter-clockwise."""
     corners = rectangle_corners(snapshot.xy[rows], snapshot.yaw[rows], snapshot.length[rows], snapshot.width[rows])
-    return np.concatenate([corners, np.roll(corners, -1, axis=1)], axis=-1).reshape(-1, 4)
+    return np.concatenate([corners, corners[:, NEXT_CORNER]], axis=-1).reshape(-1, 4)
 
 
 def scene_segments(

@@ -28,6 +28,7 @@ except ImportError:  # pragma: no cover
 
 ENV_SWITCH = "EOT_NUMBA"
 _WARM = False  # warm_up() has compiled or loaded every kernel in this process
+_EXTRA_WARM_UPS: list = []  # callables registered by other packages' kernels (register_warm_up)
 
 
 def available() -> bool:
@@ -55,6 +56,13 @@ def njit(*args, **kwargs):
             return args[0]
         return lambda f: f
     return _numba.njit(*args, **kwargs)
+
+
+def register_warm_up(function) -> None:
+    """Have ``warm_up()`` also call ``function()`` (no arguments): for kernels outside the tracker
+    built with this ``njit`` (the simulator's ray caster), so that one call warms them all."""
+    if function not in _EXTRA_WARM_UPS:
+        _EXTRA_WARM_UPS.append(function)
 
 
 def warm_up() -> bool:
@@ -92,5 +100,7 @@ def warm_up() -> bool:
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    for function in _EXTRA_WARM_UPS:
+        function()
     _WARM = True
     return True
