@@ -122,6 +122,31 @@ def test_compiled_centerline_frame_equals_numpy(name, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_compiled_projection_equals_numpy(name, monkeypatch):
+    """``Road.to_frenet``'s Newton iterations compiled against numpy: points on and off the road,
+    beyond an open road's ends (extrapolated), across a closed road's seam, near a centre of
+    curvature (the fallback), with and without hints (good and bad ones)."""
+    road = _roads()[name]
+    rng = np.random.default_rng(1)
+    s = np.concatenate([rng.uniform(0.0, road.length, 2000), [0.0, road.length, 1e-9, road.length - 1e-9]])
+    n = rng.uniform(road.right_edge - 30.0, road.left_edge + 30.0, s.size)
+    xy = road.to_cartesian(s, n)
+    if not road.closed:  # beyond both ends, along and beside the end tangents
+        x0, y0, c0, s0 = road._ends[0]
+        x1, y1, c1, s1 = road._ends[1]
+        xy = np.concatenate([xy, [[x0 - 25.0 * c0, y0 - 25.0 * s0], [x1 + 40.0 * c1 - 3.0 * s1, y1 + 40.0 * s1 + 3.0 * c1]]])
+        s = np.concatenate([s, [0.0, road.length]])
+    hints = [None, s + rng.normal(0.0, 2.0, s.size), (s + 0.5 * road.length) % road.length]  # good, then bad hints
+    for hint in hints:
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = road.to_frenet(xy, s_hint=hint)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = road.to_frenet(xy, s_hint=hint)
+        for a, b in zip(ref, got):
+            np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 @pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True), MotionConfig(slip_lever=0.0)],
                          ids=["default", "acceleration", "no-slip"])
 def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
@@ -247,7 +272,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.structure as ks
 
     assert compiled.warm_up()
-    kernels = [kp.prepare_kernel, ks.structure_kernel, kc.clothoid_frame, kc.hermite_frame, km.rk4_propagate,
+    kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
                kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel]
     before = [len(k.signatures) for k in kernels]

@@ -75,6 +75,11 @@ class _Cells:
         """The bucket lookup's arrays and numbers, for the compiled kernels."""
         return (self._bucket_cell, self._starts_next, 1.0 / self._bucket, self._bucket_hops)
 
+    def kernel_args(self) -> tuple:
+        """``(kind, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)``: the
+        arguments of ``tracker.compiled.centerline``'s curve kernels around ``s`` (kind 0 clothoid, 1 Hermite)."""
+        return (0 if isinstance(self, ClothoidCenterline) else 1, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+
     def locate(self, s: np.ndarray) -> np.ndarray:
         """Cell index of each ``s`` in [0, length] (vectorised)."""
         k = np.minimum((s * (1.0 / self._bucket)).astype(np.intp), len(self._bucket_cell) - 1)
@@ -183,9 +188,9 @@ class HermiteCenterline(_Cells):
         """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]
         (by ``tracker.compiled.centerline`` when the compiled kernels are on)."""
         if compiled_kernels.enabled():
-            from tracker.compiled.centerline import hermite_frame
+            from tracker.compiled.centerline import curve_frame
 
-            return hermite_frame(np.ascontiguousarray(s, dtype=float), self._table, *self._lookup())
+            return curve_frame(1, np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         tau = ((row[:, 4] * d + row[:, 3]) * d + row[:, 2]) * d + row[:, 1]
@@ -346,9 +351,9 @@ class ClothoidCenterline(_Cells):
         (by ``tracker.compiled.centerline`` when the compiled kernels are on).
         """
         if compiled_kernels.enabled():
-            from tracker.compiled.centerline import clothoid_frame
+            from tracker.compiled.centerline import curve_frame
 
-            return clothoid_frame(np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+            return curve_frame(0, np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         cell_xy, cos0, sin0, k0, kr = row[:, 1:3], row[:, 3], row[:, 4], row[:, 5], row[:, 6]

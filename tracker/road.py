@@ -23,6 +23,7 @@ from typing import Literal
 import numpy as np
 from scipy.spatial import cKDTree
 
+from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.centerline import ClothoidCenterline, HermiteCenterline
 
@@ -106,6 +107,7 @@ class Road:
         x0, y0, c0, s0, _ = centerline.frame1(0.0)
         x1, y1, c1, s1, _ = centerline.frame1(self.length)
         self._ends = ((x0, y0, c0, s0), (x1, y1, c1, s1))
+        self._ends_array = np.array(self._ends, dtype=float)  # the same, for the compiled projection
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -450,17 +452,28 @@ class Road:
             s = self._nodes[node] + (dx * tx + dy * ty) / denom
         else:
             s = s_start
-        for _ in range(PROJECTION_MAX_ITERATIONS):
-            xy, tangent, kappa = self._frame_flat(self.wrap_s(s), extrapolate=True)
-            dx, dy = pts[:, 0] - xy[:, 0], pts[:, 1] - xy[:, 1]
-            along = dx * tangent[:, 0] + dy * tangent[:, 1]
-            lateral = dy * tangent[:, 0] - dx * tangent[:, 1]
-            denom = np.maximum(1.0 - kappa * lateral, PROJECTION_MIN_DENOMINATOR)
-            ds = np.clip(along / denom, -PROJECTION_MAX_STEP, PROJECTION_MAX_STEP)
-            s = self.wrap_s(s + ds)
-            pending = np.abs(ds) >= PROJECTION_TOLERANCE
+        if compiled_kernels.enabled():  # the same iterations, one compiled call
+            from tracker.compiled.centerline import project_kernel
+
+            kind, *curve = self._curve.kernel_args()
+            s, lateral, pending = project_kernel(
+                kind, np.ascontiguousarray(pts, dtype=float), np.array(s, dtype=float), self.closed, self.length,
+                self._ends_array, *curve, PROJECTION_MAX_ITERATIONS, PROJECTION_TOLERANCE, PROJECTION_MAX_STEP,
+                PROJECTION_MIN_DENOMINATOR)
             if not pending.any():
                 return s, lateral
+        else:
+            for _ in range(PROJECTION_MAX_ITERATIONS):
+                xy, tangent, kappa = self._frame_flat(self.wrap_s(s), extrapolate=True)
+                dx, dy = pts[:, 0] - xy[:, 0], pts[:, 1] - xy[:, 1]
+                along = dx * tangent[:, 0] + dy * tangent[:, 1]
+                lateral = dy * tangent[:, 0] - dx * tangent[:, 1]
+                denom = np.maximum(1.0 - kappa * lateral, PROJECTION_MIN_DENOMINATOR)
+                ds = np.clip(along / denom, -PROJECTION_MAX_STEP, PROJECTION_MAX_STEP)
+                s = self.wrap_s(s + ds)
+                pending = np.abs(ds) >= PROJECTION_TOLERANCE
+                if not pending.any():
+                    return s, lateral
         if s_start is not None:  # a bad hint: retry these points from the global search
             s[pending], lateral[pending] = self._project(pts[pending], None)
         else:  # near a centre of curvature Newton may wander: bracket the nearest sample instead

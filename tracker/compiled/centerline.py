@@ -35,51 +35,104 @@ def _frame_arrays(count):
 
 
 @njit
-def clothoid_frame(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
-    """Position ``(N, 2)``, unit tangent ``(N, 2)``, curvature ``(N,)`` at ``s (N,)`` in [0, length];
+def clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
+    """Position, unit tangent and curvature ``(x, y, tx, ty, kappa)`` at one ``s`` in [0, length];
     ``table`` rows ``(start, x, y, cos0, sin0, kappa0, rate)`` per cell."""
+    row = table[_locate(s, bucket_cell, starts_next, inv_bucket, hops, len(table) - 1)]
+    d = s - row[0]
+    cos0, sin0, k0, kr = row[3], row[4], row[5], row[6]
+    ic = 0.0
+    is_ = 0.0
+    for g in range(len(nodes)):
+        dd = d * nodes[g]
+        c, sn = _cos_sin_small((k0 + 0.5 * kr * dd) * dd)
+        ic += c * weights[g]
+        is_ += sn * weights[g]
+    ce, se = _cos_sin_small((k0 + 0.5 * kr * d) * d)
+    return (row[1] + d * (cos0 * ic - sin0 * is_), row[2] + d * (sin0 * ic + cos0 * is_),
+            cos0 * ce - sin0 * se, sin0 * ce + cos0 * se, k0 + kr * d)
+
+
+@njit
+def hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
+    """As ``clothoid_at``; ``table`` rows ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)``
+    (``nodes`` and ``weights`` unused: the same signature as ``clothoid_at``)."""
+    row = table[_locate(s, bucket_cell, starts_next, inv_bucket, hops, len(table) - 1)]
+    d = s - row[0]
+    tau = ((row[4] * d + row[3]) * d + row[2]) * d + row[1]
+    x0, y0, x1, y1, x2, y2, x3, y3 = row[5], row[6], row[7], row[8], row[9], row[10], row[11], row[12]
+    dx = (3.0 * x3 * tau + 2.0 * x2) * tau + x1
+    dy = (3.0 * y3 * tau + 2.0 * y2) * tau + y1
+    ddx = 6.0 * x3 * tau + 2.0 * x2
+    ddy = 6.0 * y3 * tau + 2.0 * y2
+    speed = np.hypot(dx, dy)
+    return (((x3 * tau + x2) * tau + x1) * tau + x0, ((y3 * tau + y2) * tau + y1) * tau + y0,
+            dx / speed, dy / speed, (dx * ddy - dy * ddx) / speed**3)
+
+
+#: curve kinds of the kernels' ``kind`` argument
+CLOTHOID, HERMITE = 0, 1
+
+
+@njit
+def curve_at(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
+    """``clothoid_at`` or ``hermite_at`` by ``kind`` (``CLOTHOID`` or ``HERMITE``)."""
+    if kind == 0:
+        return clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+    return hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+
+
+@njit
+def curve_frame(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
+    """Position ``(N, 2)``, unit tangent ``(N, 2)``, curvature ``(N,)`` at ``s (N,)`` in [0, length]."""
     count = len(s)
-    last = len(table) - 1
     p, tangent, kappa = _frame_arrays(count)
     for i in range(count):
-        row = table[_locate(s[i], bucket_cell, starts_next, inv_bucket, hops, last)]
-        d = s[i] - row[0]
-        cos0, sin0, k0, kr = row[3], row[4], row[5], row[6]
-        ic = 0.0
-        is_ = 0.0
-        for g in range(len(nodes)):
-            dd = d * nodes[g]
-            c, sn = _cos_sin_small((k0 + 0.5 * kr * dd) * dd)
-            ic += c * weights[g]
-            is_ += sn * weights[g]
-        p[i, 0] = row[1] + d * (cos0 * ic - sin0 * is_)
-        p[i, 1] = row[2] + d * (sin0 * ic + cos0 * is_)
-        ce, se = _cos_sin_small((k0 + 0.5 * kr * d) * d)
-        tangent[i, 0] = cos0 * ce - sin0 * se
-        tangent[i, 1] = sin0 * ce + cos0 * se
-        kappa[i] = k0 + kr * d
+        p[i, 0], p[i, 1], tangent[i, 0], tangent[i, 1], kappa[i] = curve_at(
+            kind, s[i], table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
     return p, tangent, kappa
 
 
 @njit
-def hermite_frame(s, table, bucket_cell, starts_next, inv_bucket, hops):
-    """As ``clothoid_frame``; ``table`` rows ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)``."""
+def road_frame_at(kind, s, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
+    """``Road._frame_flat(s, extrapolate=True)`` at one ``s``: wrapped on a closed road; on an open
+    one the frame at ``s`` clipped to [0, length], its position moved along the end tangent
+    (``ends`` rows ``(x, y, cos, sin)`` at 0 and at ``length``) and its curvature 0 beyond an end."""
+    if closed:
+        return curve_at(kind, s % length, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+    x, y, tx, ty, kappa = curve_at(kind, min(max(s, 0.0), length), table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+    if s < 0.0:
+        return ends[0, 0] + s * ends[0, 2], ends[0, 1] + s * ends[0, 3], tx, ty, 0.0
+    if s > length:
+        d = s - length
+        return ends[1, 0] + d * ends[1, 2], ends[1, 1] + d * ends[1, 3], tx, ty, 0.0
+    return x, y, tx, ty, kappa
+
+
+@njit
+def project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
+                   max_iterations, tolerance, max_step, min_denominator):
+    """``Road._project``'s Newton iterations from the starts ``s (N,)`` (changed in place), in its order:
+    every point takes a step while any is pending (numpy's lock-step). Returns ``(s, lateral, pending)``;
+    the pending points (not converged) go to the caller's fallback."""
     count = len(s)
-    last = len(table) - 1
-    p, tangent, kappa = _frame_arrays(count)
-    for i in range(count):
-        row = table[_locate(s[i], bucket_cell, starts_next, inv_bucket, hops, last)]
-        d = s[i] - row[0]
-        tau = ((row[4] * d + row[3]) * d + row[2]) * d + row[1]
-        x0, y0, x1, y1, x2, y2, x3, y3 = row[5], row[6], row[7], row[8], row[9], row[10], row[11], row[12]
-        p[i, 0] = ((x3 * tau + x2) * tau + x1) * tau + x0
-        p[i, 1] = ((y3 * tau + y2) * tau + y1) * tau + y0
-        dx = (3.0 * x3 * tau + 2.0 * x2) * tau + x1
-        dy = (3.0 * y3 * tau + 2.0 * y2) * tau + y1
-        ddx = 6.0 * x3 * tau + 2.0 * x2
-        ddy = 6.0 * y3 * tau + 2.0 * y2
-        speed = np.hypot(dx, dy)
-        kappa[i] = (dx * ddy - dy * ddx) / speed**3
-        tangent[i, 0] = dx / speed
-        tangent[i, 1] = dy / speed
-    return p, tangent, kappa
+    lateral = np.zeros(count)
+    pending = np.ones(count, dtype=np.bool_)
+    for _ in range(max_iterations):
+        any_pending = False
+        for i in range(count):
+            x, y, tx, ty, kappa = road_frame_at(kind, s[i] % length if closed else s[i], closed, length, ends, table,
+                                                bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+            dx = pts[i, 0] - x
+            dy = pts[i, 1] - y
+            along = dx * tx + dy * ty
+            lat = dy * tx - dx * ty
+            denom = max(1.0 - kappa * lat, min_denominator)
+            ds = min(max(along / denom, -max_step), max_step)
+            s[i] = (s[i] + ds) % length if closed else s[i] + ds
+            lateral[i] = lat
+            pending[i] = abs(ds) >= tolerance
+            any_pending = any_pending or pending[i]
+        if not any_pending:
+            break
+    return s, lateral, pending
