@@ -14,6 +14,7 @@ from test_preparation import random_clusters
 from tracker import Road, Tracker, TrackerConfig
 from tracker import compiled
 from tracker.config import MeasurementConfig, MotionConfig
+from tracker.frame import EgoState
 from tracker.measurement import build_structure
 from tracker.motion import FrenetMotion
 from tracker.preparation import _prepare_finite
@@ -144,6 +145,35 @@ def test_compiled_projection_equals_numpy(name, monkeypatch):
         got = road.to_frenet(xy, s_hint=hint)
         for a, b in zip(ref, got):
             np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
+    """``to_vehicle`` of curvilinear states, compiled against numpy: any leading shape, 7 and 8 state
+    columns, states beyond an open road's ends and across a closed road's seam."""
+    from tracker.measurement import to_vehicle
+
+    road = _roads()[name]
+    rng = np.random.default_rng(2)
+    ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
+    for shape, dim in (((40,), 7), ((6, 15), 7), ((5, 3, 2), 8), ((0,), 7)):
+        x = rng.normal(0.0, 1.0, shape + (dim,))
+        x[..., 0] = rng.uniform(-30.0, road.length + 30.0, shape)
+        x[..., 1] = rng.uniform(-8.0, 8.0, shape)
+        x[..., 3] = rng.uniform(-0.5, 0.5, shape)
+        x[..., 5:7] = rng.uniform(-1.0, 15.0, shape + (2,))  # below MIN_EXTENT too
+        if road.closed:
+            x[..., 0] %= road.length
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = to_vehicle(x, ego, road)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = to_vehicle(x, ego, road)
+        for field in ("center", "psi", "v", "length", "width"):
+            a, b = getattr(ref, field), getattr(got, field)
+            assert a.shape == b.shape
+            np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+    with pytest.raises(ValueError, match="finite"):
+        to_vehicle(np.full((2, 7), np.nan), ego, road)
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])

@@ -186,6 +186,17 @@ def to_vehicle(
     if coordinates == "curvilinear":
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")
+        if euler_s0 is None and compiled_kernels.enabled() and x.size:
+            from tracker.compiled.centerline import to_vehicle_kernel
+
+            flat = np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
+            if not np.isfinite(flat[:, 0]).all():
+                raise ValueError(f"s must be finite; got {flat[np.argmin(np.isfinite(flat[:, 0])), 0]!r}")
+            kind, *curve = road._curve.kernel_args()
+            center, psi = to_vehicle_kernel(kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
+                                            road.length, road._ends_array, *curve)
+            return Rectangles(center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]), x[..., 2],
+                              np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
         if euler_s0 is None:
             xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
         else:

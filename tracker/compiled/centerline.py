@@ -136,3 +136,27 @@ def project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, start
         if not any_pending:
             break
     return s, lateral, pending
+
+
+@njit
+def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell, starts_next,
+                      inv_bucket, hops, nodes, weights):
+    """``tracker.measurement.to_vehicle``'s curvilinear exact conversion of ``states (N, >= 4)``:
+    rectangle centres ``(N, 2)`` and headings ``(N,)`` in E (the frame extrapolated beyond an open
+    road's ends, as ``Road.frame(..., extrapolate=True)``)."""
+    count = states.shape[0]
+    center = np.empty((count, 2))
+    psi = np.empty(count)
+    c = np.cos(ego_yaw)
+    sn = np.sin(ego_yaw)
+    for i in range(count):
+        x, y, tx, ty, _ = road_frame_at(kind, states[i, 0], closed, length, ends, table, bucket_cell, starts_next,
+                                        inv_bucket, hops, nodes, weights)
+        theta = np.arctan2(ty, tx)
+        n = states[i, 1]
+        gx = x - n * np.sin(theta) - ego_x
+        gy = y + n * np.cos(theta) - ego_y
+        center[i, 0] = c * gx + sn * gy
+        center[i, 1] = -sn * gx + c * gy
+        psi[i] = theta + states[i, 3] - ego_yaw
+    return center, psi
