@@ -90,3 +90,83 @@ def cast_kernel(a, b, owner, start, resolution, cos, sin, full_circle, max_range
             _narrow(k0, int(k1), count, False, a[i, 0], a[i, 1], b[i, 0], b[i, 1], crs[i], owner[i], cos, sin,
                     max_range, ranges, owners)
     return ranges, owners
+
+
+@njit(error_model="numpy")
+def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy, sensor_yaw,
+                   max_range, min_range, start, resolution, cos, sin):  # pragma: no cover - compiled
+    """The radar's visibility test in one call (``sim.sensors.radar.RadarUnit.visible``): the scene of
+    ``sim.sensors.scene.scene_segments`` (the vehicles' rectangles and the roadside edges within
+    ``max_range`` of the sensor at ``(ox, oy)`` with heading ``sensor_yaw``, in its frame), cast on
+    the fan (culled, as ``cast_numpy``), then per vehicle the nearest ray that hits it at
+    ``>= min_range``. Returns the vehicles' rows (ascending), their rays and ranges."""
+    count = xy.shape[0]
+    n_static = static_edges.shape[0]
+    a = np.empty((4 * count + n_static, 2))
+    b = np.empty((4 * count + n_static, 2))
+    owner = np.empty(4 * count + n_static, dtype=np.int64)
+    c2 = np.cos(sensor_yaw)
+    s2 = np.sin(sensor_yaw)
+    m = 0
+    cx = np.empty(4)
+    cy = np.empty(4)
+    for v in range(count):
+        dx = xy[v, 0] - ox
+        dy = xy[v, 1] - oy
+        if np.sqrt(dx * dx + dy * dy) - 0.5 * np.sqrt(length[v] ** 2 + width[v] ** 2) > max_range:
+            continue
+        c = np.cos(yaw[v])
+        s = np.sin(yaw[v])
+        hl = 0.5 * length[v]
+        hw = 0.5 * width[v]
+        for k in range(4):  # front-right, front-left, rear-left, rear-right (tracker.measurement.SX, SY)
+            lx = hl if k < 2 else -hl
+            ly = -hw if k == 0 or k == 3 else hw
+            cx[k] = xy[v, 0] + c * lx - s * ly - ox
+            cy[k] = xy[v, 1] + s * lx + c * ly - oy
+        for k in range(4):
+            j = (k + 1) % 4
+            a[m, 0] = cx[k] * c2 + cy[k] * s2
+            a[m, 1] = -cx[k] * s2 + cy[k] * c2
+            b[m, 0] = cx[j] * c2 + cy[j] * s2
+            b[m, 1] = -cx[j] * s2 + cy[j] * c2
+            owner[m] = v
+            m += 1
+    for e in range(n_static):
+        dx = static_mid[e, 0] - ox
+        dy = static_mid[e, 1] - oy
+        if np.sqrt(dx * dx + dy * dy) - static_half[e] > max_range:
+            continue
+        ax = static_edges[e, 0] - ox
+        ay = static_edges[e, 1] - oy
+        bx = static_edges[e, 2] - ox
+        by = static_edges[e, 3] - oy
+        a[m, 0] = ax * c2 + ay * s2
+        a[m, 1] = -ax * s2 + ay * c2
+        b[m, 0] = bx * c2 + by * s2
+        b[m, 1] = -bx * s2 + by * c2
+        owner[m] = static_owner[e]
+        m += 1
+    ranges, owners = cast_kernel(a[:m], b[:m], owner[:m], start, resolution, cos, sin, False, max_range, True)
+    best = np.full(count, np.inf)
+    best_ray = np.full(count, -1, dtype=np.int64)
+    for r in range(ranges.shape[0]):  # rays ascending: the first of equal ranges wins (a stable sort's)
+        o = owners[r]
+        if 0 <= o < count and ranges[r] >= min_range and ranges[r] < best[o]:
+            best[o] = ranges[r]
+            best_ray[o] = r
+    k = 0
+    for v in range(count):
+        if best_ray[v] >= 0:
+            k += 1
+    rows = np.empty(k, dtype=np.int64)
+    rays = np.empty(k, dtype=np.int64)
+    hit = np.empty(k)
+    k = 0
+    for v in range(count):
+        if best_ray[v] >= 0:
+            rows[k] = v
+            rays[k] = best_ray[v]
+            hit[k] = best[v]
+            k += 1
+    return rows, rays, hit

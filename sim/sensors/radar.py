@@ -29,8 +29,10 @@ from functools import cached_property
 import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.cast_kernel import visible_kernel
 from sim.sensors.raycast import RayGrid, cast as cast_rays
 from sim.sensors.scene import scene_segments
+from tracker import compiled
 from tracker.transforms import rotate, to_global
 from sim.truth import Snapshot
 
@@ -150,6 +152,17 @@ class RadarScan:
         )
 
 
+_NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))
+
+
+def _static_arrays(roadside: RoadsideObjects | None, count: int) -> tuple:
+    """The roadside edges as ``visible_kernel`` takes them: ``[ax, ay, bx, by]`` in G, owners (after
+    the ``count`` vehicles), midpoints and half-lengths (empty without roadside objects)."""
+    if roadside is None or len(roadside) == 0:
+        return _NO_STATIC
+    return roadside._edges, roadside.segments.owner + count, roadside._edge_mid, roadside._edge_half
+
+
 class RadarUnit:
     """One radar unit of ``config``; ``detect`` makes one cycle's detections. ``index`` is written
     into ``RadarScan.unit``."""
@@ -174,6 +187,16 @@ class RadarUnit:
         ego = snapshot.ego
         mount_e = cfg.mount_position(ego.length)
         mount_g = to_global(mount_e, (ego.x, ego.y), ego.yaw)
+        if compiled.enabled():  # the same scene, cast and nearest hits in one compiled call
+            grid = self.grid
+            static = _static_arrays(roadside, len(snapshot))
+            rows, rays, ranges = visible_kernel(
+                snapshot.xy, snapshot.yaw, snapshot.length, snapshot.width, *static, float(mount_g[0]),
+                float(mount_g[1]), ego.yaw + cfg.boresight, float(cfg.max_range), float(cfg.min_range),
+                math.remainder(grid.start, 2.0 * math.pi), float(grid.resolution), grid.cos, grid.sin)
+            if rows.size == 0:
+                return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+            return rows, rotate(grid.directions[rays] * ranges[:, None], cfg.boresight) + mount_e
         segments = scene_segments(
             snapshot, roadside, (float(mount_g[0]), float(mount_g[1])), ego.yaw + cfg.boresight, cfg.max_range
         )

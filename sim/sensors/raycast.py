@@ -34,7 +34,7 @@ from functools import cached_property
 
 import numpy as np
 
-from sim.sensors.cast_kernel import cast_kernel
+from sim.sensors.cast_kernel import cast_kernel, visible_kernel
 from tracker import compiled
 
 TWO_PI = 2.0 * math.pi
@@ -314,7 +314,12 @@ def _warm_up_cast() -> None:
     square = Segments.from_polygons(np.array([[5.0, -1.0], [7.0, -1.0], [7.0, 1.0], [5.0, 1.0]]), np.array([0, 4]),
                                     np.array([0]))
     cast(square, RayGrid.full_circle(math.radians(1.0)), 50.0)
-    cast(square, RayGrid.fan(0.0, 0.5, math.radians(1.0)), 50.0)
+    fan = RayGrid.fan(0.0, 0.5, math.radians(1.0))
+    cast(square, fan, 50.0)
+    one = np.array([[6.0, 0.0]])
+    visible_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), np.zeros((1, 4)) + [9.0, 1.0, 9.0, -1.0],
+                   np.ones(1, dtype=np.int64), np.array([[9.0, 0.0]]), np.ones(1), 0.0, 0.0, 0.0, 50.0, 0.5,
+                   math.remainder(fan.start, TWO_PI), fan.resolution, fan.cos, fan.sin)
 
 
 compiled.register_warm_up(_warm_up_cast)
