@@ -143,8 +143,11 @@ def test_compiled_projection_equals_numpy(name, monkeypatch):
         ref = road.to_frenet(xy, s_hint=hint)
         monkeypatch.setenv(compiled.ENV_SWITCH, "1")
         got = road.to_frenet(xy, s_hint=hint)
-        for a, b in zip(ref, got):
-            np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+        ds = got[0] - ref[0]
+        if road.closed:  # s just below the length and just above 0 are the same place
+            ds = (ds + 0.5 * road.length) % road.length - 0.5 * road.length
+        np.testing.assert_allclose(ds, 0.0, rtol=0.0, atol=1e-9)
+        np.testing.assert_allclose(got[1], ref[1], rtol=0.0, atol=1e-9)
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])

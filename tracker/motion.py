@@ -123,20 +123,25 @@ def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarra
     dt = _check_dt(dt)
     mean = np.asarray(mean, dtype=float)
     c, s = np.cos(mean[..., XI]), np.sin(mean[..., XI])
-    q = np.zeros(mean.shape[:-1] + (7, 7))
     a2, y2 = noise.accel**2, noise.yaw_accel**2
     d1, d2, d3 = dt, dt * dt / 2.0, dt**3 / 3.0
-    uu = np.stack([np.stack([c * c, c * s], -1), np.stack([c * s, s * s], -1)], -2)
-    pp = np.stack([np.stack([s * s, -c * s], -1), np.stack([-c * s, c * c], -1)], -2)
-    q[..., :2, :2] = (a2 * d3 + noise.along**2 * d1) * uu + noise.lateral**2 * d1 * pp
+    # the blocks that do not depend on the direction, then the direction's (same products as
+    # k_u u u^T + k_p u_perp u_perp^T element by element)
+    q0 = np.zeros((7, 7))
+    q0[V, V] = a2 * d1
+    q0[XI, XI] = y2 * d3 + noise.heading**2 * d1
+    q0[XI, XI_DOT] = q0[XI_DOT, XI] = y2 * d2
+    q0[XI_DOT, XI_DOT] = y2 * d1
+    q0[LENGTH, LENGTH] = noise.length**2 * d1
+    q0[WIDTH, WIDTH] = noise.width**2 * d1
+    q = np.broadcast_to(q0, mean.shape[:-1] + (7, 7)).copy()
+    k_u, k_p = a2 * d3 + noise.along**2 * d1, noise.lateral**2 * d1
+    cc, cs, ss = c * c, c * s, s * s
+    q[..., 0, 0] = k_u * cc + k_p * ss
+    q[..., 0, 1] = q[..., 1, 0] = k_u * cs + k_p * -cs
+    q[..., 1, 1] = k_u * ss + k_p * cc
     q[..., 0, V] = q[..., V, 0] = a2 * d2 * c
     q[..., 1, V] = q[..., V, 1] = a2 * d2 * s
-    q[..., V, V] = a2 * d1
-    q[..., XI, XI] = y2 * d3 + noise.heading**2 * d1
-    q[..., XI, XI_DOT] = q[..., XI_DOT, XI] = y2 * d2
-    q[..., XI_DOT, XI_DOT] = y2 * d1
-    q[..., LENGTH, LENGTH] = noise.length**2 * d1
-    q[..., WIDTH, WIDTH] = noise.width**2 * d1
     return q
 
 
