@@ -179,6 +179,10 @@ class World:
     # -- truth ----------------------------------------------------------------------------------
     def _state(self, vehicle: object, fraction: float) -> VehicleState:
         """Truth of ``vehicle`` ``fraction`` s after the last grid time (held action, no mutation)."""
+        return VehicleState(*self._state_values(vehicle, fraction))
+
+    def _state_values(self, vehicle: object, fraction: float) -> tuple:
+        """``_state``'s fields as a plain tuple, in ``VehicleState``'s order (the snapshot's hot path)."""
         v = vehicle
         action = v.action  # type: ignore[attr-defined]
         steering = float(action["steering"])
@@ -203,21 +207,8 @@ class World:
         yaw = float(wrap_angle(heading))
         xi = float(wrap_angle(heading - theta))
         s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
-        return VehicleState(
-            vid=v.vid,  # type: ignore[attr-defined]
-            x=x,
-            y=y,
-            yaw=yaw,
-            v=speed,
-            yaw_rate=yaw_rate,
-            length=float(v.LENGTH),  # type: ignore[attr-defined]
-            width=float(v.WIDTH),  # type: ignore[attr-defined]
-            s=float(s),
-            n=float(n),
-            xi=xi,
-            xi_dot=yaw_rate - kappa * s_dot,
-            lane=self.traffic.lane_of(float(n)),
-        )
+        return (v.vid, x, y, yaw, speed, yaw_rate, float(v.LENGTH), float(v.WIDTH), float(s), float(n),  # type: ignore[attr-defined]
+                xi, yaw_rate - kappa * s_dot, self.traffic.lane_of(float(n)))
 
     def states(self) -> list[VehicleState]:
         """Truth of every vehicle in the world at the current time ``t``, the ego first."""
@@ -226,25 +217,29 @@ class World:
 
     def snapshot(self) -> Snapshot:
         """The truth ``Snapshot`` at the current time ``t``: the ego pose and the other vehicles."""
-        states = self.states()
-        ego, others = states[0], states[1:]
-        s_arr, n_arr = np.array([o.s for o in others]), np.array([o.n for o in others])
+        fraction = max(self.t - self.grid_time, 0.0)
+        rows = [self._state_values(v, fraction) for v in self.traffic.vehicles]
+        ego, others = rows[0], rows[1:]
+        # one array of the others' numbers (x, y, yaw, v, yaw_rate, length, width, s, n, xi, xi_dot),
+        # then each field as a contiguous row of its transpose
+        cols = np.array([r[1:12] for r in others], dtype=float).reshape(-1, 11).T.copy()
+        s_arr, n_arr = cols[7], cols[8]
         return Snapshot(
             t=self.t,
-            ego=EgoPose(x=ego.x, y=ego.y, yaw=ego.yaw, v=ego.v, yaw_rate=ego.yaw_rate, length=ego.length, width=ego.width,
-                        z=0.0 if self.ground is None else float(self.ground.height_at(ego.s, ego.n))),
-            ids=np.array([o.vid for o in others], dtype=int),
-            xy=np.array([[o.x, o.y] for o in others], dtype=float).reshape(-1, 2),
-            yaw=np.array([o.yaw for o in others]),
-            v=np.array([o.v for o in others]),
-            yaw_rate=np.array([o.yaw_rate for o in others]),
-            length=np.array([o.length for o in others]),
-            width=np.array([o.width for o in others]),
+            ego=EgoPose(x=ego[1], y=ego[2], yaw=ego[3], v=ego[4], yaw_rate=ego[5], length=ego[6], width=ego[7],
+                        z=0.0 if self.ground is None else float(self.ground.height_at(ego[8], ego[9]))),
+            ids=np.array([r[0] for r in others], dtype=int),
+            xy=np.ascontiguousarray(cols[:2].T),
+            yaw=cols[2],
+            v=cols[3],
+            yaw_rate=cols[4],
+            length=cols[5],
+            width=cols[6],
             s=s_arr,
             n=n_arr,
-            xi=np.array([o.xi for o in others]),
-            xi_dot=np.array([o.xi_dot for o in others]),
-            height=np.array([self.heights.get(o.vid, 1.5) for o in others]),
+            xi=cols[9],
+            xi_dot=cols[10],
+            height=np.array([self.heights.get(r[0], 1.5) for r in others]),
             z=np.zeros(len(others)) if self.ground is None else self.ground.height_at(s_arr, n_arr),
         )
 
