@@ -6,7 +6,9 @@ both sides, trees and parked cars), seen by an 1800-ray (0.2 deg) lidar with a 1
 median wall-clock milliseconds of:
 
 - ``numpy_cast_ms``: ``cast_numpy`` on the scene already in E (the caster alone);
-- ``numpy_scan_ms``: ``Lidar.scan`` with the numpy caster (scene to E, cast, noise, points);
+- ``compiled_cast_ms``: its compiled twin (``sim.sensors.cast_kernel``; ``None`` when the compiled
+  kernels are off), which the "numpy" caster setting runs when they are on (``kernels``);
+- ``numpy_scan_ms``: ``Lidar.scan`` with the "numpy" caster setting (scene to E, cast, noise, points);
 - ``pymunk_cast_ms``: ``cast_pymunk`` (build the pymunk space, then one query per ray);
 - ``pymunk_query_ms``: the pymunk queries alone on a prebuilt space;
 - ``pymunk_scan_ms``: ``Lidar.scan`` with the pymunk caster;
@@ -28,7 +30,8 @@ from sim.benchmarks._timing import median_seconds
 from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadside
 from sim.sensors.lidar import Lidar, LidarConfig
 from sim.sensors.radar import FRONT_RADAR, RadarUnit
-from sim.sensors.raycast import PymunkScene, RayGrid, cast_numpy, cast_pymunk
+from sim.sensors.raycast import PymunkScene, RayGrid, cast, cast_numpy, cast_pymunk
+from tracker import compiled
 from sim.sensors.rig import RigConfig, SensorRig
 from sim.sensors.scene import scene_segments
 from sim.truth import EgoPose, Snapshot
@@ -132,6 +135,9 @@ def run(args: argparse.Namespace) -> dict:
             "max_range_m": max_range,
         },
         "numpy_cast_ms": 1e3 * median_seconds(lambda: cast_numpy(segments, grid, max_range), repeats),
+        "compiled_cast_ms": (1e3 * median_seconds(lambda: cast(segments, grid, max_range), repeats)
+                             if compiled.enabled() else None),
+        "kernels": compiled.enabled(),
         "numpy_scan_ms": 1e3 * median_seconds(lambda: lidar_np.scan(snapshot, objects, rng=rng), repeats),
         "pymunk_cast_ms": 1e3 * median_seconds(lambda: cast_pymunk(segments, grid, max_range), pm_repeats),
         "pymunk_query_ms": 1e3 * median_seconds(lambda: pm_scene.cast(grid, max_range), pm_repeats),
