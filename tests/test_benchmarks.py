@@ -110,6 +110,7 @@ def test_quick_run_other_sections(quick):
     assert set(e2e) == {"curvy-multi", "dense-highway"}
     for row in e2e.values():
         assert _positive(row["sim_s_per_wall_s"]) and row["simulated_s"] == 1.0 and row["frames"] == 11
+        assert _positive(row["first_sim_s_per_wall_s"]) and row["repeats"] == 1
         assert 0 < row["tracker_share"] < 1
     workers = result["montecarlo"]["workers"]
     assert list(workers)[:2] == ["1", "2"]
