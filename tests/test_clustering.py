@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.clustering import associate_radar, distance_partition, points_in_rectangles
+from tracker.clustering import associate_radar, distance_partition, points_in_rectangles, split_across
 
 
 def test_points_in_rectangles_geometry():
@@ -89,3 +89,22 @@ def test_distance_partition_equals_the_whole_graph_components(seed, order):
     pts = pts[np.argsort(np.arctan2(pts[:, 1], pts[:, 0]))] if order == "scan" else pts[rng.permutation(len(pts))]
     for threshold in (0.3, 1.0, 3.0):
         np.testing.assert_array_equal(distance_partition(pts, threshold), _oracle_partition(pts, threshold))
+
+
+def test_split_across_cuts_wide_groups_at_their_largest_lateral_gap():
+    """A group wider than ``width`` across the road is cut at its largest gap in ``n`` (again while a
+    part is still wider); narrow groups, and wide ones without a gap of ``gap`` (one vehicle at an
+    angle, its side continuous), stay whole."""
+    n = np.array([0.0, 0.2, 0.4, 1.2, 1.5, 3.0, 3.1, 5.0, 5.2, 5.3])
+    one = np.zeros(len(n), dtype=int)
+    assert split_across(n, one, 3.5, 0.5).tolist() == [0] * 7 + [1] * 3  # cut at 3.1 | 5.0
+    assert split_across(n, one, 2.0, 0.5).tolist() == [0] * 5 + [1] * 2 + [2] * 3  # and at 1.5 | 3.0
+    assert split_across(n, one, 6.0, 0.5).tolist() == [0] * 10  # narrow enough
+    side = np.linspace(-1.0, 4.0, 60)  # a bus at an angle: 5 m across, no gap
+    assert split_across(side, np.zeros(60, dtype=int), 3.0, 0.5).tolist() == [0] * 60
+    # two groups, in any order of the points: each is cut on its own; parts numbered by group, then n
+    rng = np.random.default_rng(1)
+    order = rng.permutation(20)
+    both = split_across(np.r_[n, n][order], np.r_[one + 7, one + 3][order], 3.5, 0.5)
+    assert both.tolist() == np.r_[[2] * 7 + [3] * 3, [0] * 7 + [1] * 3][order].tolist()
+    assert split_across(np.zeros(0), np.zeros(0, dtype=int), 3.0, 0.5).tolist() == []

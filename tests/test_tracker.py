@@ -346,3 +346,32 @@ def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(long_width):
         assert bus.length < 6.0 and d_bus > 5.0
     else:
         assert bus.length > 10.0 and d_bus < 3.0 and abs(bus.width - 2.5) < 0.2
+
+
+@pytest.mark.parametrize("split_width", [3.0, None], ids=["split", "no-split"])
+def test_two_buses_side_by_side_are_two_tracks_not_one_wide_one(split_width):
+    """A 16 m bus ahead in the ego's lane and another in the left lane, its rear 8 m further on, on a
+    left bend (R 60 m, 4 m lanes, as in scenarios/stop-and-go.toml): the lidar sees the first bus's
+    rear and left side and the second's rear as one line of points ~1 m apart, one connected
+    component. Cut at its largest lateral gap (ClusteringConfig.split_width), each bus keeps one track
+    of a long vehicle's size (the second's length from the long-vehicle prior: only its rear is seen)
+    under one label; without the cut the component is one cluster whose track is one
+    wide rectangle over both (or none at all), and neither bus is tracked."""
+    road = Road.from_curvature([(2 * np.pi * 60.0, 1 / 60.0, 1 / 60.0)], closed=True, lanes=3, lane_width=4.0)
+    scene = Scene(road, Car(0.0, 0.0, 8.0), [Car(20.0, 0.0, 8.0, length=16.0, width=2.55),
+                                            Car(28.0, 4.0, 8.0, length=16.0, width=2.55)])
+    config = TrackerConfig(clustering=dataclasses.replace(TrackerConfig().clustering, split_width=split_width))
+    frames, tracker = run(scene, config, 6.0)
+    found, labels = [], set()
+    for k, tracks in enumerate(frames[10:], start=10):  # after the first second
+        per_bus = []
+        for row in scene.truth(k * DT):
+            tr, dist = nearest(tracks, road, row[:2])
+            per_bus.append(tr is not None and dist < 3.0 and 10.0 < tr.length < 18.0 and tr.width < 2.8)
+            labels.add(tr.label if tr is not None else None)
+        found.append(all(per_bus))
+    if split_width is None:
+        assert not any(found) and tracker.stats["clusters_split"] == 0
+    else:
+        assert all(found) and len(labels) == 2  # both buses in every frame, the same two labels
+        assert tracker.stats["clusters_split"] > 0

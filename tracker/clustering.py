@@ -5,6 +5,9 @@
 - ``distance_partition``: the remaining points are split into connected components of the graph
   linking points closer than a threshold (``scipy.spatial.cKDTree`` + ``scipy.sparse.csgraph``), the
   distance partitioning of Granstrom et al. at one threshold;
+- ``split_across``: a cluster wider across the road than one vehicle can be (two long vehicles side by
+  side in adjacent lanes, whose points the lidar sees as one line, or a drifted track's rectangle owning
+  both) is cut at its largest gap in the lateral offset ``n``;
 - ``associate_radar``: greedy nearest-neighbour association of radar detections to clusters within
   a gate; a cluster with a detection is "fused" and carries its absolute velocity. Radar positions
   are used only for this association, as in the paper.
@@ -105,6 +108,49 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     rank = np.empty(len(first), dtype=int)
     rank[np.argsort(first)] = np.arange(len(first))
     return rank[labels]
+
+
+def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = 8) -> np.ndarray:
+    """Part index (0..P-1) of each point: the points of each ``group`` (integer labels, any values)
+    whose extent in ``n`` (the lateral road offset, m) exceeds ``width`` are cut at their largest gap
+    between consecutive ``n`` values, if that gap is at least ``gap``; parts still wider are cut again
+    (up to ``max_cuts`` rounds). Groups narrower than ``width``, or without such a gap (one vehicle at
+    an angle to the road shows a continuous side), stay whole. Parts are numbered by group in sorted
+    order, then by ``n``. Vectorised: each round is a few sorts and ``reduceat``s over all points."""
+    n = np.asarray(n, dtype=float).reshape(-1)
+    group = np.asarray(group).reshape(-1)
+    if len(n) != len(group):
+        raise ValueError(f"split_across needs one group per point; got {len(n)} offsets and {len(group)} groups")
+    part = np.unique(group, return_inverse=True)[1].reshape(-1)
+    if len(n) == 0:
+        return part
+    order = np.lexsort((n, part))  # by part, then by n: fixed from here, as cuts keep that order
+    ns = n[order]
+    ps = part[order]
+    for _ in range(max_cuts):
+        first = np.ones(len(ns), dtype=bool)
+        first[1:] = ps[1:] != ps[:-1]
+        starts = np.flatnonzero(first)
+        ends = np.append(starts[1:], len(ns)) - 1
+        wide = (ns[ends] - ns[starts]) > width  # per part
+        step = np.empty(len(ns))
+        step[0] = -np.inf
+        step[1:] = ns[1:] - ns[:-1]
+        step[first] = -np.inf  # no gap across parts
+        largest = np.maximum.reduceat(step, starts)
+        index = np.cumsum(first) - 1  # part (0..P-1, in sorted order) of each sorted point
+        cut = wide[index] & (step == largest[index]) & (step >= gap)
+        if not cut.any():
+            break
+        # one cut per part: the first point at its largest gap
+        hits = np.flatnonzero(cut)
+        _, keep = np.unique(index[hits], return_index=True)
+        cut[:] = False
+        cut[hits[keep]] = True
+        ps = np.cumsum(first | cut) - 1
+    out = np.empty(len(n), dtype=int)
+    out[order] = ps
+    return out
 
 
 def dense_components(adjacency: np.ndarray) -> np.ndarray:

@@ -475,7 +475,15 @@ class ClusteringConfig:
     - ``track_margin`` (m): points inside a predicted rectangle grown by this form its cluster;
     - ``distance`` (m): the rest are partitioned into connected components under this distance;
     - ``min_points``: smaller clusters are dropped (counted);
-    - ``radar_gate`` (m): a radar detection joins the nearest lidar cluster centroid within this.
+    - ``radar_gate`` (m): a radar detection joins the nearest lidar cluster centroid within this;
+    - ``split_width`` (m, None: off), ``split_gap`` (m): a cluster (a track's or a connected component)
+      whose points span more than ``split_width`` in the lateral road offset ``n`` is cut at its largest
+      gap in ``n`` if that gap is at least ``split_gap``, again until every part is narrower or has no
+      such gap (``tracker.clustering.split_across``). One vehicle spans at most ``W + L |sin xi|``
+      across the road and shows a continuous side when at an angle; two vehicles side by side in
+      adjacent lanes (long buses and trucks whose points the lidar sees as one line, with ~1 m between
+      them) span two widths plus the gap. Of a track's cluster cut so, the part with most points inside
+      its predicted rectangle stays the track's; the others are free clusters.
     """
 
     road_margin: float = 0.5
@@ -484,10 +492,14 @@ class ClusteringConfig:
     distance: float = 1.0
     min_points: int = 1
     radar_gate: float = 3.0
+    split_width: float | None = 3.0
+    split_gap: float = 0.5
 
     def __post_init__(self) -> None:
-        for name, unit in (("road_margin", "m"), ("track_margin", "m")):
+        for name, unit in (("road_margin", "m"), ("track_margin", "m"), ("split_gap", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, unit=unit)
+        if self.split_width is not None:
+            _check("ClusteringConfig", "split_width", self.split_width, low=0.0, low_open=True, unit="m")
         for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, low_open=True, unit=unit)
         _check_int("ClusteringConfig", "min_points", self.min_points, 1)

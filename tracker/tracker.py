@@ -57,7 +57,7 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles
+from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles, split_across
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
@@ -69,6 +69,7 @@ from tracker.preparation import prepare_batch
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
+from tracker.transforms import to_global
 from tracker.track import Track
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_pairs
@@ -82,7 +83,8 @@ class Tracker:
 
     ``stats`` counts, over the tracker's life: ``frames``, ``predict_only_frames``,
     ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
-    ``clusters_fused``, ``clusters_too_small``, ``pairs_pre_gated`` (centroid within the gating
+    ``clusters_fused``, ``clusters_too_small``, ``clusters_split`` (parts added by cutting clusters wider
+    across the road than one vehicle, ``clustering.split_width``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
@@ -238,10 +240,13 @@ class Tracker:
                 self._component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
                 owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
             component = distance_partition(points, cfg.distance)
+            inside = owner >= 0  # inside a rectangle (plus margin), before strays are adopted
             owner = _adopt_strays(component, owner)
             # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
             # the other points form one cluster per connected component
             key = np.where(owner >= 0, owner, len(tracks) + component)
+            if cfg.split_width is not None:
+                key, owner = self._split_across(points, frame.ego, key, owner, inside)
             order = np.argsort(key, kind="stable")
             bounds = np.flatnonzero(np.diff(key[order])) + 1
             clusters = np.split(points[order], bounds)
@@ -256,6 +261,54 @@ class Tracker:
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities
+
+    def _split_across(self, points: np.ndarray, ego: EgoState, key: np.ndarray, owner: np.ndarray,
+                      inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cut clusters wider across the road than one vehicle (``clustering.split_width``) at their
+        largest lateral gap (``clustering.split_gap``; ``tracker.clustering.split_across``): two long
+        vehicles side by side whose points the lidar sees as one line, or that a drifted track's
+        rectangle owns together. Only clusters whose bounding box is wider than ``split_width`` are
+        projected onto the road. Of a track-owned cluster cut in parts, the part with the most points
+        inside the track's rectangle stays the track's; the others become free clusters (any track
+        may take them in the update, else they seed births). Returns the new keys and owners."""
+        cfg = self.config.clustering
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        first = np.ones(len(ks), dtype=bool)
+        first[1:] = ks[1:] != ks[:-1]
+        starts = np.flatnonzero(first)
+        pts = points[order]
+        span = np.maximum.reduceat(pts, starts, axis=0) - np.minimum.reduceat(pts, starts, axis=0)
+        big = np.hypot(span[:, 0], span[:, 1]) > cfg.split_width
+        if not big.any():
+            return key, owner
+        cand = order[big[np.cumsum(first) - 1]]  # points of the candidate clusters
+        _, n = self.road.to_frenet(to_global(points[cand], (ego.x, ego.y), ego.yaw))
+        part = split_across(n, key[cand], cfg.split_width, cfg.split_gap)
+        kc = key[cand]
+        # a part of cluster k: parts that are one whole cluster keep their key
+        pieces = np.bincount(np.unique(np.column_stack([kc, part]), axis=0)[:, 0] - kc.min(),
+                             minlength=int(kc.max() - kc.min()) + 1)
+        cut = pieces[kc - kc.min()] > 1
+        if not cut.any():
+            return key, owner
+        self.stats["clusters_split"] += int(len(np.unique(part[cut])) - len(np.unique(kc[cut])))
+        key, owner = key.copy(), owner.copy()
+        key[cand[cut]] = int(key.max()) + 1 + part[cut]
+        # the part with most points inside the owner's rectangles stays owned; the others are free
+        oc = owner[cand[cut]]
+        pc = part[cut]
+        owned_part = oc >= 0
+        if owned_part.any():
+            votes = np.bincount(pc, weights=inside[cand[cut]].astype(float), minlength=int(pc.max()) + 1)
+            votes = votes + 1e-6 * np.bincount(pc, minlength=int(pc.max()) + 1)  # ties: the larger part
+            parent = np.zeros(int(pc.max()) + 1, dtype=int)
+            parent[pc] = kc[cut]
+            best = np.full(int(kc.max()) + 1, -1.0)
+            np.maximum.at(best, parent, votes)
+            winner = votes >= best[parent]
+            owner[cand[cut]] = np.where(winner[pc], oc, -1)
+        return key, owner
 
     def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
         """GM-PHD update; returns which clusters some component explained (a gated pair)."""
