@@ -204,6 +204,47 @@ def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
         np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)
 
 
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+@pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True)], ids=["default", "acceleration"])
+def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
+    """``tracker.motion.predict`` with the compiled sigma points and moments against numpy: headings
+    near +-pi (wrapped sigma points), ``s`` near a closed road's seam, wide and narrow covariances; a
+    covariance that is not positive definite takes the numpy path, which repairs and counts it."""
+    from tracker.motion import predict
+    from tracker.ukf import UnscentedTransform
+
+    road = _roads()[name]
+    model = FrenetMotion(road, motion)
+    ut = UnscentedTransform(n=model.dim)
+    rng = np.random.default_rng(3)
+    count = 30
+    cols = [rng.uniform(0.0, road.length, count), rng.uniform(-6.0, 6.0, count), rng.uniform(0.0, 30.0, count),
+            rng.normal(0.0, 0.3, count), rng.normal(0.0, 0.2, count), rng.uniform(3.0, 16.0, count),
+            rng.uniform(1.5, 2.6, count)]
+    if model.dim == 8:
+        cols.append(rng.normal(0.0, 1.0, count))
+    mean = np.column_stack(cols)
+    mean[:5, 3] = np.pi - 0.01  # sigma points across +-pi
+    mean[5:10, 0] = [0.0, 0.05, road.length - 0.05, 1e-9, road.length - 1e-9]  # across the seam or the open ends
+    root = rng.normal(0.0, 1.0, (count, model.dim, model.dim)) * rng.uniform(0.01, 2.0, (count, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(model.dim)
+    for dt in (0.1, 1.0 / 14.0):
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref_pts = ut.sigma_points(mean, cov, model.wrapping)
+        ref = predict(ut, model, mean, cov, dt)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        np.testing.assert_allclose(ut.sigma_points(mean, cov, model.wrapping), ref_pts, rtol=0.0, atol=1e-12)
+        got = predict(ut, model, mean, cov, dt)
+        for a, b in zip(ref, got):
+            assert a.shape == b.shape
+            np.testing.assert_allclose(b, a, rtol=1e-10, atol=1e-10)
+    bad = cov.copy()
+    bad[3] = -np.eye(model.dim)  # not positive definite
+    before = ut.repairs
+    got = predict(ut, model, mean, bad, 0.1)
+    assert ut.repairs > before and np.isfinite(got[1]).all()
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points) and points exactly on the

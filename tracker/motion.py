@@ -369,6 +369,12 @@ def predict(
     ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals)."""
     pts = ut.sigma_points(mean, cov, model.wrapping)
     moved = model.propagate(pts, dt)
+    if moved.ndim == 3 and compiled_kernels.enabled():  # the same moments, one compiled call
+        from tracker.compiled.ukf import moments_kernel
+
+        m, p = moments_kernel(np.ascontiguousarray(moved), ut.wm, ut.wc, *model.wrapping.kernel_args())
+        p += model.process_noise(m, dt)
+        return m, 0.5 * (p + np.swapaxes(p, -1, -2))
     m = ut.mean(moved, model.wrapping)
     dev = ut.deviations(moved, m, model.wrapping)
     p = ut.covariance(dev) + model.process_noise(m, dt)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import STATE_DIM, UKFParams
 
@@ -39,6 +40,14 @@ class Wrapping:
     def empty(self) -> bool:
         """Whether nothing wraps."""
         return not self.angles and not self.periods
+
+    def kernel_args(self) -> tuple[np.ndarray, int, float]:
+        """``(angles, period_index, period)`` for the compiled kernels (``tracker.compiled.ukf``): the
+        angle indices as an array, and the one periodic coordinate (index -1 when there is none)."""
+        if len(self.periods) > 1:
+            raise ValueError("the compiled kernels handle at most one periodic coordinate")
+        index, period = self.periods[0] if self.periods else (-1, 1.0)
+        return np.array(self.angles, dtype=np.int64), int(index), float(period)
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         """Differences ``x`` with wrapped coordinates brought to the shortest representative
@@ -157,6 +166,14 @@ class UnscentedTransform:
             )
         if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
             raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
+        if mean.ndim == 2 and compiled_kernels.enabled():
+            from tracker.compiled.ukf import sigma_kernel
+
+            try:
+                return sigma_kernel(np.ascontiguousarray(mean), np.ascontiguousarray(cov), self.scale,
+                                    *wrapping.kernel_args())
+            except np.linalg.LinAlgError:  # not positive definite: the numpy path repairs and counts it
+                pass
         chol = self.cholesky(cov)
         spread = self.scale * np.swapaxes(chol, -1, -2)  # rows = scaled columns of chol
         pts = np.concatenate([mean[..., None, :], mean[..., None, :] + spread, mean[..., None, :] - spread], axis=-2)

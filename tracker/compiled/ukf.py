@@ -1,0 +1,87 @@
+"""Compiled unscented-transform steps of the UKF prediction (``tracker.motion.predict``): the sigma
+points of a batch of Gaussians and the weighted mean and covariance of propagated points, with the
+state's wrapped coordinates (an angle wrapped to (-pi, pi], a periodic ``s`` to ``[0, period)``)
+handled as ``tracker.ukf.Wrapping`` does. The Cholesky factors are LAPACK's, as numpy's; sums over
+sigma points run in index order (numpy's matmul may sum in another order: the results agree to
+rounding). A matrix that is not positive definite raises ``numpy.linalg.LinAlgError``; the caller
+then takes the numpy path, which repairs and counts it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tracker.compiled import njit
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit
+def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
+    """``Wrapping.wrap`` of one vector in place."""
+    for a in angles:
+        x[a] = math.pi - ((math.pi - x[a]) % TWO_PI)
+    if period_index >= 0:
+        x[period_index] = x[period_index] % period
+
+
+@njit
+def _residual(x, angles, period_index, period):  # pragma: no cover - compiled
+    """``Wrapping.residual`` of one difference vector in place."""
+    for a in angles:
+        x[a] = math.pi - ((math.pi - x[a]) % TWO_PI)
+    if period_index >= 0:
+        x[period_index] -= period * math.floor(x[period_index] / period + 0.5)
+
+
+@njit
+def sigma_kernel(means, covs, scale, angles, period_index, period):  # pragma: no cover - compiled
+    """Sigma points ``(C, 2n + 1, n)`` of ``N(means[c], covs[c])``: the mean, then the mean plus and
+    minus ``scale`` times each column of the lower Cholesky factor, wrapped."""
+    count, dim = means.shape
+    pts = np.empty((count, 2 * dim + 1, dim))
+    for c in range(count):
+        chol = np.linalg.cholesky(covs[c])
+        pts[c, 0] = means[c]
+        _wrap(pts[c, 0], angles, period_index, period)
+        for i in range(dim):
+            for j in range(dim):
+                spread = scale * chol[j, i]
+                pts[c, 1 + i, j] = means[c, j] + spread
+                pts[c, 1 + dim + i, j] = means[c, j] - spread
+            _wrap(pts[c, 1 + i], angles, period_index, period)
+            _wrap(pts[c, 1 + dim + i], angles, period_index, period)
+    return pts
+
+
+@njit
+def moments_kernel(points, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
+    """Weighted mean ``(C, n)`` (wrapped coordinates averaged as residuals about the central point)
+    and covariance ``sum_i Wc_i d_i d_i^T`` ``(C, n, n)`` of ``points (C, S, n)``."""
+    count, sigma, dim = points.shape
+    mean = np.empty((count, dim))
+    cov = np.zeros((count, dim, dim))
+    dev = np.empty((sigma, dim))
+    for c in range(count):
+        for i in range(sigma):
+            for j in range(dim):
+                dev[i, j] = points[c, i, j] - points[c, 0, j]
+            _residual(dev[i], angles, period_index, period)
+        for j in range(dim):
+            acc = 0.0
+            for i in range(sigma):
+                acc += wm[i] * dev[i, j]
+            mean[c, j] = points[c, 0, j] + acc
+        _wrap(mean[c], angles, period_index, period)
+        for i in range(sigma):
+            for j in range(dim):
+                dev[i, j] = points[c, i, j] - mean[c, j]
+            _residual(dev[i], angles, period_index, period)
+        for j in range(dim):
+            for k in range(dim):
+                acc = 0.0
+                for i in range(sigma):
+                    acc += dev[i, j] * wc[i] * dev[i, k]
+                cov[c, j, k] = acc
+    return mean, cov
