@@ -204,6 +204,20 @@ def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
         np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)
 
 
+def test_compiled_curvature_interpolation_equals_numpy_interp():
+    """The RK4 kernel's table lookup (the interval from ``s / step``, corrected at knots) gives
+    ``numpy.interp``'s numbers exactly: random ``s``, every knot and its neighbouring floats."""
+    from tracker.compiled.motion import _interp
+
+    xp = np.linspace(0.0, 1234.567, 4939)
+    fp = np.random.default_rng(0).normal(size=xp.size)
+    knots = xp[::7]
+    x = np.concatenate([np.random.default_rng(1).uniform(0.0, xp[-1], 3000), knots, np.nextafter(knots, -1.0),
+                        np.nextafter(knots, 2000.0)])
+    x = x[(x >= 0.0) & (x <= xp[-1])]
+    assert np.array_equal(np.array([_interp(v, xp, fp) for v in x]), np.interp(x, xp, fp))
+
+
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 @pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True)], ids=["default", "acceleration"])
 def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):

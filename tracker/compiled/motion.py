@@ -14,13 +14,20 @@ from tracker.compiled import njit
 
 @njit
 def _interp(x, xp, fp):
-    """``numpy.interp`` at one ``x`` inside ``[xp[0], xp[-1]]`` (the same formula, no allocation)."""
+    """``numpy.interp`` at one ``x`` inside ``[xp[0], xp[-1]]`` (the same formula, no allocation).
+    ``xp`` is the uniform table of ``FrenetMotion`` (from 0): the interval comes from ``x / step``,
+    then moves to the one binary search finds (the last ``j`` with ``xp[j] <= x``) where rounding put
+    the quotient across a knot."""
     last = len(xp) - 1
     if x >= xp[last]:
         return fp[last]
-    j = np.searchsorted(xp, x, side="right") - 1
-    if j < 0:
+    if x < xp[0]:
         return fp[0]
+    j = min(int(x * (last / xp[last])), last - 1)
+    while j < last - 1 and xp[j + 1] <= x:
+        j += 1
+    while j > 0 and xp[j] > x:
+        j -= 1
     return (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j]) + fp[j]
 
 
