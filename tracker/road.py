@@ -211,6 +211,11 @@ class Road:
     def on_road(self, xy: ArrayLike, margin: float = 0.0) -> np.ndarray:
         """Whether points ``xy`` (N, 2) lie within the road bounds widened by ``margin`` metres."""
         s, n = self.to_frenet(xy)
+        return self.within_bounds(s, n, margin)
+
+    def within_bounds(self, s: np.ndarray, n: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Whether road coordinates ``(s, n)`` (m) lie within the road bounds widened by ``margin``
+        metres (``on_road`` for points already projected)."""
         inside = (n >= self.right_edge - margin) & (n <= self.left_edge + margin)
         if not self.closed:
             inside &= (s >= 0.0) & (s <= self.length)

@@ -69,7 +69,6 @@ from tracker.preparation import prepare_batch
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
-from tracker.transforms import to_global
 from tracker.track import Track
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_pairs
@@ -129,6 +128,7 @@ class Tracker:
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
+        self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
@@ -218,7 +218,8 @@ class Tracker:
         """Points kept for clustering, and whether the frame had any finite lidar point at all (of a
         3-D cloud: any point left after ground removal; ``last_cloud`` keeps the pipeline's result)."""
         self._scan, removed, self.last_cloud = lidar_points(frame, self.config.cloud)
-        points, counts = filter_points(self._scan, frame.ego, self.road, self.config.clustering)
+        points, counts, self._point_n = filter_points(self._scan, frame.ego, self.road, self.config.clustering,
+                                                      offsets=True)
         self.stats.update(removed)
         self.stats.update(counts)
         return points, len(self._scan) > 0
@@ -246,7 +247,7 @@ class Tracker:
             # the other points form one cluster per connected component
             key = np.where(owner >= 0, owner, len(tracks) + component)
             if cfg.split_width is not None:
-                key, owner = self._split_across(points, frame.ego, key, owner, inside)
+                key, owner = self._split_across(key, owner, inside)
             order = np.argsort(key, kind="stable")
             bounds = np.flatnonzero(np.diff(key[order])) + 1
             clusters = np.split(points[order], bounds)
@@ -262,29 +263,27 @@ class Tracker:
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities
 
-    def _split_across(self, points: np.ndarray, ego: EgoState, key: np.ndarray, owner: np.ndarray,
-                      inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _split_across(self, key: np.ndarray, owner: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cut clusters wider across the road than one vehicle (``clustering.split_width``) at their
         largest lateral gap (``clustering.split_gap``; ``tracker.clustering.split_across``): two long
         vehicles side by side whose points the lidar sees as one line, or that a drifted track's
-        rectangle owns together. Only clusters whose bounding box is wider than ``split_width`` are
-        projected onto the road. Of a track-owned cluster cut in parts, the part with the most points
+        rectangle owns together. The points' lateral offsets are the road-bound test's
+        (``self._point_n``). Of a track-owned cluster cut in parts, the part with the most points
         inside the track's rectangle stays the track's; the others become free clusters (any track
         may take them in the update, else they seed births). Returns the new keys and owners."""
         cfg = self.config.clustering
+        n_all = self._point_n
         order = np.argsort(key, kind="stable")
         ks = key[order]
         first = np.ones(len(ks), dtype=bool)
         first[1:] = ks[1:] != ks[:-1]
         starts = np.flatnonzero(first)
-        pts = points[order]
-        span = np.maximum.reduceat(pts, starts, axis=0) - np.minimum.reduceat(pts, starts, axis=0)
-        big = np.hypot(span[:, 0], span[:, 1]) > cfg.split_width
+        ns = n_all[order]
+        big = np.maximum.reduceat(ns, starts) - np.minimum.reduceat(ns, starts) > cfg.split_width
         if not big.any():
             return key, owner
         cand = order[big[np.cumsum(first) - 1]]  # points of the candidate clusters
-        _, n = self.road.to_frenet(to_global(points[cand], (ego.x, ego.y), ego.yaw))
-        part = split_across(n, key[cand], cfg.split_width, cfg.split_gap)
+        part = split_across(n_all[cand], key[cand], cfg.split_width, cfg.split_gap)
         kc = key[cand]
         # a part of cluster k: parts that are one whole cluster keep their key
         pieces = np.bincount(np.unique(np.column_stack([kc, part]), axis=0)[:, 0] - kc.min(),
