@@ -93,13 +93,13 @@ def cast_kernel(a, b, owner, start, resolution, cos, sin, full_circle, max_range
 
 
 @njit(error_model="numpy")
-def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy, sensor_yaw,
-                   max_range, min_range, start, resolution, cos, sin):  # pragma: no cover - compiled
-    """The radar's visibility test in one call (``sim.sensors.radar.RadarUnit.visible``): the scene of
-    ``sim.sensors.scene.scene_segments`` (the vehicles' rectangles and the roadside edges within
-    ``max_range`` of the sensor at ``(ox, oy)`` with heading ``sensor_yaw``, in its frame), cast on
-    the fan (culled, as ``cast_numpy``), then per vehicle the nearest ray that hits it at
-    ``>= min_range``. Returns the vehicles' rows (ascending), their rays and ranges."""
+def scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy, sensor_yaw,
+                 max_range):  # pragma: no cover - compiled
+    """``sim.sensors.scene.scene_segments`` in one call: the edges ``a (M, 2)``, ``b (M, 2)`` and
+    owners ``(M,)`` of the vehicles' rectangles (rows ``0 .. V-1``, counter-clockwise from the front
+    right corner) and the roadside edges (``static_*``: ``[ax, ay, bx, by]`` in G, owners, midpoints,
+    half-lengths) within ``max_range`` of the sensor at ``(ox, oy)``, in the sensor frame (heading
+    ``sensor_yaw``)."""
     count = xy.shape[0]
     n_static = static_edges.shape[0]
     a = np.empty((4 * count + n_static, 2))
@@ -147,7 +147,19 @@ def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mi
         b[m, 1] = -bx * s2 + by * c2
         owner[m] = static_owner[e]
         m += 1
-    ranges, owners = cast_kernel(a[:m], b[:m], owner[:m], start, resolution, cos, sin, False, max_range, True)
+    return a[:m].copy(), b[:m].copy(), owner[:m].copy()
+
+
+@njit(error_model="numpy")
+def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy, sensor_yaw,
+                   max_range, min_range, start, resolution, cos, sin):  # pragma: no cover - compiled
+    """The radar's visibility test in one call (``sim.sensors.radar.RadarUnit.visible``): the scene of
+    ``scene_kernel``, cast on the fan (culled, as ``cast_numpy``), then per vehicle the nearest ray
+    that hits it at ``>= min_range``. Returns the vehicles' rows (ascending), their rays and ranges."""
+    count = xy.shape[0]
+    a, b, owner = scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy,
+                               sensor_yaw, max_range)
+    ranges, owners = cast_kernel(a, b, owner, start, resolution, cos, sin, False, max_range, True)
     best = np.full(count, np.inf)
     best_ray = np.full(count, -1, dtype=np.int64)
     for r in range(ranges.shape[0]):  # rays ascending: the first of equal ranges wins (a stable sort's)

@@ -31,7 +31,7 @@ import numpy as np
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.cast_kernel import visible_kernel
 from sim.sensors.raycast import RayGrid, cast as cast_rays
-from sim.sensors.scene import scene_segments
+from sim.sensors.scene import scene_segments, static_arrays
 from tracker import compiled
 from tracker.transforms import rotate, to_global
 from sim.truth import Snapshot
@@ -152,17 +152,6 @@ class RadarScan:
         )
 
 
-_NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))
-
-
-def _static_arrays(roadside: RoadsideObjects | None, count: int) -> tuple:
-    """The roadside edges as ``visible_kernel`` takes them: ``[ax, ay, bx, by]`` in G, owners (after
-    the ``count`` vehicles), midpoints and half-lengths (empty without roadside objects)."""
-    if roadside is None or len(roadside) == 0:
-        return _NO_STATIC
-    return roadside._edges, roadside.segments.owner + count, roadside._edge_mid, roadside._edge_half
-
-
 class RadarUnit:
     """One radar unit of ``config``; ``detect`` makes one cycle's detections. ``index`` is written
     into ``RadarScan.unit``."""
@@ -189,7 +178,7 @@ class RadarUnit:
         mount_g = to_global(mount_e, (ego.x, ego.y), ego.yaw)
         if compiled.enabled():  # the same scene, cast and nearest hits in one compiled call
             grid = self.grid
-            static = _static_arrays(roadside, len(snapshot))
+            static = static_arrays(roadside, len(snapshot))
             rows, rays, ranges = visible_kernel(
                 snapshot.xy, snapshot.yaw, snapshot.length, snapshot.width, *static, float(mount_g[0]),
                 float(mount_g[1]), ego.yaw + cfg.boresight, float(cfg.max_range), float(cfg.min_range),

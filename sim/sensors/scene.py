@@ -12,9 +12,22 @@ import math
 import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.cast_kernel import scene_kernel
 from sim.sensors.raycast import Segments
+from tracker import compiled
 from sim.truth import Snapshot, rectangle_corners
 from tracker.measurement import NEXT_CORNER
+
+_NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))
+
+
+def static_arrays(roadside: RoadsideObjects | None, count: int) -> tuple:
+    """The roadside edges as the compiled scene kernels take them: ``[ax, ay, bx, by]`` in G, owners
+    (after the ``count`` vehicles), midpoints and half-lengths (empty without roadside objects)."""
+    if roadside is None or len(roadside) == 0:
+        return _NO_STATIC
+    return roadside._edges, roadside.segments.owner + count, roadside._edge_mid, roadside._edge_half
+
 
 # corner signs along (length, width) of the corners front-right, front-left, rear-left, rear-right
 # (counter-clockwise), and of each corner's successor (the edge's end point)
@@ -38,6 +51,11 @@ def scene_segments(
     (m, G) with heading ``yaw`` (rad); owners as in the module docstring."""
     ox, oy = float(origin[0]), float(origin[1])
     count = len(snapshot)
+    if compiled.enabled():  # the same edges in one compiled call (sim.sensors.cast_kernel)
+        a, b, owner = scene_kernel(snapshot.xy, snapshot.yaw, snapshot.length, snapshot.width,
+                                   *static_arrays(roadside, count), ox, oy, float(yaw),
+                                   math.inf if max_range is None else float(max_range))
+        return Segments(a, b, owner)
     rows = np.arange(count, dtype=np.int64)
     if max_range is not None and count:
         dx, dy = snapshot.xy[:, 0] - ox, snapshot.xy[:, 1] - oy
