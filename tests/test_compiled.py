@@ -204,6 +204,46 @@ def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):
         np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_detection_model_equals_numpy(seed, monkeypatch):
+    """``detection_model`` compiled against numpy: rectangles all around the sensor (across the +-pi
+    seam behind it), near and beyond the lidar range, hidden by nearer tracks of other labels and by
+    scan returns; without occluders, without a scan, with occlusion off, and for no components."""
+    from tracker.config import DetectionConfig
+    from tracker.detection import detection_model
+    from tracker.measurement import Rectangles
+
+    rng = np.random.default_rng(seed)
+
+    def rects(count):
+        r, b = rng.uniform(3.0, 110.0, count), rng.uniform(-np.pi, np.pi, count)
+        b[:3] = np.pi - rng.uniform(0.0, 0.02, 3)  # straddling the seam behind the sensor
+        return Rectangles(np.column_stack([r * np.cos(b), r * np.sin(b)]), rng.uniform(-np.pi, np.pi, count),
+                          rng.uniform(0.0, 30.0, count), rng.uniform(2.0, 14.0, count), rng.uniform(1.5, 2.6, count))
+
+    comps, tracks = rects(60), rects(12)
+    labels = rng.integers(0, 15, 60)
+    track_labels = rng.integers(0, 15, 12)
+    scan = np.concatenate([tracks.corners().reshape(-1, 2), rng.uniform(-60.0, 60.0, (400, 2))])
+    cases = [(DetectionConfig(), tracks, track_labels, scan), (DetectionConfig(), None, None, scan),
+             (DetectionConfig(), tracks, track_labels, None), (DetectionConfig(occlusion=False), tracks, track_labels, scan),
+             (DetectionConfig(), tracks.take(np.arange(0)), track_labels[:0], scan[:0])]
+    results = []
+    for config, occ, occ_labels, sc in cases:
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = detection_model(comps, labels, config, occ, occ_labels, scan=sc)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = detection_model(comps, labels, config, occ, occ_labels, scan=sc)
+        for a, b in zip(ref, got):
+            np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12)
+        results.append(ref)
+    p_d = results[0][1]  # occlusion lowers some P_D part-way, range cuts others to 0
+    assert ((p_d > 0.0) & (p_d < DetectionConfig().p_detection)).any() and (p_d == 0.0).any()
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    empty = detection_model(comps.take(np.arange(0)), labels[:0], DetectionConfig(), tracks, track_labels, scan=scan)
+    assert empty[0].shape == (0,) and empty[1].shape == (0,)
+
+
 def test_compiled_curvature_interpolation_equals_numpy_interp():
     """The RK4 kernel's table lookup (the interval from ``s / step``, corrected at knots) gives
     ``numpy.interp``'s numbers exactly: random ``s``, every knot and its neighbouring floats."""
@@ -358,11 +398,14 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.preparation as kp
     import tracker.compiled.reduction as kr
     import tracker.compiled.structure as ks
+    import tracker.compiled.detection as kd
+    import tracker.compiled.ukf as ku
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
                kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
-               kl.overlap_groups_kernel, kr.merge_kernel]
+               kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
+               kd.detection_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import DetectionConfig
 from tracker.measurement import Rectangles
@@ -109,7 +110,21 @@ def detection_model(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(gamma, p_d)`` per component (C,) from its predicted rectangle in E (module docstring);
     ``scan`` (N, 2): the frame's lidar returns in E (all finite ones, on and off the road) for the
-    scan-based occlusion."""
+    scan-based occlusion; by ``tracker.compiled.detection`` when the compiled kernels are on)."""
+    if compiled_kernels.enabled() and rect.center.ndim == 2:
+        from tracker.compiled.detection import detection_kernel
+
+        with_occ = occluders is not None and occluder_labels is not None
+        occ = occluders if with_occ else rect
+        return detection_kernel(
+            np.ascontiguousarray(rect.corners()), np.ascontiguousarray(rect.center, dtype=float),
+            np.ascontiguousarray(labels, dtype=np.int64), np.ascontiguousarray(occ.corners()),
+            np.ascontiguousarray(occ.center, dtype=float),
+            np.ascontiguousarray(occluder_labels if with_occ else labels, dtype=np.int64), with_occ,
+            np.zeros((0, 2)) if scan is None else np.ascontiguousarray(scan, dtype=float).reshape(-1, 2),
+            scan is not None, float(config.lidar_resolution), float(config.lidar_range), float(config.p_detection),
+            bool(config.occlusion), VISIBLE_FOR_DETECTION, SCAN_OCCLUSION_MARGIN,
+        )
     spans = bearing_spans(rect)
     lo, hi, _ = spans
     near = nearest_range(rect)
