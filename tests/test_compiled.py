@@ -210,7 +210,7 @@ def test_compiled_detection_model_equals_numpy(seed, monkeypatch):
     seam behind it), near and beyond the lidar range, hidden by nearer tracks of other labels and by
     scan returns; without occluders, without a scan, with occlusion off, and for no components."""
     from tracker.config import DetectionConfig
-    from tracker.detection import detection_model
+    from tracker.detection import detection_model, occluded_fraction
     from tracker.measurement import Rectangles
 
     rng = np.random.default_rng(seed)
@@ -237,6 +237,11 @@ def test_compiled_detection_model_equals_numpy(seed, monkeypatch):
         for a, b in zip(ref, got):
             np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12)
         results.append(ref)
+    for flag in ("0", "1"):  # occluded_fraction on its own (the births' test)
+        monkeypatch.setenv(compiled.ENV_SWITCH, flag)
+        results.append(occluded_fraction(comps, labels, tracks, track_labels))
+    np.testing.assert_allclose(results[-1], results[-2], rtol=1e-12, atol=1e-12)
+    assert (results[-1] > 0.0).any()
     p_d = results[0][1]  # occlusion lowers some P_D part-way, range cuts others to 0
     assert ((p_d > 0.0) & (p_d < DetectionConfig().p_detection)).any() and (p_d == 0.0).any()
     monkeypatch.setenv(compiled.ENV_SWITCH, "1")
@@ -405,7 +410,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
                kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
-               kd.detection_kernel]
+               kd.detection_kernel, kd.occluded_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)

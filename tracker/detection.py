@@ -60,9 +60,17 @@ def occluded_fraction(
     *, spans: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Fraction (C,) of each rectangle's bearing span hidden by a nearer occluder of another label
-    (``spans``: ``bearing_spans(rect)`` when the caller has them)."""
+    (``spans``: ``bearing_spans(rect)`` when the caller has them; by ``tracker.compiled.detection``
+    when the compiled kernels are on)."""
     if len(occluder_labels) == 0 or len(labels) == 0:
         return np.zeros(len(labels))
+    if compiled_kernels.enabled() and rect.center.ndim == 2:
+        from tracker.compiled.detection import occluded_kernel
+
+        return occluded_kernel(np.ascontiguousarray(rect.corners()), np.ascontiguousarray(rect.center, dtype=float),
+                               np.ascontiguousarray(labels, dtype=np.int64), np.ascontiguousarray(occluders.corners()),
+                               np.ascontiguousarray(occluders.center, dtype=float),
+                               np.ascontiguousarray(occluder_labels, dtype=np.int64))
     lo, hi, rng = bearing_spans(rect) if spans is None else spans
     olo, ohi, orng = bearing_spans(occluders)
     # overlap of [lo, hi] and [olo, ohi] on the circle: shift the occluder by the nearest turn

@@ -45,6 +45,35 @@ def _spans(corners, centers):
 
 
 @njit
+def _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels):
+    """``occluded_fraction`` from the components' spans and ranges."""
+    count = lo.shape[0]
+    hidden = np.zeros(count)
+    if occ_corners.shape[0] == 0:
+        return hidden
+    olo, ohi, orng, _ = _spans(occ_corners, occ_centers)
+    for c in range(count):
+        span = max(hi[c] - lo[c], 1e-9)
+        best = 0.0
+        for t in range(occ_corners.shape[0]):
+            if not (orng[t] < rng[c] and occ_labels[t] != labels[c]):
+                continue
+            shift = 2.0 * np.pi * np.rint((0.5 * (lo[c] + hi[c])) / (2.0 * np.pi) - (0.5 * (olo[t] + ohi[t])) / (2.0 * np.pi))
+            overlap = min(hi[c], ohi[t] + shift) - max(lo[c], olo[t] + shift)
+            best = max(best, max(overlap, 0.0) / span)
+        hidden[c] = min(max(best, 0.0), 1.0)
+    return hidden
+
+
+@njit
+def occluded_kernel(corners, centers, labels, occ_corners, occ_centers, occ_labels):
+    """``tracker.detection.occluded_fraction``: the fraction (C,) of each rectangle's bearing span
+    hidden by a nearer occluder of another label."""
+    lo, hi, rng, _ = _spans(corners, centers)
+    return _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels)
+
+
+@njit
 def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_labels, use_occluders, scan, use_scan,
                      resolution, lidar_range, p_detection, occlusion, visible_for_detection, scan_margin):
     """``(gamma, p_d)`` per component, as ``detection_model`` (``use_occluders``: the previous frame's
@@ -58,19 +87,10 @@ def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_lab
         p_d[c] = p_detection if near[c] <= lidar_range else 0.0
     if not occlusion:
         return gamma, p_d
-    hidden = np.zeros(count)
-    if use_occluders and occ_corners.shape[0] > 0 and count > 0:
-        olo, ohi, orng, _ = _spans(occ_corners, occ_centers)
-        for c in range(count):
-            span = max(hi[c] - lo[c], 1e-9)
-            best = 0.0
-            for t in range(occ_corners.shape[0]):
-                if not (orng[t] < rng[c] and occ_labels[t] != labels[c]):
-                    continue
-                shift = 2.0 * np.pi * np.rint((0.5 * (lo[c] + hi[c])) / (2.0 * np.pi) - (0.5 * (olo[t] + ohi[t])) / (2.0 * np.pi))
-                overlap = min(hi[c], ohi[t] + shift) - max(lo[c], olo[t] + shift)
-                best = max(best, max(overlap, 0.0) / span)
-            hidden[c] = min(max(best, 0.0), 1.0)
+    if use_occluders:
+        hidden = _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels)
+    else:
+        hidden = np.zeros(count)
     if use_scan and scan.shape[0] > 0 and count > 0:
         limit = -np.inf
         for c in range(count):
