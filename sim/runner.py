@@ -530,7 +530,7 @@ def run_scenario(
     switches = IdSwitchCounter()
     sensor_seed = np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,))
     faults = spec.faults if spec.faults is not None and spec.faults.active else None
-    stream = rig.frames(world.truth_at, duration, seed=sensor_seed,
+    stream = rig.frames(world.truth_at, duration, seed=sensor_seed, poses_at=world.poses_at,
                         lidar_delay=faults.lidar_time_offset if faults is not None else 0.0)
     injector = None
     if faults is not None:

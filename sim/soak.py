@@ -240,7 +240,7 @@ def run_soak(
     acc: dict[str, list] = {k: [] for k in ("ms", "cpu_ms", "components", "tracks", "truth", "nonfinite", "bad_cov", "gospa")}
     acc["born"] = [0]
     seen: set[int] = set()
-    for k, sf in enumerate(rig.frames(world.truth_at, duration, seed=sensor_seed)):
+    for k, sf in enumerate(rig.frames(world.truth_at, duration, seed=sensor_seed, poses_at=world.poses_at)):
         t0, c0 = time.perf_counter(), time.process_time()
         tracks = list(tracker.step(sf.frame))
         acc["ms"].append(1e3 * (time.perf_counter() - t0))

@@ -181,8 +181,9 @@ class World:
         """Truth of ``vehicle`` ``fraction`` s after the last grid time (held action, no mutation)."""
         return VehicleState(*self._state_values(vehicle, fraction))
 
-    def _state_values(self, vehicle: object, fraction: float) -> tuple:
-        """``_state``'s fields as a plain tuple, in ``VehicleState``'s order (the snapshot's hot path)."""
+    def _pose_values(self, vehicle: object, fraction: float) -> tuple:
+        """``(vid, x, y, yaw, v, yaw_rate, length, width)`` of ``vehicle`` ``fraction`` s after the last
+        grid time, then the heading before wrapping and the slip angle (for ``_state_values``)."""
         v = vehicle
         action = v.action  # type: ignore[attr-defined]
         steering = float(action["steering"])
@@ -199,16 +200,23 @@ class World:
             y += speed * math.sin(heading + beta) * fraction
             heading += yaw_rate * fraction
             speed = max(speed + acceleration * fraction, 0.0)
+        return (v.vid, x, y, float(wrap_angle(heading)), speed, yaw_rate, float(v.LENGTH), float(v.WIDTH),  # type: ignore[attr-defined]
+                heading, beta)
+
+    def _state_values(self, vehicle: object, fraction: float) -> tuple:
+        """``_state``'s fields as a plain tuple, in ``VehicleState``'s order (the snapshot's hot path)."""
+        v = vehicle
+        vid, x, y, yaw, speed, yaw_rate, length, width, heading, beta = self._pose_values(vehicle, fraction)
+        if fraction > 0.0:
             s, n = self.road.to_frenet((x, y), s_hint=v.frenet_s)  # type: ignore[attr-defined]
         else:
             s, n = v.frenet_s, v.frenet_n  # type: ignore[attr-defined]
         _, _, c, sn, kappa = self.road.frame1(float(s))  # scalar fast path of tracker.Road
         theta = math.atan2(sn, c)
-        yaw = float(wrap_angle(heading))
         xi = float(wrap_angle(heading - theta))
         s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
-        return (v.vid, x, y, yaw, speed, yaw_rate, float(v.LENGTH), float(v.WIDTH), float(s), float(n),  # type: ignore[attr-defined]
-                xi, yaw_rate - kappa * s_dot, self.traffic.lane_of(float(n)))
+        return (vid, x, y, yaw, speed, yaw_rate, length, width, float(s), float(n), xi, yaw_rate - kappa * s_dot,
+                self.traffic.lane_of(float(n)))
 
     def states(self) -> list[VehicleState]:
         """Truth of every vehicle in the world at the current time ``t``, the ego first."""
@@ -247,6 +255,31 @@ class World:
         """Advance to ``t`` (s), then return the truth ``Snapshot`` there (what the sensor rig calls)."""
         self.advance(t)
         return self.snapshot()
+
+    def poses_at(self, t: float) -> Snapshot:
+        """Advance to ``t`` (s), then return the other vehicles' poses there: a ``Snapshot`` whose road
+        coordinates (``s``, ``n``, ``xi``, ``xi_dot``) are NaN and ``z`` 0, the rest (and the ego pose)
+        as ``truth_at``'s. What a radar needs, without projecting every vehicle onto the road
+        (``SensorRig.frames(..., poses_at=...)``)."""
+        self.advance(t)
+        fraction = max(self.t - self.grid_time, 0.0)
+        vehicles = self.traffic.vehicles
+        ego = self._state_values(vehicles[0], fraction)
+        others = [self._pose_values(v, fraction) for v in vehicles[1:]]
+        cols = np.array([r[1:8] for r in others], dtype=float).reshape(-1, 7).T.copy()
+        return Snapshot(
+            t=self.t,
+            ego=EgoPose(x=ego[1], y=ego[2], yaw=ego[3], v=ego[4], yaw_rate=ego[5], length=ego[6], width=ego[7],
+                        z=0.0 if self.ground is None else float(self.ground.height_at(ego[8], ego[9]))),
+            ids=np.array([r[0] for r in others], dtype=int),
+            xy=np.ascontiguousarray(cols[:2].T),
+            yaw=cols[2],
+            v=cols[3],
+            yaw_rate=cols[4],
+            length=cols[5],
+            width=cols[6],
+            height=np.array([self.heights.get(r[0], 1.5) for r in others]),
+        )
 
     def ego_state(self) -> VehicleState:
         """The ego's truth at the current time, with its road coordinates."""

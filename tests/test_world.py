@@ -323,3 +323,31 @@ def test_vehicles_stand_on_the_sloped_road_with_their_heights():
     assert snap.height.tolist() == [3.6, 2.0, 1.5, 1.2, 1.5]  # truck (given), van, car, motorcycle, car
     flat = World(load_scenario("curve-single"), 0).truth_at(0.0)
     assert flat.z.tolist() == [0.0] and flat.height.tolist() == [1.5] and flat.ego.z == 0.0
+
+
+def test_poses_at_gives_truth_at_poses_without_road_coordinates_and_the_rig_the_same_frames():
+    """``World.poses_at`` returns ``truth_at``'s poses exactly (ids, centres, yaw, speed, yaw rate,
+    extent, the ego) with NaN road coordinates; a rig given it for its radar cycles delivers the very
+    same frames (radar detections, lidar, truth) as without it."""
+    from sim.sensors.rig import RigConfig, SensorRig
+
+    spec = load_scenario("curvy-multi")
+    a, b = World(spec, seed=3), World(spec, seed=3)
+    for t in (0.0, 0.37, 0.4, 1.234):
+        full, pose = a.truth_at(t), b.poses_at(t)
+        for name in ("ids", "xy", "yaw", "v", "yaw_rate", "length", "width", "height"):
+            assert np.array_equal(getattr(full, name), getattr(pose, name)), name
+        assert full.ego == pose.ego
+        assert np.isnan(pose.s).all() and np.isnan(pose.xi_dot).all() and np.isfinite(full.s).all()
+    rig = SensorRig(RigConfig())
+    w1, w2 = World(spec, seed=3), World(spec, seed=3)
+    plain = list(rig.frames(w1.truth_at, 1.5, seed=7))
+    fast = list(rig.frames(w2.truth_at, 1.5, seed=7, poses_at=w2.poses_at))
+    assert len(plain) == len(fast) == 16
+    for p, f in zip(plain, fast):
+        assert len(p.radar) > 0 or len(f.radar) == 0
+        for name in ("t", "xy", "velocity", "target_id", "unit"):
+            assert np.array_equal(getattr(p.radar, name), getattr(f.radar, name)), name
+        assert np.array_equal(p.lidar.points, f.lidar.points)
+        assert np.array_equal(p.truth.s, f.truth.s) and np.array_equal(p.truth.xy, f.truth.xy)
+    assert sum(len(p.radar) for p in plain) > 20

@@ -169,7 +169,8 @@ class TrackedRoadEnv(AbstractEnv):
         self.tracker = None
         if s.perception == "tracks":
             self.tracker = default_tracker_factory(world.road, tracker_config_for(spec, s.variant, rig_cfg))
-        self._frames = self.rig.frames(world.truth_at, None, seed=np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,)))
+        self._frames = self.rig.frames(world.truth_at, None, seed=np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,)),
+                                       poses_at=world.poses_at)
         self._frame_k = 0
         self._policy_k = 0
         self._seen_collisions = 0

@@ -143,6 +143,7 @@ class SensorRig:
         seed: int | np.random.SeedSequence = 0,
         t0: float = 0.0,
         lidar_delay: float = 0.0,
+        poses_at: Callable[[float], Snapshot] | None = None,
     ) -> Iterator[SensorFrame]:
         """Yield a ``SensorFrame`` at every lidar time from ``t0`` up to ``t0 + duration`` (s;
         forever when ``None``), lazily: ``truth_at`` is called only as far as the frame being made.
@@ -150,9 +151,15 @@ class SensorRig:
         ``lidar_delay`` (s, 0 by default, below the lidar's period) is a fault: the scan delivered
         with the frame stamped ``t`` is measured at ``t - lidar_delay`` (``SensorFrame.lidar.t``),
         while the ego pose, the truth and the radar keep their true times (``sim.faults``); a scan
-        that would fall before ``t0`` is measured at ``t0``."""
+        that would fall before ``t0`` is measured at ``t0``.
+
+        ``poses_at`` (optional, e.g. ``World.poses_at``): a cheaper ``truth_at`` for the radar cycles
+        between frames, whose snapshots need the vehicles' poses only (road coordinates may be NaN);
+        the frames' truth and the lidar always come from ``truth_at``."""
         if not callable(truth_at):
             raise ValueError("SensorRig.frames needs truth_at, a callable t -> sim.truth.Snapshot")
+        if poses_at is not None and not callable(poses_at):
+            raise ValueError("SensorRig.frames: poses_at must be None or a callable t -> sim.truth.Snapshot")
         if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a finite number of seconds >= 0 (or None); got {duration!r}")
         if not (isinstance(t0, (int, float)) and math.isfinite(t0)):
@@ -178,6 +185,21 @@ class SensorRig:
             last[0], last[1] = t, snap
             return snap
 
+        last_pose: list = [None, None]  # time, snapshot of the latest poses_at call
+
+        def pose(t: float) -> Snapshot:
+            if poses_at is None or (last[0] is not None and t <= last[0]):
+                return truth(t)
+            if last_pose[0] is not None and t <= last_pose[0]:
+                return last_pose[1]
+            snap = poses_at(t)
+            if not isinstance(snap, Snapshot):
+                raise ValueError(f"poses_at({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
+            if abs(float(snap.t) - t) > 1e-6:
+                raise ValueError(f"poses_at({t!r}) returned a snapshot at t={snap.t!r}")
+            last_pose[0], last_pose[1] = t, snap
+            return snap
+
         def radar_time(i: int) -> float:
             unit = self.radars[i].config
             return t0 + unit.phase_s + cycles[i] / unit.rate_hz
@@ -197,7 +219,7 @@ class SensorRig:
                     break
                 if lidar_scan is None and times[i] > t_scan + TIME_TOLERANCE:  # a delayed scan comes first
                     lidar_scan = self.lidar.scan(truth(t_scan), self.roadside, rng=lidar_rng)
-                snap = truth(times[i])
+                snap = pose(times[i])
                 scan = self.radars[i].detect(snap, self.roadside, rng=radar_rngs[i])
                 ego = snap.ego
                 pending.append((scan, to_global(scan.xy, (ego.x, ego.y), ego.yaw), rotate(scan.velocity, ego.yaw)))
