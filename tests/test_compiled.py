@@ -175,6 +175,10 @@ def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
             a, b = getattr(ref, field), getattr(got, field)
             assert a.shape == b.shape
             np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+        assert got.corners().shape == ref.corners().shape  # the kernel's corners, then numpy's
+        np.testing.assert_allclose(got.corners(), ref.corners(), rtol=0.0, atol=1e-9)
+        if len(x):
+            np.testing.assert_allclose(got.take(np.array([0])).corners(), ref.corners()[[0]], rtol=0.0, atol=1e-9)
     with pytest.raises(ValueError, match="finite"):
         to_vehicle(np.full((2, 7), np.nan), ego, road)
 

@@ -133,13 +133,22 @@ class Rectangles:
             object.__setattr__(self, "_corners", cached)
         return cached
 
+    def with_corners(self, corners: np.ndarray) -> Rectangles:
+        """These rectangles with their corners already computed (``corners()`` then returns them,
+        read-only): for a producer that computes them anyway (the compiled ``to_vehicle``)."""
+        corners.flags.writeable = False
+        object.__setattr__(self, "_corners", corners)
+        return self
+
     def velocity(self) -> np.ndarray:
         """Absolute velocity in E's axes ``(..., 2)``: ``v (cos psi_E, sin psi_E)``."""
         return self.v[..., None] * np.stack([np.cos(self.psi), np.sin(self.psi)], axis=-1)
 
     def take(self, index: np.ndarray) -> Rectangles:
-        """The rectangles at ``index`` along the first axis."""
-        return Rectangles(self.center[index], self.psi[index], self.v[index], self.length[index], self.width[index])
+        """The rectangles at ``index`` along the first axis (their corners too, when computed)."""
+        taken = Rectangles(self.center[index], self.psi[index], self.v[index], self.length[index], self.width[index])
+        cached = self.__dict__.get("_corners")
+        return taken if cached is None else taken.with_corners(cached[index])
 
 
 def rectangle_corners(center: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
@@ -193,10 +202,11 @@ def to_vehicle(
             if not np.isfinite(flat[:, 0]).all():
                 raise ValueError(f"s must be finite; got {flat[np.argmin(np.isfinite(flat[:, 0])), 0]!r}")
             kind, *curve = road._curve.kernel_args()
-            center, psi = to_vehicle_kernel(kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
-                                            road.length, road._ends_array, *curve)
-            return Rectangles(center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]), x[..., 2],
+            center, psi, corners = to_vehicle_kernel(kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
+                                                     road.length, road._ends_array, *curve, MIN_EXTENT)
+            rect = Rectangles(center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]), x[..., 2],
                               np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
+            return rect.with_corners(corners.reshape(x.shape[:-1] + (4, 2)))
         if euler_s0 is None:
             xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
         else:

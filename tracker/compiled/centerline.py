@@ -140,13 +140,15 @@ def project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, start
 
 @njit
 def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell, starts_next,
-                      inv_bucket, hops, nodes, weights):
-    """``tracker.measurement.to_vehicle``'s curvilinear exact conversion of ``states (N, >= 4)``:
-    rectangle centres ``(N, 2)`` and headings ``(N,)`` in E (the frame extrapolated beyond an open
-    road's ends, as ``Road.frame(..., extrapolate=True)``)."""
+                      inv_bucket, hops, nodes, weights, min_extent):
+    """``tracker.measurement.to_vehicle``'s curvilinear exact conversion of ``states (N, 7 or 8)``:
+    rectangle centres ``(N, 2)``, headings ``(N,)`` and corners ``(N, 4, 2)`` (of the extent floored
+    at ``min_extent``) in E (the frame extrapolated beyond an open road's ends, as
+    ``Road.frame(..., extrapolate=True)``)."""
     count = states.shape[0]
     center = np.empty((count, 2))
     psi = np.empty(count)
+    corners = np.empty((count, 4, 2))
     c = np.cos(ego_yaw)
     sn = np.sin(ego_yaw)
     for i in range(count):
@@ -159,4 +161,12 @@ def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends,
         center[i, 0] = c * gx + sn * gy
         center[i, 1] = -sn * gx + c * gy
         psi[i] = theta + states[i, 3] - ego_yaw
-    return center, psi
+        # rectangle_corners: front-right, front-left, rear-left, rear-right of the floored extent
+        cp, sp = np.cos(psi[i]), np.sin(psi[i])
+        hl, hw = 0.5 * max(states[i, 5], min_extent), 0.5 * max(states[i, 6], min_extent)
+        for k in range(4):
+            lx = hl if k < 2 else -hl
+            ly = -hw if k == 0 or k == 3 else hw
+            corners[i, k, 0] = center[i, 0] + cp * lx - sp * ly
+            corners[i, k, 1] = center[i, 1] + sp * lx + cp * ly
+    return center, psi, corners
