@@ -225,31 +225,7 @@ class World:
 
     def snapshot(self) -> Snapshot:
         """The truth ``Snapshot`` at the current time ``t``: the ego pose and the other vehicles."""
-        fraction = max(self.t - self.grid_time, 0.0)
-        rows = [self._state_values(v, fraction) for v in self.traffic.vehicles]
-        ego, others = rows[0], rows[1:]
-        # one array of the others' numbers (x, y, yaw, v, yaw_rate, length, width, s, n, xi, xi_dot),
-        # then each field as a contiguous row of its transpose
-        cols = np.array([r[1:12] for r in others], dtype=float).reshape(-1, 11).T.copy()
-        s_arr, n_arr = cols[7], cols[8]
-        return Snapshot(
-            t=self.t,
-            ego=EgoPose(x=ego[1], y=ego[2], yaw=ego[3], v=ego[4], yaw_rate=ego[5], length=ego[6], width=ego[7],
-                        z=0.0 if self.ground is None else float(self.ground.height_at(ego[8], ego[9]))),
-            ids=np.array([r[0] for r in others], dtype=int),
-            xy=np.ascontiguousarray(cols[:2].T),
-            yaw=cols[2],
-            v=cols[3],
-            yaw_rate=cols[4],
-            length=cols[5],
-            width=cols[6],
-            s=s_arr,
-            n=n_arr,
-            xi=cols[9],
-            xi_dot=cols[10],
-            height=np.array([self.heights.get(r[0], 1.5) for r in others]),
-            z=np.zeros(len(others)) if self.ground is None else self.ground.height_at(s_arr, n_arr),
-        )
+        return self._snapshot(road_coordinates=True)
 
     def truth_at(self, t: float) -> Snapshot:
         """Advance to ``t`` (s), then return the truth ``Snapshot`` there (what the sensor rig calls)."""
@@ -262,11 +238,22 @@ class World:
         as ``truth_at``'s. What a radar needs, without projecting every vehicle onto the road
         (``SensorRig.frames(..., poses_at=...)``)."""
         self.advance(t)
+        return self._snapshot(road_coordinates=False)
+
+    def _snapshot(self, road_coordinates: bool) -> Snapshot:
         fraction = max(self.t - self.grid_time, 0.0)
         vehicles = self.traffic.vehicles
         ego = self._state_values(vehicles[0], fraction)
-        others = [self._pose_values(v, fraction) for v in vehicles[1:]]
-        cols = np.array([r[1:8] for r in others], dtype=float).reshape(-1, 7).T.copy()
+        values = self._state_values if road_coordinates else self._pose_values
+        others = [values(v, fraction) for v in vehicles[1:]]
+        # one array of the others' numbers (x, y, yaw, v, yaw_rate, length, width[, s, n, xi, xi_dot]),
+        # then each field as a contiguous row of its transpose
+        width = 11 if road_coordinates else 7
+        cols = np.array([r[1:1 + width] for r in others], dtype=float).reshape(-1, width).T.copy()
+        road = {}
+        if road_coordinates:
+            road = dict(s=cols[7], n=cols[8], xi=cols[9], xi_dot=cols[10],
+                        z=np.zeros(len(others)) if self.ground is None else self.ground.height_at(cols[7], cols[8]))
         return Snapshot(
             t=self.t,
             ego=EgoPose(x=ego[1], y=ego[2], yaw=ego[3], v=ego[4], yaw_rate=ego[5], length=ego[6], width=ego[7],
@@ -279,6 +266,7 @@ class World:
             length=cols[5],
             width=cols[6],
             height=np.array([self.heights.get(r[0], 1.5) for r in others]),
+            **road,
         )
 
     def ego_state(self) -> VehicleState:

@@ -174,31 +174,26 @@ class SensorRig:
         cycles = [0] * len(self.radars)
         last: list = [None, None]  # time, snapshot of the latest truth_at call
 
-        def truth(t: float) -> Snapshot:
-            if last[0] is not None and t <= last[0]:
-                return last[1]
-            snap = truth_at(t)
+        last_pose: list = [None, None]  # time, snapshot of the latest poses_at call
+
+        def fetch(source: Callable[[float], Snapshot], name: str, cache: list, t: float) -> Snapshot:
+            if cache[0] is not None and t <= cache[0]:
+                return cache[1]
+            snap = source(t)
             if not isinstance(snap, Snapshot):
-                raise ValueError(f"truth_at({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
+                raise ValueError(f"{name}({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
             if abs(float(snap.t) - t) > 1e-6:
-                raise ValueError(f"truth_at({t!r}) returned a snapshot at t={snap.t!r}")
-            last[0], last[1] = t, snap
+                raise ValueError(f"{name}({t!r}) returned a snapshot at t={snap.t!r}")
+            cache[0], cache[1] = t, snap
             return snap
 
-        last_pose: list = [None, None]  # time, snapshot of the latest poses_at call
+        def truth(t: float) -> Snapshot:
+            return fetch(truth_at, "truth_at", last, t)
 
         def pose(t: float) -> Snapshot:
             if poses_at is None or (last[0] is not None and t <= last[0]):
                 return truth(t)
-            if last_pose[0] is not None and t <= last_pose[0]:
-                return last_pose[1]
-            snap = poses_at(t)
-            if not isinstance(snap, Snapshot):
-                raise ValueError(f"poses_at({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
-            if abs(float(snap.t) - t) > 1e-6:
-                raise ValueError(f"poses_at({t!r}) returned a snapshot at t={snap.t!r}")
-            last_pose[0], last_pose[1] = t, snap
-            return snap
+            return fetch(poses_at, "poses_at", last_pose, t)
 
         def radar_time(i: int) -> float:
             unit = self.radars[i].config
