@@ -410,6 +410,10 @@ class ReductionConfig:
     - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
     - ``max_components``: cap, keeping the heaviest;
     - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5);
+    - ``keep_threshold`` (None: off): a label reported in the previous frame stays reported while its
+      heaviest component weighs more than this (hysteresis below ``extraction_threshold``): a car
+      that drives into another's shadow loses weight at its last partly visible frames and would
+      otherwise flicker out of the report around 0.5 while it coasts;
     - ``fov_margin`` (m): components whose nearest corner is farther than the lidar range plus this
       are dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever);
     - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
@@ -440,6 +444,7 @@ class ReductionConfig:
     merge_threshold: float = 4.0
     max_components: int = 100
     extraction_threshold: float = 0.5
+    keep_threshold: float | None = None
     fov_margin: float = 2.0
     road_margin: float = 1.0
     same_label_distance: float = 2.0
@@ -454,6 +459,9 @@ class ReductionConfig:
         _check("ReductionConfig", "merge_threshold", self.merge_threshold, low=0.0)
         _check_int("ReductionConfig", "max_components", self.max_components, 1)
         _check("ReductionConfig", "extraction_threshold", self.extraction_threshold, low=0.0, high=1.0)
+        if self.keep_threshold is not None:
+            _check("ReductionConfig", "keep_threshold", self.keep_threshold, low=0.0, high=self.extraction_threshold,
+                   low_open=True)
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")

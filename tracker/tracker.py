@@ -91,7 +91,8 @@ class Tracker:
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
     ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``),
     ``coasting_tracks_taken_over``, ``tracks_beyond_report_range`` (components above the threshold not
-    reported because their centre lies beyond ``detection.lidar_range + reduction.report_range``).
+    reported because their centre lies beyond ``detection.lidar_range + reduction.report_range``),
+    ``tracks_kept_below_threshold`` (tracks reported under ``reduction.keep_threshold``'s hysteresis).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
     """
@@ -129,6 +130,7 @@ class Tracker:
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
         self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
+        self._reported_labels: set[int] = set()  # the labels reported in the last frame
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
@@ -436,6 +438,8 @@ class Tracker:
         mix = self.mixture
         red = self.config.reduction
         above = np.flatnonzero(mix.weights > red.extraction_threshold)
+        if red.keep_threshold is not None and len(self._reported_labels):
+            above = np.concatenate([above, self._kept_below_threshold(above)])
         if len(above) and red.report_range is not None:  # the field of view tracks are reported in
             centre = to_vehicle(mix.means[above], ego, self.road, self.config.coordinates).center
             inside = np.hypot(centre[:, 0], centre[:, 1]) <= self.config.detection.lidar_range + red.report_range
@@ -466,6 +470,7 @@ class Tracker:
                 self.stats["label_splits"] += 1
             seen.add(int(mix.labels[i]))
         self._reported = above
+        self._reported_labels = set(mix.labels[above].tolist())
         self._lost.observe(t, mix.labels[above], mix.means[above], mix.covs[above],
                            np.array([int(lab) in self._updated_labels for lab in mix.labels[above]], dtype=bool))
         if not self.cartesian:
@@ -473,6 +478,24 @@ class Tracker:
                                        mix.weights[above])
         return [Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road, float(mix.weights[i]),
                                      self.ut) for i in above]
+
+    def _kept_below_threshold(self, above: np.ndarray) -> np.ndarray:
+        """Components below ``extraction_threshold`` still reported (``ReductionConfig.keep_threshold``):
+        per label reported last frame without a component above the threshold now, its heaviest
+        component if it weighs more than ``keep_threshold``."""
+        mix = self.mixture
+        low = np.flatnonzero((mix.weights > self.config.reduction.keep_threshold)
+                             & (mix.weights <= self.config.reduction.extraction_threshold))
+        if not len(low):
+            return low
+        taken = set(mix.labels[above].tolist())
+        best: dict[int, int] = {}
+        for i in low[np.argsort(-mix.weights[low], kind="stable")].tolist():
+            lab = int(mix.labels[i])
+            if lab in self._reported_labels and lab not in taken and lab not in best:
+                best[lab] = i
+        self.stats["tracks_kept_below_threshold"] += len(best)
+        return np.array(sorted(best.values()), dtype=np.intp)
 
     def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:
         """Components about to be reported under a label never reported before take the label of a
