@@ -375,3 +375,30 @@ def test_two_buses_side_by_side_are_two_tracks_not_one_wide_one(split_width):
     else:
         assert all(found) and len(labels) == 2  # both buses in every frame, the same two labels
         assert tracker.stats["clusters_split"] > 0
+
+
+@pytest.mark.parametrize("keep", [0.3, None], ids=["hysteresis", "paper"])
+def test_a_reported_track_below_the_extraction_threshold_stays_reported_above_keep_threshold(keep):
+    """ReductionConfig.keep_threshold: a label reported last frame whose heaviest component now weighs
+    0.45 (a car gone into another's shadow) is still reported, once, under its label (its lighter
+    second component is not reported as a split); a label never reported at 0.45 is not; below the
+    keep threshold a track goes. With keep_threshold None (the paper's extraction at 0.5) it goes."""
+    from tracker.reduction import Mixture
+
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    config = TrackerConfig(reduction=dataclasses.replace(TrackerConfig().reduction, keep_threshold=keep))
+    tr = Tracker(road, config)
+    state = np.array([40.0, 1.75, 15.0, 0.0, 0.0, 4.8, 2.0])
+    means = np.stack([state, state + [0.5, 0, 0, 0, 0, 0, 0], state + [20.0, -3.5, 0, 0, 0, 0, 0],
+                      state + [45.0, 0, 0, 0, 0, 0, 0]])
+    labels = np.array([7, 7, 8, 9])
+    tr.mixture = Mixture(np.array([0.45, 0.35, 0.45, 0.25]), means, np.repeat(np.eye(7)[None] * 0.1, 4, axis=0), labels)
+    tr._reported_labels = {7, 9}
+    tr._ever_reported = {7, 8, 9}
+    tracks = tr._extract(1.0, EgoState(0.0, 1.75, 0.0, 15.0, 0.0))
+    reported = sorted(t.label for t in tracks)
+    if keep is None:
+        assert reported == []
+    else:
+        assert reported == [7]  # 8 was not reported last frame, 9 is below 0.3, 7's second component no split
+        assert tr.stats["tracks_kept_below_threshold"] == 1 and tr.stats["label_splits"] == 0

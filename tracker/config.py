@@ -410,10 +410,14 @@ class ReductionConfig:
     - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
     - ``max_components``: cap, keeping the heaviest;
     - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5);
-    - ``keep_threshold`` (None: off): a label reported in the previous frame stays reported while its
-      heaviest component weighs more than this (hysteresis below ``extraction_threshold``): a car
-      that drives into another's shadow loses weight at its last partly visible frames and would
-      otherwise flicker out of the report around 0.5 while it coasts;
+    - ``keep_threshold`` (0.3; None: off, the paper's single threshold): a label reported in the
+      previous frame stays reported while its heaviest component weighs more than this (hysteresis
+      below ``extraction_threshold``): a car that drives into another's shadow loses weight in its
+      last partly visible frames and would otherwise drop out of the report at ~0.5 while it coasts.
+      Measured (fused, 10 seeds, paired against None): occlusion GOSPA 2.56 -> 2.29 m (-0.27 +- 0.23),
+      seen cardinality 0.103 -> 0.089, but position RMSE 0.324 -> 0.358 m (coasting tracks are
+      scored); stop-and-go seen cardinality 0.400 -> 0.417 (+0.016 +- 0.016); elsewhere within noise.
+      0.2 gained more on occlusion and lost more on stop-and-go;
     - ``fov_margin`` (m): components whose nearest corner is farther than the lidar range plus this
       are dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever);
     - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
@@ -444,7 +448,7 @@ class ReductionConfig:
     merge_threshold: float = 4.0
     max_components: int = 100
     extraction_threshold: float = 0.5
-    keep_threshold: float | None = None
+    keep_threshold: float | None = 0.3
     fov_margin: float = 2.0
     road_margin: float = 1.0
     same_label_distance: float = 2.0
