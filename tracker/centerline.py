@@ -77,8 +77,18 @@ class _Cells:
 
     def kernel_args(self) -> tuple:
         """``(kind, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)``: the
-        arguments of ``tracker.compiled.centerline``'s curve kernels around ``s`` (kind 0 clothoid, 1 Hermite)."""
-        return (0 if isinstance(self, ClothoidCenterline) else 1, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+        arguments of ``tracker.compiled.centerline``'s curve kernels around ``s`` (``kind``: its
+        ``CLOTHOID`` or ``HERMITE``)."""
+        from tracker.compiled.centerline import CLOTHOID, HERMITE
+
+        kind = CLOTHOID if isinstance(self, ClothoidCenterline) else HERMITE
+        return (kind, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+
+    def _frame_compiled(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        from tracker.compiled.centerline import curve_frame
+
+        kind, *rest = self.kernel_args()
+        return curve_frame(kind, np.ascontiguousarray(s, dtype=float), *rest)
 
     def locate(self, s: np.ndarray) -> np.ndarray:
         """Cell index of each ``s`` in [0, length] (vectorised)."""
@@ -188,9 +198,7 @@ class HermiteCenterline(_Cells):
         """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]
         (by ``tracker.compiled.centerline`` when the compiled kernels are on)."""
         if compiled_kernels.enabled():
-            from tracker.compiled.centerline import curve_frame
-
-            return curve_frame(1, np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+            return self._frame_compiled(s)
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         tau = ((row[:, 4] * d + row[:, 3]) * d + row[:, 2]) * d + row[:, 1]
@@ -351,9 +359,7 @@ class ClothoidCenterline(_Cells):
         (by ``tracker.compiled.centerline`` when the compiled kernels are on).
         """
         if compiled_kernels.enabled():
-            from tracker.compiled.centerline import curve_frame
-
-            return curve_frame(0, np.ascontiguousarray(s, dtype=float), self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+            return self._frame_compiled(s)
         row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
         d = s - row[:, 0]
         cell_xy, cos0, sin0, k0, kr = row[:, 1:3], row[:, 3], row[:, 4], row[:, 5], row[:, 6]

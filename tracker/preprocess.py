@@ -90,22 +90,22 @@ def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig,
     many each step removed (``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``,
     and the ``cloud_*`` counts of a 3-D cloud)."""
     scan, removed, _ = lidar_points(frame, cloud)
-    points, counts = filter_points(scan, frame.ego, road, config)
+    points, counts, _ = filter_points(scan, frame.ego, road, config)
     return scan, points, {**removed, **counts}
 
 
-def filter_points(scan: np.ndarray, ego: EgoState, road: Road, config: ClusteringConfig, *,
-                  offsets: bool = False) -> tuple[np.ndarray, dict[str, int]] | tuple[np.ndarray, dict[str, int], np.ndarray]:
+def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
+                  config: ClusteringConfig) -> tuple[np.ndarray, dict[str, int], np.ndarray]:
     """Steps 2 and 3 on finite points ``scan (N, 2)`` in E seen from ``ego``: the points kept for
-    clustering and the counts ``points_off_road``, ``points_bearing_filtered``; with ``offsets`` also
-    the kept points' lateral road offsets ``n`` (m), which the road-bound test computed anyway."""
+    clustering, the counts ``points_off_road``, ``points_bearing_filtered``, and the kept points'
+    lateral road offsets ``n`` (m), which the road-bound test computes anyway."""
     counts = {"points_off_road": 0, "points_bearing_filtered": 0}
     if len(scan) == 0:
-        return (scan, counts, np.zeros(0)) if offsets else (scan, counts)
+        return scan, counts, np.zeros(0)
     s, n = road.to_frenet(to_global(scan, (ego.x, ego.y), ego.yaw))
     on_road = road.within_bounds(s, n, config.road_margin)
     counts["points_off_road"] = int((~on_road).sum())
     pts = scan[on_road]
     keep = bearing_filter(pts, config.bearing_bin)
     counts["points_bearing_filtered"] = len(pts) - len(keep)
-    return (pts[keep], counts, n[on_road][keep]) if offsets else (pts[keep], counts)
+    return pts[keep], counts, n[on_road][keep]

@@ -220,8 +220,7 @@ class Tracker:
         """Points kept for clustering, and whether the frame had any finite lidar point at all (of a
         3-D cloud: any point left after ground removal; ``last_cloud`` keeps the pipeline's result)."""
         self._scan, removed, self.last_cloud = lidar_points(frame, self.config.cloud)
-        points, counts, self._point_n = filter_points(self._scan, frame.ego, self.road, self.config.clustering,
-                                                      offsets=True)
+        points, counts, self._point_n = filter_points(self._scan, frame.ego, self.road, self.config.clustering)
         self.stats.update(removed)
         self.stats.update(counts)
         return points, len(self._scan) > 0

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
+from tracker.compiled.geometry import corner_offset
 
 TWO_PI = 2.0 * math.pi
 
@@ -119,9 +120,8 @@ def scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid,
         s = np.sin(yaw[v])
         hl = 0.5 * length[v]
         hw = 0.5 * width[v]
-        for k in range(4):  # front-right, front-left, rear-left, rear-right (tracker.measurement.SX, SY)
-            lx = hl if k < 2 else -hl
-            ly = -hw if k == 0 or k == 3 else hw
+        for k in range(4):
+            lx, ly = corner_offset(k, hl, hw)
             cx[k] = xy[v, 0] + c * lx - s * ly - ox
             cy[k] = xy[v, 1] + s * lx + c * ly - oy
         for k in range(4):

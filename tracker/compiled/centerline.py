@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracker.compiled import njit
+from tracker.compiled.geometry import corner_offset
 
 
 @njit
@@ -77,7 +78,7 @@ CLOTHOID, HERMITE = 0, 1
 @njit
 def curve_at(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """``clothoid_at`` or ``hermite_at`` by ``kind`` (``CLOTHOID`` or ``HERMITE``)."""
-    if kind == 0:
+    if kind == CLOTHOID:
         return clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
     return hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
 
@@ -161,12 +162,11 @@ def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends,
         center[i, 0] = c * gx + sn * gy
         center[i, 1] = -sn * gx + c * gy
         psi[i] = theta + states[i, 3] - ego_yaw
-        # rectangle_corners: front-right, front-left, rear-left, rear-right of the floored extent
+        # rectangle_corners of the floored extent
         cp, sp = np.cos(psi[i]), np.sin(psi[i])
         hl, hw = 0.5 * max(states[i, 5], min_extent), 0.5 * max(states[i, 6], min_extent)
         for k in range(4):
-            lx = hl if k < 2 else -hl
-            ly = -hw if k == 0 or k == 3 else hw
+            lx, ly = corner_offset(k, hl, hw)
             corners[i, k, 0] = center[i, 0] + cp * lx - sp * ly
             corners[i, k, 1] = center[i, 1] + sp * lx + cp * ly
     return center, psi, corners

@@ -4,18 +4,10 @@ formulas per component, per (component, occluder) pair and per (component, retur
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from tracker.compiled import njit
-
-TWO_PI = 2.0 * math.pi
-
-
-@njit
-def _wrap(a):
-    return math.pi - ((math.pi - a) % TWO_PI)
+from tracker.compiled.geometry import wrap_angle
 
 
 @njit
@@ -33,7 +25,7 @@ def _spans(corners, centers):
         r_max = -np.inf
         d_min = np.inf
         for k in range(4):
-            rel = _wrap(np.arctan2(corners[c, k, 1], corners[c, k, 0]) - cb)
+            rel = wrap_angle(np.arctan2(corners[c, k, 1], corners[c, k, 0]) - cb)
             r_min = min(r_min, rel)
             r_max = max(r_max, rel)
             d_min = min(d_min, np.hypot(corners[c, k, 0], corners[c, k, 1]))
@@ -112,7 +104,7 @@ def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_lab
             threshold = near[c] - scan_margin
             hides = 0
             for i in range(k):
-                if r_scan[i] < threshold and abs(_wrap(b_scan[i] - centre)) <= half:
+                if r_scan[i] < threshold and abs(wrap_angle(b_scan[i] - centre)) <= half:
                     hides += 1
             frac = min(max(hides * resolution / max(hi[c] - lo[c], resolution), 0.0), 1.0)
             hidden[c] = max(hidden[c], frac)

@@ -13,15 +13,14 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
-
-TWO_PI = 2.0 * math.pi
+from tracker.compiled.geometry import wrap_angle
 
 
 @njit
 def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
     """``Wrapping.wrap`` of one vector in place."""
     for a in angles:
-        x[a] = math.pi - ((math.pi - x[a]) % TWO_PI)
+        x[a] = wrap_angle(x[a])
     if period_index >= 0:
         x[period_index] = x[period_index] % period
 
@@ -30,7 +29,7 @@ def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
 def _residual(x, angles, period_index, period):  # pragma: no cover - compiled
     """``Wrapping.residual`` of one difference vector in place."""
     for a in angles:
-        x[a] = math.pi - ((math.pi - x[a]) % TWO_PI)
+        x[a] = wrap_angle(x[a])
     if period_index >= 0:
         x[period_index] -= period * math.floor(x[period_index] / period + 0.5)
 
