@@ -77,6 +77,43 @@ def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(long_width):
         assert covs[0, 5, 5] == pytest.approx((cfg.long_length_std if long else cfg.length_std) ** 2)
 
 
+def _sparse_cluster(road: Road, ahead: float, n_car: float):
+    """One lidar point on the rear corner of a 4.8 x 2 m car ``ahead`` m ahead of the ego (which
+    drives in the middle lane), the rest of it hidden: the point, the ego, the car's centre (s, n)."""
+    ego_s = 40.0
+    ego_xy = road.to_cartesian(ego_s, road.lane_centers[1])
+    ego_yaw = float(road.heading(ego_s))
+    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 20.0)
+    s_car = ego_s + ahead
+    corners = to_local(rectangle_corners(road.to_cartesian(s_car, n_car), np.array(float(road.heading(s_car))),
+                                         np.array(4.8), np.array(2.0)), ego_xy, ego_yaw)
+    nearest = corners[np.argmin(np.hypot(corners[:, 0], corners[:, 1]))]
+    return nearest[None, :], ego, (s_car, n_car)
+
+
+def test_a_far_cluster_of_one_point_with_a_radar_detection_seeds_a_birth_along_the_road(road):
+    """One point 85 m ahead (a car mostly hidden behind another) and a radar detection on it: a birth in
+    the road's direction, its centre half a car length beyond the point, the radar's speed, a wide
+    spread along the road. Without the radar, nearer than ``sparse_min_range``, or with
+    ``min_cluster_points_radar=None``: no birth (single lidar points are clutter)."""
+    point, ego, (s_car, n_car) = _sparse_cluster(road, 85.0, road.lane_centers[2])
+    theta = float(road.heading(s_car)) - ego.yaw
+    radar_velocity = 18.0 * np.array([np.cos(theta), np.sin(theta)])
+    cfg = BirthConfig()
+    means, covs = cluster_births([point], [radar_velocity], ego, road, cfg)
+    assert means.shape == (1, 7)
+    s, n, v, xi, _, length, width = means[0]
+    assert s == pytest.approx(s_car, abs=0.3)  # the point is the rear corner: 2.4 m behind the centre
+    assert abs(n - n_car) <= 1.0 + 1e-6  # the point lies on the rear, within half a width of the centre
+    assert xi == 0.0 and v == pytest.approx(18.0, abs=0.01)  # the radar velocity along the road
+    assert (length, width) == (cfg.length, cfg.width)
+    assert covs[0, 0, 0] == pytest.approx((0.5 * cfg.length) ** 2)
+    assert len(cluster_births([point], [None], ego, road, cfg)[0]) == 0
+    assert len(cluster_births([point], [radar_velocity], ego, road, BirthConfig(min_cluster_points_radar=None))[0]) == 0
+    near, ego, _ = _sparse_cluster(road, cfg.sparse_min_range - 10.0, road.lane_centers[2])
+    assert len(cluster_births([near], [radar_velocity], ego, road, cfg)[0]) == 0
+
+
 def test_cartesian_births_match_the_exact_conversion(road):
     means = np.array([[30.0, 3.5, 20.0, 0.1, 0.02, 4.8, 2.0]])
     covs = np.diag([1e-6] * 7)[None]

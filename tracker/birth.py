@@ -54,6 +54,20 @@ def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, 
     return means, birth_covariance(config, len(ss))
 
 
+SPARSE_POINTS = 3
+"""A cluster of fewer points than this shows no orientation (``cluster_births``)."""
+
+
+def _fewest_points(config: BirthConfig, points: np.ndarray, fused: bool) -> int:
+    """The fewest points an unexplained cluster ``points (N, 2)`` (E, m) needs to seed a birth:
+    ``min_cluster_points``, or ``min_cluster_points_radar`` when a radar detection joined it (and that
+    is set) and it lies at least ``sparse_min_range`` from the ego."""
+    if fused and config.min_cluster_points_radar is not None and len(points):
+        if float(np.min(np.hypot(points[:, 0], points[:, 1]))) >= config.sparse_min_range:
+            return min(config.min_cluster_points, config.min_cluster_points_radar)
+    return config.min_cluster_points
+
+
 def cluster_births(
     clusters: list[np.ndarray],
     velocities: list[np.ndarray | None],
@@ -63,10 +77,12 @@ def cluster_births(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
     optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
-    ``config.min_cluster_points`` points are skipped."""
-    means, stds, length_stds = [], [], []
+    ``config.min_cluster_points`` points are skipped, unless a radar detection joined them, they lie
+    ``config.sparse_min_range`` or farther, and they have ``config.min_cluster_points_radar``; a cluster of one or two points takes the road's
+    direction as its heading."""
+    means, stds, length_stds, sparse = [], [], [], []
     for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
-        if len(pts) < config.min_cluster_points:
+        if len(pts) < _fewest_points(config, pts, vel is not None):
             continue
         fit = fit_rectangle(pts)
         # the fit's axes are ambiguous by quarter turns: take the one closest to the road direction
@@ -74,11 +90,17 @@ def cluster_births(
         probe = to_global(fit.center[None, :], (ego.x, ego.y), ego.yaw)[0]
         s_fit, _ = road.to_frenet(probe)
         theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
-        turns = np.arange(4)
-        xi_k = wrap_angle(fit.heading + ego.yaw + 0.5 * np.pi * turns - theta_fit)
-        k = int(np.argmin(np.abs(xi_k)))
-        psi_e = fit.heading + 0.5 * np.pi * k
-        fit_len, fit_wid = (fit.length, fit.width) if k % 2 == 0 else (fit.width, fit.length)
+        if len(pts) < SPARSE_POINTS:  # no orientation in one or two points: the road's direction
+            psi_e = theta_fit - ego.yaw
+            axis = np.array([np.cos(psi_e), np.sin(psi_e)])
+            proj = (pts - fit.center) @ np.column_stack([axis, [-axis[1], axis[0]]])
+            fit_len, fit_wid = np.ptp(proj, axis=0)
+        else:
+            turns = np.arange(4)
+            xi_k = wrap_angle(fit.heading + ego.yaw + 0.5 * np.pi * turns - theta_fit)
+            k = int(np.argmin(np.abs(xi_k)))
+            psi_e = fit.heading + 0.5 * np.pi * k
+            fit_len, fit_wid = (fit.length, fit.width) if k % 2 == 0 else (fit.width, fit.length)
         axis = np.array([np.cos(psi_e), np.sin(psi_e)])
         lateral = np.array([-axis[1], axis[0]])
         length, width = max(fit_len, config.length), max(fit_wid, config.width)
@@ -86,13 +108,14 @@ def cluster_births(
         if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen
             length = config.long_length
         centre = fit.center.copy()
-        for direction, missing in ((axis, length - fit_len), (lateral, width - fit_wid)):
+        unseen = ((axis, length - fit_len),) if len(pts) < SPARSE_POINTS else ((axis, length - fit_len), (lateral, width - fit_wid))
+        for direction, missing in unseen:  # a sparse cluster's points most likely lie across a rear or front
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
             centre += away * 0.5 * missing * direction
         centre_g = to_global(centre[None, :], (ego.x, ego.y), ego.yaw)[0]
         s, n = road.to_frenet(centre_g, s_hint=s_fit)
         _, theta, _ = road.frame(np.array([s]), extrapolate=True)
-        xi = float(wrap_angle(psi_e + ego.yaw - theta[0]))
+        xi = 0.0 if len(pts) < SPARSE_POINTS else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
         else:
@@ -100,12 +123,15 @@ def cluster_births(
         means.append([s, n, speed, xi, 0.0, length, width])
         stds.append(speed_std if speed_std is not None else 1.0)
         length_stds.append(config.long_length_std if long else config.length_std)
+        sparse.append(len(pts) < SPARSE_POINTS)
     if not means:
         return np.zeros((0, 7)), np.zeros((0, 7, 7))
     covs = birth_covariance(config, len(means))
     covs[:, 2, 2] = np.array(stds) ** 2
     covs[:, 5, 5] = np.array(length_stds) ** 2
     covs[:, 0, 0] = covs[:, 1, 1] = 0.5**2  # the fit locates a cluster's rectangle to a few decimetres
+    # one or two points may lie on the rear or on a side: the centre is known to about half a length
+    covs[np.array(sparse), 0, 0] = (0.5 * config.length) ** 2
     return np.array(means), covs
 
 

@@ -331,6 +331,16 @@ class BirthConfig:
       ``heading_rate_std`` (rad/s): prior spreads of a birth component;
     - ``min_cluster_points``: an unexplained cluster needs at least this many points to seed a birth
       (single clutter points do not);
+    - ``min_cluster_points_radar`` (None: as ``min_cluster_points``): the fewest points of an
+      unexplained cluster that a radar detection joined (fused tracking only). A car 80-100 m away
+      shows the lidar one or two points for seconds; the radar's detection on it says that it is an
+      object that moves (or at least reflects as a vehicle) and gives its speed. A cluster of fewer
+      than three points shows no orientation: such a birth takes the road's direction, its centre half
+      a prior length beyond the points, away from the sensor;
+    - ``sparse_min_range`` (m): ``min_cluster_points_radar`` applies only to clusters this far or
+      farther from the ego (every point): near the range limit, where vehicles enter the field of view
+      with few points. Nearer, one or two points are a vehicle almost hidden behind another, and they
+      do not fix where along it the centre lies (a bus's corner is not a car's);
     - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used;
     - ``long_width`` (m, None: off), ``long_length`` (m), ``long_length_std`` (m): the long-vehicle
       prior. A vehicle at least ``long_width`` wide is a truck or a bus (cars and vans are at most
@@ -357,6 +367,8 @@ class BirthConfig:
     heading_std: float = 0.1
     heading_rate_std: float = 0.05
     min_cluster_points: int = 3
+    min_cluster_points_radar: int | None = 1
+    sparse_min_range: float = 70.0
     road: bool = True
     long_width: float | None = 2.35
     long_length: float = 12.0
@@ -366,6 +378,9 @@ class BirthConfig:
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
+        if self.min_cluster_points_radar is not None:
+            _check_int("BirthConfig", "min_cluster_points_radar", self.min_cluster_points_radar, 1)
+        _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
         if self.long_width is not None:
             _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
