@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.clustering import associate_radar, distance_partition, points_in_rectangles, split_across
+from tracker.clustering import associate_radar, distance_partition, occluded_ends, points_in_rectangles, split_across
 
 
 def test_points_in_rectangles_geometry():
@@ -108,3 +108,32 @@ def test_split_across_cuts_wide_groups_at_their_largest_lateral_gap():
     both = split_across(np.r_[n, n][order], np.r_[one + 7, one + 3][order], 3.5, 0.5)
     assert both.tolist() == np.r_[[2] * 7 + [3] * 3, [0] * 7 + [1] * 3][order].tolist()
     assert split_across(np.zeros(0), np.zeros(0, dtype=int), 3.0, 0.5).tolist() == []
+
+
+def test_occluded_ends_flags_the_end_next_to_a_nearer_return():
+    """Rays every 0.2 deg. A rear 60 m ahead seen over bearings 0.5-2 deg, with an object 20 m ahead
+    returning just below 0.5 deg: its low end borders that object's shadow, its high end borders
+    nothing (free). A farther object just beyond the high end (the background) does not occlude; nor
+    does a return more than the window away, or one less than the margin nearer."""
+    res = np.radians(0.2)
+    bearings = np.radians(np.arange(0.5, 2.01, 0.2))
+    rear = 60.0 * np.column_stack([np.cos(bearings), np.sin(bearings)])
+    def at(r, deg):
+        return np.array([[r * np.cos(np.radians(deg)), r * np.sin(np.radians(deg))]])
+    occluder = np.vstack([at(20.0, d) for d in (-1.0, -0.7, -0.3, 0.3)])
+    scan = np.vstack([rear, occluder, at(80.0, 2.2)])
+    np.testing.assert_array_equal(occluded_ends([rear], scan, 2.5 * res, 0.5), [[True, False]])
+    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(80.0, 0.3), at(20.0, 2.8)]), 2.5 * res, 0.5),
+                                  [[False, False]])  # farther below, nearer but beyond the window above
+    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(59.8, 2.2)]), 2.5 * res, 0.5), [[False, False]])
+    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(55.0, 2.2)]), 2.5 * res, 0.5), [[False, True]])
+    # a rear straddling the bearing seam behind the sensor (+-180 deg): its ends are found across it
+    seam = 60.0 * np.column_stack([np.cos(np.radians(np.arange(179.1, 181.0, 0.2))), np.sin(np.radians(np.arange(179.1, 181.0, 0.2)))])
+    np.testing.assert_array_equal(occluded_ends([seam], np.vstack([seam, at(20.0, -178.8)]), 2.5 * res, 0.5), [[False, True]])
+    np.testing.assert_array_equal(occluded_ends([seam], np.vstack([seam, at(20.0, 178.8)]), 2.5 * res, 0.5), [[True, False]])
+    # within range_margin of the lidar's range an end may be the range's cut, not the vehicle's end
+    grazing = np.array([[90.0, 40.0], [93.0, 35.0]])  # 98.5 m and 99.4 m away
+    np.testing.assert_array_equal(occluded_ends([grazing], grazing, 2.5 * res, 0.5, 100.0, 5.0), [[True, True]])
+    np.testing.assert_array_equal(occluded_ends([grazing], grazing, 2.5 * res, 0.5, 100.0, 1.0), [[True, False]])
+    assert occluded_ends([], scan, 2.5 * res, 0.5).shape == (0, 2)
+    assert not occluded_ends([rear], np.zeros((0, 2)), 2.5 * res, 0.5).any()

@@ -83,13 +83,18 @@ def test_compiled_structure_equals_numpy(radar_rows, monkeypatch):
     config = MeasurementConfig(radar_rows=radar_rows)
     pairs = _scene_pairs(monkeypatch)
     assert len(pairs) >= 20
+    assert any(b.occluded_end is not None and b.occluded_end.any() for b, _, _ in pairs)  # the scene has shadows
     for batch, clu, corners in pairs:
+        rng = np.random.default_rng(len(clu))
         fused = dataclasses.replace(batch, fused=np.arange(len(batch.fused)) % 2 == 0,
-                                    velocity=np.random.default_rng(len(clu)).normal(size=batch.velocity.shape))
-        for use_radar in (True, False):
-            ref = build_structure(fused, clu, corners, config, use_radar, compiled=False)
-            got = build_structure(fused, clu, corners, config, use_radar, compiled=True)
-            assert_fields_equal(ref, got)
+                                    velocity=rng.normal(size=batch.velocity.shape))
+        # the recorded shadow flags, random ones (every combination of the two ends), and none
+        for occluded in (batch.occluded_end, rng.random((len(batch.points), 2)) < 0.4, None):
+            variant = dataclasses.replace(fused, occluded_end=occluded)
+            for use_radar in (True, False):
+                ref = build_structure(variant, clu, corners, config, use_radar, compiled=False)
+                got = build_structure(variant, clu, corners, config, use_radar, compiled=True)
+                assert_fields_equal(ref, got)
 
 
 def test_switch(monkeypatch):

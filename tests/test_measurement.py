@@ -10,6 +10,8 @@ import pytest
 from tracker import Road
 from tracker.config import MeasurementConfig, TrackerConfig
 from tracker.measurement import (
+    CENTRE,
+    FROM_A,
     FROM_B,
     FULL,
     ClusterBatch,
@@ -161,6 +163,32 @@ def test_partial_visibility_keeps_the_length_from_shrinking() -> None:
         lengths[threshold] = mean[5]
     assert abs(lengths[0.6] - 4.7) < 0.1
     assert lengths[0.0] < 4.7 - 1.0
+
+
+def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> None:
+    """A car 30 m straight ahead shows its rear, traversed from K3 (right, the lower bearing) to K2. When
+    the rear's left part lies in a nearer object's shadow (``ClusterBatch.occluded_end[:, 1]``), the
+    rear is partially visible however much of it shows, and the visible right end anchors it at K3
+    (``FROM_A``), even when the prediction sits 0.6 m too far right and the nearest-anchor rule picks
+    the centre; mirrored for a shadow on the right (``FROM_B``). Without the flags: the rules before."""
+    truth = np.array([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9])
+    k = corners_of(truth)
+    predicted = corners_of(truth + np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0, 0.0]))[None]
+    b3, b2 = bearing(k[3]), bearing(k[2])
+    for share, first_end in ((0.35, True), (0.35, False), (0.97, True)):
+        lo, hi = (b3, b3 + share * (b2 - b3)) if first_end else (b2 - share * (b2 - b3), b2)
+        pts, hit = rectangle_scan(k, np.linspace(lo, hi, 12))
+        assert hit.all()
+        batch = ClusterBatch.of([prepare_cluster(pts, EXACT)])
+        shadow = np.array([[not first_end, first_end]])  # the end away from the visible one is occluded
+        flagged = build_structure(dataclasses.replace(batch, occluded_end=shadow), np.array([0]), predicted, EXACT)
+        plain = build_structure(batch, np.array([0]), predicted, EXACT)
+        assert flagged.sides[0, 0] == plain.sides[0, 0] == 2 and not flagged.two_sided[0]
+        assert flagged.mode[0, 0] == (FROM_A if first_end else FROM_B)
+        if share > 0.9:
+            assert plain.mode[0, 0] == FULL  # taken as the whole rear: stretched over it
+        elif first_end:
+            assert plain.mode[0, 0] == CENTRE  # the 0.6 m error made the centre the nearest anchor
 
 
 def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:

@@ -77,6 +77,9 @@ def test_prepare_batch_equals_the_batch_of_the_prepared_clusters(seed: int) -> N
     got = prepare_batch(clusters, MeasurementConfig(), velocities)
     want = ClusterBatch.of([prepare_cluster(c, MeasurementConfig(), v) for c, v in zip(clusters, velocities)])
     for name in want.__dataclass_fields__:
+        if name == "occluded_end":  # set by the tracker from the whole scan, not by preparation
+            assert got.occluded_end is None and want.occluded_end is None
+            continue
         np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9, err_msg=name)
     # a cluster with a non-finite point takes the reference path for the whole batch
     clusters[3] = np.vstack([clusters[3], [[np.nan, 1.0]]])

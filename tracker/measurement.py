@@ -458,7 +458,8 @@ class ClusterBatch:
     """Clusters padded to a common size ``M`` for batched pairs: ``points (K, M, 2)``, ``valid (K, M)``,
     ``part (K, M)``, ``proj (K, 2, M)``, ``chord_start``, ``chord_end``, ``chord_dir (K, 3, 2)``,
     ``chord_len (K, 3)``, ``end_margin (K, 3, 2)`` (slots as in ``Cluster``), ``two_sided``, ``single``, ``fused (K,)``,
-    ``velocity (K, 2)``, ``centroid (K, 2)``."""
+    ``velocity (K, 2)``, ``centroid (K, 2)``; ``occluded_end (K, 2)`` (None: no end occluded) whether the
+    first / last point in bearing borders another object's shadow (``tracker.clustering.occluded_ends``)."""
 
     points: np.ndarray
     valid: np.ndarray
@@ -474,6 +475,7 @@ class ClusterBatch:
     fused: np.ndarray
     velocity: np.ndarray
     centroid: np.ndarray
+    occluded_end: np.ndarray | None = None
 
     @classmethod
     def of(cls, clusters: list[Cluster]) -> ClusterBatch:
@@ -593,6 +595,9 @@ def build_structure(
     covered = chord_len + margin.sum(axis=2)
     alpha = covered / np.maximum(side_len[rows[:, None], sides], 1e-12)
     partial = alpha <= config.partial_visibility
+    # a part with an end in another object's shadow goes on behind it: partially visible
+    occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
+    partial |= ~two[:, None] & occ.any(axis=1, keepdims=True)  # one-sided only: a corner anchors the two-sided
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
     q_end = mean_corners[rows, end_c[:, 0]]
@@ -600,6 +605,8 @@ def build_structure(
     d_b = np.linalg.norm(batch.chord_end[ci, 0] - q_end, axis=-1)
     d_c = np.linalg.norm(batch.centroid[ci] - 0.5 * (p_start + q_end), axis=-1)
     anchor = np.array([FROM_A, FROM_B, CENTRE])[np.argmin(np.stack([d_a, d_b, d_c], axis=1), axis=1)]
+    # ... unless exactly one end is in a shadow: the other is the vehicle's corner
+    anchor = np.where(occ[:, 1] & ~occ[:, 0], FROM_A, np.where(occ[:, 0] & ~occ[:, 1], FROM_B, anchor))
     mode_one = np.where(single, FIXED, np.where(partial[:, 0], anchor, FULL))
     mode = np.stack([
         np.where(two, np.where(partial[:, 0], FROM_B, FULL), mode_one),  # first part: anchored at the corner
@@ -683,7 +690,9 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
     fields = structure_kernel(
         c(batch.points), c(batch.valid), c(batch.part), c(batch.proj), c(batch.chord_start), c(batch.chord_end),
         c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.two_sided), c(batch.single), c(batch.fused),
-        c(batch.velocity), c(batch.centroid), ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
+        c(batch.velocity), c(batch.centroid),
+        c(batch.occluded_end if batch.occluded_end is not None else np.zeros((len(batch.points), 2), dtype=bool)),
+        ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
         float(config.partial_visibility), float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2,
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD,
     )

@@ -48,6 +48,7 @@ The Cartesian variant (``coordinates="cartesian"``) runs the same machinery on
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 
@@ -57,7 +58,8 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import cluster_velocities, dense_components, distance_partition, points_in_rectangles, split_across
+from tracker.clustering import (cluster_velocities, dense_components, distance_partition, occluded_ends, points_in_rectangles,
+                                split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
@@ -85,6 +87,7 @@ class Tracker:
     ``clusters_fused``, ``clusters_too_small``, ``clusters_split`` (parts added by cutting clusters wider
     across the road than one vehicle, ``clustering.split_width``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
+    ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
@@ -342,6 +345,13 @@ class Tracker:
                 used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
                 prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
                                             [velocities[k] if cfg.use_radar else None for k in used])
+                if cfg.measurement.shadow_window is not None:
+                    occluded = occluded_ends([clusters[k] for k in used], self._scan,
+                                             cfg.measurement.shadow_window * cfg.detection.lidar_resolution,
+                                             cfg.measurement.shadow_margin, cfg.detection.lidar_range,
+                                             cfg.measurement.shadow_range_margin)
+                    self.stats["cluster_ends_occluded"] += int(occluded.sum())
+                    prepared = dataclasses.replace(prepared, occluded_end=occluded)
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
                 # a track's own cluster (its points lie in its predicted rectangle) is associated by
