@@ -170,7 +170,8 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
     the rear's left part lies in a nearer object's shadow (``ClusterBatch.occluded_end[:, 1]``), the
     rear is partially visible however much of it shows, and the visible right end anchors it at K3
     (``FROM_A``), even when the prediction sits 0.6 m too far right and the nearest-anchor rule picks
-    the centre; mirrored for a shadow on the right (``FROM_B``). Without the flags: the rules before."""
+    the centre; mirrored for a shadow on the right (``FROM_B``). Without the flags, with a blunt free
+    end or with both ends in shadows: the rules before."""
     truth = np.array([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9])
     k = corners_of(truth)
     predicted = corners_of(truth + np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0, 0.0]))[None]
@@ -189,6 +190,13 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
             assert plain.mode[0, 0] == FULL  # taken as the whole rear: stretched over it
         elif first_end:
             assert plain.mode[0, 0] == CENTRE  # the 0.6 m error made the centre the nearest anchor
+        # a blunt free end (half a ray gap wider than shadow_free_gap: a far or grazing side) is no
+        # corner to anchor at; nor does a shadow at both ends say where the side ends: the rules before
+        blunt = dataclasses.replace(batch, occluded_end=shadow, end_margin=np.full_like(batch.end_margin, 0.5))
+        assert build_structure(blunt, np.array([0]), predicted, EXACT).mode[0, 0] == \
+            build_structure(dataclasses.replace(blunt, occluded_end=None), np.array([0]), predicted, EXACT).mode[0, 0]
+        both = build_structure(dataclasses.replace(batch, occluded_end=np.array([[True, True]])), np.array([0]), predicted, EXACT)
+        assert both.mode[0, 0] == plain.mode[0, 0]
 
 
 def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:

@@ -182,11 +182,8 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, speed, accel=accel)], radar=True)
     for window, same in ((5.0, True), (0.0, False)):
         config = TrackerConfig()  # constant speed (with the acceleration state B's track is not lost at all)
-        # without the shadow-aware anchoring (with it the coasting B of the second case is not lost at
-        # all: below), so that B is lost and comes back
         config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=window),
-                                     motion=dataclasses.replace(config.motion, acceleration=False),
-                                     measurement=dataclasses.replace(config.measurement, shadow_window=None))
+                                     motion=dataclasses.replace(config.motion, acceleration=False))
         frames, tracker = run(scene, config, 9.0)
         labels = []
         for k in range(len(frames)):
@@ -197,16 +194,6 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
         assert None in labels[int(2.0 / DT): int(8.5 / DT)]  # B was lost in between
         assert (len(set(seen)) == 1) == same, (window, sorted(set(seen)))
         assert (tracker.stats["labels_reidentified"] >= 1) == same
-    if accel == 0.0:
-        # with MeasurementConfig.shadow_window (default) B's partly hidden side anchors the track at its
-        # visible end while the van passes: one label, within 1.5 m in every frame (was 48 frames lost)
-        config = dataclasses.replace(TrackerConfig(), motion=dataclasses.replace(TrackerConfig().motion, acceleration=False))
-        frames, _ = run(scene, config, 9.0)
-        labels = []
-        for k in range(len(frames)):
-            tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
-            labels.append(tr.label if d < 1.5 else None)
-        assert None not in labels[int(2.0 / DT): int(8.5 / DT)] and len(set(labels[int(2.0 / DT):])) == 1
 
 
 @pytest.mark.parametrize("acceleration", [False, True], ids=["constant-speed", "acceleration-state"])
@@ -218,11 +205,8 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=1.0)], radar=True)
     config = TrackerConfig()
-    # without the shadow-aware anchoring: with it and the acceleration state (off by default) B's track
-    # lags 2 m and misses one frame (4.4 s) as B comes out behind the van (issue 10's note, session 8)
     config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=acceleration,
-                                                                    acceleration_time=6.0),
-                                 measurement=dataclasses.replace(config.measurement, shadow_window=None))
+                                                                    acceleration_time=6.0))
     frames, tracker = run(scene, config, 8.0)
     assert tracker.mixture.means.shape[1] == (8 if acceleration else 7)
     assert all(tr.mean.shape == (7,) and tr.cov.shape == (7, 7) for tracks in frames for tr in tracks)

@@ -254,8 +254,11 @@ class MeasurementConfig:
       rays, within this many rays beyond it, return something more than ``shadow_margin`` nearer borders
       another object's shadow (``tracker.clustering.occluded_ends``): the side goes on behind it, so the
       extreme point is not the side's end. Such a side is partially visible whatever its extent, and a
-      one-sided cluster with one occluded and one free end is anchored at the free end (the vehicle's
-      corner) instead of the end or centre nearest the prediction. Without it (the model before) a car
+      one-sided cluster with one occluded end and a sharp free end (its end-gap margin, half the
+      expected ray gap there, at most ``shadow_free_gap`` m) is partially visible and anchored at the
+      free end (the vehicle's corner) instead of the end or centre nearest the prediction. A far or
+      grazing side, whose next ray skips metres along it, keeps the model before (a bus's side seen at
+      80 m anchored at such an end was held at a car's length for 5 s: mixed-traffic, issue 10). Without it (the model before) a car
       whose inner half is hidden behind another had its visible outer half taken for the middle of its
       rear, and the track drifted half a width outward (issue 10, occlusion: 0.5-1 m).
     - ``shadow_range_margin`` (m): an end within this of ``DetectionConfig.lidar_range`` counts as
@@ -278,6 +281,7 @@ class MeasurementConfig:
     shadow_window: float | None = 2.5
     shadow_margin: float = 0.5
     shadow_range_margin: float = 5.0
+    shadow_free_gap: float = 0.3
 
     def __post_init__(self) -> None:
         _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
@@ -289,6 +293,7 @@ class MeasurementConfig:
             _check("MeasurementConfig", "shadow_window", self.shadow_window, low=0.0, low_open=True)
         _check("MeasurementConfig", "shadow_margin", self.shadow_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_range_margin", self.shadow_range_margin, low=0.0, unit="m")
+        _check("MeasurementConfig", "shadow_free_gap", self.shadow_free_gap, low=0.0, unit="m")
         _check_int("MeasurementConfig", "max_cluster_points", self.max_cluster_points, 3)
         _check_int("MeasurementConfig", "min_points_two_sided", self.min_points_two_sided, 3)
         if not isinstance(self.end_gap_correction, bool):

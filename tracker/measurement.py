@@ -596,8 +596,12 @@ def build_structure(
     alpha = covered / np.maximum(side_len[rows[:, None], sides], 1e-12)
     partial = alpha <= config.partial_visibility
     # a part with an end in another object's shadow goes on behind it: partially visible
+    # one-sided only (a corner anchors the two-sided), and only when the other end is sharp (its
+    # end-gap margin at most shadow_free_gap: not a far or grazing side whose next ray skips metres)
     occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
-    partial |= ~two[:, None] & occ.any(axis=1, keepdims=True)  # one-sided only: a corner anchors the two-sided
+    sharp = batch.end_margin[ci, 0] <= config.shadow_free_gap  # (P, 2 ends) of the one-sided chord
+    shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
+    partial |= shadowed[:, None]
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
     q_end = mean_corners[rows, end_c[:, 0]]
@@ -606,7 +610,7 @@ def build_structure(
     d_c = np.linalg.norm(batch.centroid[ci] - 0.5 * (p_start + q_end), axis=-1)
     anchor = np.array([FROM_A, FROM_B, CENTRE])[np.argmin(np.stack([d_a, d_b, d_c], axis=1), axis=1)]
     # ... unless exactly one end is in a shadow: the other is the vehicle's corner
-    anchor = np.where(occ[:, 1] & ~occ[:, 0], FROM_A, np.where(occ[:, 0] & ~occ[:, 1], FROM_B, anchor))
+    anchor = np.where(shadowed, np.where(occ[:, 1], FROM_A, FROM_B), anchor)
     mode_one = np.where(single, FIXED, np.where(partial[:, 0], anchor, FULL))
     mode = np.stack([
         np.where(two, np.where(partial[:, 0], FROM_B, FULL), mode_one),  # first part: anchored at the corner
@@ -693,7 +697,8 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         c(batch.velocity), c(batch.centroid),
         c(batch.occluded_end if batch.occluded_end is not None else np.zeros((len(batch.points), 2), dtype=bool)),
         ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
-        float(config.partial_visibility), float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2,
+        float(config.partial_visibility), float(config.shadow_free_gap), float(config.lidar_sigma) ** 2,
+        float(config.radar_velocity_sigma) ** 2,
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD,
     )
     return Structure(*fields)

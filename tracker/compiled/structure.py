@@ -29,7 +29,7 @@ def _sign(x: float) -> float:
 @njit
 def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end, chord_dir, chord_len_in,
                      end_margin, two_in, single_in, fused, velocity, centroid, occluded, ci, corners, min_apparent,
-                     partial_visibility, lidar_var, radar_var, use_radar, speed_row, min_chord):
+                     partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``."""
     sx = _SX
     sy = _SY
@@ -129,12 +129,15 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         ln1 = chord_len_in[c, slot1]
         partial0 = (ln0 + end_margin[c, slot0, 0] + end_margin[c, slot0, 1]) / max(side_len[side0], 1e-12) <= partial_visibility
         partial1 = (ln1 + end_margin[c, slot1, 0] + end_margin[c, slot1, 1]) / max(side_len[side1], 1e-12) <= partial_visibility
-        # a part with an end in another object's shadow goes on behind it: partially visible
+        # a one-sided part with exactly one end in another object's shadow and a sharp other end goes on
+        # behind it: partially visible, anchored at the sharp end (a corner anchors the two-sided)
         occ_lo = occluded[c, 0]
         occ_hi = occluded[c, 1]
-        if not two:  # one-sided only: a corner anchors the two-sided
-            partial0 = partial0 or occ_lo or occ_hi
-            partial1 = partial1 or occ_lo or occ_hi
+        shadowed = (not two) and ((occ_hi and not occ_lo and end_margin[c, 0, 0] <= free_gap)
+                                  or (occ_lo and not occ_hi and end_margin[c, 0, 1] <= free_gap))
+        if shadowed:
+            partial0 = True
+            partial1 = True
         # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
         ps = (side0 + 1) % 4
         pe = side0
@@ -152,10 +155,8 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             anchor = FROM_B
         if d_c < min(d_a, d_b):
             anchor = CENTRE
-        if occ_hi and not occ_lo:  # exactly one end in a shadow: the other is the vehicle's corner
-            anchor = FROM_A
-        elif occ_lo and not occ_hi:
-            anchor = FROM_B
+        if shadowed:  # the sharp end is the vehicle's corner
+            anchor = FROM_A if occ_hi else FROM_B
         mode_one = FIXED if single else (anchor if partial0 else FULL)
         mode[p, 0] = (FROM_B if partial0 else FULL) if two else mode_one
         mode[p, 1] = (FROM_A if partial1 else FULL) if two else mode_one
