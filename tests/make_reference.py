@@ -46,13 +46,15 @@ def run_reference() -> dict[str, np.ndarray]:
     rng = np.random.default_rng(2026)
     # the reference's model as it was made: a single extraction threshold (before
     # ReductionConfig.keep_threshold), no radar-backed sparse births (BirthConfig.min_cluster_points_radar)
-    # and no shadow-aware anchoring (MeasurementConfig.shadow_window): intended changes of the model,
+    # no shadow-aware anchoring (MeasurementConfig.shadow_window) and constant speed (MotionConfig.
+    # acceleration, on by default since session 8): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None),
+        motion=dataclasses.replace(base.motion, acceleration=False),
     )
     tracker = Tracker(scene.road, config)
     frame_idx, labels, weights, means, covs = [], [], [], [], []

@@ -8,7 +8,7 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
 
       s' = v cos(xi) / (1 - kappa(s) n),   n' = v sin(xi),   v' = 0,   xi' = xi_dot,   xi_dot' = 0
 
-  with the acceleration state (``MotionConfig.acceleration``, off by default) an eighth, internal state ``a``:
+  with the acceleration state (``MotionConfig.acceleration``, on by default) an eighth, internal state ``a``:
   ``v' = a``, ``a' = -a / acceleration_time`` (Singer);
   plus the road-following prior (``MotionConfig.heading_decay``, ``yaw_rate_decay``): ``xi' = xi_dot -
   heading_decay (xi + beta)``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0 give the constant turn above),

@@ -159,8 +159,8 @@ class Tracker:
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
-        self._updated_labels = set()
-        self._predict(dt)
+        updated_before, self._updated_labels = self._updated_labels, set()
+        self._predict(dt, updated_before)
         points, scanned = self._preprocess(frame)
         if not scanned:
             # no lidar points at all (a blackout): predict only; no road births, which no scan could
@@ -179,8 +179,22 @@ class Tracker:
         return tracks
 
     # -- steps ------------------------------------------------------------------------------------
-    def _predict(self, dt: float) -> None:
+    def _predict(self, dt: float, updated: set[int] | None = None) -> None:
+        """Predict over ``dt``; with the acceleration state and ``MotionConfig.coast_acceleration_time``,
+        the components of labels that no cluster updated in the last frame (``updated``) first have
+        their acceleration relaxed by ``exp(-dt / coast_acceleration_time)`` (mean, and the covariance's
+        row and column: the linear map ``a -> f a``)."""
         mix = self.mixture
+        coast = self.config.motion.coast_acceleration_time
+        if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
+            idle = np.array([int(lab) not in updated for lab in mix.labels.tolist()], dtype=bool)
+            if idle.any():
+                f = math.exp(-dt / coast)
+                means, covs = mix.means.copy(), mix.covs.copy()
+                means[idle, 7] *= f
+                covs[idle, 7, :] *= f
+                covs[idle, :, 7] *= f
+                mix = Mixture(mix.weights, means, covs, mix.labels)
         pending_m, pending_p = self._pending
         if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
             labels = self._new_labels(len(pending_m))
