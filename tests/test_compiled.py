@@ -331,6 +331,34 @@ def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
 
 
 @pytest.mark.parametrize("seed", range(3))
+def test_compiled_occluded_ends_equal_numpy(seed, monkeypatch):
+    """Clusters of 1-40 points scattered around the sensor (some behind it, across the bearing seam,
+    some near the range limit) in a scan of their own points and a few hundred others; windows of 1-5
+    rays, and the range cut on and off: the same flags, and some of each."""
+    from tracker.clustering import occluded_ends
+
+    rng = np.random.default_rng(seed)
+    flags = []
+    for _ in range(60):
+        clusters = []
+        for _ in range(int(rng.integers(1, 12))):
+            r, b = rng.uniform(5.0, 100.0), rng.uniform(-np.pi, np.pi)
+            centre = r * np.array([np.cos(b), np.sin(b)])
+            clusters.append(centre + rng.normal(0.0, 1.0, (int(rng.integers(1, 40)), 2)))
+        scan = np.concatenate(clusters + [rng.uniform(-100.0, 100.0, (int(rng.integers(0, 400)), 2))])
+        for window in np.radians([0.2, 0.5, 1.0]):
+            for max_range, range_margin in ((np.inf, 0.0), (100.0, 5.0)):
+                monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+                ref = occluded_ends(clusters, scan, window, 0.5, max_range, range_margin)
+                monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+                got = occluded_ends(clusters, scan, window, 0.5, max_range, range_margin)
+                np.testing.assert_array_equal(got, ref)
+                flags.append(ref)
+    flags = np.concatenate(flags)
+    assert flags.any() and (~flags).any() and (flags[:, 0] != flags[:, 1]).any()
+
+
+@pytest.mark.parametrize("seed", range(3))
 def test_compiled_radar_association_equals_numpy(seed, monkeypatch):
     """Clusters (some empty) and detections scattered so that gates overlap and many pairs compete."""
     from tracker.clustering import associate_radar
@@ -419,7 +447,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
                kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
-               kd.detection_kernel, kd.occluded_kernel]
+               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)

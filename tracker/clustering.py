@@ -234,10 +234,20 @@ def occluded_ends(clusters: list[np.ndarray], scan: np.ndarray, window: float, m
     than ``margin`` m nearer than the end point: the side continues behind another object, so the
     extreme point is not the side's end. An end whose neighbouring rays return nothing or something
     farther is the object's own boundary, unless it lies within ``range_margin`` of the lidar's
-    ``max_range`` (m): there the side may go on beyond the range, and the end counts as occluded too."""
+    ``max_range`` (m): there the side may go on beyond the range, and the end counts as occluded too.
+    One compiled call (``tracker.compiled.clustering.occluded_ends_kernel``) when the kernels are on."""
     out = np.zeros((len(clusters), 2), dtype=bool)
     if not clusters or len(scan) == 0:
         return out
+    if compiled_kernels.enabled():
+        from tracker.compiled.clustering import occluded_ends_kernel
+
+        compiled_kernels.require()
+        sizes = np.array([len(c) for c in clusters], dtype=np.intp)
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+        return occluded_ends_kernel(np.ascontiguousarray(np.concatenate(clusters), dtype=float), offsets,
+                                    np.ascontiguousarray(scan, dtype=float), float(window), float(margin),
+                                    float(max_range), float(range_margin))
     size = np.array([len(c) for c in clusters])
     start = np.cumsum(size) - size
     pts = np.concatenate(clusters)
