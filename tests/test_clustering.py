@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tracker.clustering import associate_radar, distance_partition, occluded_ends, points_in_rectangles, split_across
+from tracker.preparation import prepare_batch
 
 
 def test_points_in_rectangles_geometry():
@@ -110,6 +111,11 @@ def test_split_across_cuts_wide_groups_at_their_largest_lateral_gap():
     assert split_across(np.zeros(0), np.zeros(0, dtype=int), 3.0, 0.5).tolist() == []
 
 
+def _bearing_ends(cluster: np.ndarray) -> np.ndarray:
+    """The cluster's first and last point in bearing order, as the tracker takes them."""
+    return prepare_batch([cluster]).bearing_ends()
+
+
 def test_occluded_ends_flags_the_end_next_to_a_nearer_return():
     """Rays every 0.2 deg. A rear 60 m ahead seen over bearings 0.5-2 deg, with an object 20 m ahead
     returning just below 0.5 deg: its low end borders that object's shadow, its high end borders
@@ -122,18 +128,18 @@ def test_occluded_ends_flags_the_end_next_to_a_nearer_return():
         return np.array([[r * np.cos(np.radians(deg)), r * np.sin(np.radians(deg))]])
     occluder = np.vstack([at(20.0, d) for d in (-1.0, -0.7, -0.3, 0.3)])
     scan = np.vstack([rear, occluder, at(80.0, 2.2)])
-    np.testing.assert_array_equal(occluded_ends([rear], scan, 2.5 * res, 0.5), [[True, False]])
-    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(80.0, 0.3), at(20.0, 2.8)]), 2.5 * res, 0.5),
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(rear), scan, 2.5 * res, 0.5), [[True, False]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(rear), np.vstack([rear, at(80.0, 0.3), at(20.0, 2.8)]), 2.5 * res, 0.5),
                                   [[False, False]])  # farther below, nearer but beyond the window above
-    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(59.8, 2.2)]), 2.5 * res, 0.5), [[False, False]])
-    np.testing.assert_array_equal(occluded_ends([rear], np.vstack([rear, at(55.0, 2.2)]), 2.5 * res, 0.5), [[False, True]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(rear), np.vstack([rear, at(59.8, 2.2)]), 2.5 * res, 0.5), [[False, False]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(rear), np.vstack([rear, at(55.0, 2.2)]), 2.5 * res, 0.5), [[False, True]])
     # a rear straddling the bearing seam behind the sensor (+-180 deg): its ends are found across it
     seam = 60.0 * np.column_stack([np.cos(np.radians(np.arange(179.1, 181.0, 0.2))), np.sin(np.radians(np.arange(179.1, 181.0, 0.2)))])
-    np.testing.assert_array_equal(occluded_ends([seam], np.vstack([seam, at(20.0, -178.8)]), 2.5 * res, 0.5), [[False, True]])
-    np.testing.assert_array_equal(occluded_ends([seam], np.vstack([seam, at(20.0, 178.8)]), 2.5 * res, 0.5), [[True, False]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(seam), np.vstack([seam, at(20.0, -178.8)]), 2.5 * res, 0.5), [[False, True]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(seam), np.vstack([seam, at(20.0, 178.8)]), 2.5 * res, 0.5), [[True, False]])
     # within range_margin of the lidar's range an end may be the range's cut, not the vehicle's end
     grazing = np.array([[90.0, 40.0], [93.0, 35.0]])  # 98.5 m and 99.4 m away
-    np.testing.assert_array_equal(occluded_ends([grazing], grazing, 2.5 * res, 0.5, 100.0, 5.0), [[True, True]])
-    np.testing.assert_array_equal(occluded_ends([grazing], grazing, 2.5 * res, 0.5, 100.0, 1.0), [[True, False]])
-    assert occluded_ends([], scan, 2.5 * res, 0.5).shape == (0, 2)
-    assert not occluded_ends([rear], np.zeros((0, 2)), 2.5 * res, 0.5).any()
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(grazing), grazing, 2.5 * res, 0.5, 100.0, 5.0), [[True, True]])
+    np.testing.assert_array_equal(occluded_ends(_bearing_ends(grazing), grazing, 2.5 * res, 0.5, 100.0, 1.0), [[True, False]])
+    assert occluded_ends(np.zeros((0, 2, 2)), scan, 2.5 * res, 0.5).shape == (0, 2)
+    assert not occluded_ends(_bearing_ends(rear), np.zeros((0, 2)), 2.5 * res, 0.5).any()

@@ -17,7 +17,7 @@ from tracker.config import MeasurementConfig, MotionConfig
 from tracker.frame import EgoState
 from tracker.measurement import build_structure
 from tracker.motion import FrenetMotion
-from tracker.preparation import _prepare_finite
+from tracker.preparation import _prepare_finite, prepare_batch
 
 pytest.importorskip("numba")
 
@@ -332,8 +332,8 @@ def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_occluded_ends_equal_numpy(seed, monkeypatch):
-    """Clusters of 1-40 points scattered around the sensor (some behind it, across the bearing seam,
-    some near the range limit) in a scan of their own points and a few hundred others; windows of 1-5
+    """The bearing ends of clusters of 1-40 points scattered around the sensor (some behind it, across
+    the bearing seam, some near the range limit) in a scan of their own points and a few hundred others; windows of 1-5
     rays, and the range cut on and off: the same flags, and some of each."""
     from tracker.clustering import occluded_ends
 
@@ -346,12 +346,13 @@ def test_compiled_occluded_ends_equal_numpy(seed, monkeypatch):
             centre = r * np.array([np.cos(b), np.sin(b)])
             clusters.append(centre + rng.normal(0.0, 1.0, (int(rng.integers(1, 40)), 2)))
         scan = np.concatenate(clusters + [rng.uniform(-100.0, 100.0, (int(rng.integers(0, 400)), 2))])
+        ends = prepare_batch(clusters).bearing_ends()
         for window in np.radians([0.2, 0.5, 1.0]):
             for max_range, range_margin in ((np.inf, 0.0), (100.0, 5.0)):
                 monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-                ref = occluded_ends(clusters, scan, window, 0.5, max_range, range_margin)
+                ref = occluded_ends(ends, scan, window, 0.5, max_range, range_margin)
                 monkeypatch.setenv(compiled.ENV_SWITCH, "1")
-                got = occluded_ends(clusters, scan, window, 0.5, max_range, range_margin)
+                got = occluded_ends(ends, scan, window, 0.5, max_range, range_margin)
                 np.testing.assert_array_equal(got, ref)
                 flags.append(ref)
     flags = np.concatenate(flags)

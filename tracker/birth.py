@@ -78,19 +78,20 @@ def cluster_births(
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
     optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
     ``config.min_cluster_points`` points are skipped, unless a radar detection joined them, they lie
-    ``config.sparse_min_range`` or farther, and they have ``config.min_cluster_points_radar``; a cluster of one or two points takes the road's
-    direction as its heading."""
+    ``config.sparse_min_range`` or farther, and they have ``config.min_cluster_points_radar``; a cluster
+    of fewer than ``SPARSE_POINTS`` takes the road's direction as its heading."""
     means, stds, length_stds, sparse = [], [], [], []
     for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):
             continue
+        sparse_k = len(pts) < SPARSE_POINTS
         fit = fit_rectangle(pts)
         # the fit's axes are ambiguous by quarter turns: take the one closest to the road direction
         # (vehicles drive along the road), swapping length and width for an odd quarter turn
         probe = to_global(fit.center[None, :], (ego.x, ego.y), ego.yaw)[0]
         s_fit, _ = road.to_frenet(probe)
         theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
-        if len(pts) < SPARSE_POINTS:  # no orientation in one or two points: the road's direction
+        if sparse_k:  # no orientation in one or two points: the road's direction
             psi_e = theta_fit - ego.yaw
             axis = np.array([np.cos(psi_e), np.sin(psi_e)])
             proj = (pts - fit.center) @ np.column_stack([axis, [-axis[1], axis[0]]])
@@ -108,14 +109,16 @@ def cluster_births(
         if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen
             length = config.long_length
         centre = fit.center.copy()
-        unseen = ((axis, length - fit_len),) if len(pts) < SPARSE_POINTS else ((axis, length - fit_len), (lateral, width - fit_wid))
-        for direction, missing in unseen:  # a sparse cluster's points most likely lie across a rear or front
+        # the unseen extent lies beyond the points; a sparse cluster's points most likely lie across a
+        # rear or a front, so it is not shifted sideways
+        unseen = ((axis, length - fit_len),) if sparse_k else ((axis, length - fit_len), (lateral, width - fit_wid))
+        for direction, missing in unseen:
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
             centre += away * 0.5 * missing * direction
         centre_g = to_global(centre[None, :], (ego.x, ego.y), ego.yaw)[0]
         s, n = road.to_frenet(centre_g, s_hint=s_fit)
         _, theta, _ = road.frame(np.array([s]), extrapolate=True)
-        xi = 0.0 if len(pts) < SPARSE_POINTS else float(wrap_angle(psi_e + ego.yaw - theta[0]))
+        xi = 0.0 if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
         else:
@@ -123,7 +126,7 @@ def cluster_births(
         means.append([s, n, speed, xi, 0.0, length, width])
         stds.append(speed_std if speed_std is not None else 1.0)
         length_stds.append(config.long_length_std if long else config.length_std)
-        sparse.append(len(pts) < SPARSE_POINTS)
+        sparse.append(sparse_k)
     if not means:
         return np.zeros((0, 7)), np.zeros((0, 7, 7))
     covs = birth_covariance(config, len(means))

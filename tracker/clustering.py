@@ -225,46 +225,33 @@ def cluster_velocities(clusters: list[np.ndarray], radar: RadarDetections, t: fl
     return velocities
 
 
-def occluded_ends(clusters: list[np.ndarray], scan: np.ndarray, window: float, margin: float,
+def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: float,
                   max_range: float = np.inf, range_margin: float = 0.0) -> np.ndarray:
-    """Per cluster (points (N, 2) in E, the lidar at the origin), whether each end of its bearing order
-    borders a shadow: ``(K, 2)`` bool, column 0 the lowest bearing (about the centroid's, as
-    ``tracker.preparation`` orders points), column 1 the highest. An end is occluded when a return of
+    """Whether each end of each cluster borders a shadow: ``(K, 2)`` bool for ``ends (K, 2, 2)``, each
+    cluster's first and last point in bearing order in E, the lidar at the origin
+    (``tracker.measurement.ClusterBatch.bearing_ends``). An end is occluded when a return of
     ``scan (R, 2)`` (the frame's lidar points) lies within ``window`` rad beyond it in bearing and more
     than ``margin`` m nearer than the end point: the side continues behind another object, so the
     extreme point is not the side's end. An end whose neighbouring rays return nothing or something
     farther is the object's own boundary, unless it lies within ``range_margin`` of the lidar's
     ``max_range`` (m): there the side may go on beyond the range, and the end counts as occluded too.
     One compiled call (``tracker.compiled.clustering.occluded_ends_kernel``) when the kernels are on."""
-    out = np.zeros((len(clusters), 2), dtype=bool)
-    if not clusters or len(scan) == 0:
-        return out
+    ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=bool)
     if compiled_kernels.enabled():
         from tracker.compiled.clustering import occluded_ends_kernel
 
         compiled_kernels.require()
-        sizes = np.array([len(c) for c in clusters], dtype=np.intp)
-        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
-        return occluded_ends_kernel(np.ascontiguousarray(np.concatenate(clusters), dtype=float), offsets,
-                                    np.ascontiguousarray(scan, dtype=float), float(window), float(margin),
-                                    float(max_range), float(range_margin))
-    size = np.array([len(c) for c in clusters])
-    start = np.cumsum(size) - size
-    pts = np.concatenate(clusters)
-    group = np.repeat(np.arange(len(clusters)), size)
-    centre = np.add.reduceat(pts, start, axis=0) / size[:, None]
-    ref = np.where(np.hypot(centre[:, 0], centre[:, 1]) > 1e-9, np.arctan2(centre[:, 1], centre[:, 0]), 0.0)
-    rel = np.arctan2(pts[:, 1], pts[:, 0]) - ref[group]
-    rel -= 2.0 * np.pi * np.round(rel / (2.0 * np.pi))
-    order = np.lexsort((rel, group))  # by cluster, then bearing
-    ends = np.stack([pts[order[start]], pts[order[start + size - 1]]], axis=1)  # (K, 2 ends, 2)
+        return occluded_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(scan, dtype=float), float(window),
+                                    float(margin), float(max_range), float(range_margin))
     bearing = np.arctan2(ends[..., 1], ends[..., 0]).ravel()  # (2K,) first and last end of each cluster
     reach = np.hypot(ends[..., 0], ends[..., 1]).ravel()
     scan_r = np.hypot(scan[:, 0], scan[:, 1])
     near = scan_r < reach.max() - margin  # only returns nearer than some end can occlude it
     scan_b, scan_r = np.arctan2(scan[near, 1], scan[near, 0]), scan_r[near]
-    beyond = np.tile([-1.0, 1.0], len(clusters))  # the first end looks below its bearing, the last above
+    beyond = np.tile([-1.0, 1.0], len(ends))  # the first end looks below its bearing, the last above
     d = scan_b[None, :] - bearing[:, None]
     d = beyond[:, None] * (d - 2.0 * np.pi * np.round(d / (2.0 * np.pi)))  # > 0: beyond the end
     nearer = (d > 0.0) & (d <= window) & (scan_r[None, :] < reach[:, None] - margin)
-    return (nearer.any(axis=1) | (reach >= max_range - range_margin)).reshape(len(clusters), 2)
+    return (nearer.any(axis=1) | (reach >= max_range - range_margin)).reshape(len(ends), 2)

@@ -477,6 +477,13 @@ class ClusterBatch:
     centroid: np.ndarray
     occluded_end: np.ndarray | None = None
 
+    def bearing_ends(self) -> np.ndarray:
+        """Each cluster's first and last point in bearing order (``K, 2, 2``; the points are kept in
+        that order, extremes included): the ends whose shadows ``tracker.clustering.occluded_ends``
+        looks for."""
+        last = np.maximum(self.valid.sum(axis=1) - 1, 0)
+        return np.stack([self.points[:, 0], self.points[np.arange(len(self.points)), last]], axis=1)
+
     @classmethod
     def of(cls, clusters: list[Cluster]) -> ClusterBatch:
         """Pack ``clusters`` (at least one)."""

@@ -187,7 +187,7 @@ class Tracker:
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
-            idle = np.array([int(lab) not in updated for lab in mix.labels.tolist()], dtype=bool)
+            idle = ~np.isin(mix.labels, np.fromiter(updated, dtype=mix.labels.dtype, count=len(updated)))
             if idle.any():
                 f = math.exp(-dt / coast)
                 means, covs = mix.means.copy(), mix.covs.copy()
@@ -360,7 +360,7 @@ class Tracker:
                 prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
                                             [velocities[k] if cfg.use_radar else None for k in used])
                 if cfg.measurement.shadow_window is not None:
-                    occluded = occluded_ends([clusters[k] for k in used], self._scan,
+                    occluded = occluded_ends(prepared.bearing_ends(), self._scan,
                                              cfg.measurement.shadow_window * cfg.detection.lidar_resolution,
                                              cfg.measurement.shadow_margin, cfg.detection.lidar_range,
                                              cfg.measurement.shadow_range_margin)

@@ -187,12 +187,10 @@ def overlap_groups_kernel(corners, psi):
 
 
 @njit
-def occluded_ends_kernel(points, offsets, scan, window, margin, max_range, range_margin):
-    """``tracker.clustering.occluded_ends`` for clusters ``points[offsets[k]:offsets[k + 1]]``: per
-    cluster its lowest and highest point in bearing about the centroid's bearing (the first lowest,
-    the last highest, as a stable sort), then whether a nearer return of ``scan`` lies within ``window``
-    beyond each, or the end lies within ``range_margin`` of ``max_range``."""
-    count = len(offsets) - 1
+def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):
+    """``tracker.clustering.occluded_ends`` for ``ends (K, 2, 2)``: whether a nearer return of ``scan``
+    lies within ``window`` beyond each end, or the end lies within ``range_margin`` of ``max_range``."""
+    count = len(ends)
     out = np.zeros((count, 2), dtype=np.bool_)
     if count == 0 or len(scan) == 0:
         return out
@@ -200,27 +198,9 @@ def occluded_ends_kernel(points, offsets, scan, window, margin, max_range, range
     bearing = np.empty((count, 2))
     reach = np.empty((count, 2))
     for k in range(count):
-        lo_i, hi_i = offsets[k], offsets[k + 1]
-        cx = 0.0
-        cy = 0.0
-        for i in range(lo_i, hi_i):
-            cx += points[i, 0]
-            cy += points[i, 1]
-        cx /= hi_i - lo_i
-        cy /= hi_i - lo_i
-        ref = np.arctan2(cy, cx) if np.hypot(cx, cy) > 1e-9 else 0.0
-        best_lo, best_hi = np.inf, -np.inf
-        i_lo, i_hi = lo_i, lo_i
-        for i in range(lo_i, hi_i):
-            rel = np.arctan2(points[i, 1], points[i, 0]) - ref
-            rel -= two_pi * np.round(rel / two_pi)
-            if rel < best_lo:
-                best_lo, i_lo = rel, i
-            if rel >= best_hi:
-                best_hi, i_hi = rel, i
-        for e, i in ((0, i_lo), (1, i_hi)):
-            bearing[k, e] = np.arctan2(points[i, 1], points[i, 0])
-            reach[k, e] = np.hypot(points[i, 0], points[i, 1])
+        for e in range(2):
+            bearing[k, e] = np.arctan2(ends[k, e, 1], ends[k, e, 0])
+            reach[k, e] = np.hypot(ends[k, e, 0], ends[k, e, 1])
     far = reach.max() - margin
     for j in range(len(scan)):
         r = np.hypot(scan[j, 0], scan[j, 1])
