@@ -46,8 +46,9 @@ def run_reference() -> dict[str, np.ndarray]:
     rng = np.random.default_rng(2026)
     # the reference's model as it was made: a single extraction threshold (before
     # ReductionConfig.keep_threshold), no radar-backed sparse births (BirthConfig.min_cluster_points_radar)
-    # no shadow-aware anchoring (MeasurementConfig.shadow_window) and constant speed (MotionConfig.
-    # acceleration, on by default since session 8): intended changes of the model,
+    # no shadow-aware anchoring (MeasurementConfig.shadow_window), constant speed (MotionConfig.
+    # acceleration, on by default since session 8) and no updates of components the occlusion model
+    # hides (DetectionConfig.hidden_update_p_detection, session 9): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
@@ -55,6 +56,7 @@ def run_reference() -> dict[str, np.ndarray]:
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
+        detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
     )
     tracker = Tracker(scene.road, config)
     frame_idx, labels, weights, means, covs = [], [], [], [], []

@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from tracker.config import MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
+from tracker.config import DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
 
 
 def test_defaults_are_the_documented_ones() -> None:
@@ -22,6 +22,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range) == (1, 70.0)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
+    assert (c.detection.hidden_update_p_detection, c.detection.missed_weight_cap) == (0.05, False)
 
 
 @pytest.mark.parametrize(
@@ -37,6 +38,8 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(acceleration="yes"), r"MotionConfig.acceleration must be true or false"),
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
+        (lambda: DetectionConfig(hidden_update_p_detection=0.0), r"hidden_update_p_detection must be > 0.0 and <= 1.0"),
+        (lambda: DetectionConfig(missed_weight_cap=1), r"DetectionConfig.missed_weight_cap must be true or false"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),
         (lambda: TrackerConfig(use_radar="yes"), r"use_radar must be true or false"),
     ],

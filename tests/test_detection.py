@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracker.config import DetectionConfig
-from tracker.detection import SCAN_OCCLUSION_MARGIN, bearing_spans, detection_model, scan_occluded_fraction
+from tracker.detection import SCAN_OCCLUSION_MARGIN, bearing_spans, cap_missed_weights, detection_model, scan_occluded_fraction
 from tracker.measurement import Rectangles
 
 RES = np.radians(0.2)
@@ -49,3 +49,16 @@ def test_a_car_hidden_by_the_scan_keeps_its_detection_probability_low() -> None:
     assert p_hidden[0] == 0.0 and gamma[0] == 1.0
     _, p_off = detection_model(rect, labels, DetectionConfig(occlusion=False), scan=wall(20.0, np.arange(lo[0], hi[0], RES)))
     assert p_off[0] == cfg.p_detection
+
+
+def test_cap_missed_weights_leaves_each_updated_label_at_most_the_rest_of_one() -> None:
+    """Label 7: missed 0.9 + 0.3, updated 0.8 in all -> its missed components share 0.2 in proportion
+    (0.15, 0.05). Label 8: updated 1.3 -> nothing left. Label 9: missed 0.1, updated 0.5 -> under the
+    cap, kept. Label 4: not updated -> kept whatever its weight."""
+    missed = np.array([0.9, 0.3, 0.6, 0.1, 2.5])
+    labels = np.array([7, 7, 8, 9, 4])
+    updated = np.array([0.5, 0.3, 1.0, 0.3, 0.5])
+    updated_labels = np.array([7, 7, 8, 8, 9])
+    out = cap_missed_weights(missed, labels, updated, updated_labels)
+    np.testing.assert_allclose(out, [0.15, 0.05, 0.0, 0.1, 2.5], atol=1e-12)
+    np.testing.assert_array_equal(cap_missed_weights(missed, labels, np.zeros(0), np.zeros(0, dtype=int)), missed)

@@ -176,12 +176,16 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
     # seen again at 4.7 s, 2 m ahead of the track's constant-speed coast), or at 16.5 m/s (hidden 4.5 s;
     # the track still coasts when B reappears outside its predicted rectangle and a newborn is
     # confirmed next to it). tracker.identity gives the newcomer B's old label; without it
-    # (reidentify_window = 0) B comes back under a new label
+    # (reidentify_window = 0) B comes back under a new label. The coasting case needs the occlusion
+    # model of before (hidden_update_p_detection None): with the default, B's returning points update
+    # its coasting track directly, and B keeps its label even without re-identification (checked last)
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, speed, accel=accel)], radar=True)
+    base = TrackerConfig()
+    base = dataclasses.replace(base, detection=dataclasses.replace(base.detection, hidden_update_p_detection=None))
     for window, same in ((5.0, True), (0.0, False)):
-        config = TrackerConfig()  # constant speed (with the acceleration state B's track is not lost at all)
+        config = base  # constant speed (with the acceleration state B's track is not lost at all)
         config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=window),
                                      motion=dataclasses.replace(config.motion, acceleration=False))
         frames, tracker = run(scene, config, 9.0)
@@ -194,6 +198,17 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
         assert None in labels[int(2.0 / DT): int(8.5 / DT)]  # B was lost in between
         assert (len(set(seen)) == 1) == same, (window, sorted(set(seen)))
         assert (tracker.stats["labels_reidentified"] >= 1) == same
+    if accel == 0.0:  # the default occlusion model: no takeover, one label without re-identification
+        config = TrackerConfig()
+        config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=0.0),
+                                     motion=dataclasses.replace(config.motion, acceleration=False))
+        frames, tracker = run(scene, config, 9.0)
+        seen = set()
+        for k in range(len(frames)):
+            tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
+            if d < 1.5:
+                seen.add(tr.label)
+        assert len(seen) == 1 and tracker.stats["coasting_tracks_taken_over"] == 0
 
 
 @pytest.mark.parametrize("acceleration, coast", [(False, None), (True, None), (True, 0.5)],
@@ -435,6 +450,39 @@ def test_a_far_car_mostly_hidden_behind_another_is_tracked_when_the_radar_sees_i
         assert all(reported[1:])
     else:
         assert not any(reported)
+
+
+@pytest.mark.parametrize("floor", [0.05, None], ids=["hidden-update", "off"])
+def test_a_track_the_occlusion_model_takes_for_hidden_is_still_updated_by_its_points(floor):
+    """``DetectionConfig.hidden_update_p_detection``: a car 87 m ahead shows the lidar two points past
+    another 30 m ahead. Its track is pushed 0.8 m towards the nearer car (as a heading error once did
+    in dense-highway), so that the occlusion model, whose occluders are the tracks' rectangles, takes
+    it for wholly hidden (``P_D = 0``). With the floor its points still update it: back within 0.45 m
+    of the car in two frames and updated every frame. Without it (the model before) no cluster could
+    update it: the track coasts 0.6 m off, never updated (fails on the code before the change)."""
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    lanes = road.lane_centers
+    far = Car(107.0, lanes[1] + 2.6, 20.0)
+    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(50.0, lanes[1], 20.0), far], radar=True)
+    cfg = TrackerConfig()
+    tracker = Tracker(road, dataclasses.replace(cfg, detection=dataclasses.replace(cfg.detection, hidden_update_p_detection=floor)))
+    rng = np.random.default_rng(0)
+    lateral, updated = [], []
+    for k in range(20):
+        t = 0.1 * k
+        if k == 10:
+            mine = np.abs(tracker.mixture.means[:, 1] - far.n) < 1.0
+            assert mine.any()
+            tracker.mixture.means[mine, 1] -= 0.8
+        near = [tr for tr in tracker.step(scene.frame(t, rng)) if abs(tr.mean[0] - far.s_at(t)) < 3.0 and abs(tr.mean[1] - far.n) < 2.5]
+        if k >= 10:
+            assert len(near) == 1
+            lateral.append(near[0].mean[1] - far.n)
+            updated.append(near[0].label in tracker._updated_labels)
+    if floor is not None:
+        assert all(updated) and np.max(np.abs(lateral[2:])) < 0.45
+    else:
+        assert not any(updated) and np.min(np.abs(lateral)) > 0.5
 
 
 @pytest.mark.parametrize("shadow_window", [2.5, None], ids=["shadow-aware", "off"])

@@ -149,3 +149,28 @@ def detection_model(
         p_d = p_d * np.clip(visible / VISIBLE_FOR_DETECTION, 0.0, 1.0)
         gamma = np.maximum(gamma * visible, 1.0)
     return gamma, p_d
+
+
+def cap_missed_weights(missed: np.ndarray, labels: np.ndarray, updated: np.ndarray, updated_labels: np.ndarray) -> np.ndarray:
+    """The missed-detection weights ``missed`` (one per prior component, labels ``labels``) with each
+    label's total capped at ``max(0, 1 - U)``, ``U`` the total weight of that label's updated components
+    (``updated``, labels ``updated_labels``); the label's missed components are scaled down together.
+    Labels without an updated component keep their weights. (``DetectionConfig.missed_weight_cap``: a
+    label is one vehicle; once clusters explain it with weight ``U``, its "not detected" hypothesis can
+    hold only the rest.)"""
+    missed = np.asarray(missed, dtype=float)
+    out = missed.copy()
+    if not len(updated) or not len(missed):
+        return out
+    hit, where = np.unique(updated_labels, return_inverse=True)
+    took = np.bincount(where.reshape(-1), weights=updated, minlength=len(hit))
+    pos = np.searchsorted(hit, labels)
+    mine = (pos < len(hit)) & (hit[np.minimum(pos, len(hit) - 1)] == labels)
+    if not mine.any():
+        return out
+    idx = pos[mine]
+    held = np.bincount(idx, weights=missed[mine], minlength=len(hit))  # each label's missed total
+    room = np.maximum(0.0, 1.0 - took)
+    scale = np.where(held > room, room / np.maximum(held, 1e-300), 1.0)
+    out[mine] = missed[mine] * scale[idx]
+    return out

@@ -61,7 +61,7 @@ from tracker import compiled as compiled_kernels
 from tracker.clustering import (cluster_velocities, dense_components, distance_partition, occluded_ends, points_in_rectangles,
                                 split_across)
 from tracker.config import TrackerConfig
-from tracker.detection import detection_model, nearest_range, occluded_fraction
+from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
@@ -342,6 +342,12 @@ class Tracker:
             scan=self._scan,
         )
         missed_w = mix.weights * (1.0 - (1.0 - np.exp(-gamma)) * p_d)
+        floor = cfg.detection.hidden_update_p_detection
+        if floor is not None and self._ever_reported:
+            # the tracks' components the occlusion model hides still pair with clusters (DetectionConfig)
+            track = np.isin(mix.labels, np.fromiter(self._ever_reported, dtype=mix.labels.dtype))
+            lift = track & (p_d < floor) & (nearest_range(rect) <= cfg.detection.lidar_range)
+            p_d = np.where(lift, floor, p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
             size = np.array([len(c) for c in clusters])
@@ -403,6 +409,8 @@ class Tracker:
                     # lift such matrices to positive definite and count them
                     post_cov, repaired = ensure_spd(res.cov[inside], cfg.ukf.min_eigenvalue)
                     self.stats["covariances_repaired"] += repaired
+                    if cfg.detection.missed_weight_cap:
+                        new_w[0] = cap_missed_weights(missed_w, mix.labels, weights, mix.labels[comp])
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
                     new_p.append(post_cov)
