@@ -383,7 +383,11 @@ class Road:
                     if result is not None:
                         if not isinstance(xy, np.ndarray) or xy.ndim == 1:
                             return result  # type: ignore[return-value]
-                        both = np.array(result).reshape((2,) + xy.shape[:-1])
+                        both = np.empty(2)
+                        both[0], both[1] = result
+                        if xy.ndim == 2:  # (1, 2): two (1,) views of one buffer, the cheapest wrapping
+                            return both[0:1], both[1:2]
+                        both = both.reshape((2,) + xy.shape[:-1])
                         return both[0], both[1]
         pts = _as_float_array(xy, "xy")
         if pts.ndim == 0 or pts.shape[-1] != 2:
