@@ -204,6 +204,8 @@ def summary_table(metrics: dict) -> str:
          f"{_fmt_value(m.get('truth_count_mean'), 2)} / {_fmt_value(m.get('track_count_mean'), 2)}"),
         ("cardinality error mean |N_est - N_true|", _fmt_value(m.get("cardinality_error_mean"))),
         ("position RMSE (m)", _fmt_value(m.get("pos_rmse_m"))),
+        ("  while visible / while hidden (m)",
+         f"{_fmt_value(m.get('pos_rmse_seen_m'))} / {_fmt_value(m.get('pos_rmse_hidden_m'))}"),
         ("yaw RMSE (deg)", _fmt_value(m.get("yaw_rmse_deg"))),
         ("speed RMSE (m/s)", _fmt_value(m.get("speed_rmse_mps"))),
         ("length / width RMSE (m)", f"{_fmt_value(m.get('length_rmse_m'))} / {_fmt_value(m.get('width_rmse_m'))}"),

@@ -27,7 +27,10 @@ penalising its memory of what it cannot.
 its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` per frame; the
 ``*_mean`` keys average the per-frame values over frames). ``cardinality_error_mean`` is the mean of
 ``|N_est - N_true|``, ``cardinality_bias_mean`` the mean of ``N_est - N_true``. RMSEs are over every
-GOSPA-assigned (truth, track) pair of every frame (``None`` when there was none); ``yaw`` errors are
+GOSPA-assigned (truth, track) pair of every frame (``None`` when there was none); ``pos_rmse_seen_m``
+and ``pos_rmse_hidden_m`` split the position RMSE by whether the vehicle is visible in the frame (a
+track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidden`` counts those
+pairs); ``yaw`` errors are
 wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
 run to run; every other metric is bit-identical for the same scenario, seed and variant).
@@ -396,6 +399,16 @@ def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
     return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
 
 
+def _position_by_visibility(pos: list[np.ndarray], seen: list[np.ndarray]) -> dict[str, float | int | None]:
+    """``pos_rmse_m`` split by whether the matched vehicle is visible in that frame:
+    ``pos_rmse_seen_m`` (tracking while the sensors see it), ``pos_rmse_hidden_m`` (a track kept
+    through an occlusion: prediction only) and ``matched_pairs_hidden``."""
+    err = np.concatenate(pos) if pos else np.zeros(0)
+    vis = np.concatenate(seen).astype(bool) if seen else np.zeros(0, dtype=bool)
+    return {"pos_rmse_seen_m": _rmse([err[vis]]), "pos_rmse_hidden_m": _rmse([err[~vis]]),
+            "matched_pairs_hidden": int((~vis).sum())}
+
+
 def _seen_metrics(frames: list[FrameRecord], n_est: np.ndarray, n_vis: np.ndarray) -> dict[str, float | None]:
     """The visible-only scores without the tracks kept on hidden vehicles (``FrameRecord.gospa_seen``):
     ``gospa_seen_mean`` and its parts, ``cardinality_error_seen_mean`` and ``tracks_on_hidden_mean``
@@ -418,6 +431,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
     """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames. ``extent=False``
     (a point tracker): ``length_rmse_m`` and ``width_rmse_m`` are ``None`` (missing, not zero)."""
     pos: list[np.ndarray] = []
+    seen: list[np.ndarray] = []  # per matched pair: the vehicle is visible in this frame
     yaw: list[np.ndarray] = []
     speed: list[np.ndarray] = []
     length: list[np.ndarray] = []
@@ -426,6 +440,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         scored_state = f.truth_state[f.scored]
         err = matched_errors(scored_state, f.track_state, f.gospa, extent=extent)
         pos.append(err.position)
+        seen.append(f.visible[f.scored][np.asarray(f.gospa.truth_index, dtype=int)])
         yaw.append(err.yaw)
         speed.append(err.speed)
         length.append(err.length)
@@ -444,6 +459,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "cardinality_error_mean": _mean(np.abs(n_est - n_truth)),
         "cardinality_bias_mean": _mean(n_est - n_truth),
         "pos_rmse_m": _rmse(pos),
+        **_position_by_visibility(pos, seen),
         "yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
         "length_rmse_m": _rmse(length),
         "width_rmse_m": _rmse(width),

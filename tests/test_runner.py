@@ -107,6 +107,18 @@ def test_visible_scoring_drops_hidden_vehicles():
     assert m["gospa_seen_mean"] < 1e-9 and m["cardinality_error_seen_mean"] == 0.0
     assert m["tracks_on_hidden_mean"] == pytest.approx(np.mean([f.n_truth - f.n_visible for f in result.frames]))
     assert m["tracks_on_hidden_mean"] > 0.0 and m["gospa_visible_mean"] > 0.5
+    assert m["matched_pairs_hidden"] == sum(f.n_truth - f.n_visible for f in result.frames) > 0
+    assert m["pos_rmse_seen_m"] < 1e-9 and m["pos_rmse_hidden_m"] < 1e-9
+
+
+def test_position_error_is_split_by_visibility():
+    # every track 0.5 m off along the road normal; occlusion hides a vehicle for part of the run:
+    # the position error is 0.5 m over the visible and over the hidden pairs, which add up to all pairs
+    spec = load_scenario("occlusion")
+    result = _oracle_run(spec, duration=4.0, offset=np.array([0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    m = result.metrics
+    assert m["pos_rmse_seen_m"] == pytest.approx(0.5, abs=1e-6) and m["pos_rmse_hidden_m"] == pytest.approx(0.5, abs=1e-6)
+    assert 0 < m["matched_pairs_hidden"] < m["matched_pairs"]
 
 
 def _snapshot(xy, s, n):
