@@ -38,6 +38,7 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(acceleration="yes"), r"MotionConfig.acceleration must be true or false"),
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
+        (lambda: MeasurementConfig(radar_gate=-1.0), r"MeasurementConfig.radar_gate must be > 0"),
         (lambda: DetectionConfig(hidden_update_p_detection=0.0), r"hidden_update_p_detection must be > 0.0 and <= 1.0"),
         (lambda: DetectionConfig(missed_weight_cap=1), r"DetectionConfig.missed_weight_cap must be true or false"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),

@@ -340,3 +340,32 @@ def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None
         assert post[6] > 6.0
     else:
         assert post[6] == pytest.approx(max_width)
+
+
+@pytest.mark.parametrize("radar_rows", ["speed", "velocity"])
+@pytest.mark.parametrize("off, gate, rejected", [(20.0, 25.0, True), (3.0, 25.0, False), (20.0, None, False)],
+                         ids=["false-alarm", "braking", "gate-off"])
+def test_a_radar_velocity_no_pair_explains_is_set_aside(circle80: Road, off: float, gate, rejected: bool,
+                                                         radar_rows: str) -> None:
+    """``MeasurementConfig.radar_gate``: a cluster's radar velocity 20 m/s slower than the prediction
+    (speed std 3 m/s: normalised innovation ~43 > 25) is a false alarm: set aside, the posterior is the
+    lidar-only one. 3 m/s slower (~1) is a braking the prediction lags behind: kept, it pulls the speed
+    down. Without the gate the false alarm pulls the speed down by metres per second. The same with the
+    paper's two velocity rows."""
+    scn = CurveScenario(circle80, 1)
+    cfg = TrackerConfig(measurement=MeasurementConfig(radar_gate=gate, radar_rows=radar_rows))
+    pts = scn.scan(0, np.random.default_rng(4), 0.03)
+    v_true = scn.radar_velocity(0, np.random.default_rng(0), 0.0)
+    fused = prepare_cluster(pts, cfg.measurement, velocity=v_true * (1.0 - off / np.linalg.norm(v_true)))
+    lidar = prepare_cluster(pts, cfg.measurement)
+    mean, cov = scn.truth(0)[None], np.diag(INIT_STD**2)[None]
+    pair = (np.zeros(1, dtype=int), np.zeros(1, dtype=int), scn.ego(0), circle80, cfg)
+    res = update_pairs(mean, cov, [fused], *pair)
+    ref = update_pairs(mean, cov, [lidar], *pair)
+    assert bool(res.radar_rejected[0]) == rejected
+    if rejected:
+        np.testing.assert_allclose(res.mean, ref.mean, atol=1e-12)
+        assert res.dim[0] == ref.dim[0]
+    else:
+        assert res.mean[0, 2] < ref.mean[0, 2] - 0.5 * min(off, 3.0)
+        assert res.dim[0] == ref.dim[0] + (1 if radar_rows == "speed" else 2)

@@ -373,6 +373,7 @@ class Tracker:
                     self.stats["cluster_ends_occluded"] += int(occluded.sum())
                     prepared = dataclasses.replace(prepared, occluded_end=occluded)
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
+                self.stats["radar_velocities_rejected"] += len(np.unique(clu[res.radar_rejected]))
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
                 # a track's own cluster (its points lie in its predicted rectangle) is associated by
                 # geometry: it updates the track even when the model fits it badly (a manoeuvre, partial

@@ -19,6 +19,7 @@ noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +39,9 @@ class UpdateResult:
     """Posterior of each pair: ``mean (P, 7)``, ``cov (P, 7, 7)``; ``log_likelihood (P,)`` =
     ``log N(z; y, S)`` (natural log, of the stacked measurement in its units); ``nis (P,)`` the normalised
     innovation squared ``(z - y)^T S^-1 (z - y)``; ``dim (P,)`` the measurement dimension ``D``;
-    ``predicted (P, D_max)`` the predicted measurement ``y`` (padded rows 0); ``innovation (P, D_max)``."""
+    ``predicted (P, D_max)`` the predicted measurement ``y`` (padded rows 0); ``innovation (P, D_max)``;
+    ``radar_rejected (P,)`` (``update_pairs``; None from ``kalman_update``): the pair's cluster had a
+    radar velocity that ``gate_radar_rows`` set aside."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -47,11 +50,12 @@ class UpdateResult:
     dim: np.ndarray
     predicted: np.ndarray
     innovation: np.ndarray
+    radar_rejected: np.ndarray | None = None
 
     def __getitem__(self, i: int) -> UpdateResult:
         """The result of pair ``i`` (arrays keep a leading axis of length 1)."""
         sl = slice(i, i + 1) if i != -1 else slice(-1, None)
-        return UpdateResult(*(getattr(self, f)[sl] for f in self.__dataclass_fields__))
+        return UpdateResult(*(None if getattr(self, f) is None else getattr(self, f)[sl] for f in self.__dataclass_fields__))
 
 
 def kalman_update(
@@ -189,8 +193,12 @@ def update_pairs(
             pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
             pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
     z_sigma = predict_measurements(pair_rect, structure)
+    rejected = np.zeros(len(comp), dtype=bool)
+    if config.measurement.radar_gate is not None and structure.radar.any():
+        structure, rejected = gate_radar_rows(ut, structure, z_sigma, clu, config.measurement.radar_gate)
     res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
                         structure.mask, wrapping, structure.factors)
+    res = dataclasses.replace(res, radar_rejected=rejected)
     if config.measurement.hold_unobserved_extent:
         held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
         if config.birth.long_width is not None:
@@ -199,6 +207,44 @@ def update_pairs(
         if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
     return res
+
+
+def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.ndarray, cluster_index: np.ndarray,
+                    gate: float) -> tuple[Structure, np.ndarray]:
+    """Set aside the radar velocity of clusters that no pair explains (``MeasurementConfig.radar_gate``).
+
+    Per pair with radar rows, their own normalised innovation squared ``nu^T S_v^-1 nu`` (``S_v`` the
+    rows' block of ``S``: the sigma points' spread plus ``R``; one row in ``"speed"`` mode, two in
+    ``"velocity"`` mode) is compared with ``gate``; when it exceeds the gate for *every* pair of a
+    cluster, the detection is no velocity of anything predicted there (a false alarm or another
+    vehicle's detection joined to the cluster), and the cluster's pairs are updated without it. A
+    detection some pair explains stays for all of them: it still tells the hypotheses apart. Returns the
+    structure (radar rows masked where rejected) and, per pair, whether its radar rows were rejected."""
+    width = structure.mask.shape[1]
+    rows = np.flatnonzero(structure.mask.any(axis=0) & (np.arange(width) >= width - 2))  # the radar rows in use
+    has = structure.radar
+    fused = np.flatnonzero(has)
+    zs = z_sigma[fused][:, :, rows]  # (F, S, k) the radar rows' sigma points of the pairs with radar
+    y = np.einsum("s,psk->pk", ut.wm, zs)
+    dev = zs - y[:, None, :]
+    nu = structure.z[fused][:, rows] - y
+    r = structure.r[fused][:, rows]
+    if len(rows) == 1:  # "speed": one row, S is a number
+        nis_f = nu[:, 0] ** 2 / (np.einsum("s,ps->p", ut.wc, dev[:, :, 0] ** 2) + r[:, 0])
+    else:
+        s_v = np.einsum("s,psk,psl->pkl", ut.wc, dev, dev) + r[:, :, None] * np.eye(len(rows))
+        nis_f = np.einsum("pk,pk->p", nu, np.linalg.solve(s_v, nu[..., None])[..., 0])
+    nis = np.full(len(has), np.inf)
+    nis[fused] = nis_f
+    explained = np.zeros(int(cluster_index.max()) + 1 if len(cluster_index) else 0, dtype=bool)
+    explained[cluster_index[has & (nis <= gate)]] = True
+    rejected = has & ~explained[cluster_index]
+    if not rejected.any():
+        return structure, rejected
+    mask = structure.mask.copy()
+    mask[rejected[:, None] & (np.arange(mask.shape[1]) >= mask.shape[1] - 2)[None, :]] = False
+    return dataclasses.replace(structure, mask=mask, radar=has & ~rejected, z=np.where(mask, structure.z, 0.0),
+                               r=np.where(mask, structure.r, 1.0)), rejected
 
 
 #: A side's measured extent must exceed its predicted length by more than this (m) and by more than
