@@ -224,15 +224,17 @@ def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.nd
     rows = np.flatnonzero(structure.mask.any(axis=0) & (np.arange(width) >= width - 2))  # the radar rows in use
     has = structure.radar
     fused = np.flatnonzero(has)
-    zs = z_sigma[fused][:, :, rows]  # (F, S, k) the radar rows' sigma points of the pairs with radar
-    y = np.einsum("s,psk->pk", ut.wm, zs)
-    dev = zs - y[:, None, :]
-    nu = structure.z[fused][:, rows] - y
-    r = structure.r[fused][:, rows]
     if len(rows) == 1:  # "speed": one row, S is a number
-        nis_f = nu[:, 0] ** 2 / (np.einsum("s,ps->p", ut.wc, dev[:, :, 0] ** 2) + r[:, 0])
+        zs = z_sigma[fused, :, rows[0]]  # (F, S) the radar row's sigma points of the pairs with radar
+        y = zs @ ut.wm
+        dev = zs - y[:, None]
+        nis_f = (structure.z[fused, rows[0]] - y) ** 2 / ((dev * dev) @ ut.wc + structure.r[fused, rows[0]])
     else:
-        s_v = np.einsum("s,psk,psl->pkl", ut.wc, dev, dev) + r[:, :, None] * np.eye(len(rows))
+        zs = z_sigma[fused][:, :, rows]  # (F, S, k)
+        y = np.einsum("s,psk->pk", ut.wm, zs)
+        dev = zs - y[:, None, :]
+        nu = structure.z[fused][:, rows] - y
+        s_v = np.einsum("s,psk,psl->pkl", ut.wc, dev, dev) + structure.r[fused][:, rows][:, :, None] * np.eye(len(rows))
         nis_f = np.einsum("pk,pk->p", nu, np.linalg.solve(s_v, nu[..., None])[..., 0])
     nis = np.full(len(has), np.inf)
     nis[fused] = nis_f
