@@ -485,6 +485,31 @@ def test_a_track_the_occlusion_model_takes_for_hidden_is_still_updated_by_its_po
         assert not any(updated) and np.min(np.abs(lateral)) > 0.5
 
 
+@pytest.mark.parametrize("cap", [True, False], ids=["capped", "phd"])
+def test_missed_weight_cap_keeps_a_seen_label_at_weight_one(cap):
+    """``DetectionConfig.missed_weight_cap``: a car 87 m ahead peeks past another with one or two points,
+    so the detection model expects it mostly hidden (low ``P_D``) while a cluster updates it every
+    frame. The GM-PHD's missed-detection term then keeps nearly all the prior weight beside the update's:
+    the label's weight grows past 1.5. Capped, it stays at 1."""
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    lanes = road.lane_centers
+    far = Car(107.0, lanes[1] + 2.4, 20.0, accel=-1.0)
+    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(50.0, lanes[1], 20.0), far], radar=True)
+    cfg = TrackerConfig()
+    tracker = Tracker(road, dataclasses.replace(cfg, detection=dataclasses.replace(cfg.detection, missed_weight_cap=cap)))
+    rng = np.random.default_rng(0)
+    weights = []
+    for k in range(40):
+        t = 0.1 * k
+        weights += [tr.weight for tr in tracker.step(scene.frame(t, rng))
+                    if abs(tr.mean[0] - far.s_at(t)) < 3.0 and abs(tr.mean[1] - far.n) < 2.0]
+    assert len(weights) >= 5
+    if cap:
+        assert max(weights) <= 1.0 + 1e-9
+    else:
+        assert max(weights) > 1.5
+
+
 @pytest.mark.parametrize("shadow_window", [2.5, None], ids=["shadow-aware", "off"])
 def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
     """A car 75 m ahead, half a lane to the right of the ego's lane, behind a car 25 m ahead in the
