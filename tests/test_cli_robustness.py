@@ -144,12 +144,16 @@ def test_interrupted_study_keeps_rows_and_resume_completes_it(capsys, tmp_path, 
 def test_ctrl_c_on_a_process_pool_leaves_rows_and_no_traceback(tmp_path):
     # 400 short runs: far more than finish between the first row and the signal (40 could all finish
     # first once the compiled kernels made runs fast, and the study then ended normally)
+    # The child gets SIGINT's default disposition: a test run launched in the background of a
+    # non-interactive shell inherits SIGINT ignored, Python then installs no KeyboardInterrupt handler,
+    # and the study ran to its end (exit 0) whatever the signal
     out = tmp_path / "mc"
     env = dict(os.environ, MPLBACKEND="Agg")
     proc = subprocess.Popen(
         [sys.executable, "-m", "sim.cli", "montecarlo", "curve-single", "--runs", "400", "--duration", "0.3",
          "--no-roadside", "--workers", "2", "--out", str(out), "--quiet"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     deadline = time.monotonic() + 240
     rows: list = []
