@@ -28,6 +28,14 @@
      updates it): ``w_i^W = P_D w_i Gamma_i L_i^W / (delta_{|W|,1} + sum_j P_D w_j Gamma_j L_j^W)`` with
      ``Gamma = e^-gamma gamma^|W|`` and ``L = N(z_W; y, S) prod_z 1 / (lambda c(z))``, in the log domain.
 
+   Departures: a component of a label reported before, inside the lidar range, whose ``P_D`` the
+   occlusion model puts below ``detection.hidden_update_p_detection`` takes that value in its pairs'
+   weights (not in its missed-detection term), so that a car the model takes for hidden can still be
+   updated by the points it shows; a fused cluster's radar velocity that no pair explains
+   (``measurement.radar_gate``) is set aside for all its pairs (``tracker.update.gate_radar_rows``);
+   optionally (``detection.missed_weight_cap``, off) a label's missed-detection weight is capped at one
+   minus what its updated components took.
+
 5. **Reduce**: drop components that left the field of view (nearest corner farther than
    ``detection.lidar_range + reduction.fov_margin``) or the road (centre beyond the road edges by more
    than ``reduction.road_margin``), prune, angle-aware merge, then merge reportable components (weight
