@@ -216,7 +216,7 @@ def test_no_pairs_gives_an_empty_result(circle80: Road) -> None:
     cluster = prepare_cluster(scn.scan(0, np.random.default_rng(0), 0.0))
     res = update_pairs(scn.truth(0)[None], np.eye(7)[None], [cluster], np.zeros(0, int), np.zeros(0, int),
                        scn.ego(0), circle80)
-    assert res.mean.shape == (0, 7) and res.log_likelihood.shape == (0,)
+    assert res.mean.shape == (0, 7) and res.log_likelihood.shape == (0,) and res.radar_rejected.shape == (0,)
     with pytest.raises(ValueError, match="does not exist"):
         update_pairs(scn.truth(0)[None], np.eye(7)[None], [cluster], np.array([1]), np.array([0]), scn.ego(0), circle80)
 

@@ -353,7 +353,8 @@ class Tracker:
         floor = cfg.detection.hidden_update_p_detection
         if floor is not None and self._ever_reported:
             # the tracks' components the occlusion model hides still pair with clusters (DetectionConfig)
-            track = np.isin(mix.labels, np.fromiter(self._ever_reported, dtype=mix.labels.dtype))
+            ever = self._ever_reported  # grows with the run: a set lookup per component, not an isin over it
+            track = np.fromiter((lab in ever for lab in mix.labels.tolist()), dtype=bool, count=len(mix))
             lift = track & (p_d < floor) & (nearest_range(rect) <= cfg.detection.lidar_range)
             p_d = np.where(lift, floor, p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]

@@ -173,7 +173,7 @@ def update_pairs(
     if len(comp) == 0:
         d = 2 * (0 if batch is None else batch.points.shape[1]) + 2
         return UpdateResult(np.zeros((0, dim)), np.zeros((0, dim, dim)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
-                            np.zeros((0, d)), np.zeros((0, d)))
+                            np.zeros((0, d)), np.zeros((0, d)), np.zeros(0, dtype=bool))
     used, inverse = np.unique(comp, return_inverse=True)
     euler_s0 = None
     if config.measurement.conversion == "euler" and config.coordinates == "curvilinear":
