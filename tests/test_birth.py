@@ -114,6 +114,26 @@ def test_a_far_cluster_of_one_point_with_a_radar_detection_seeds_a_birth_along_t
     assert len(cluster_births([near], [radar_velocity], ego, road, cfg)[0]) == 0
 
 
+def test_two_points_with_a_radar_detection_seed_a_birth_at_any_range(road):
+    """``BirthConfig.min_cluster_points_fused`` (2): two points 30 m ahead (a car coming out from behind
+    another) that a radar detection joined seed a birth along the road with the radar's speed; without
+    the radar, or with ``min_cluster_points_fused=None`` (30 m is nearer than ``sparse_min_range``), two
+    points seed nothing, and one point with the radar seeds nothing at 30 m."""
+    point, ego, (s_car, n_car) = _sparse_cluster(road, 30.0, road.lane_centers[2])
+    theta = float(road.heading(s_car)) - ego.yaw
+    along = np.array([np.cos(theta), np.sin(theta)])
+    two = np.vstack([point, point + 0.3 * np.array([-along[1], along[0]]) * np.sign(-point[0, 1] or 1.0)])
+    radar_velocity = 15.0 * along
+    cfg = BirthConfig()
+    means, _ = cluster_births([two], [radar_velocity], ego, road, cfg)
+    assert means.shape == (1, 7)
+    assert means[0, 3] == 0.0 and means[0, 2] == pytest.approx(15.0, abs=0.01)
+    assert abs(means[0, 0] - s_car) < 1.0 and abs(means[0, 1] - n_car) <= 1.3
+    assert len(cluster_births([two], [None], ego, road, cfg)[0]) == 0
+    assert len(cluster_births([two], [radar_velocity], ego, road, BirthConfig(min_cluster_points_fused=None))[0]) == 0
+    assert len(cluster_births([point], [radar_velocity], ego, road, cfg)[0]) == 0
+
+
 def test_cartesian_births_match_the_exact_conversion(road):
     means = np.array([[30.0, 3.5, 20.0, 0.1, 0.02, 4.8, 2.0]])
     covs = np.diag([1e-6] * 7)[None]

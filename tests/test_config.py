@@ -19,7 +19,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.reduction.reidentify_window == 5.0 and c.reduction.report_range == 0.0
     assert c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.3)
     assert c.motion.coast_acceleration_time == 0.5
-    assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range) == (1, 70.0)
+    assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
     assert (c.detection.hidden_update_p_detection, c.detection.missed_weight_cap) == (0.05, False)

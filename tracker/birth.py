@@ -60,12 +60,16 @@ SPARSE_POINTS = 3
 
 def _fewest_points(config: BirthConfig, points: np.ndarray, fused: bool) -> int:
     """The fewest points an unexplained cluster ``points (N, 2)`` (E, m) needs to seed a birth:
-    ``min_cluster_points``, or ``min_cluster_points_radar`` when a radar detection joined it (and that
-    is set) and it lies at least ``sparse_min_range`` from the ego."""
-    if fused and config.min_cluster_points_radar is not None and len(points):
-        if float(np.min(np.hypot(points[:, 0], points[:, 1]))) >= config.sparse_min_range:
-            return min(config.min_cluster_points, config.min_cluster_points_radar)
-    return config.min_cluster_points
+    ``min_cluster_points``; when a radar detection joined it, ``min_cluster_points_fused`` (if set, at
+    any range) or ``min_cluster_points_radar`` (if set, when it lies at least ``sparse_min_range`` from
+    the ego), whichever is fewer."""
+    fewest = config.min_cluster_points
+    if fused and len(points):
+        if config.min_cluster_points_fused is not None:
+            fewest = min(fewest, config.min_cluster_points_fused)
+        if config.min_cluster_points_radar is not None and float(np.min(np.hypot(points[:, 0], points[:, 1]))) >= config.sparse_min_range:
+            fewest = min(fewest, config.min_cluster_points_radar)
+    return fewest
 
 
 def cluster_births(
@@ -77,9 +81,10 @@ def cluster_births(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
     optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
-    ``config.min_cluster_points`` points are skipped, unless a radar detection joined them, they lie
-    ``config.sparse_min_range`` or farther, and they have ``config.min_cluster_points_radar``; a cluster
-    of fewer than ``SPARSE_POINTS`` takes the road's direction as its heading."""
+    ``config.min_cluster_points`` points are skipped, unless a radar detection joined them and they
+    have ``config.min_cluster_points_fused``, or they lie ``config.sparse_min_range`` or farther and have
+    ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
+    takes the road's direction as its heading."""
     means, stds, length_stds, sparse = [], [], [], []
     for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):

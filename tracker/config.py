@@ -410,8 +410,12 @@ class BirthConfig:
       a prior length beyond the points, away from the sensor;
     - ``sparse_min_range`` (m): ``min_cluster_points_radar`` applies only to clusters this far or
       farther from the ego (every point): near the range limit, where vehicles enter the field of view
-      with few points. Nearer, one or two points are a vehicle almost hidden behind another, and they
-      do not fix where along it the centre lies (a bus's corner is not a car's);
+      with few points. Nearer, one point is a vehicle almost hidden behind another, and it does not fix
+      where along it the centre lies (a bus's corner is not a car's);
+    - ``min_cluster_points_fused`` (None: as ``min_cluster_points``): the fewest points of an
+      unexplained cluster that a radar detection joined, at any range (fused tracking only): two points
+      and a radar detection are a vehicle coming out from behind another (session 9, issue 10:
+      stop-and-go GOSPA 4.96 -> 4.86 m, ID switches 2.8 -> 2.0 per run, 10 seeds; the rest unchanged);
     - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used;
     - ``long_width`` (m, None: off), ``long_length`` (m), ``long_length_std`` (m): the long-vehicle
       prior. A vehicle at least ``long_width`` wide is a truck or a bus (cars and vans are at most
@@ -440,6 +444,7 @@ class BirthConfig:
     min_cluster_points: int = 3
     min_cluster_points_radar: int | None = 1
     sparse_min_range: float = 70.0
+    min_cluster_points_fused: int | None = 2
     road: bool = True
     long_width: float | None = 2.35
     long_length: float = 12.0
@@ -452,6 +457,8 @@ class BirthConfig:
         if self.min_cluster_points_radar is not None:
             _check_int("BirthConfig", "min_cluster_points_radar", self.min_cluster_points_radar, 1)
         _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
+        if self.min_cluster_points_fused is not None:
+            _check_int("BirthConfig", "min_cluster_points_fused", self.min_cluster_points_fused, 1)
         if self.long_width is not None:
             _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
