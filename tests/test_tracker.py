@@ -31,6 +31,17 @@ def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, ext
     return out, tracker
 
 
+def peeking_scene(far_s: float, far_offset: float, near_s: float, *, road_length: float = 600.0, accel: float = 0.0):
+    """A straight three-lane road: the ego in the middle lane at s = 20 m, a car ahead of it in its lane
+    at ``near_s``, and a farther car at ``far_s`` (its acceleration ``accel``), ``far_offset`` m off the
+    lane centre, partly hidden behind the nearer one; all at 20 m/s, radar on. Returns the road, the far
+    car and the scene."""
+    road = Road.from_curvature([(road_length, 0.0, 0.0)], lanes=3)
+    lane = road.lane_centers[1]
+    far = Car(far_s, lane + far_offset, 20.0, accel=accel)
+    return road, far, Scene(road, Car(20.0, lane, 20.0), [Car(near_s, lane, 20.0), far], radar=True)
+
+
 def nearest(tracks, road, xy):
     """The track whose centre is nearest ``xy`` and that distance (m)."""
     if not tracks:
@@ -432,10 +443,7 @@ def test_a_far_car_mostly_hidden_behind_another_is_tracked_when_the_radar_sees_i
     (``BirthConfig.min_cluster_points_radar``): reported from the second frame on, within 1 m along the
     road and 1 m across. Lidar-only, two points stay below ``min_cluster_points`` (3): not reported in
     3 s. Fails on the code before the sparse birth (fused never reports it either)."""
-    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
-    lanes = road.lane_centers
-    far = Car(107.0, lanes[1] + 2.6, 20.0)
-    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(50.0, lanes[1], 20.0), far], radar=True)
+    road, far, scene = peeking_scene(107.0, 2.6, 50.0)
     tracker = Tracker(road, dataclasses.replace(TrackerConfig(), use_radar=use_radar))
     rng = np.random.default_rng(0)
     reported = []
@@ -460,10 +468,7 @@ def test_a_track_the_occlusion_model_takes_for_hidden_is_still_updated_by_its_po
     it for wholly hidden (``P_D = 0``). With the floor its points still update it: back within 0.45 m
     of the car in two frames and updated every frame. Without it (the model before) no cluster could
     update it: the track coasts 0.6 m off, never updated (fails on the code before the change)."""
-    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
-    lanes = road.lane_centers
-    far = Car(107.0, lanes[1] + 2.6, 20.0)
-    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(50.0, lanes[1], 20.0), far], radar=True)
+    road, far, scene = peeking_scene(107.0, 2.6, 50.0)
     cfg = TrackerConfig()
     tracker = Tracker(road, dataclasses.replace(cfg, detection=dataclasses.replace(cfg.detection, hidden_update_p_detection=floor)))
     rng = np.random.default_rng(0)
@@ -491,10 +496,7 @@ def test_missed_weight_cap_keeps_a_seen_label_at_weight_one(cap):
     so the detection model expects it mostly hidden (low ``P_D``) while a cluster updates it every
     frame. The GM-PHD's missed-detection term then keeps nearly all the prior weight beside the update's:
     the label's weight grows past 1.5. Capped, it stays at 1."""
-    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
-    lanes = road.lane_centers
-    far = Car(107.0, lanes[1] + 2.4, 20.0, accel=-1.0)
-    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(50.0, lanes[1], 20.0), far], radar=True)
+    road, far, scene = peeking_scene(107.0, 2.4, 50.0, accel=-1.0)
     cfg = TrackerConfig()
     tracker = Tracker(road, dataclasses.replace(cfg, detection=dataclasses.replace(cfg.detection, missed_weight_cap=cap)))
     rng = np.random.default_rng(0)
@@ -518,10 +520,7 @@ def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
     end of the rear, and the visible end anchors the rear's outer corner: the lateral error stays under
     0.15 m over 5 s. Without it the fragment was taken for the middle of the rear: 1.07 m outward (fails
     on the code before the change)."""
-    road = Road.from_curvature([(900.0, 0.0, 0.0)], lanes=3)
-    lanes = road.lane_centers
-    far = Car(95.0, lanes[1] - 3.0, 20.0)
-    scene = Scene(road, Car(20.0, lanes[1], 20.0), [Car(45.0, lanes[1], 20.0), far], radar=True)
+    road, far, scene = peeking_scene(95.0, -3.0, 45.0, road_length=900.0)
     cfg = TrackerConfig()
     tracker = Tracker(road, dataclasses.replace(cfg, measurement=dataclasses.replace(cfg.measurement, shadow_window=shadow_window)))
     rng = np.random.default_rng(0)
