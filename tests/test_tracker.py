@@ -42,6 +42,22 @@ def peeking_scene(far_s: float, far_offset: float, near_s: float, *, road_length
     return road, far, Scene(road, Car(20.0, lane, 20.0), [Car(near_s, lane, 20.0), far], radar=True)
 
 
+def config_with(section: str, **values) -> TrackerConfig:
+    """The default configuration with ``values`` replaced in its ``section`` (e.g. ``"detection"``)."""
+    cfg = TrackerConfig()
+    return dataclasses.replace(cfg, **{section: dataclasses.replace(getattr(cfg, section), **values)})
+
+
+def tracks_on(car: Car, tracker: Tracker, scene: Scene, frames: int):
+    """Steps ``tracker`` through ``frames`` frames of ``scene`` at 10 Hz (noise seed 0), yielding per frame
+    its index and the reported tracks within 3 m along and 2 m across the road of ``car``."""
+    rng = np.random.default_rng(0)
+    for k in range(frames):
+        t = 0.1 * k
+        yield k, [tr for tr in tracker.step(scene.frame(t, rng))
+                  if abs(tr.mean[0] - car.s_at(t)) < 3.0 and abs(tr.mean[1] - car.n) < 2.0]
+
+
 def nearest(tracks, road, xy):
     """The track whose centre is nearest ``xy`` and that distance (m)."""
     if not tracks:
@@ -497,14 +513,8 @@ def test_missed_weight_cap_keeps_a_seen_label_at_weight_one(cap):
     frame. The GM-PHD's missed-detection term then keeps nearly all the prior weight beside the update's:
     the label's weight grows past 1.5. Capped, it stays at 1."""
     road, far, scene = peeking_scene(107.0, 2.4, 50.0, accel=-1.0)
-    cfg = TrackerConfig()
-    tracker = Tracker(road, dataclasses.replace(cfg, detection=dataclasses.replace(cfg.detection, missed_weight_cap=cap)))
-    rng = np.random.default_rng(0)
-    weights = []
-    for k in range(40):
-        t = 0.1 * k
-        weights += [tr.weight for tr in tracker.step(scene.frame(t, rng))
-                    if abs(tr.mean[0] - far.s_at(t)) < 3.0 and abs(tr.mean[1] - far.n) < 2.0]
+    tracker = Tracker(road, config_with("detection", missed_weight_cap=cap))
+    weights = [tr.weight for _, near in tracks_on(far, tracker, scene, 40) for tr in near]
     assert len(weights) >= 5
     if cap:
         assert max(weights) <= 1.0 + 1e-9
@@ -521,13 +531,9 @@ def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
     0.15 m over 5 s. Without it the fragment was taken for the middle of the rear: 1.07 m outward (fails
     on the code before the change)."""
     road, far, scene = peeking_scene(95.0, -3.0, 45.0, road_length=900.0)
-    cfg = TrackerConfig()
-    tracker = Tracker(road, dataclasses.replace(cfg, measurement=dataclasses.replace(cfg.measurement, shadow_window=shadow_window)))
-    rng = np.random.default_rng(0)
+    tracker = Tracker(road, config_with("measurement", shadow_window=shadow_window))
     lateral = []
-    for k in range(60):
-        t = 0.1 * k
-        near = [tr for tr in tracker.step(scene.frame(t, rng)) if abs(tr.mean[0] - far.s_at(t)) < 3.0 and abs(tr.mean[1] - far.n) < 2.0]
+    for k, near in tracks_on(far, tracker, scene, 60):
         if k >= 10:
             assert len(near) == 1
             lateral.append(near[0].mean[1] - far.n)
