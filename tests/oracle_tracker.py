@@ -20,15 +20,17 @@ from tracker import Frame, Road, Track, TrackerConfig
 
 class OracleTracker:
     """Reports the true vehicles (see the module docstring). ``offset`` (7,) is added to every
-    curvilinear mean ``[s, n, v, xi, xi_dot, L, W]``; ``relabel(vid, t) -> label``; ``everyone``
-    reports every vehicle, in range or not."""
+    curvilinear mean ``[s, n, v, xi, xi_dot, L, W]``, and ``offset_of(vid, t) -> (7,)`` on top per
+    vehicle; ``relabel(vid, t) -> label``; ``everyone`` reports every vehicle, in range or not."""
 
     def __init__(self, spec: ScenarioSpec, seed: int, road: Road, *, max_range: float = 100.0,
-                 offset: np.ndarray | None = None, relabel=None, everyone: bool = False) -> None:  # noqa: ANN001
+                 offset: np.ndarray | None = None, offset_of=None, relabel=None,  # noqa: ANN001
+                 everyone: bool = False) -> None:
         self.world = World(spec, seed)
         self.road = road
         self.max_range = max_range
         self.offset = np.zeros(7) if offset is None else np.asarray(offset, dtype=float)
+        self.offset_of = offset_of
         self.relabel = relabel
         self.everyone = everyone
         self.stats = {"frames": 0}
@@ -44,6 +46,8 @@ class OracleTracker:
                 continue
             mean = np.array([snap.s[k], snap.n[k], snap.v[k], snap.xi[k], snap.xi_dot[k], snap.length[k],
                              snap.width[k]]) + self.offset
+            if self.offset_of is not None:
+                mean = mean + np.asarray(self.offset_of(int(vid), frame.t), dtype=float)
             label = int(vid) if self.relabel is None else int(self.relabel(int(vid), frame.t))
             out.append(Track(label, frame.t, mean, 0.01 * np.eye(7)))
         return out

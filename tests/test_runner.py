@@ -111,6 +111,10 @@ def test_visible_scoring_drops_hidden_vehicles():
     assert m["pos_rmse_seen_m"] < 1e-9 and m["pos_rmse_hidden_m"] < 1e-9
 
 
+def _lateral_offset(vid, t):
+    return np.array([0.0, 0.1 * vid, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+
 def test_position_error_is_split_by_visibility():
     # every track 0.5 m off along the road normal; occlusion hides a vehicle for part of the run:
     # the position error is 0.5 m over the visible and over the hidden pairs, which add up to all pairs
@@ -119,6 +123,18 @@ def test_position_error_is_split_by_visibility():
     m = result.metrics
     assert m["pos_rmse_seen_m"] == pytest.approx(0.5, abs=1e-6) and m["pos_rmse_hidden_m"] == pytest.approx(0.5, abs=1e-6)
     assert 0 < m["matched_pairs_hidden"] < m["matched_pairs"]
+    # each vehicle off by 0.1 m per unit of its id: the split RMSEs are those of the visible and of the
+    # hidden (frame, vehicle) pairs' offsets, which differ (a misaligned visibility flag would mix them)
+    result = _oracle_run(spec, duration=4.0, offset_of=_lateral_offset)
+    seen, hidden = [], []
+    for f in result.frames:
+        for row in np.flatnonzero(f.scored):
+            (seen if f.visible[row] else hidden).append(0.1 * int(f.truth.ids[row]))
+    rms = lambda e: float(np.sqrt(np.mean(np.square(e))))  # noqa: E731
+    assert rms(seen) != pytest.approx(rms(hidden), abs=0.01)
+    m = result.metrics
+    assert m["pos_rmse_seen_m"] == pytest.approx(rms(seen), abs=1e-6)
+    assert m["pos_rmse_hidden_m"] == pytest.approx(rms(hidden), abs=1e-6)
 
 
 def _snapshot(xy, s, n):

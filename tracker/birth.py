@@ -98,9 +98,6 @@ def cluster_births(
         theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
         if sparse_k:  # no orientation in one or two points: the road's direction
             psi_e = theta_fit - ego.yaw
-            axis = np.array([np.cos(psi_e), np.sin(psi_e)])
-            proj = (pts - fit.center) @ np.column_stack([axis, [-axis[1], axis[0]]])
-            fit_len, fit_wid = np.ptp(proj, axis=0)
         else:
             turns = np.arange(4)
             xi_k = wrap_angle(fit.heading + ego.yaw + 0.5 * np.pi * turns - theta_fit)
@@ -109,6 +106,8 @@ def cluster_births(
             fit_len, fit_wid = (fit.length, fit.width) if k % 2 == 0 else (fit.width, fit.length)
         axis = np.array([np.cos(psi_e), np.sin(psi_e)])
         lateral = np.array([-axis[1], axis[0]])
+        if sparse_k:  # the points' extent along and across the road's direction
+            fit_len, fit_wid = np.ptp((pts - fit.center) @ np.column_stack([axis, lateral]), axis=0)
         length, width = max(fit_len, config.length), max(fit_wid, config.width)
         long = config.long_width is not None and fit_wid >= config.long_width and length < config.long_length
         if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen

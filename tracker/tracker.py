@@ -96,6 +96,8 @@ class Tracker:
     across the road than one vehicle, ``clustering.split_width``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
+    ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
+    ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
