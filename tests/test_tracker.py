@@ -10,6 +10,7 @@ from scenes import Car, Scene
 
 from tracker import Frame, Road, Tracker, TrackerConfig
 from tracker.frame import EgoState, RadarDetections
+from tracker.reduction import Mixture
 from tracker.transforms import to_global, to_local
 
 DT = 0.1
@@ -245,7 +246,8 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
     # with MotionConfig.acceleration and no coast_acceleration_time the coasting track keeps
     # accelerating and stays within ~1 m of B; at constant speed it falls ~4 m behind and B is without
     # a track for 8 frames; with the default coast_acceleration_time (0.5 s: an acceleration fades
-    # while unseen, so a braking is not extrapolated for seconds either) in between: 3 frames, 2.6 m
+    # while unseen, so a braking is not extrapolated for seconds either) in between: 5 frames, 2.6 m (3
+    # frames with birth.first_scan off: born a frame later, the track's acceleration differs a little)
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=1.0)], radar=True)
@@ -263,7 +265,7 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
     elif coast is None:
         assert lost == 0 and worst < 1.5, worst
     else:
-        assert lost <= 4 and worst < 3.0, (lost, worst)
+        assert 1 <= lost <= 5 and worst < 3.0, (lost, worst)
 
 
 @pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])
@@ -570,3 +572,70 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
     # the (a, a) variance: scaled by fade^2 before the prediction; the noise added is the same in both
     noise = results[True].covs[0, 7, 7] - singer**2 * cov[7, 7]
     np.testing.assert_allclose(results[False].covs[0, 7, 7], singer**2 * fade**2 * cov[7, 7] + noise, rtol=1e-9)
+
+
+def three_cars_ahead() -> Scene:
+    """A straight three-lane road, the ego in the middle lane at s = 20 m and 20 m/s; cars ahead in
+    each lane (35, 45 and 60 m), all in view from the first scan."""
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    lanes = road.lane_centers
+    return Scene(road, Car(20.0, lanes[1], 20.0), [Car(35.0, lanes[2], 19.0), Car(45.0, lanes[1], 21.0),
+                                                   Car(60.0, lanes[0], 20.0)], radar=True)
+
+
+@pytest.mark.parametrize("first_scan", [True, False], ids=["first-scan", "paper"])
+def test_the_cars_in_view_of_the_first_scan_are_reported_from_that_frame(first_scan):
+    # birth.first_scan: the first scan's clusters are born and updated in that frame; the paper's
+    # model reports them from the next frame (a frame's clusters seed the next frame's births)
+    scene = three_cars_ahead()
+    frames, tracker = run(scene, config_with("birth", first_scan=first_scan), 1.0)
+    assert len(frames[0]) == (3 if first_scan else 0)
+    assert tracker.stats["births_first_scan"] == (3 if first_scan else 0)
+    for k in range(0 if first_scan else 2, len(frames)):
+        assert len(frames[k]) == 3
+        for row in scene.truth(k * DT):
+            assert nearest(frames[k], scene.road, row[:2])[1] < 0.6
+    assert len({tr.label for tracks in frames for tr in tracks}) == 3  # one label per car throughout
+
+
+def test_road_births_of_the_first_scan_avoid_its_cars():
+    # a car where the road births ahead sit (the range limit less birth.range_margin): born from its
+    # cluster, it takes no road birth beside it (road births avoid the first scan's births as they avoid
+    # tracks: none within gating.distance, 5 m, which takes those of all three 4 m lanes there)
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    lanes = road.lane_centers
+    limit = 20.0 + 100.0 - TrackerConfig().birth.range_margin
+    counts = {}
+    behind = Car(5.0, lanes[0], 20.0)  # a scan with points (an empty scan is a blackout: no road births)
+    for cars in ([behind], [behind, Car(limit + 2.4, lanes[1], 20.0)]):
+        tracker = Tracker(road, dataclasses.replace(TrackerConfig(), detection=dataclasses.replace(
+            TrackerConfig().detection, lidar_range=100.0)))
+        tracker.step(Scene(road, Car(20.0, lanes[1], 20.0), cars).frame(0.0, np.random.default_rng(0)))
+        counts[len(cars)] = tracker.stats["births_road"]
+    assert counts[1] == 3 and counts[2] == 0  # three lanes ahead; none behind (the road starts at 0)
+
+
+@pytest.mark.parametrize("drop", [True, False], ids=["dropped", "kept"])
+def test_a_coasting_track_inside_a_seen_vehicle_is_dropped(drop):
+    # reduction.drop_inside_updated: a component of another label (weight 0.9) whose centre lies 1.5 m
+    # into the rectangle of a car whose points update it is a duplicate (two vehicles cannot overlap);
+    # no cluster updates it (the car owns its points), the occlusion model takes it for hidden behind the
+    # car, and it would be reported beside the car for seconds
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    car = Car(45.0, road.lane_centers[1], 20.0)
+    scene = Scene(road, Car(20.0, road.lane_centers[1], 20.0), [car])
+    tracker = Tracker(road, config_with("reduction", drop_inside_updated=drop))
+    steps = tracks_on(car, tracker, scene, 12)
+    for k, tracks in steps:
+        if k == 5:
+            assert len(tracks) == 1
+            mix = tracker.mixture
+            i = int(np.argmax(mix.weights))
+            ghost = mix.means[i].copy()
+            ghost[0] += 1.5
+            tracker.mixture = Mixture(np.append(mix.weights, 0.9), np.vstack([mix.means, ghost]),
+                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
+            tracker._ever_reported.add(999)  # a confirmed label (reported before), not a newborn
+        elif k > 5:
+            assert len(tracks) == (1 if drop else 2)
+    assert (tracker.stats["components_inside_updated_dropped"] >= 1) == drop

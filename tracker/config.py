@@ -416,6 +416,12 @@ class BirthConfig:
       unexplained cluster that a radar detection joined, at any range (fused tracking only): two points
       and a radar detection are a vehicle coming out from behind another (session 9, issue 10:
       stop-and-go GOSPA 4.96 -> 4.86 m, ID switches 2.8 -> 2.0 per run, 10 seeds; the rest unchanged);
+    - ``first_scan``: the tracker's first frame with lidar points (a tracker started amid traffic):
+      the clusters that would seed births for the next frame seed them in this one, and this frame's
+      update takes them at once, so the vehicles in view are reported from the first frame instead of
+      the second (False: the paper's model, where a frame's clusters seed the next frame's births). Only
+      the first scan: later, a cluster that no track explains may be clutter or a fragment, and waits a
+      frame for its confirmation (session 10, issue 10);
     - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used;
     - ``long_width`` (m, None: off), ``long_length`` (m), ``long_length_std`` (m): the long-vehicle
       prior. A vehicle at least ``long_width`` wide is a truck or a bus (cars and vans are at most
@@ -445,6 +451,7 @@ class BirthConfig:
     min_cluster_points_radar: int | None = 1
     sparse_min_range: float = 70.0
     min_cluster_points_fused: int | None = 2
+    first_scan: bool = True
     road: bool = True
     long_width: float | None = 2.35
     long_length: float = 12.0
@@ -535,6 +542,12 @@ class ReductionConfig:
     - ``reidentify_accel`` (m/s^2): the acceleration the match allows for while a track was not updated
       (the motion model holds the speed; a car accelerating at 2 m/s^2 while hidden for 2.4 s is 5.8 m
       ahead of its coasting track): variance ``(accel tau^2 / 2)^2`` along the road after ``tau`` s.
+    - ``drop_inside_updated``: a component whose label no cluster updated in this frame and whose
+      centre lies inside the rectangle of a component of another label that one did (above
+      ``extraction_threshold``) is dropped: two vehicles cannot overlap, so it is a duplicate of the
+      seen vehicle (a fragment of a bus's points born as a car, coasting inside the bus, which the
+      occlusion model would otherwise keep as hidden behind it) or a coasting prediction that a seen
+      vehicle shows to be wrong. Its label may come back through re-identification (session 10).
     """
 
     prune_threshold: float = 1e-4
@@ -550,6 +563,7 @@ class ReductionConfig:
     reidentify_window: float = 5.0
     reidentify_probability: float = 0.99
     reidentify_accel: float = 2.0
+    drop_inside_updated: bool = True
 
     def __post_init__(self) -> None:
         _check("ReductionConfig", "prune_threshold", self.prune_threshold, low=0.0, high=1.0)

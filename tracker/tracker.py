@@ -99,7 +99,8 @@ class Tracker:
     ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
-    ``births_road``, ``births_cluster``, ``components_left_view``, ``components_off_road``,
+    ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``),
+    ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
     ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``),
@@ -146,6 +147,7 @@ class Tracker:
         self._reported_labels: set[int] = set()  # the labels reported in the last frame
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
+        self._scanned = False  # a frame with lidar points has been processed (BirthConfig.first_scan)
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
         red = config.reduction
         self._lost = LostTracks(red.reidentify_window, red.reidentify_probability, self.ut, self.motion,
@@ -179,8 +181,16 @@ class Tracker:
         else:
             # last frame's tracks as predicted rectangles in E: births avoid them, clustering assigns to them
             track_rect = to_vehicle(self.mixture.means[self._reported], ego, self.road, self.config.coordinates)
-            self._add_births(ego, s_ego, track_rect)
+            first = not self._scanned and self.config.birth.first_scan
+            self._scanned = True
+            if not first:
+                self._add_births(ego, s_ego, track_rect, self.mixture.labels[self._reported])
             clusters, velocities = self._cluster(points, frame, track_rect)
+            if first:  # the first scan's vehicles are born now; the road births avoid them as they avoid tracks
+                born = self._birth_from_first_scan(ego, clusters, velocities)
+                self._add_births(ego, s_ego, to_vehicle(self.mixture.means[born], ego, self.road, self.config.coordinates),
+                                 self.mixture.labels[born])
+                self._component_group = np.full(len(self.mixture), -1)  # no reported track owns a component yet
             explained = self._update(ego, clusters, velocities)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
@@ -218,7 +228,9 @@ class Tracker:
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
         self.mixture = mix
 
-    def _add_births(self, ego: EgoState, s_ego: float, tracks: Rectangles) -> None:
+    def _add_births(self, ego: EgoState, s_ego: float, tracks: Rectangles, track_labels: np.ndarray) -> None:
+        """Road births (``tracker.birth.road_births``), but none where ``tracks`` (rectangles in E, with
+        their labels) hide at least half of it or lie within the gating distance."""
         cfg = self.config
         if not cfg.birth.road:
             return
@@ -226,12 +238,11 @@ class Tracker:
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         means, covs = self._with_acceleration(means, covs)
-        occ = self._reported
-        if len(means) and len(occ):
+        if len(means) and len(track_labels):
             # a vehicle can enter the view only where the view is not blocked and no track already is
             rect = to_vehicle(means, ego, self.road, cfg.coordinates)
             labels = np.full(len(means), -1)
-            hidden = occluded_fraction(rect, labels, tracks, self.mixture.labels[occ])
+            hidden = occluded_fraction(rect, labels, tracks, track_labels)
             gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
             keep = (hidden < 0.5) & (gap > cfg.gating.distance)
             means, covs = means[keep], covs[keep]
@@ -441,6 +452,25 @@ class Tracker:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         self._pending = self._with_acceleration(means, covs)
 
+    def _birth_from_first_scan(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
+        """The first scan's clusters seed births that join the mixture now, before this frame's update
+        (``BirthConfig.first_scan``): the births the next frame would have had, one frame earlier.
+        Returns their indices in the mixture."""
+        self._plan_cluster_births(ego, clusters, velocities, np.zeros(len(clusters), dtype=bool))
+        means, covs = self._pending
+        self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
+        mix = self.mixture
+        born = np.arange(len(mix), len(mix) + len(means))
+        if not len(means):
+            return born
+        self.mixture = Mixture(
+            np.concatenate([mix.weights, np.full(len(means), self.config.birth.weight)]),
+            np.concatenate([mix.means, means]), np.concatenate([mix.covs, covs]),
+            np.concatenate([mix.labels, self._new_labels(len(means))]),
+        )
+        self.stats["births_first_scan"] += len(means)
+        return born
+
     def _with_acceleration(self, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth components ``(B, 7)`` with the acceleration state appended when the motion model has
         one (``a = 0``, std ``MotionConfig.acceleration_std``)."""
@@ -470,6 +500,28 @@ class Tracker:
         )
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
+        if red.drop_inside_updated and self._updated_labels and len(self.mixture):
+            self._drop_inside_updated(ego)
+
+    def _drop_inside_updated(self, ego: EgoState) -> None:
+        """``ReductionConfig.drop_inside_updated``: drop the components of labels not updated in this
+        frame whose centre lies inside the rectangle of an updated label's component (above the
+        extraction threshold)."""
+        mix = self.mixture
+        labels = mix.labels.tolist()
+        updated = np.fromiter((lab in self._updated_labels for lab in labels), dtype=bool, count=len(labels))
+        seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
+        idle = np.flatnonzero(~updated)
+        if not len(seen) or not len(idle):
+            return
+        rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
+        inside = points_in_rectangles(rect.center[idle], rect.center[seen], rect.psi[seen], rect.length[seen],
+                                      rect.width[seen], margin=0.0) >= 0
+        if inside.any():
+            self.stats["components_inside_updated_dropped"] += int(inside.sum())
+            keep = np.ones(len(mix), dtype=bool)
+            keep[idle[inside]] = False
+            self.mixture = mix.take(keep)
 
     def _lateral(self, means: np.ndarray) -> np.ndarray:
         """Lateral road offset ``n`` (m) of state means (projected for the Cartesian state)."""
