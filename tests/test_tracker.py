@@ -206,11 +206,13 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
     # confirmed next to it). tracker.identity gives the newcomer B's old label; without it
     # (reidentify_window = 0) B comes back under a new label. The coasting case needs the occlusion
     # model of before (hidden_update_p_detection None): with the default, B's returning points update
-    # its coasting track directly, and B keeps its label even without re-identification (checked last)
+    # its coasting track directly, and B keeps its label even without re-identification (checked last).
+    # Without radar-only updates (MeasurementConfig.radar_only_update, tests/test_radar_update.py): this
+    # scene's radar reports B's centre, where the simulator's (and the model's) reports its nearest point
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, speed, accel=accel)], radar=True)
-    base = TrackerConfig()
+    base = config_with("measurement", radar_only_update=False)
     base = dataclasses.replace(base, detection=dataclasses.replace(base.detection, hidden_update_p_detection=None))
     for window, same in ((5.0, True), (0.0, False)):
         config = base  # constant speed (with the acceleration state B's track is not lost at all)
@@ -227,7 +229,7 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
         assert (len(set(seen)) == 1) == same, (window, sorted(set(seen)))
         assert (tracker.stats["labels_reidentified"] >= 1) == same
     if accel == 0.0:  # the default occlusion model: no takeover, one label without re-identification
-        config = TrackerConfig()
+        config = config_with("measurement", radar_only_update=False)
         config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, reidentify_window=0.0),
                                      motion=dataclasses.replace(config.motion, acceleration=False))
         frames, tracker = run(scene, config, 9.0)
@@ -251,7 +253,9 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=1.0)], radar=True)
-    config = TrackerConfig()
+    # the motion model alone carries B while hidden: no radar-only updates (this scene's radar reports
+    # B's centre, not its nearest point; MeasurementConfig.radar_only_update, tests/test_radar_update.py)
+    config = config_with("measurement", radar_only_update=False)
     config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=acceleration,
                                                                     acceleration_time=6.0, coast_acceleration_time=coast))
     frames, tracker = run(scene, config, 8.0)

@@ -212,17 +212,26 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
 
 def cluster_velocities(clusters: list[np.ndarray], radar: RadarDetections, t: float, gate: float) -> list[np.ndarray | None]:
     """Per cluster, the absolute velocity ``(vx, vy)`` (m/s, E axes) of its associated radar detection,
-    or None. Each detection is first moved to the frame time ``t`` with its own velocity (a radar
-    scan is up to one lidar period old), then ``associate_radar`` pairs them within ``gate`` metres."""
+    or None (``cluster_radar``)."""
+    return cluster_radar(clusters, radar, t, gate)[0]
+
+
+def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
+                  gate: float) -> tuple[list[np.ndarray | None], np.ndarray]:
+    """Per cluster, the absolute velocity ``(vx, vy)`` (m/s, E axes) of its associated radar detection
+    or None, and the index of that detection (-1: none). Each detection is first moved to the frame
+    time ``t`` with its own velocity (a radar scan is up to one lidar period old), then
+    ``associate_radar`` pairs them within ``gate`` metres."""
     velocities: list[np.ndarray | None] = [None] * len(clusters)
     if len(radar) == 0 or not clusters:
-        return velocities
+        return velocities, np.full(len(clusters), -1, dtype=int)
     lag = t - radar.t
     radar_xy = np.column_stack([radar.x + radar.vx * lag, radar.y + radar.vy * lag])
-    for k, r in enumerate(associate_radar(clusters, radar_xy, gate)):
+    index = np.asarray(associate_radar(clusters, radar_xy, gate), dtype=int)
+    for k, r in enumerate(index.tolist()):
         if r >= 0:
             velocities[k] = np.array([radar.vx[r], radar.vy[r]])
-    return velocities
+    return velocities, index
 
 
 def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: float,

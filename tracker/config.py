@@ -280,6 +280,13 @@ class MeasurementConfig:
       of chicane-follow, curve-single, cut-in), fails the pair's gate, but a track's own cluster
       updates it past its gate, and the speed jumped. 25 (5 standard deviations) keeps the radar through
       hard braking, where the prediction lags by a few m/s.
+    - ``radar_only_update`` and ``radar_position_sigma`` (m): a radar detection that joined no lidar
+      cluster updates the track (a label reported before) that no cluster updated in this frame and
+      whose predicted nearest point and velocity it matches (``tracker.radar_update``; fused tracking
+      only; False: the paper, the radar only through the clusters). ``radar_position_sigma`` is the
+      std of the detection about the predicted rectangle's point nearest the sensor, per axis: the
+      radar's 0.5 m plus the model's error (the radar sits on the bumper and reports the nearest
+      *visible* point).
     - ``shadow_range_margin`` (m): an end within this of ``DetectionConfig.lidar_range`` counts as
       occluded as well: the next ray along a far (or grazing) side may return nothing because the
       side goes on beyond the range, not because the vehicle ends there (a bus's side at 99 m).
@@ -287,6 +294,8 @@ class MeasurementConfig:
 
     lidar_sigma: float = 0.1
     radar_velocity_sigma: float = 0.5
+    radar_only_update: bool = True
+    radar_position_sigma: float = 1.0
     two_side_eigen_ratio: float = 50.0
     partial_visibility: float = 0.9
     max_cluster_points: int = 60
@@ -307,6 +316,7 @@ class MeasurementConfig:
         _check("MeasurementConfig", "lidar_sigma", self.lidar_sigma, low=0.0, low_open=True, unit="m")
         _check("MeasurementConfig", "radar_velocity_sigma", self.radar_velocity_sigma, low=0.0, low_open=True,
                unit="m/s")
+        _check("MeasurementConfig", "radar_position_sigma", self.radar_position_sigma, low=0.0, low_open=True, unit="m")
         _check("MeasurementConfig", "two_side_eigen_ratio", self.two_side_eigen_ratio, low=1.0, low_open=True)
         _check("MeasurementConfig", "partial_visibility", self.partial_visibility, low=0.0, high=1.0)
         if self.shadow_window is not None:

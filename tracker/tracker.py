@@ -61,12 +61,13 @@ import math
 from collections import Counter
 
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (cluster_velocities, dense_components, distance_partition, occluded_ends, points_in_rectangles,
+from tracker.clustering import (cluster_radar, dense_components, distance_partition, occluded_ends, points_in_rectangles,
                                 split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
@@ -80,6 +81,7 @@ from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, reduce
 from tracker.road import Road
 from tracker.track import Track
+from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_pairs
 
@@ -148,6 +150,9 @@ class Tracker:
         self._updated_labels: set[int] = set()
         self._ever_reported: set[int] = set()
         self._scanned = False  # a frame with lidar points has been processed (BirthConfig.first_scan)
+        self._free_radar = np.zeros(0, dtype=int)  # the frame's radar detections that joined no cluster
+        self._points = np.zeros((0, 2))  # the frame's lidar points kept for clustering, in E
+        self._radar_updated: set[int] = set()  # labels a radar-only update refined in the last frame
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
         red = config.reduction
         self._lost = LostTracks(red.reidentify_window, red.reidentify_probability, self.ut, self.motion,
@@ -171,7 +176,8 @@ class Tracker:
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
-        updated_before, self._updated_labels = self._updated_labels, set()
+        updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
+        self._radar_updated = set()
         self._predict(dt, updated_before)
         points, scanned = self._preprocess(frame)
         if not scanned:
@@ -192,6 +198,8 @@ class Tracker:
                                  self.mixture.labels[born])
                 self._component_group = np.full(len(self.mixture), -1)  # no reported track owns a component yet
             explained = self._update(ego, clusters, velocities)
+            if self.config.use_radar and self.config.measurement.radar_only_update:
+                self._update_by_radar(frame)
             self._plan_cluster_births(ego, clusters, velocities, explained)
         self._reduce(ego)
         tracks = self._extract(frame.t, ego)
@@ -259,6 +267,7 @@ class Tracker:
         3-D cloud: any point left after ground removal; ``last_cloud`` keeps the pipeline's result)."""
         self._scan, removed, self.last_cloud = lidar_points(frame, self.config.cloud)
         points, counts, self._point_n = filter_points(self._scan, frame.ego, self.road, self.config.clustering)
+        self._points = points
         self.stats.update(removed)
         self.stats.update(counts)
         return points, len(self._scan) > 0
@@ -296,8 +305,10 @@ class Tracker:
         clusters = [c for c, keep in zip(clusters, big) if keep]
         self._owned = owned[big] if len(big) else np.zeros(0, dtype=int)
         velocities: list[np.ndarray | None] = [None] * len(clusters)
+        self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
         if self.config.use_radar:
-            velocities = cluster_velocities(clusters, frame.radar, frame.t, cfg.radar_gate)
+            velocities, joined = cluster_radar(clusters, frame.radar, frame.t, cfg.radar_gate)
+            self._free_radar = np.setdiff1d(self._free_radar, joined)
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities
@@ -440,6 +451,42 @@ class Tracker:
                     new_l.append(mix.labels[comp])
         self.mixture = Mixture(np.concatenate(new_w), np.concatenate(new_m), np.concatenate(new_p), np.concatenate(new_l))
         return explained
+
+    def _update_by_radar(self, frame: Frame) -> None:
+        """Radar-only updates (``tracker.radar_update``) of the components of tracks (labels reported
+        before) that no cluster updated in this frame, by the detections that joined no cluster."""
+        mix = self.mixture
+        if not len(mix) or not len(self._free_radar) or not self._ever_reported:
+            return
+        ever, updated = self._ever_reported, self._updated_labels
+        labels = mix.labels.tolist()
+        coasting = np.flatnonzero(np.fromiter((lab in ever and lab not in updated for lab in labels), dtype=bool,
+                                              count=len(labels)))
+        free = self._free_radar
+        radar = frame.radar
+        lag = frame.t - radar.t[free]
+        xy = np.column_stack([radar.x[free] + radar.vx[free] * lag, radar.y[free] + radar.vy[free] * lag])
+        if len(self._points):
+            # a detection next to lidar returns is of a vehicle the lidar sees (the second cycle's
+            # detection of a tracked car, a car not yet confirmed): its points speak for it
+            clear = cKDTree(self._points).query(xy, distance_upper_bound=RADAR_ONLY_CLEARANCE)[0] > RADAR_ONLY_CLEARANCE
+            free, xy = free[clear], xy[clear]
+        seen = np.flatnonzero(np.fromiter((lab in updated for lab in labels), dtype=bool, count=len(labels))
+                              & (mix.weights > self.config.reduction.extraction_threshold))
+        if len(seen) and len(coasting):
+            # a detection on (or next to) a vehicle that its points updated in this frame is that vehicle's
+            rect = to_vehicle(mix.means[seen], frame.ego, self.road, self.config.coordinates)
+            free = free[points_in_rectangles(xy, rect.center, rect.psi, rect.length, rect.width,
+                                             self.config.clustering.track_margin) < 0]
+        res = update_coasting(mix.means, mix.covs, coasting, frame.radar, free, frame.t, frame.ego,
+                              self.road, self.config, self.ut, mix.labels)
+        if len(res.component):
+            post_cov, repaired = ensure_spd(res.cov, self.config.ukf.min_eigenvalue)
+            self.stats["covariances_repaired"] += repaired
+            mix.means[res.component] = res.mean
+            mix.covs[res.component] = post_cov
+            self.stats["radar_only_updates"] += len(res.component)
+            self._radar_updated.update(int(lab) for lab in mix.labels[res.component])
 
     def _plan_cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None], explained: np.ndarray) -> None:
         """Clusters that no component explained and that lie outside every reported track's rectangle

@@ -1,0 +1,158 @@
+"""Radar-only updates of coasting tracks: a radar detection that joined no lidar cluster updates the
+track the lidar cannot see.
+
+The paper fuses the radar only through the lidar clusters (a cluster's velocity rows). A vehicle
+hidden from the lidar (behind another, or showing it fewer points than a cluster needs) is often still
+seen by a radar mounted elsewhere on the ego (the bumper), and the radar then reports its position and
+velocity while the track coasts on a prediction that knows neither that the vehicle stopped nor that
+it sped up (issue 10: stop-and-go, a car stopping behind a bus while its track drove on at 8 m/s; a
+third of the frames in which a vehicle shows the lidar fewer than three points carry a radar detection
+of it).
+
+Model (``MeasurementConfig.radar_only_update``): a detection is the point of the vehicle's rectangle
+nearest the sensor plus noise, and its absolute velocity in E::
+
+    h(x) = [ p(x), v (cos psi_E, sin psi_E) ],   R = diag(sp^2, sp^2, sv^2, sv^2)
+
+with ``p(x)`` the rectangle's point nearest the E origin (``nearest_points``; the radar sits on the
+bumper, not at the origin, and reports the nearest *visible* point, so ``sp`` =
+``radar_position_sigma`` is wider than the sensor's own noise), ``sv = radar_velocity_sigma``. Only
+the components of tracks (labels reported before) that no lidar cluster updated in this frame are
+candidates, only detections that joined no cluster and lie clear of the lidar's returns
+(``RADAR_ONLY_CLEARANCE``) and of the rectangles of the tracks updated in this frame are used, and a
+pair counts only within
+``RADAR_ONLY_LATERAL`` across the track's heading and within the gate (``gating.probability`` of a chi-square with 4 degrees of freedom), and only when it is
+unambiguous: the detection gates with one track alone and the track with that detection alone (cars
+queueing hidden nose to tail, their position spreads grown along the road, gate with each other's
+detections; an ambiguous pair is left out rather than guessed). Each component takes its pair of
+smallest normalised innovation; its weight is left as the lidar update made it (the detection
+refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays the
+lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update
+(``tracker.update.kalman_update``) over all gated pairs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from tracker.config import TrackerConfig
+from tracker.frame import EgoState, RadarDetections
+from tracker.measurement import Rectangles, to_vehicle
+from tracker.road import Road
+from tracker.ukf import UnscentedTransform
+from tracker.update import kalman_update, state_wrapping
+
+#: Measurement rows of a radar-only detection: position (x, y) and velocity (vx, vy) in E.
+RADAR_DIM = 4
+#: A detection within this (m) of a lidar return kept for clustering is of a vehicle the lidar sees
+#: (the radars cycle 1-2 times per lidar frame and only one detection joins a cluster; a car not yet
+#: confirmed shows a point or two): it updates no coasting track (``Tracker._update_by_radar``).
+RADAR_ONLY_CLEARANCE = 2.0
+#: A detection farther than this (m) across the predicted heading from the predicted nearest point
+#: updates no coasting track: it is another vehicle, in the next lane (a coasting track's lateral
+#: spread grows to a metre in seconds, and the detection's 1 m noise then gates a car 2 m aside).
+RADAR_ONLY_LATERAL = 1.0
+
+
+def nearest_points(rect: Rectangles) -> np.ndarray:
+    """The point ``(..., 2)`` of each rectangle nearest the E origin (the sensor); the origin itself
+    when it lies inside."""
+    c, s = np.cos(rect.psi), np.sin(rect.psi)
+    # the origin in each rectangle's own axes, clamped to the rectangle, and back to E
+    ox, oy = -rect.center[..., 0], -rect.center[..., 1]
+    u = np.clip(c * ox + s * oy, -0.5 * rect.length, 0.5 * rect.length)
+    w = np.clip(-s * ox + c * oy, -0.5 * rect.width, 0.5 * rect.width)
+    return np.stack([rect.center[..., 0] + c * u - s * w, rect.center[..., 1] + s * u + c * w], axis=-1)
+
+
+def radar_measurement(rect: Rectangles) -> np.ndarray:
+    """``h(x)`` ``(..., 4)`` of rectangles: nearest point and absolute velocity in E (module docstring)."""
+    return np.concatenate([nearest_points(rect), rect.velocity()], axis=-1)
+
+
+@dataclass(frozen=True)
+class RadarOnlyResult:
+    """The radar-only updates of one frame: ``component (U,)`` the updated components' indices,
+    ``detection (U,)`` the detection each took, ``mean (U, D)``, ``cov (U, D, D)`` their posteriors,
+    ``nis (U,)`` the normalised innovations."""
+
+    component: np.ndarray
+    detection: np.ndarray
+    mean: np.ndarray
+    cov: np.ndarray
+    nis: np.ndarray
+
+    @staticmethod
+    def empty(dim: int) -> RadarOnlyResult:
+        return RadarOnlyResult(np.zeros(0, dtype=int), np.zeros(0, dtype=int), np.zeros((0, dim)),
+                               np.zeros((0, dim, dim)), np.zeros(0))
+
+
+def update_coasting(
+    means: np.ndarray,
+    covs: np.ndarray,
+    candidates: np.ndarray,
+    radar: RadarDetections,
+    free: np.ndarray,
+    t: float,
+    ego: EgoState,
+    road: Road | None,
+    config: TrackerConfig,
+    ut: UnscentedTransform,
+    labels: np.ndarray | None = None,
+) -> RadarOnlyResult:
+    """Radar-only updates (module docstring) of the components ``candidates`` of ``means (C, D)``,
+    ``covs (C, D, D)`` by the detections ``free`` (indices into ``radar``) at frame time ``t``, each
+    moved to ``t`` with its own velocity first. With ``labels (C,)`` only unambiguous pairs count: a
+    detection that gates with the components of one label alone, of a label whose components gate
+    with that detection alone."""
+    dim = means.shape[-1]
+    candidates = np.asarray(candidates, dtype=int)
+    free = np.asarray(free, dtype=int)
+    if len(candidates) == 0 or len(free) == 0:
+        return RadarOnlyResult.empty(dim)
+    lag = t - radar.t[free]
+    z = np.column_stack([radar.x[free] + radar.vx[free] * lag, radar.y[free] + radar.vy[free] * lag,
+                         radar.vx[free], radar.vy[free]])
+    rect = to_vehicle(means[candidates], ego, road, config.coordinates)
+    # pre-gate on position: within the gating distance of the predicted rectangle's nearest point, and
+    # within RADAR_ONLY_LATERAL of it across the vehicle's heading (the vehicle's own lane)
+    near = nearest_points(rect)
+    dx, dy = z[None, :, 0] - near[:, None, 0], z[None, :, 1] - near[:, None, 1]  # (K, F)
+    c, s = np.cos(rect.psi)[:, None], np.sin(rect.psi)[:, None]
+    across = np.abs(-s * dx + c * dy)
+    comp, det = np.nonzero((np.hypot(dx, dy) <= config.gating.distance) & (across <= RADAR_ONLY_LATERAL))
+    if len(comp) == 0:
+        return RadarOnlyResult.empty(dim)
+    wrapping = state_wrapping(road, config.coordinates)
+    used, inverse = np.unique(comp, return_inverse=True)
+    idx = candidates[used]
+    sigma = ut.sigma_points(means[idx], covs[idx], wrapping)  # (U, S, D)
+    z_sigma = radar_measurement(to_vehicle(sigma, ego, road, config.coordinates))  # (U, S, 4)
+    m = config.measurement
+    r = np.array([m.radar_position_sigma**2] * 2 + [m.radar_velocity_sigma**2] * 2)
+    res = kalman_update(ut, sigma[inverse], means[idx][inverse], covs[idx][inverse], z_sigma[inverse], z[det],
+                        np.broadcast_to(r, (len(comp), RADAR_DIM)), wrapping=wrapping)
+    gated = res.nis <= chi2.ppf(config.gating.probability, RADAR_DIM)
+    if not gated.any():
+        return RadarOnlyResult.empty(dim)
+    pairs = np.flatnonzero(gated)
+    if labels is not None:
+        # unambiguous pairs only: the detection gates with one track (label) alone, and the track with
+        # this detection alone (hidden cars queueing nose to tail gate with each other's detections)
+        lab = np.asarray(labels)[candidates[comp[pairs]]]
+        d = det[pairs]
+        label_pairs = np.unique(np.column_stack([lab, d]), axis=0)
+        per_det = np.bincount(label_pairs[:, 1], minlength=len(free))
+        lab_ids, lab_count = np.unique(label_pairs[:, 0], return_counts=True)
+        per_label = lab_count[np.searchsorted(lab_ids, lab)]
+        pairs = pairs[(per_det[d] == 1) & (per_label == 1)]
+        if not len(pairs):
+            return RadarOnlyResult.empty(dim)
+    # per component, the pair of smallest normalised innovation
+    order = pairs[np.lexsort((res.nis[pairs], comp[pairs]))]
+    first = order[np.concatenate([[True], np.diff(comp[order]) != 0])]
+    return RadarOnlyResult(candidates[comp[first]], free[det[first]], res.mean[first], res.cov[first], res.nis[first])
