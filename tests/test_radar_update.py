@@ -86,20 +86,28 @@ def test_a_detection_that_does_not_fit_updates_nothing(straight, offset, reason)
     assert len(res.component) == 0, reason
 
 
-def test_a_detection_two_tracks_could_take_updates_neither(straight):
-    # two hidden cars queueing in one lane, their tracks' spreads along the road grown to 3 m: a single
-    # detection gates with both, and is left out rather than given to one of them
+def test_a_detection_two_tracks_could_take_goes_to_the_nearer_alone(straight):
+    # two hidden cars queueing in one lane, their tracks' spreads along the road grown to 3 m: a detection
+    # 2 m ahead of the first gates with both and updates only the first (the assignment); two
+    # hypotheses of one track (one label) are both refined by it
     config, ut = TrackerConfig(), UnscentedTransform(TrackerConfig().ukf, n=8)
     m1, p1 = coasting(straight, 50.0, 0.0, 5.0)
     m2, p2 = coasting(straight, 56.0, 0.0, 5.0)
     means, covs = np.concatenate([m1, m2]), np.concatenate([p1, p2])
-    radar = detection_of(straight, 53.0, 0.0, 5.0)
+    radar = detection_of(straight, 52.0, 0.0, 5.0)
+    loose = update_coasting(means, covs, np.array([0, 1]), radar, np.array([0]), 0.0, EGO, straight, config, ut)
+    assert sorted(loose.component) == [0, 1]  # without labels: every gated component
     both = update_coasting(means, covs, np.array([0, 1]), radar, np.array([0]), 0.0, EGO, straight, config, ut,
                            labels=np.array([7, 8]))
-    assert len(both.component) == 0
+    assert list(both.component) == [0]
     one_label = update_coasting(means, covs, np.array([0, 1]), radar, np.array([0]), 0.0, EGO, straight, config, ut,
-                                labels=np.array([7, 7]))  # two hypotheses of one track: both refined
+                                labels=np.array([7, 7]))
     assert sorted(one_label.component) == [0, 1]
+    two = RadarDetections(*(np.concatenate([getattr(radar, f), getattr(detection_of(straight, 57.0, 0.0, 5.0), f)])
+                            for f in ("t", "x", "y", "vx", "vy")))
+    each = update_coasting(means, covs, np.array([0, 1]), two, np.array([0, 1]), 0.0, EGO, straight, config, ut,
+                           labels=np.array([7, 8]))
+    assert dict(zip(each.component, each.detection)) == {0: 0, 1: 1}
 
 
 def test_an_old_detection_is_moved_to_the_frame_time(straight):

@@ -21,11 +21,13 @@ the components of tracks (labels reported before) that no lidar cluster updated 
 candidates, only detections that joined no cluster and lie clear of the lidar's returns
 (``RADAR_ONLY_CLEARANCE``) and of the rectangles of the tracks updated in this frame are used, and a
 pair counts only within
-``RADAR_ONLY_LATERAL`` across the track's heading and within the gate (``gating.probability`` of a chi-square with 4 degrees of freedom), and only when it is
-unambiguous: the detection gates with one track alone and the track with that detection alone (cars
-queueing hidden nose to tail, their position spreads grown along the road, gate with each other's
-detections; an ambiguous pair is left out rather than guessed). Each component takes its pair of
-smallest normalised innovation; its weight is left as the lidar update made it (the detection
+``RADAR_ONLY_LATERAL`` across the track's heading and within the gate (``gating.probability`` of a chi-square with 4 degrees of freedom). A detection goes to
+one track and a track takes one detection: the assignment (``scipy.optimize.linear_sum_assignment``)
+of least total normalised innovation between tracks (each at its best component) and detections, for
+cars queueing hidden nose to tail, whose position spreads have grown along the road, gate with each
+other's detections (measured against taking only unambiguous pairs, fused, 10 seeds: curvy-multi
+position 0.299 -> 0.262 m, stop-and-go GOSPA 4.68 -> 4.66 m, the same ID switches). Each component of
+the chosen track takes its pair with that detection; its weight is left as the lidar update made it (the detection
 refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays the
 lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update
 (``tracker.update.kalman_update``) over all gated pairs.
@@ -36,6 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
 from tracker.config import TrackerConfig
@@ -55,6 +58,8 @@ RADAR_ONLY_CLEARANCE = 2.0
 #: updates no coasting track: it is another vehicle, in the next lane (a coasting track's lateral
 #: spread grows to a metre in seconds, and the detection's 1 m noise then gates a car 2 m aside).
 RADAR_ONLY_LATERAL = 1.0
+#: The assignment's cost of a (track, detection) pair outside the gate (never chosen over a gated one).
+NOT_GATED = 1e9
 
 
 def nearest_points(rect: Rectangles) -> np.ndarray:
@@ -106,9 +111,8 @@ def update_coasting(
 ) -> RadarOnlyResult:
     """Radar-only updates (module docstring) of the components ``candidates`` of ``means (C, D)``,
     ``covs (C, D, D)`` by the detections ``free`` (indices into ``radar``) at frame time ``t``, each
-    moved to ``t`` with its own velocity first. With ``labels (C,)`` only unambiguous pairs count: a
-    detection that gates with the components of one label alone, of a label whose components gate
-    with that detection alone."""
+    moved to ``t`` with its own velocity first. With ``labels (C,)`` a detection goes to one label and
+    a label takes one detection (the assignment of least total normalised innovation)."""
     dim = means.shape[-1]
     candidates = np.asarray(candidates, dtype=int)
     free = np.asarray(free, dtype=int)
@@ -141,17 +145,18 @@ def update_coasting(
         return RadarOnlyResult.empty(dim)
     pairs = np.flatnonzero(gated)
     if labels is not None:
-        # unambiguous pairs only: the detection gates with one track (label) alone, and the track with
-        # this detection alone (hidden cars queueing nose to tail gate with each other's detections)
+        # one detection per track and one track per detection: the assignment of least total normalised
+        # innovation between the tracks (labels, each at its best component) and the detections
         lab = np.asarray(labels)[candidates[comp[pairs]]]
         d = det[pairs]
-        label_pairs = np.unique(np.column_stack([lab, d]), axis=0)
-        per_det = np.bincount(label_pairs[:, 1], minlength=len(free))
-        lab_ids, lab_count = np.unique(label_pairs[:, 0], return_counts=True)
-        per_label = lab_count[np.searchsorted(lab_ids, lab)]
-        pairs = pairs[(per_det[d] == 1) & (per_label == 1)]
-        if not len(pairs):
-            return RadarOnlyResult.empty(dim)
+        ids, li = np.unique(lab, return_inverse=True)
+        cost = np.full((len(ids), len(free)), np.inf)
+        np.minimum.at(cost, (li, d), res.nis[pairs])
+        rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, NOT_GATED))
+        chosen = np.full(len(ids), -1)
+        ok = np.isfinite(cost[rows, cols])
+        chosen[rows[ok]] = cols[ok]
+        pairs = pairs[chosen[li] == d]
     # per component, the pair of smallest normalised innovation
     order = pairs[np.lexsort((res.nis[pairs], comp[pairs]))]
     first = order[np.concatenate([[True], np.diff(comp[order]) != 0])]
