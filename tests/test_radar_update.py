@@ -173,3 +173,37 @@ def test_a_car_stopping_while_hidden_from_the_lidar_is_followed_by_the_radar(rad
     else:
         assert tracker.stats["radar_only_updates"] == 0
         assert np.all(late > 1.4) and late[-1] > 2.5, late  # 1.5 m at 6.2 s, 2.9 m at 7 s
+
+
+@pytest.mark.parametrize("radar_only", [True, False], ids=["radar-only-update", "clusters-only"])
+def test_the_radar_carries_the_tracks_through_a_lidar_blackout(radar_only):
+    # the lidar returns nothing for 1.5 s (2-3.5 s) while the car 30 m ahead brakes at 4 m/s^2 from
+    # 20 to 14 m/s; the radar keeps delivering. With radar-only updates its track follows the braking
+    # (within 1 m at the end of the blackout); coasting, it is metres ahead of the car
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+
+    class Braking(Car):
+        def s_at(self, t):
+            tau = min(max(t - 2.0, 0.0), 1.5)
+            return self.s0 + 20.0 * t - 2.0 * tau * tau - 4.0 * 1.5 * max(t - 3.5, 0.0)
+
+    car = Braking(130.0, 0.0, 20.0)
+    scene = NearestPointRadar(road, Car(100.0, 0.0, 20.0), [car], radar=True)
+    cfg = TrackerConfig()
+    tracker = Tracker(road, dataclasses.replace(cfg, measurement=dataclasses.replace(
+        cfg.measurement, radar_only_update=radar_only)))
+    rng = np.random.default_rng(1)
+    errors = []
+    for k in range(36):
+        t = 0.1 * k
+        frame = scene.frame(t, rng)
+        if 2.0 <= t < 3.5:
+            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
+        tracks = tracker.step(frame)
+        errors.append(min((abs(tr.s - car.s_at(t)) for tr in tracks), default=np.inf))
+    assert tracker.stats["predict_only_frames"] == 15
+    end = errors[34]  # 3.4 s, the last dark frame
+    if radar_only:
+        assert tracker.stats["radar_only_updates"] >= 14 and end < 1.0, end
+    else:
+        assert tracker.stats["radar_only_updates"] == 0 and 2.5 < end < np.inf, end

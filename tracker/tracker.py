@@ -182,8 +182,13 @@ class Tracker:
         points, scanned = self._preprocess(frame)
         if not scanned:
             # no lidar points at all (a blackout): predict only; no road births, which no scan could
-            # confirm or discount (their weight would stand unchanged until the lidar returns)
+            # confirm or discount (their weight would stand unchanged until the lidar returns); the
+            # radar's detections still update the tracks (all of them coasting now)
             self.stats["predict_only_frames"] += 1
+            self._points = np.zeros((0, 2))
+            self._free_radar = np.arange(len(frame.radar))
+            if self.config.use_radar and self.config.measurement.radar_only_update:
+                self._update_by_radar(frame)
         else:
             # last frame's tracks as predicted rectangles in E: births avoid them, clustering assigns to them
             track_rect = to_vehicle(self.mixture.means[self._reported], ego, self.road, self.config.coordinates)
