@@ -61,7 +61,6 @@ import math
 from collections import Counter
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
@@ -467,6 +466,8 @@ class Tracker:
         labels = mix.labels.tolist()
         coasting = np.flatnonzero(np.fromiter((lab in ever and lab not in updated for lab in labels), dtype=bool,
                                               count=len(labels)))
+        if not len(coasting):
+            return
         free = self._free_radar
         radar = frame.radar
         lag = frame.t - radar.t[free]
@@ -474,7 +475,10 @@ class Tracker:
         if len(self._points):
             # a detection next to lidar returns is of a vehicle the lidar sees (the second cycle's
             # detection of a tracked car, a car not yet confirmed): its points speak for it
-            clear = cKDTree(self._points).query(xy, distance_upper_bound=RADAR_ONLY_CLEARANCE)[0] > RADAR_ONLY_CLEARANCE
+            # (a few detections against the frame's points: one (F, N) pass, no tree to build)
+            gap2 = np.min((self._points[None, :, 0] - xy[:, None, 0]) ** 2 + (self._points[None, :, 1] - xy[:, None, 1]) ** 2,
+                          axis=1)
+            clear = gap2 > RADAR_ONLY_CLEARANCE**2
             free, xy = free[clear], xy[clear]
         seen = np.flatnonzero(np.fromiter((lab in updated for lab in labels), dtype=bool, count=len(labels))
                               & (mix.weights > self.config.reduction.extraction_threshold))
