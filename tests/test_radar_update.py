@@ -140,6 +140,39 @@ class NearestPointRadar(Scene):
         return Frame(frame.t, frame.ego, frame.lidar, RadarDetections(np.full(len(z), t), *z.T))
 
 
+@dataclasses.dataclass
+class Braking(Car):
+    """A car at ``v`` that brakes at ``decel`` (m/s^2) from ``t_brake`` (s) for ``brake_s`` (s), then
+    holds its speed."""
+
+    t_brake: float = 0.0
+    decel: float = 0.0
+    brake_s: float = 0.0
+
+    def s_at(self, t: float) -> float:
+        tau = min(max(t - self.t_brake, 0.0), self.brake_s)
+        after = max(t - self.t_brake - self.brake_s, 0.0)
+        return self.s0 + self.v * t - 0.5 * self.decel * tau * tau - self.decel * self.brake_s * after
+
+
+def follow(scene: Scene, car: Car, radar_only: bool, frames: int, seed: int, dark=None):
+    """Track ``scene`` for ``frames`` frames at 10 Hz (lidar empty in ``dark = (t0, t1)``); per frame the
+    along-road error (m) of the nearest track in ``car``'s lane (inf: none), and the tracker."""
+    cfg = TrackerConfig()
+    tracker = Tracker(scene.road, dataclasses.replace(cfg, measurement=dataclasses.replace(
+        cfg.measurement, radar_only_update=radar_only)))
+    rng = np.random.default_rng(seed)
+    errors = []
+    for k in range(frames):
+        t = 0.1 * k
+        frame = scene.frame(t, rng)
+        if dark is not None and dark[0] <= t < dark[1]:
+            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
+        tracks = tracker.step(frame)
+        errors.append(min((abs(tr.s - car.s_at(t)) for tr in tracks if abs(tr.n - car.n) < 2.0), default=np.inf))
+    return np.array(errors), tracker
+
+
 @pytest.mark.parametrize("radar_only", [True, False], ids=["radar-only-update", "clusters-only"])
 def test_a_car_stopping_while_hidden_from_the_lidar_is_followed_by_the_radar(radar_only):
     # B drives at 3 m/s in the left lane, 32 m ahead of the ego (5 m/s, right lane); a van beside the ego
@@ -147,25 +180,11 @@ def test_a_car_stopping_while_hidden_from_the_lidar_is_followed_by_the_radar(rad
     # 4.5 s to a stop at 6 s; the radar (reporting B's nearest point) sees it throughout. With the
     # radar-only update the coasting track stops with B; without, it drives on and is metres beyond B
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
-
-    class Braking(Car):
-        def s_at(self, t):
-            tau = min(max(t - 4.5, 0.0), 1.5)
-            return self.s0 + 3.0 * min(t, 4.5) + 3.0 * tau - tau * tau
-
-    car_b = Braking(132.0, 3.5, 3.0)
+    car_b = Braking(132.0, 3.5, 3.0, t_brake=4.5, decel=2.0, brake_s=1.5)
     scene = NearestPointRadar(road, Car(100.0, -3.5, 5.0),
                               [Car(106.0, 0.0, 5.0, length=6.0, width=2.2), car_b], radar=True)
-    cfg = TrackerConfig()
-    config = dataclasses.replace(cfg, measurement=dataclasses.replace(cfg.measurement, radar_only_update=radar_only))
-    tracker = Tracker(road, config)
-    rng = np.random.default_rng(0)
-    errors = []
-    for k in range(71):
-        t = 0.1 * k
-        tracks = tracker.step(scene.frame(t, rng))
-        errors.append(min((abs(tr.s - car_b.s_at(t)) for tr in tracks if abs(tr.n - 3.5) < 2.0), default=np.inf))
-    late = np.array(errors[62:])  # 6.2-7 s: B hidden and stopped
+    errors, tracker = follow(scene, car_b, radar_only, 71, seed=0)
+    late = errors[62:]  # 6.2-7 s: B hidden and stopped
     assert np.all(np.isfinite(late))  # a track throughout, either way
     if radar_only:
         assert tracker.stats["radar_only_updates"] > 10
@@ -181,26 +200,9 @@ def test_the_radar_carries_the_tracks_through_a_lidar_blackout(radar_only):
     # 20 to 14 m/s; the radar keeps delivering. With radar-only updates its track follows the braking
     # (within 1 m at the end of the blackout); coasting, it is metres ahead of the car
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
-
-    class Braking(Car):
-        def s_at(self, t):
-            tau = min(max(t - 2.0, 0.0), 1.5)
-            return self.s0 + 20.0 * t - 2.0 * tau * tau - 4.0 * 1.5 * max(t - 3.5, 0.0)
-
-    car = Braking(130.0, 0.0, 20.0)
+    car = Braking(130.0, 0.0, 20.0, t_brake=2.0, decel=4.0, brake_s=1.5)
     scene = NearestPointRadar(road, Car(100.0, 0.0, 20.0), [car], radar=True)
-    cfg = TrackerConfig()
-    tracker = Tracker(road, dataclasses.replace(cfg, measurement=dataclasses.replace(
-        cfg.measurement, radar_only_update=radar_only)))
-    rng = np.random.default_rng(1)
-    errors = []
-    for k in range(36):
-        t = 0.1 * k
-        frame = scene.frame(t, rng)
-        if 2.0 <= t < 3.5:
-            frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
-        tracks = tracker.step(frame)
-        errors.append(min((abs(tr.s - car.s_at(t)) for tr in tracks), default=np.inf))
+    errors, tracker = follow(scene, car, radar_only, 36, seed=1, dark=(2.0, 3.5))
     assert tracker.stats["predict_only_frames"] == 15
     end = errors[34]  # 3.4 s, the last dark frame
     if radar_only:
