@@ -16,7 +16,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.measurement.partial_visibility == 0.9
     assert c.reduction.extraction_threshold == 0.5
     assert c.reduction.confirm_min_points == 2 and c.measurement.single_point_min_apparent == 0.25
-    assert c.reduction.reidentify_window == 5.0 and c.reduction.report_range == 0.0
+    assert c.reduction.reidentify_window == 10.0 and c.reduction.report_range == 0.0
     assert c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.3)
     assert c.motion.coast_acceleration_time == 0.5
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)

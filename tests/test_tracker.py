@@ -241,6 +241,28 @@ def test_car_hidden_for_seconds_is_reidentified_under_its_label(speed, accel):
         assert len(seen) == 1 and tracker.stats["coasting_tracks_taken_over"] == 0
 
 
+@pytest.mark.parametrize("window, same", [(10.0, True), (5.0, False)], ids=["default-10s", "5s"])
+def test_a_car_hidden_eight_seconds_keeps_its_label(window, same):
+    # B (18 m/s, left lane) falls back into the shadow of a van beside the ego (both 20 m/s) and shows the
+    # lidar no point from 4.1 to 12.9 s (no radar: its track is lost); the default re-identification
+    # window (10 s; stop-and-go's car behind a bus is hidden 9.6 s) gives the returning car its label,
+    # the window of before (5 s) a new one
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, -3.5, 20.0), [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 18.0)])
+    config = TrackerConfig() if window == TrackerConfig().reduction.reidentify_window else \
+        config_with("reduction", reidentify_window=window)
+    frames, tracker = run(scene, config, 15.0)
+    labels = []
+    for k in range(len(frames)):
+        tr, d = nearest(frames[k], road, scene.truth(k * DT)[1, :2])
+        labels.append(tr.label if d < 1.5 else None)
+    lost = [k for k, lab in enumerate(labels) if lab is None]
+    assert lost and (max(lost) - min(lost)) * DT > 8.0  # B had no track for over 8 s
+    assert labels[int(3.0 / DT)] is not None and labels[int(14.5 / DT)] is not None
+    assert (labels[int(3.0 / DT)] == labels[int(14.5 / DT)]) == same
+    assert (tracker.stats["labels_reidentified"] >= 1) == same
+
+
 @pytest.mark.parametrize("acceleration, coast", [(False, None), (True, None), (True, 0.5)],
                          ids=["constant-speed", "acceleration-kept-while-hidden", "acceleration-fading-while-hidden"])
 def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(acceleration, coast):
