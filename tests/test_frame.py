@@ -74,3 +74,11 @@ def test_radar_detections_reject_bad_input():
         RadarDetections(np.zeros((2, 2)), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2))
     assert len(RadarDetections.empty()) == 0
     assert RadarDetections.empty().as_array().shape == (0, 5)
+
+
+def test_radar_positions_are_moved_to_the_frame_time_with_their_own_velocity():
+    radar = RadarDetections(t=[0.93, 1.0, 0.95], x=[10.0, -5.0, 0.0], y=[2.0, 1.0, 3.0], vx=[20.0, 0.0, -4.0],
+                            vy=[0.0, 3.0, 2.0])
+    np.testing.assert_allclose(radar.positions_at(1.0), [[11.4, 2.0], [-5.0, 1.0], [-0.2, 3.1]], atol=1e-12)
+    np.testing.assert_allclose(radar.positions_at(1.0, np.array([2, 0])), [[-0.2, 3.1], [11.4, 2.0]], atol=1e-12)
+    assert radar.positions_at(1.0, np.zeros(0, dtype=int)).shape == (0, 2)

@@ -225,9 +225,7 @@ def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
     velocities: list[np.ndarray | None] = [None] * len(clusters)
     if len(radar) == 0 or not clusters:
         return velocities, np.full(len(clusters), -1, dtype=int)
-    lag = t - radar.t
-    radar_xy = np.column_stack([radar.x + radar.vx * lag, radar.y + radar.vy * lag])
-    index = np.asarray(associate_radar(clusters, radar_xy, gate), dtype=int)
+    index = np.asarray(associate_radar(clusters, radar.positions_at(t), gate), dtype=int)
     for k, r in enumerate(index.tolist()):
         if r >= 0:
             velocities[k] = np.array([radar.vx[r], radar.vy[r]])

@@ -154,6 +154,13 @@ class RadarDetections:
         """Absolute velocities (N, 2) in E's axes (m/s)."""
         return np.stack([self.vx, self.vy], axis=1)
 
+    def positions_at(self, t: float, rows: np.ndarray | None = None) -> np.ndarray:
+        """Positions (N, 2) in E (m) moved to time ``t`` (s) with each detection's own velocity (a
+        radar cycle is up to one lidar period older than the frame); ``rows``: only those detections."""
+        sel = slice(None) if rows is None else rows
+        lag = t - self.t[sel]
+        return np.column_stack([self.x[sel] + self.vx[sel] * lag, self.y[sel] + self.vy[sel] * lag])
+
     def as_array(self) -> np.ndarray:
         """The detections as an ``(N, 5)`` array with columns ``t, x, y, vx, vy``."""
         return np.stack([getattr(self, name) for name in _RADAR_FIELDS], axis=1).reshape(-1, 5)

@@ -20,16 +20,16 @@ bumper, not at the origin, and reports the nearest *visible* point, so ``sp`` =
 the components of tracks (labels reported before) that no lidar cluster updated in this frame are
 candidates, only detections that joined no cluster and lie clear of the lidar's returns
 (``RADAR_ONLY_CLEARANCE``) and of the rectangles of the tracks updated in this frame are used, and a
-pair counts only within
-``RADAR_ONLY_LATERAL`` across the track's heading and within the gate (``gating.probability`` of a chi-square with 4 degrees of freedom). A detection goes to
-one track and a track takes one detection: the assignment (``scipy.optimize.linear_sum_assignment``)
-of least total normalised innovation between tracks (each at its best component) and detections, for
-cars queueing hidden nose to tail, whose position spreads have grown along the road, gate with each
-other's detections (measured against taking only unambiguous pairs, fused, 10 seeds: curvy-multi
-position 0.299 -> 0.262 m, stop-and-go GOSPA 4.68 -> 4.66 m, the same ID switches). Each component of
-the chosen track takes its pair with that detection; its weight is left as the lidar update made it (the detection
-refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays the
-lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update
+pair counts only within ``RADAR_ONLY_LATERAL`` across the track's heading and within the gate
+(``gating.probability`` of a chi-square with 4 degrees of freedom). A detection goes to one track and
+a track takes one detection: the assignment (``scipy.optimize.linear_sum_assignment``) of least total
+normalised innovation between tracks (each at its best component) and detections, for cars queueing
+hidden nose to tail, whose position spreads have grown along the road, gate with each other's
+detections (measured against taking only unambiguous pairs, fused, 10 seeds: curvy-multi position
+0.299 -> 0.262 m, stop-and-go GOSPA 4.68 -> 4.66 m, the same ID switches). Each component of the
+chosen track takes its pair with that detection; its weight is left as the lidar update made it (the
+detection refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays
+the lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update
 (``tracker.update.kalman_update``) over all gated pairs.
 """
 
@@ -118,9 +118,7 @@ def update_coasting(
     free = np.asarray(free, dtype=int)
     if len(candidates) == 0 or len(free) == 0:
         return RadarOnlyResult.empty(dim)
-    lag = t - radar.t[free]
-    z = np.column_stack([radar.x[free] + radar.vx[free] * lag, radar.y[free] + radar.vy[free] * lag,
-                         radar.vx[free], radar.vy[free]])
+    z = np.column_stack([radar.positions_at(t, free), radar.vx[free], radar.vy[free]])
     rect = to_vehicle(means[candidates], ego, road, config.coordinates)
     # pre-gate on position: within the gating distance of the predicted rectangle's nearest point, and
     # within RADAR_ONLY_LATERAL of it across the vehicle's heading (the vehicle's own lane)

@@ -229,10 +229,7 @@ class Tracker:
                 mix = Mixture(mix.weights, means, covs, mix.labels)
         pending_m, pending_p = self._pending
         if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
-            labels = self._new_labels(len(pending_m))
-            weights = np.full(len(pending_m), self.config.birth.weight)
-            mix = Mixture(np.concatenate([mix.weights, weights]), np.concatenate([mix.means, pending_m]),
-                          np.concatenate([mix.covs, pending_p]), np.concatenate([mix.labels, labels]))
+            mix = self._with_births(mix, pending_m, pending_p)
             self.stats["births_cluster"] += len(pending_m)
             self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
         if dt > 0.0 and len(mix):
@@ -258,13 +255,14 @@ class Tracker:
             gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
             keep = (hidden < 0.5) & (gap > cfg.gating.distance)
             means, covs = means[keep], covs[keep]
-        mix = self.mixture
-        self.mixture = Mixture(
-            np.concatenate([mix.weights, np.full(len(means), cfg.birth.weight)]),
-            np.concatenate([mix.means, means]), np.concatenate([mix.covs, covs]),
-            np.concatenate([mix.labels, self._new_labels(len(means))]),
-        )
+        self.mixture = self._with_births(self.mixture, means, covs)
         self.stats["births_road"] += len(means)
+
+    def _with_births(self, mix: Mixture, means: np.ndarray, covs: np.ndarray) -> Mixture:
+        """``mix`` with birth components ``means``, ``covs`` appended (weight ``birth.weight``, new labels)."""
+        return Mixture(np.concatenate([mix.weights, np.full(len(means), self.config.birth.weight)]),
+                       np.concatenate([mix.means, means]), np.concatenate([mix.covs, covs]),
+                       np.concatenate([mix.labels, self._new_labels(len(means))]))
 
     def _preprocess(self, frame: Frame) -> tuple[np.ndarray, bool]:
         """Points kept for clustering, and whether the frame had any finite lidar point at all (of a
@@ -462,16 +460,14 @@ class Tracker:
         mix = self.mixture
         if not len(mix) or not len(self._free_radar) or not self._ever_reported:
             return
-        ever, updated = self._ever_reported, self._updated_labels
         labels = mix.labels.tolist()
-        coasting = np.flatnonzero(np.fromiter((lab in ever and lab not in updated for lab in labels), dtype=bool,
-                                              count=len(labels)))
+        updated = np.fromiter((lab in self._updated_labels for lab in labels), dtype=bool, count=len(labels))
+        ever = np.fromiter((lab in self._ever_reported for lab in labels), dtype=bool, count=len(labels))
+        coasting = np.flatnonzero(ever & ~updated)
         if not len(coasting):
             return
         free = self._free_radar
-        radar = frame.radar
-        lag = frame.t - radar.t[free]
-        xy = np.column_stack([radar.x[free] + radar.vx[free] * lag, radar.y[free] + radar.vy[free] * lag])
+        xy = frame.radar.positions_at(frame.t, free)
         if len(self._points):
             # a detection next to lidar returns is of a vehicle the lidar sees (the second cycle's
             # detection of a tracked car, a car not yet confirmed): its points speak for it
@@ -480,9 +476,8 @@ class Tracker:
                           axis=1)
             clear = gap2 > RADAR_ONLY_CLEARANCE**2
             free, xy = free[clear], xy[clear]
-        seen = np.flatnonzero(np.fromiter((lab in updated for lab in labels), dtype=bool, count=len(labels))
-                              & (mix.weights > self.config.reduction.extraction_threshold))
-        if len(seen) and len(coasting):
+        seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
+        if len(seen):
             # a detection on (or next to) a vehicle that its points updated in this frame is that vehicle's
             rect = to_vehicle(mix.means[seen], frame.ego, self.road, self.config.coordinates)
             free = free[points_in_rectangles(xy, rect.center, rect.psi, rect.length, rect.width,
@@ -501,30 +496,27 @@ class Tracker:
         """Clusters that no component explained and that lie outside every reported track's rectangle
         seed births for the next frame (a cluster inside a track's rectangle that failed its gate is
         that track's, badly predicted, not a new vehicle)."""
+        self._pending = self._cluster_births(ego, clusters, velocities, explained)
+
+    def _cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None],
+                        explained: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Birth components (means, covariances) of the clusters neither ``explained`` nor owned by a track."""
         idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
         means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
                                      ego, self.road, self.config.birth)
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
-        self._pending = self._with_acceleration(means, covs)
+        return self._with_acceleration(means, covs)
 
     def _birth_from_first_scan(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
         """The first scan's clusters seed births that join the mixture now, before this frame's update
         (``BirthConfig.first_scan``): the births the next frame would have had, one frame earlier.
         Returns their indices in the mixture."""
-        self._plan_cluster_births(ego, clusters, velocities, np.zeros(len(clusters), dtype=bool))
-        means, covs = self._pending
-        self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
-        mix = self.mixture
-        born = np.arange(len(mix), len(mix) + len(means))
-        if not len(means):
-            return born
-        self.mixture = Mixture(
-            np.concatenate([mix.weights, np.full(len(means), self.config.birth.weight)]),
-            np.concatenate([mix.means, means]), np.concatenate([mix.covs, covs]),
-            np.concatenate([mix.labels, self._new_labels(len(means))]),
-        )
-        self.stats["births_first_scan"] += len(means)
+        means, covs = self._cluster_births(ego, clusters, velocities, np.zeros(len(clusters), dtype=bool))
+        born = np.arange(len(self.mixture), len(self.mixture) + len(means))
+        if len(means):
+            self.mixture = self._with_births(self.mixture, means, covs)
+            self.stats["births_first_scan"] += len(means)
         return born
 
     def _with_acceleration(self, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
