@@ -313,6 +313,87 @@ def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
     assert ut.repairs > before and np.isfinite(got[1]).all()
 
 
+def _kalman_inputs(rng, pairs, n, rows, extra, wrapping):
+    """Random UKF update inputs of a realistic scale: states of road traffic, measurement sigma points
+    a smooth nonlinear function of the state, innovations of a few standard deviations."""
+    from tracker.ukf import UnscentedTransform
+
+    ut = UnscentedTransform(n=n)
+    root = rng.normal(0.0, 1.0, (pairs, n, n)) * rng.uniform(0.05, 1.0, (pairs, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(n)
+    mean = rng.normal(0.0, 1.0, (pairs, n)) * np.r_[50.0, 3.0, 10.0, 0.3, 0.1, 4.0, 1.0, 1.0][:n]
+    mean[: pairs // 3, 3] = np.pi - 0.02  # headings across +-pi
+    sigma = ut.sigma_points(mean, cov, wrapping)
+    h = rng.normal(0.0, 1.0, (rows, n))
+    z_sigma = np.sin(sigma @ h.T / 20.0) * 10.0 + sigma @ h.T
+    r = rng.uniform(0.005, 0.3, (pairs, rows))
+    mask = rng.random((pairs, rows)) < 0.7
+    mask[:, :2] = True
+    z = ut.wm @ z_sigma + rng.normal(0.0, 1.0, (pairs, rows)) * np.sqrt(r) * 3.0
+    factors = rng.normal(0.0, 0.2, (pairs, extra, rows)) if extra else None
+    return ut, sigma, mean, cov, z_sigma, z, r, mask, factors
+
+
+@pytest.mark.parametrize("extra", [0, 2])
+@pytest.mark.parametrize("periodic", [False, True], ids=["open", "closed-road"])
+def test_compiled_kalman_update_equals_numpy(extra, periodic, monkeypatch):
+    """``tracker.update.kalman_update`` compiled against numpy: padded rows, with and without the
+    low-rank noise factors, the heading wrapped across +-pi, ``s`` on a closed road; the 7- and 8-state
+    filters; an empty batch."""
+    from tracker.ukf import Wrapping
+    from tracker.update import kalman_update
+
+    wrapping = Wrapping(angles=(3,), periods=((0, 180.0),) if periodic else ())
+    rng = np.random.default_rng(5)
+    for n, pairs, rows in ((7, 9, 40), (8, 12, 122), (7, 1, 2), (8, 0, 6)):
+        ut, *inputs, factors = _kalman_inputs(rng, pairs, n, rows, extra, wrapping)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = kalman_update(ut, *inputs, wrapping=wrapping, factors=factors)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = kalman_update(ut, *inputs, wrapping=wrapping, factors=factors)
+        assert ref.nis.size == pairs
+        for name in ref.__dataclass_fields__:
+            a, b = getattr(ref, name), getattr(got, name)
+            if a is None:
+                assert b is None
+                continue
+            assert a.shape == b.shape and a.dtype == b.dtype, name
+            np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9, err_msg=name)
+        assert np.all(np.abs(got.mean[:, 3]) <= np.pi)
+        if periodic:
+            assert np.all((got.mean[:, 0] >= 0.0) & (got.mean[:, 0] < 180.0))
+
+
+def test_compiled_kalman_update_of_a_tracked_scene_equals_numpy(monkeypatch):
+    """The tracker's own update batches (clusters of three cars and a bus with radar rows): each one
+    updated by the kernel and by numpy."""
+    import tracker.update as tu
+
+    batches = []
+    original = tu.kalman_update
+
+    def keep(*args, **kwargs):
+        batches.append((args, kwargs))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(tu, "kalman_update", keep)
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
+                                                 Car(50.0, 3.5, 18.0)], radar=True)
+    tr = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(0)
+    for k in range(12):
+        tr.step(scene.frame(0.1 * k, rng))
+    assert sum(b[0][4].shape[0] for b in batches) >= 20
+    for args, kwargs in batches:
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = original(*args, **kwargs)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = original(*args, **kwargs)
+        for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation"):
+            np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9, err_msg=name)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points) and points exactly on the
@@ -442,13 +523,14 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.reduction as kr
     import tracker.compiled.structure as ks
     import tracker.compiled.detection as kd
+    import tracker.compiled.kalman as kk
     import tracker.compiled.ukf as ku
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
                kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
-               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel]
+               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)

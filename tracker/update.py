@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
@@ -85,6 +86,15 @@ def kalman_update(
         )
     if np.any(r[mask] <= 0):
         raise ValueError("kalman_update: measurement noise variances r must be > 0")
+    if compiled_kernels.enabled() and len(wrapping.periods) <= 1 and z.shape[0]:
+        from tracker.compiled.kalman import kalman_kernel
+
+        extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
+        contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, mask, extra))
+        try:
+            return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))
+        except np.linalg.LinAlgError:  # a non-finite input: the numpy path below says what it makes of it
+            pass
     wm = ut.wm
     inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
     y = (wm @ z_sigma) * mask  # (P, D)

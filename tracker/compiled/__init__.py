@@ -15,7 +15,7 @@ project's machines), later processes load them (~0.3 s).
 Kernels: ``preparation`` (cluster preparation), ``structure`` (the measurement structure),
 ``centerline`` (clothoid and Hermite frames), ``motion`` (Frenet RK4), ``clustering`` (distance
 partition, radar association, points in rectangles, overlap groups, ends next to a shadow),
-``reduction`` (merging).
+``reduction`` (merging), ``kalman`` (the UKF update of the pairs).
 """
 
 from __future__ import annotations

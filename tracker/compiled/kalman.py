@@ -1,0 +1,154 @@
+"""Compiled UKF update: ``tracker.update.kalman_update`` as one numba call over the batch of pairs.
+
+The same low-rank form as the numpy reference (``tracker.update``'s module docstring): per pair the
+whitened measurement deviations ``A`` (the sigma points' columns, then the noise factors' columns with
+weight 1 and no state deviation), ``M = I + A^T A`` and the solves against ``M`` by its Cholesky
+factor (numpy solves by LU: the results agree to rounding). A pair whose ``M`` is not positive definite
+(it always is, ``I`` plus a Gram matrix, unless the input holds NaN) raises
+``numpy.linalg.LinAlgError``; the caller then takes the numpy path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tracker.compiled import njit
+from tracker.compiled.ukf import _residual, _wrap
+
+
+@njit
+def _cholesky(a, low):  # pragma: no cover - compiled
+    """Lower Cholesky factor of the SPD matrix ``a`` into ``low`` (its upper triangle left as it is);
+    ``numpy.linalg.LinAlgError`` when ``a`` is not positive definite."""
+    size = a.shape[0]
+    for j in range(size):
+        acc = a[j, j]
+        for k in range(j):
+            acc -= low[j, k] * low[j, k]
+        if not acc > 0.0:
+            raise np.linalg.LinAlgError("kalman_kernel: M is not positive definite")
+        low[j, j] = math.sqrt(acc)
+        for i in range(j + 1, size):
+            acc = a[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            low[i, j] = acc / low[j, j]
+
+
+@njit(fastmath=True)
+def _dot(a, b, count):  # pragma: no cover - compiled
+    """``sum_k a[k] b[k]`` over the first ``count`` entries of two contiguous rows."""
+    acc = 0.0
+    for k in range(count):
+        acc += a[k] * b[k]
+    return acc
+
+
+@njit(fastmath=True)
+def kalman_kernel(sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles, period_index,
+                  period):  # pragma: no cover - compiled
+    """Posterior ``mean (P, n)``, ``cov (P, n, n)``, ``loglik (P,)``, ``nis (P,)``, ``dim (P,)``, the
+    predicted measurement ``y (P, D)`` and the innovation ``(P, D)`` (both 0 on padded rows) of each
+    pair (``tracker.update.kalman_update``; ``factors (P, E, D)``, ``E`` may be 0). Every sum runs over
+    a contiguous row (the loops are laid out for it), so that fastmath may vectorise it."""
+    pairs, num_sigma, n = sigma.shape
+    rows = z.shape[1]
+    extra = factors.shape[1]
+    cols = num_sigma + extra
+    log_2pi = math.log(2.0 * math.pi)
+    post_mean = np.empty((pairs, n))
+    post_cov = np.empty((pairs, n, n))
+    loglik = np.empty(pairs)
+    nis = np.empty(pairs)
+    dim = np.zeros(pairs, dtype=np.int64)
+    y = np.zeros((pairs, rows))
+    innovation = np.zeros((pairs, rows))
+    nu = np.empty(rows)
+    a_cols = np.zeros((cols, rows))  # whitened columns of A (before the weights), padding left out
+    xw = np.zeros((n, cols))  # X^T W: the state deviations times Wc (0 for the noise factors' columns)
+    dev = np.empty(n)
+    sw = np.ones(cols)  # sqrt(Wc) (1 for the factors)
+    for i in range(num_sigma):
+        sw[i] = math.sqrt(wc[i])
+    gram = np.empty((cols, cols))  # A^T A
+    g = np.empty(cols)  # A^T nu
+    m_mat = np.empty((cols, cols))
+    low = np.zeros((cols, cols))  # Cholesky factor L of M
+    rhs = np.empty((1 + n, cols))  # [a; B], a = sqrt(W) g, B = X^T W G sqrt(W)
+    vee = np.empty((cols, 1 + n))  # L^-1 [a, B^T]
+    vtv = np.empty((1 + n, 1 + n))  # [a, B^T]^T M^-1 [a, B^T]
+    acc_row = np.empty(1 + n)
+    xwg = np.empty((n, cols))
+    for p in range(pairs):
+        logdet_r = 0.0
+        count = 0
+        for d in range(rows):
+            if not mask[p, d]:
+                continue
+            acc = 0.0
+            for i in range(num_sigma):
+                acc += wm[i] * z_sigma[p, i, d]
+            y[p, d] = acc
+            isr = 1.0 / math.sqrt(r[p, d])
+            logdet_r += math.log(r[p, d])
+            innovation[p, d] = z[p, d] - acc
+            nu[count] = (z[p, d] - acc) * isr
+            for i in range(num_sigma):
+                a_cols[i, count] = (z_sigma[p, i, d] - acc) * isr
+            for e in range(extra):
+                a_cols[num_sigma + e, count] = factors[p, e, d] * isr
+            count += 1
+        for i in range(num_sigma):
+            for j in range(n):
+                dev[j] = sigma[p, i, j] - mean[p, j]
+            _residual(dev, angles, period_index, period)
+            for j in range(n):
+                xw[j, i] = dev[j] * wc[i]
+        for k in range(cols):
+            g[k] = _dot(a_cols[k], nu, count)
+            for l in range(k + 1):
+                gram[k, l] = _dot(a_cols[k], a_cols[l], count)
+                gram[l, k] = gram[k, l]
+        for k in range(cols):
+            for l in range(cols):
+                m_mat[k, l] = sw[k] * gram[k, l] * sw[l]
+            m_mat[k, k] += 1.0
+            rhs[0, k] = sw[k] * g[k]
+        for j in range(n):
+            for k in range(cols):
+                xwg[j, k] = _dot(xw[j], gram[k], cols)  # gram is symmetric
+                rhs[1 + j, k] = xwg[j, k] * sw[k]
+        _cholesky(m_mat, low)
+        logdet_m = 0.0
+        for k in range(cols):  # V = L^-1 [a, B^T] (rows k), by forward substitution
+            logdet_m += math.log(low[k, k])
+            for c in range(1 + n):
+                acc_row[c] = rhs[c, k]
+            for l in range(k):
+                factor = low[k, l]
+                for c in range(1 + n):
+                    acc_row[c] -= factor * vee[l, c]
+            for c in range(1 + n):
+                vee[k, c] = acc_row[c] / low[k, k]
+        for c in range(1 + n):  # M^-1 = L^-T L^-1: a^T M^-1 a = |v_0|^2, B M^-1 a = V_B^T v_0, ...
+            for l in range(1 + n):
+                acc = 0.0
+                for k in range(cols):
+                    acc += vee[k, c] * vee[k, l]
+                vtv[c, l] = acc
+        q = _dot(nu, nu, count) - vtv[0, 0]
+        nis[p] = q
+        dim[p] = count
+        loglik[p] = -0.5 * (count * log_2pi + 2.0 * logdet_m + logdet_r + q)
+        for j in range(n):  # K nu = X^T W g - B M^-1 a
+            post_mean[p, j] = mean[p, j] + _dot(xw[j], g, cols) - vtv[1 + j, 0]
+        _wrap(post_mean[p], angles, period_index, period)
+        for j in range(n):  # P+ = P - (X^T W G W X - B M^-1 B^T), symmetrised
+            for i in range(j + 1):
+                t_ji = _dot(xwg[j], xw[i], cols) - vtv[1 + j, 1 + i]
+                t_ij = _dot(xwg[i], xw[j], cols) - vtv[1 + i, 1 + j]
+                post_cov[p, j, i] = 0.5 * ((cov[p, j, i] - t_ji) + (cov[p, i, j] - t_ij))
+                post_cov[p, i, j] = post_cov[p, j, i]
+    return post_mean, post_cov, loglik, nis, dim, y, innovation
