@@ -288,6 +288,31 @@ def test_a_truck_side_longer_than_the_prior_grows_the_length_and_passes_the_gate
     assert np.linalg.eigvalsh(res_grow.cov[0]).min() > 0.0
 
 
+@pytest.mark.parametrize("settled_width_std", [0.15, None], ids=["settled-width-kept", "off"])
+def test_grow_extent_leaves_a_settled_width_alone(settled_width_std) -> None:
+    """Three pairs whose short side runs 0.8 m past the predicted width, and one whose long side runs
+    6 m past the predicted length: a width scanned for a while (sd 0.03 m) is not grown with
+    ``settled_width_std`` (the excess is the heading lagging, the side joined the rear's chord), an
+    unsettled one (sd 0.3 m, a new track) is; the length grows whatever the width's spread."""
+    from types import SimpleNamespace
+
+    from tracker.measurement import rectangle_corners
+    from tracker.update import grow_extent
+
+    means = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.1]] * 4)
+    sd_w = np.array([0.03, 0.3, 0.149, 0.03])
+    covs = np.array([np.diag([0.1, 0.1, 0.1, 0.01, 0.01, 0.3**2, s**2]) for s in sd_w])
+    structure = SimpleNamespace(sides=np.array([[0, 2], [0, 2], [0, 2], [1, 3]]),  # short sides, then long ones
+                                excess=np.array([[0.8, np.nan], [0.8, np.nan], [0.8, np.nan], [6.0, np.nan]]))
+    corners = rectangle_corners(np.array([[20.0, 0.0]] * 4), np.zeros(4), means[:, 5], means[:, 6])
+    grown, out = grow_extent(means, covs, structure, corners, settled_width_std)
+    expect_width = [settled_width_std is None, True, settled_width_std is None, False]
+    np.testing.assert_array_equal(out[:, 6, 6] > covs[:, 6, 6], expect_width)
+    np.testing.assert_array_equal(out[:, 5, 5] > covs[:, 5, 5], [False, False, False, True])
+    np.testing.assert_array_equal(grown, np.array(expect_width) | [False, False, False, True])
+    assert out[1, 6, 6] == pytest.approx(0.3**2 + 0.8**2)
+
+
 def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
     """``long_vehicle_prior`` replaces a car's never-measured length by a long vehicle's (centre moved
     away from the sensor by half the change, variance added along that direction), and leaves alone a

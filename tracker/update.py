@@ -196,7 +196,8 @@ def update_pairs(
     pair_means, pair_covs = means[comp], covs[comp]
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if config.measurement.grow_extent:
-        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse])
+        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse],
+                                        config.measurement.settled_width_std)
         if grown.any():  # new sigma points for the pairs whose prior was widened (rare: a side came into view)
             pair_covs = grown_covs
             pair_sigma = pair_sigma.copy()
@@ -266,7 +267,8 @@ GROWTH_SIGMAS = 2.0
 
 
 def grow_extent(
-    means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray
+    means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray,
+    settled_width_std: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Widen the prior of pairs whose cluster shows a side longer than the predicted rectangle's.
 
@@ -285,8 +287,11 @@ def grow_extent(
 
     (``h`` = ``xi`` (``psi``) of the mean, ``sgn`` = +1 when the sensor is behind the centre along the
     body axis), and likewise ``W`` with the left normal ``(-sin h, cos h)`` for a short side; the update
-    then learns the extent from the side itself. Returns the mask of widened pairs ``(P,)`` and the
-    covariances (a copy; unchanged where the mask is False)."""
+    then learns the extent from the side itself. A width whose standard deviation is below
+    ``settled_width_std`` (``MeasurementConfig``) is not grown: a short side longer than a settled
+    width is the track's heading lagging (the side next to it joined the chord), not a wider vehicle.
+    Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
+    False)."""
     long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
     excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
     out = covs.copy()
@@ -295,7 +300,10 @@ def grow_extent(
     for index, is_part in ((LENGTH, long_part), (WIDTH, ~long_part)):
         e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
         sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
-        hits.append((e, e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)))
+        hit = e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
+        if index == WIDTH and settled_width_std is not None:
+            hit &= sd >= settled_width_std
+        hits.append((e, hit))
     if not (hits[0][1].any() or hits[1][1].any()):  # the common case: no side longer than predicted
         return grown, out
     for index, (e, hit) in zip((LENGTH, WIDTH), hits):
