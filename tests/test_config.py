@@ -19,6 +19,8 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.reduction.reidentify_window == 10.0 and c.reduction.report_range == 0.0
     assert c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.3)
     assert c.motion.coast_acceleration_time == 0.5
+    assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)
+    assert c.measurement.settled_width_std == 0.15
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
@@ -39,6 +41,9 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
         (lambda: MeasurementConfig(radar_gate=-1.0), r"MeasurementConfig.radar_gate must be > 0"),
+        (lambda: MeasurementConfig(settled_width_std=-0.1), r"MeasurementConfig.settled_width_std must be >= 0"),
+        (lambda: MotionConfig(coast_established_time=0.0), r"MotionConfig.coast_established_time must be > 0.0 s"),
+        (lambda: MotionConfig(coast_established_sigmas=-1.0), r"MotionConfig.coast_established_sigmas must be >= 0"),
         (lambda: DetectionConfig(hidden_update_p_detection=0.0), r"hidden_update_p_detection must be > 0.0 and <= 1.0"),
         (lambda: DetectionConfig(missed_weight_cap=1), r"DetectionConfig.missed_weight_cap must be true or false"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),

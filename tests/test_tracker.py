@@ -294,6 +294,27 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
         assert 1 <= lost <= 5 and worst < 3.0, (lost, worst)
 
 
+def test_an_established_acceleration_carries_a_hidden_car_further():
+    # B accelerates at 2 m/s^2 from 12 m/s and falls out of the lidar's view behind the van at ~2 s (no
+    # radar-only updates: this scene's radar reports centres). Its acceleration was established
+    # (|a| >= 2 sd(a)), so with MotionConfig.coast_established_sigmas it fades with the 4 s time
+    # constant instead of 0.5 s: the coasting track stays nearer B and B is without a track for fewer
+    # frames (9 against 15)
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, -3.5, 20.0),
+                  [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=2.0)], radar=True)
+    out = {}
+    for sigmas in (2.0, None):
+        config = config_with("measurement", radar_only_update=False)
+        config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, coast_established_sigmas=sigmas))
+        frames, _ = run(scene, config, 8.0)
+        errors = np.array([min((abs(tr.s - scene.cars[1].s_at(k * DT)) for tr in tracks if abs(tr.n - 3.5) < 2.0),
+                               default=np.inf) for k, tracks in enumerate(frames)])
+        out[sigmas] = (int((~np.isfinite(errors)).sum()), errors[int(4.0 / DT)])
+    assert out[2.0][0] <= out[None][0] - 4, out
+    assert out[2.0][1] < out[None][1] - 0.7, out
+
+
 @pytest.mark.parametrize("radar", [False, True], ids=["lidar", "fused"])
 def test_lane_changing_car_coasts_through_a_blackout_and_keeps_its_label(curve, radar):
     # car A changes lane (3.5 m to the left in 3 s from t = 2 s); the lidar is dark for 2 s from
@@ -572,17 +593,23 @@ def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
         assert np.mean(lateral) < -0.8  # the old model's outward drift, kept as a reference
 
 
-def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_time():
+@pytest.mark.parametrize("a, sigmas, established", [(2.0, 2.0, True), (0.5, 2.0, False), (2.0, None, False)],
+                         ids=["established", "noise", "established-off"])
+def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_time(a, sigmas, established):
     """``MotionConfig.coast_acceleration_time``: before the prediction, a label that no cluster updated
     in the last frame has its acceleration scaled by ``exp(-dt / coast)``, its covariance row and column
-    too; an updated label keeps it. The Singer prediction (linear in ``a``, exact through the unscented
-    transform) then multiplies both by ``exp(-dt / acceleration_time)``."""
+    too; an updated label keeps it. An established acceleration (``|a| >= coast_established_sigmas
+    sd(a)``: 2 m/s^2 +- 0.5) fades with ``coast_established_time`` instead; one within its spread (0.5
+    +- 0.5), or any with the rule off, with ``coast``. The Singer prediction (linear in ``a``, exact
+    through the unscented transform) then multiplies both by ``exp(-dt / acceleration_time)``."""
     from tracker.reduction import Mixture
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
-    cfg = TrackerConfig()
-    dt, coast, tau = 0.1, cfg.motion.coast_acceleration_time, cfg.motion.acceleration_time
-    mean = np.array([100.0, 1.75, 20.0, 0.0, 0.0, 4.5, 1.8, 2.0])
+    cfg = config_with("motion", coast_established_sigmas=sigmas)
+    dt, tau = 0.1, cfg.motion.acceleration_time
+    coast = cfg.motion.coast_established_time if established else cfg.motion.coast_acceleration_time
+    assert cfg.motion.coast_established_time > 4 * cfg.motion.coast_acceleration_time  # the two fades differ
+    mean = np.array([100.0, 1.75, 20.0, 0.0, 0.0, 4.5, 1.8, a])
     cov = np.diag([0.5, 0.2, 0.5, 0.01, 0.01, 0.3, 0.1, 0.5]) ** 2
     cov[2, 7] = cov[7, 2] = 0.1
     results = {}
@@ -592,8 +619,8 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
         tracker._predict(dt, updated)
         results[bool(updated)] = tracker.mixture
     singer = np.exp(-dt / tau)
-    np.testing.assert_allclose(results[True].means[0, 7], 2.0 * singer, rtol=1e-9)
-    np.testing.assert_allclose(results[False].means[0, 7], 2.0 * singer * np.exp(-dt / coast), rtol=1e-9)
+    np.testing.assert_allclose(results[True].means[0, 7], a * singer, rtol=1e-9)
+    np.testing.assert_allclose(results[False].means[0, 7], a * singer * np.exp(-dt / coast), rtol=1e-9)
     fade = np.exp(-dt / coast)
     # the (a, a) variance: scaled by fade^2 before the prediction; the noise added is the same in both
     noise = results[True].covs[0, 7, 7] - singer**2 * cov[7, 7]

@@ -215,17 +215,24 @@ class Tracker:
         """Predict over ``dt``; with the acceleration state and ``MotionConfig.coast_acceleration_time``,
         the components of labels that no cluster updated in the last frame (``updated``) first have
         their acceleration relaxed by ``exp(-dt / coast_acceleration_time)`` (mean, and the covariance's
-        row and column: the linear map ``a -> f a``)."""
+        row and column: the linear map ``a -> f a``), or by ``exp(-dt / coast_established_time)`` where
+        it is established (``|a| >= coast_established_sigmas sd(a)``)."""
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
             idle = ~np.isin(mix.labels, np.fromiter(updated, dtype=mix.labels.dtype, count=len(updated)))
             if idle.any():
-                f = math.exp(-dt / coast)
+                f = np.full(int(idle.sum()), math.exp(-dt / coast))
+                motion = self.config.motion
+                if motion.coast_established_sigmas is not None:
+                    # an acceleration the measurements established (|a| >= k sd(a)) fades slowly
+                    a, var = mix.means[idle, 7], mix.covs[idle, 7, 7]
+                    established = np.abs(a) >= motion.coast_established_sigmas * np.sqrt(np.maximum(var, 0.0))
+                    f[established] = math.exp(-dt / motion.coast_established_time)
                 means, covs = mix.means.copy(), mix.covs.copy()
                 means[idle, 7] *= f
-                covs[idle, 7, :] *= f
-                covs[idle, :, 7] *= f
+                covs[idle, 7, :] *= f[:, None]
+                covs[idle, :, 7] *= f[:, None]
                 mix = Mixture(mix.weights, means, covs, mix.labels)
         pending_m, pending_p = self._pending
         if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
