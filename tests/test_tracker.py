@@ -627,6 +627,29 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
     np.testing.assert_allclose(results[False].covs[0, 7, 7], singer**2 * fade**2 * cov[7, 7] + noise, rtol=1e-9)
 
 
+@pytest.mark.parametrize("distance, tracks", [(None, 1), (2.0, 2)], ids=["default-3m", "2m"])
+def test_two_posteriors_of_one_track_2_metres_apart_stay_one_track(distance, tracks):
+    # a car coming out from behind another shows its points in two clusters for a frame, and both
+    # update its track: two heavy posteriors of one label, 2.1 m apart along the road (curvy-multi).
+    # ReductionConfig.same_label_distance 3 m merges them; with 2 m (before session 11) the lighter one
+    # was reported under a new label, a second track of the car
+    from tracker.reduction import Mixture
+
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
+    cfg = TrackerConfig() if distance is None else config_with("reduction", same_label_distance=distance)
+    tracker = Tracker(road, cfg)
+    ego = EgoState(80.0, -1.75, 0.0, 15.0, 0.0)
+    mean = np.array([100.0, 1.75, 15.0, 0.0, 0.0, 4.8, 1.9, 1.5])
+    cov = np.diag([0.1, 0.05, 0.3, 0.02, 0.02, 0.1, 0.05, 0.3]) ** 2
+    second = mean.copy()
+    second[0] += 2.1
+    tracker.mixture = Mixture(np.array([0.9, 0.7]), np.stack([mean, second]), np.stack([cov, cov]), np.array([3, 3]))
+    tracker._ever_reported.add(3)
+    tracker._reduce(ego)
+    reported = tracker._extract(1.0, ego)
+    assert len(reported) == tracks and reported[0].label == 3
+
+
 def three_cars_ahead() -> Scene:
     """A straight three-lane road, the ego in the middle lane at s = 20 m and 20 m/s; cars ahead in
     each lane (35, 45 and 60 m), all in view from the first scan."""
