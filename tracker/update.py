@@ -14,7 +14,9 @@ which ``UKFParams`` guarantees) and ``M = I + A^T A`` (15 x 15, SPD), the matrix
 ``S^-1 = R^-1/2 (I - A M^-1 A^T) R^-1/2`` and ``det S = det R det M``. Everything above is computed from
 the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` per pair instead of
 ``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
-noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation).
+noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation). With the compiled
+kernels on (``tracker.compiled``), ``kalman_update`` is one numba call over the pairs
+(``tracker.compiled.kalman``, tested against this numpy code within 1e-9).
 """
 
 from __future__ import annotations
