@@ -313,6 +313,19 @@ def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
     assert ut.repairs > before and np.isfinite(got[1]).all()
 
 
+def track_scene(frames: int) -> Tracker:
+    """The default tracker run ``frames`` frames (10 Hz, noise seed 0) on a curved three-lane road with
+    three cars and an 11 m bus around the ego, with radar."""
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
+                                                 Car(50.0, 3.5, 18.0)], radar=True)
+    tracker = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(0)
+    for k in range(frames):
+        tracker.step(scene.frame(0.1 * k, rng))
+    return tracker
+
+
 def _kalman_inputs(rng, pairs, n, rows, extra, wrapping):
     """Random UKF update inputs of a realistic scale: states of road traffic, measurement sigma points
     a smooth nonlinear function of the state, innovations of a few standard deviations."""
@@ -377,13 +390,7 @@ def test_compiled_kalman_update_of_a_tracked_scene_equals_numpy(monkeypatch):
         return original(*args, **kwargs)
 
     monkeypatch.setattr(tu, "kalman_update", keep)
-    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
-    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
-                                                 Car(50.0, 3.5, 18.0)], radar=True)
-    tr = Tracker(road, TrackerConfig())
-    rng = np.random.default_rng(0)
-    for k in range(12):
-        tr.step(scene.frame(0.1 * k, rng))
+    track_scene(12)
     assert sum(b[0][4].shape[0] for b in batches) >= 20
     for args, kwargs in batches:
         monkeypatch.setenv(compiled.ENV_SWITCH, "0")
@@ -533,12 +540,6 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
-    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
-    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
-                                                 Car(50.0, 3.5, 18.0)], radar=True)
-    tr = Tracker(road, TrackerConfig())
-    rng = np.random.default_rng(0)
-    for k in range(15):
-        tr.step(scene.frame(0.1 * k, rng))
+    track_scene(15)
     assert [len(k.signatures) for k in kernels] == before
     assert compiled.warm_up()
