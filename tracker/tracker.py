@@ -386,9 +386,7 @@ class Tracker:
         floor = cfg.detection.hidden_update_p_detection
         if floor is not None and self._ever_reported:
             # the tracks' components the occlusion model hides still pair with clusters (DetectionConfig)
-            ever = self._ever_reported  # grows with the run: a set lookup per component, not an isin over it
-            track = np.fromiter((lab in ever for lab in mix.labels.tolist()), dtype=bool, count=len(mix))
-            lift = track & (p_d < floor) & (nearest_range(rect) <= cfg.detection.lidar_range)
+            lift = _labels_in(mix.labels, self._ever_reported) & (p_d < floor) & (nearest_range(rect) <= cfg.detection.lidar_range)
             p_d = np.where(lift, floor, p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
@@ -467,10 +465,8 @@ class Tracker:
         mix = self.mixture
         if not len(mix) or not len(self._free_radar) or not self._ever_reported:
             return
-        labels = mix.labels.tolist()
-        updated = np.fromiter((lab in self._updated_labels for lab in labels), dtype=bool, count=len(labels))
-        ever = np.fromiter((lab in self._ever_reported for lab in labels), dtype=bool, count=len(labels))
-        coasting = np.flatnonzero(ever & ~updated)
+        updated = _labels_in(mix.labels, self._updated_labels)
+        coasting = np.flatnonzero(_labels_in(mix.labels, self._ever_reported) & ~updated)
         if not len(coasting):
             return
         free = self._free_radar
@@ -563,8 +559,7 @@ class Tracker:
         frame whose centre lies inside the rectangle of an updated label's component (above the
         extraction threshold)."""
         mix = self.mixture
-        labels = mix.labels.tolist()
-        updated = np.fromiter((lab in self._updated_labels for lab in labels), dtype=bool, count=len(labels))
+        updated = _labels_in(mix.labels, self._updated_labels)
         seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
         idle = np.flatnonzero(~updated)
         if not len(seen) or not len(idle):
@@ -622,7 +617,7 @@ class Tracker:
         self._reported = above
         self._reported_labels = set(mix.labels[above].tolist())
         self._lost.observe(t, mix.labels[above], mix.means[above], mix.covs[above],
-                           np.array([int(lab) in self._updated_labels for lab in mix.labels[above]], dtype=bool))
+                           _labels_in(mix.labels[above], self._updated_labels))
         if not self.cartesian:
             return Track.checked_batch(mix.labels[above], t, mix.means[above, :7], mix.covs[above, :7, :7],
                                        mix.weights[above])
@@ -655,7 +650,7 @@ class Tracker:
         Returns the mask of components kept."""
         mix = self.mixture
         keep = np.ones(len(mix), dtype=bool)
-        fresh = np.array([int(mix.labels[i]) not in self._ever_reported for i in above], dtype=bool)
+        fresh = ~_labels_in(mix.labels[above], self._ever_reported)
         new = above[fresh]
         if not len(new):
             return keep
@@ -695,6 +690,12 @@ class Tracker:
         labels = np.arange(self._next_label, self._next_label + count)
         self._next_label += count
         return labels
+
+
+def _labels_in(labels: np.ndarray, chosen: set[int]) -> np.ndarray:
+    """Whether each of ``labels`` is in ``chosen`` (a set that grows with the run: one set lookup per
+    label, not an ``isin`` over the set)."""
+    return np.fromiter((lab in chosen for lab in labels.tolist()), dtype=bool, count=len(labels))
 
 
 def _adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
