@@ -53,13 +53,14 @@ def run_reference() -> dict[str, np.ndarray]:
     # min_cluster_points_fused, session 9) and no first-scan births or dropping of tracks inside a seen
     # vehicle or radar-only updates of coasting tracks (BirthConfig.first_scan, ReductionConfig.
     # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
-    # from growing (MeasurementConfig.settled_width_std, session 11): intended changes of the model,
+    # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
+    # its unseen length (BirthConfig.correlated_extent, session 12): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
-                                  first_scan=False),
+                                  first_scan=False, correlated_extent=False),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
                                         settled_width_std=None),
         motion=dataclasses.replace(base.motion, acceleration=False),

@@ -140,3 +140,60 @@ def test_cartesian_births_match_the_exact_conversion(road):
     m, c = to_cartesian_gaussians(road, means, covs)
     np.testing.assert_allclose(m, curvilinear_to_cartesian(road, means), atol=1e-6)
     assert c.shape == (1, 7, 7) and np.all(np.linalg.eigvalsh(c[0]) > -1e-12)
+
+
+@pytest.mark.parametrize("ahead", [True, False], ids=["car-ahead", "car-behind"])
+@pytest.mark.parametrize("correlated", [True, False], ids=["correlated-extent", "off"])
+def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_length(ahead, correlated):
+    """A car straight ahead (behind) on a straight road shows only its rear (front): the birth's centre
+    is that end plus (minus) half the unseen length, ``s = e +- L/2``, so ``cov(s, L) = +- var(L)/2``,
+    ``var(s) = var(e) + var(L)/4`` and the end itself, ``s -+ L/2``, keeps the fit's ``var(e)`` (0.5^2).
+    The width is seen: no lateral coupling. Off: the diagonal prior."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = EgoState(100.0, 0.0, 0.0, 15.0)
+    centre = np.array([125.0 if ahead else 75.0, 0.0])
+    corners = to_local(rectangle_corners(centre, np.array(0.0), np.array(4.8), np.array(2.0)), np.array([100.0, 0.0]), 0.0)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    cfg = BirthConfig(correlated_extent=correlated)
+    means, covs = cluster_births([points], [None], ego, road, cfg)
+    p = covs[0]
+    sign = 1.0 if ahead else -1.0
+    var_l = cfg.length_std**2
+    assert means[0, 5] == pytest.approx(cfg.length)
+    # the centre half the prior length beyond the visible end
+    assert means[0, 0] == pytest.approx(centre[0] - sign * 2.4 + sign * 0.5 * cfg.length, abs=0.05)
+    if correlated:
+        assert p[0, 5] == pytest.approx(sign * 0.5 * var_l, rel=1e-3) and p[5, 0] == p[0, 5]  # the fit's heading: ~1e-4 rad off
+        assert p[0, 0] == pytest.approx(0.25 + 0.25 * var_l, rel=1e-3)
+        end = np.array([1.0, 0, 0, 0, 0, -sign * 0.5, 0])  # s -+ L/2: the visible end
+        assert end @ p @ end == pytest.approx(0.25, rel=1e-3)
+    else:
+        assert p[0, 5] == 0.0 and p[0, 0] == pytest.approx(0.25)
+    assert p[1, 5] == pytest.approx(0.0, abs=0.01) and np.all(p[:2, 6] == 0.0)  # the fit's heading: 0.01 rad off
+    np.testing.assert_allclose(p, p.T)
+    assert np.linalg.eigvalsh(p).min() > 0.0
+
+
+def test_a_birth_seen_from_its_side_couples_its_lateral_position_with_its_unseen_width():
+    """A car abeam in the next lane shows its whole side (longer than the prior length): no coupling
+    with ``L``; the unseen width puts the centre half a width beyond the side, away from the ego:
+    ``cov(n, W) = var(W) / 2``. A wide rear (the long-vehicle prior) and a sparse cluster are left
+    uncoupled."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = EgoState(100.0, 0.0, 0.0, 15.0)
+    corners = to_local(rectangle_corners(np.array([100.0, 4.0]), np.array(0.0), np.array(4.8), np.array(2.0)),
+                       np.array([100.0, 0.0]), 0.0)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    cfg = BirthConfig()
+    means, covs = cluster_births([points], [None], ego, road, cfg)
+    p = covs[0]
+    assert means[0, 1] == pytest.approx(3.0 + 0.5 * cfg.width, abs=0.05)  # the side at n = 3
+    assert p[1, 6] == pytest.approx(0.5 * cfg.width_std**2, rel=1e-3)
+    assert p[1, 1] == pytest.approx(0.25 + 0.25 * cfg.width_std**2, rel=1e-3)
+    assert np.all(p[:2, 5] == 0.0)
+    # a 2.55 m wide rear ahead: a bus, whose 12 m prior length is not coupled; two points: no coupling
+    bus = to_local(rectangle_corners(np.array([130.0, 0.0]), np.array(0.0), np.array(12.0), np.array(2.55)),
+                   np.array([100.0, 0.0]), 0.0)
+    bus_points, _ = rectangle_scan(bus, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    means, covs = cluster_births([bus_points, bus_points[:2]], [None, np.array([15.0, 0.0])], ego, road, cfg)
+    assert means[0, 5] == pytest.approx(cfg.long_length) and np.all(covs[:, :2, 5:] == 0.0)

@@ -85,7 +85,7 @@ def cluster_births(
     have ``config.min_cluster_points_fused``, or they lie ``config.sparse_min_range`` or farther and have
     ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
     takes the road's direction as its heading."""
-    means, stds, length_stds, sparse = [], [], [], []
+    means, stds, length_stds, sparse, levers = [], [], [], [], []
     for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):
             continue
@@ -116,12 +116,19 @@ def cluster_births(
         # the unseen extent lies beyond the points; a sparse cluster's points most likely lie across a
         # rear or a front, so it is not shifted sideways
         unseen = ((axis, length - fit_len),) if sparse_k else ((axis, length - fit_len), (lateral, width - fit_wid))
+        shifts = []  # per extent (L, W): the centre's shift in E per metre of that extent (0: none)
         for direction, missing in unseen:
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
             centre += away * 0.5 * missing * direction
+            shifts.append(away * 0.5 * direction if missing > 0.0 and not long else np.zeros(2))
         centre_g = to_global(centre[None, :], (ego.x, ego.y), ego.yaw)[0]
         s, n = road.to_frenet(centre_g, s_hint=s_fit)
-        _, theta, _ = road.frame(np.array([s]), extrapolate=True)
+        _, theta, curvature = road.frame(np.array([s]), extrapolate=True)
+        # the shifts in road coordinates: along e_s (scaled by the road metric 1 / (1 - kappa n)) and e_n
+        rel = theta[0] - ego.yaw
+        e_s, e_n = np.array([np.cos(rel), np.sin(rel)]), np.array([-np.sin(rel), np.cos(rel)])
+        metric = 1.0 / max(1.0 - float(curvature[0]) * n, 0.1)
+        levers.append([[float(d @ e_s) * metric, float(d @ e_n)] for d in shifts] + [[0.0, 0.0]] * (2 - len(shifts)))
         xi = 0.0 if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
@@ -139,7 +146,34 @@ def cluster_births(
     covs[:, 0, 0] = covs[:, 1, 1] = 0.5**2  # the fit locates a cluster's rectangle to a few decimetres
     # one or two points may lie on the rear or on a side: the centre is known to about half a length
     covs[np.array(sparse), 0, 0] = (0.5 * config.length) ** 2
+    if config.correlated_extent:
+        correlate_unseen_extent(covs, np.array(levers), ~np.array(sparse))
     return np.array(means), covs
+
+
+def correlate_unseen_extent(covs: np.ndarray, levers: np.ndarray, rows: np.ndarray) -> None:
+    """Give the births ``rows`` (mask) the covariance of a centre placed half an unseen extent beyond
+    the points, in place (``BirthConfig.correlated_extent``).
+
+    A cluster birth's centre is the fit's visible edge plus half the extent the points do not show:
+    ``(s, n) = e + g_L L + g_W W`` with ``e`` the edge (spread ``P_e``, the diagonal position block
+    already in ``covs``) and ``g_L``, ``g_W`` (``levers (B, 2, 2)``: per extent, the shift of ``(s, n)``
+    per metre of it; 0 where the extent was seen whole) half the unit direction away from the sensor.
+    Hence::
+
+        P[sn, sn] = P_e + g_L g_L^T var(L) + g_W g_W^T var(W),   P[sn, L] = g_L var(L),   P[sn, W] = g_W var(W)
+
+    Without the correlation the unseen length's uncertainty sits in ``s`` independently of ``L``; seen
+    from the rear, the points then pin ``s - L/2`` poorly in the filter's eyes, as the length is held
+    (``tracker.update.hold_unobserved_extent``): the rear's along-road position stayed uncertain by
+    ~0.1 m for seconds where the lidar fixes it to a few centimetres, so the lidar told the filter
+    little about the speed and the radar's speed row took over (chicane-follow, session 12)."""
+    for k, index in ((0, 5), (1, 6)):  # (levers slot, extent index): L, W
+        g = levers[:, k, :] * rows[:, None]  # (B, 2)
+        var = covs[:, index, index]
+        covs[:, :2, :2] += np.einsum("bi,bj->bij", g, g) * var[:, None, None]
+        covs[:, :2, index] = g * var[:, None]
+        covs[:, index, :2] = g * var[:, None]
 
 
 def to_cartesian_gaussians(
