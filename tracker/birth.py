@@ -23,7 +23,7 @@ from tracker.frame import EgoState
 from tracker.road import Road
 from tracker.shape_fit import fit_rectangle
 from tracker.track import curvilinear_to_cartesian
-from tracker.transforms import to_global
+from tracker.transforms import rotate, to_global
 from tracker.ukf import UnscentedTransform, Wrapping
 
 
@@ -116,19 +116,18 @@ def cluster_births(
         # the unseen extent lies beyond the points; a sparse cluster's points most likely lie across a
         # rear or a front, so it is not shifted sideways
         unseen = ((axis, length - fit_len),) if sparse_k else ((axis, length - fit_len), (lateral, width - fit_wid))
-        shifts = []  # per extent (L, W): the centre's shift in E per metre of that extent (0: none)
-        for direction, missing in unseen:
+        shifts = np.zeros((2, 2))  # per extent (L, W): the centre's shift in E per metre of it (0: none)
+        for k, (direction, missing) in enumerate(unseen):
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
             centre += away * 0.5 * missing * direction
-            shifts.append(away * 0.5 * direction if missing > 0.0 and not long else np.zeros(2))
+            if missing > 0.0 and not long:
+                shifts[k] = away * 0.5 * direction
         centre_g = to_global(centre[None, :], (ego.x, ego.y), ego.yaw)[0]
         s, n = road.to_frenet(centre_g, s_hint=s_fit)
         _, theta, curvature = road.frame(np.array([s]), extrapolate=True)
-        # the shifts in road coordinates: along e_s (scaled by the road metric 1 / (1 - kappa n)) and e_n
-        rel = theta[0] - ego.yaw
-        e_s, e_n = np.array([np.cos(rel), np.sin(rel)]), np.array([-np.sin(rel), np.cos(rel)])
-        metric = 1.0 / max(1.0 - float(curvature[0]) * n, 0.1)
-        levers.append([[float(d @ e_s) * metric, float(d @ e_n)] for d in shifts] + [[0.0, 0.0]] * (2 - len(shifts)))
+        # the shifts in road coordinates: E's axes turned onto the road's (e_s, e_n), s scaled by the
+        # road metric 1 / (1 - kappa n)
+        levers.append(rotate(shifts, ego.yaw - theta[0]) * [1.0 / max(1.0 - float(curvature[0]) * n, 0.1), 1.0])
         xi = 0.0 if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
