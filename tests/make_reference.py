@@ -54,7 +54,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # vehicle or radar-only updates of coasting tracks (BirthConfig.first_scan, ReductionConfig.
     # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
     # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
-    # its unseen length (BirthConfig.correlated_extent, session 12): intended changes of the model,
+    # its unseen length (BirthConfig.correlated_extent, session 12) (the manoeuvre-gated jerk,
+    # MotionConfig.quiet_jerk of session 13, needs the acceleration state): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(

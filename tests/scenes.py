@@ -15,8 +15,9 @@ from tracker.transforms import rotate, to_local
 
 @dataclass
 class Car:
-    """A lane-following car: arc length ``s0 + v t + accel t^2 / 2`` (m), lateral offset ``n`` (m),
-    size (m). ``lane_change = (t0, duration, dn)`` (s, s, m) moves it by ``dn`` on a half-cosine
+    """A lane-following car: arc length ``s0 + v t + accel u^2 / 2`` (m) with ``u = max(t - accel_from,
+    0)`` (the acceleration starts at ``accel_from`` s), lateral offset ``n`` (m), size (m).
+    ``lane_change = (t0, duration, dn)`` (s, s, m) moves it by ``dn`` on a half-cosine
     profile from ``t0`` (``n_at``); its heading then turns by ``atan(n' / s')`` off the road's."""
 
     s0: float
@@ -26,10 +27,16 @@ class Car:
     width: float = 2.0
     accel: float = 0.0
     lane_change: tuple[float, float, float] | None = None
+    accel_from: float = 0.0
 
     def s_at(self, t: float) -> float:
         """Arc length (m) of the centre at time ``t``."""
-        return self.s0 + self.v * t + 0.5 * self.accel * t * t
+        u = max(t - self.accel_from, 0.0)
+        return self.s0 + self.v * t + 0.5 * self.accel * u * u
+
+    def speed_at(self, t: float) -> float:
+        """``ds/dt`` (m/s) at time ``t``."""
+        return self.v + self.accel * max(t - self.accel_from, 0.0)
 
     def n_at(self, t: float) -> tuple[float, float]:
         """Lateral offset (m) and its rate (m/s) at time ``t``."""
@@ -47,7 +54,7 @@ class Car:
         n, n_rate = self.n_at(t)
         centre = xy[0] + n * np.array([-np.sin(theta[0]), np.cos(theta[0])])
         kappa = float(road.curvature(np.array([float(s)]))[0])
-        along = (self.v + self.accel * t) * (1.0 - kappa * n)
+        along = self.speed_at(t) * (1.0 - kappa * n)
         return centre, float(theta[0] + np.arctan2(n_rate, along))
 
 
@@ -85,13 +92,13 @@ class Scene:
 
     def truth(self, t: float) -> np.ndarray:
         """Rows ``[x, y, psi, speed]`` of the other cars in G at ``t``. A car's ``s`` advances at
-        ``s_dot = v + accel t``, so its own speed at lateral offset ``n`` is ``s_dot (1 - kappa n)``."""
+        ``s_dot = Car.speed_at(t)``, so its own speed at lateral offset ``n`` is ``s_dot (1 - kappa n)``."""
         rows = []
         for car in self.cars:
             centre, psi = car.pose(self.road, t)
             kappa = float(self.road.curvature(np.array([float(self.road.wrap_s(car.s_at(t)))]))[0])
             n, n_rate = car.n_at(t)
-            rows.append([centre[0], centre[1], psi, float(np.hypot((car.v + car.accel * t) * (1.0 - kappa * n), n_rate))])
+            rows.append([centre[0], centre[1], psi, float(np.hypot(car.speed_at(t) * (1.0 - kappa * n), n_rate))])
         return np.array(rows).reshape(-1, 4)
 
     def frame(self, t: float, rng: np.random.Generator, extra_points_g: np.ndarray | None = None) -> Frame:

@@ -265,3 +265,25 @@ def test_acceleration_state_follows_the_singer_mean_and_noise() -> None:
     assert q8[2, 2] > q7[2, 2] and q8[2, 7] > 0.0
     assert np.all(np.linalg.eigvalsh(q8) > -1e-12)
     np.testing.assert_allclose(model.process_noise(x, 200.0)[7, 7], 0.7**2 * tau / 2.0, rtol=1e-6)
+
+
+def test_a_jerk_per_state_gives_each_state_the_noise_of_a_model_with_that_jerk() -> None:
+    # the tracker's manoeuvre-gated jerk (MotionConfig.quiet_jerk) asks process_noise for one jerk per
+    # component: each row must equal the noise of a model configured with that jerk, and predict must
+    # pass it through
+    road = Road.from_curvature([(2000.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    x = np.array([[100.0, 1.0, 10.0, 0.01, 0.0, 4.5, 1.8, 0.5], [130.0, -1.0, 20.0, 0.0, 0.02, 4.8, 2.0, -2.0]])
+    jerks = np.array([0.3, 0.7])
+    model = FrenetMotion(road, MotionConfig(jerk=0.7))
+    q = model.process_noise(x, 0.1, jerks)
+    for i, j in enumerate(jerks):
+        alone = FrenetMotion(road, MotionConfig(jerk=float(j))).process_noise(x[i], 0.1)
+        np.testing.assert_allclose(q[i], alone, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(model.process_noise(x, 0.1, np.full(2, 0.7)), model.process_noise(x, 0.1), rtol=1e-12)
+    ut = UnscentedTransform(TrackerConfig().ukf, n=8)
+    cov = np.broadcast_to(np.diag([0.2, 0.1, 0.3, 0.01, 0.01, 0.5, 0.1, 1.0]), (2, 8, 8)).copy()
+    _, p_gated = predict(ut, model, x, cov, 0.1, jerks)
+    _, p_full = predict(ut, model, x, cov, 0.1)
+    q_quiet = FrenetMotion(road, MotionConfig(jerk=0.3)).process_noise(x[0], 0.1)
+    np.testing.assert_allclose(p_full[0] - p_gated[0], model.process_noise(x[0], 0.1) - q_quiet, atol=1e-12)
+    np.testing.assert_allclose(p_gated[1], p_full[1], atol=1e-12)

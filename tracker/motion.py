@@ -248,11 +248,14 @@ class FrenetMotion:
             x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         return self.wrapping.wrap(x)
 
-    def process_noise(self, mean: np.ndarray, dt: float) -> np.ndarray:
+    def process_noise(self, mean: np.ndarray, dt: float, jerk: np.ndarray | None = None) -> np.ndarray:
         """See ``process_noise``; with the road-following prior (``heading_decay`` or
         ``yaw_rate_decay`` > 0) the ``(xi, xi_dot)`` block is ``heading_noise_block``'s exact one; with
         the acceleration state ``(8, 8)``: the white acceleration ``residual_accel`` instead of
-        ``ProcessNoise.accel``, plus the Singer block of ``(v, a)``."""
+        ``ProcessNoise.accel``, plus the Singer block of ``(v, a)`` for white jerk ``jerk`` (m s^-2.5):
+        ``MotionConfig.jerk``, or one value per state (shape ``mean.shape[:-1]``: the tracker's
+        manoeuvre-gated jerk, ``MotionConfig.quiet_jerk``). The block is ``jerk^2`` times the unit
+        jerk's."""
         mean = np.asarray(mean, dtype=float)
         with_accel = mean.shape[-1] == 8
         q = process_noise(mean[..., :7], dt, self._noise7 if with_accel else self.noise)
@@ -262,12 +265,13 @@ class FrenetMotion:
         if with_accel:  # (v, a): the Singer block of white jerk, on top of the white acceleration on v
             q8 = np.zeros(q.shape[:-2] + (8, 8))
             q8[..., :7, :7] = q
-            block = _heading_noise_block(float(_check_dt(dt)), 0.0, 1.0 / self.config.acceleration_time,
-                                         0.0, float(self.config.jerk))
-            q8[..., V, V] += block[0, 0]
-            q8[..., V, ACCEL] += block[0, 1]
-            q8[..., ACCEL, V] += block[1, 0]
-            q8[..., ACCEL, ACCEL] += block[1, 1]
+            block = _heading_noise_block(float(_check_dt(dt)), 0.0, 1.0 / self.config.acceleration_time, 0.0, 1.0)
+            scale = (self.config.jerk**2 if jerk is None
+                     else np.broadcast_to(np.asarray(jerk, dtype=float) ** 2, mean.shape[:-1]))
+            q8[..., V, V] += scale * block[0, 0]
+            q8[..., V, ACCEL] += scale * block[0, 1]
+            q8[..., ACCEL, V] += scale * block[1, 0]
+            q8[..., ACCEL, ACCEL] += scale * block[1, 1]
             q = q8
         return q
 
@@ -363,19 +367,23 @@ def make_motion(config: TrackerConfig, road: Road) -> FrenetMotion | PaperMotion
 
 
 def predict(
-    ut: UnscentedTransform, model: MotionModel, mean: np.ndarray, cov: np.ndarray, dt: float
+    ut: UnscentedTransform, model: MotionModel, mean: np.ndarray, cov: np.ndarray, dt: float,
+    jerk: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """UKF prediction of Gaussians ``mean (..., 7)``, ``cov (..., 7, 7)`` over ``dt`` seconds:
-    ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals)."""
+    ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals).
+    ``jerk`` (one per Gaussian; ``FrenetMotion`` with the acceleration state only) replaces
+    ``MotionConfig.jerk`` in ``Q``."""
     pts = ut.sigma_points(mean, cov, model.wrapping)
     moved = model.propagate(pts, dt)
+    noise = (lambda m: model.process_noise(m, dt)) if jerk is None else (lambda m: model.process_noise(m, dt, jerk))
     if moved.ndim == 3 and compiled_kernels.enabled():  # the same moments, one compiled call
         from tracker.compiled.ukf import moments_kernel
 
         m, p = moments_kernel(np.ascontiguousarray(moved), ut.wm, ut.wc, *model.wrapping.kernel_args())
-        p += model.process_noise(m, dt)
+        p += noise(m)
         return m, 0.5 * (p + np.swapaxes(p, -1, -2))
     m = ut.mean(moved, model.wrapping)
     dev = ut.deviations(moved, m, model.wrapping)
-    p = ut.covariance(dev) + model.process_noise(m, dt)
+    p = ut.covariance(dev) + noise(m)
     return m, 0.5 * (p + np.swapaxes(p, -1, -2))

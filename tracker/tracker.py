@@ -153,6 +153,12 @@ class Tracker:
         self._points = np.zeros((0, 2))  # the frame's lidar points kept for clustering, in E
         self._radar_updated: set[int] = set()  # labels a radar-only update refined in the last frame
         self._support: dict[int, int] = {}  # label -> most lidar points of a cluster that updated it
+        # manoeuvre-gated jerk (MotionConfig.quiet_jerk): label -> time (s) until which it is predicted
+        # with the full jerk, and the labels whose manoeuvre was detected in the last frame
+        self._manoeuvre_until: dict[int, float] = {}
+        self._manoeuvre_onset: set[int] = set()
+        self._manoeuvre_score: dict[int, tuple[float, float]] = {}  # label -> (time, fading mean of z)
+        self._frame_dt = 0.0  # the current frame's interval (s)
         red = config.reduction
         self._lost = LostTracks(red.reidentify_window, red.reidentify_probability, self.ut, self.motion,
                                 road.length if road.closed and not self.cartesian else None,
@@ -169,7 +175,9 @@ class Tracker:
         if self.t is not None and frame.t < self.t - TIME_TOLERANCE:
             raise ValueError(f"frame at t={frame.t!r} s is older than the last one (t={self.t!r} s); frames must not go back in time")
         dt = 0.0 if self.t is None else max(frame.t - self.t, 0.0)
+        t_last = self.t
         self.t = frame.t
+        self._frame_dt = dt
         self.stats["frames"] += 1
         ego = frame.ego
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
@@ -177,7 +185,7 @@ class Tracker:
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
         self._radar_updated = set()
-        self._predict(dt, updated_before)
+        self._predict(dt, updated_before, t_last)
         points, scanned = self._preprocess(frame)
         if not scanned:
             # no lidar points at all (a blackout): predict only; no road births, which no scan could
@@ -211,12 +219,14 @@ class Tracker:
         return tracks
 
     # -- steps ------------------------------------------------------------------------------------
-    def _predict(self, dt: float, updated: set[int] | None = None) -> None:
-        """Predict over ``dt``; with the acceleration state and ``MotionConfig.coast_acceleration_time``,
-        the components of labels that no cluster updated in the last frame (``updated``) first have
-        their acceleration relaxed by ``exp(-dt / coast_acceleration_time)`` (mean, and the covariance's
-        row and column: the linear map ``a -> f a``), or by ``exp(-dt / coast_established_time)`` where
-        it is established (``|a| >= coast_established_sigmas sd(a)``)."""
+    def _predict(self, dt: float, updated: set[int] | None = None, t_last: float | None = None) -> None:
+        """Predict over ``dt`` (from the last frame's time ``t_last``); with the acceleration state and
+        ``MotionConfig.coast_acceleration_time``, the components of labels that no cluster updated in the
+        last frame (``updated``) first have their acceleration relaxed by ``exp(-dt /
+        coast_acceleration_time)`` (mean, and the covariance's row and column: the linear map ``a -> f
+        a``), or by ``exp(-dt / coast_established_time)`` where it is established (``|a| >=
+        coast_established_sigmas sd(a)``). With ``MotionConfig.quiet_jerk`` the jerk is chosen per
+        component (``_manoeuvre_jerk``)."""
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
@@ -239,10 +249,82 @@ class Tracker:
             mix = self._with_births(mix, pending_m, pending_p)
             self.stats["births_cluster"] += len(pending_m)
             self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
+        jerk = None
+        if self.dim == 8 and self.config.motion.quiet_jerk is not None:
+            mix, jerk = self._manoeuvre_jerk(mix, t_last, updated)
         if dt > 0.0 and len(mix):
-            means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt)
+            means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
         self.mixture = mix
+
+    def _manoeuvre_jerk(self, mix: Mixture, t_last: float | None, updated: set[int] | None) -> tuple[Mixture, np.ndarray]:
+        """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
+        label manoeuvres (an update moved it by more than ``manoeuvre_sigmas`` of the correction's
+        expected spread within the last ``manoeuvre_hold`` s: ``_detect_manoeuvres``), else
+        ``quiet_jerk`` (and ``jerk`` for a reported label no cluster updated in the last frame, with
+        ``manoeuvre_coasting``). The labels whose manoeuvre began in the last frame with a single large
+        correction (an abrupt onset, not a steady lag: ``_detect_manoeuvres``) first have the
+        acceleration's variance raised to at least the Singer model's stationary one, ``jerk^2
+        acceleration_time / 2`` (only the diagonal entry: the covariance stays positive definite), so
+        the filter takes a braking's onset at once instead of over the seconds the quiet jerk would need
+        to build that spread. Returns the mixture and the jerk per component."""
+        motion = self.config.motion
+        if self._manoeuvre_onset and len(mix):
+            onset = _labels_in(mix.labels, self._manoeuvre_onset)
+            if onset.any():
+                covs = mix.covs.copy()
+                floor = motion.jerk**2 * motion.acceleration_time / 2.0
+                covs[onset, 7, 7] = np.maximum(covs[onset, 7, 7], floor)
+                mix = Mixture(mix.weights, mix.means, covs, mix.labels)
+        self._manoeuvre_onset = set()
+        now = -math.inf if t_last is None else t_last
+        self._manoeuvre_until = {lab: t for lab, t in self._manoeuvre_until.items() if t >= now}
+        if motion.manoeuvre_memory is not None:  # a fading mean not updated for 10 time constants is ~0: forget it
+            forget = now - 10.0 * motion.manoeuvre_memory
+            self._manoeuvre_score = {lab: v for lab, v in self._manoeuvre_score.items() if v[0] >= forget}
+        jerk = np.full(len(mix), motion.quiet_jerk)
+        if self._manoeuvre_until and len(mix):
+            jerk[_labels_in(mix.labels, set(self._manoeuvre_until))] = motion.jerk
+        if motion.manoeuvre_coasting and updated is not None and len(mix):
+            jerk[~_labels_in(mix.labels, updated) & _labels_in(mix.labels, self._ever_reported)] = motion.jerk
+        return mix, jerk
+
+    def _detect_manoeuvres(self, prior_means: np.ndarray, prior_covs: np.ndarray, post_means: np.ndarray,
+                           post_covs: np.ndarray, labels: np.ndarray, weights: np.ndarray) -> None:
+        """Flag the labels an update moved unexpectedly (``MotionConfig.quiet_jerk``). Per label, its pair
+        of highest posterior weight: the correction of ``s``, ``d = s_post - s_prior``, has the expected
+        variance ``P_prior[s, s] - P_post[s, s]`` (the Kalman gain's ``K S K^T``), so ``z = d / sqrt(.)``
+        is ~N(0, 1) while the label moves as predicted. A label manoeuvres when ``|z| >
+        manoeuvre_sigmas`` (the rear of a car that starts braking moves against the quiet prediction at
+        once, a frame before the speed's correction says so), or when the fading mean of its ``z``
+        (``m = alpha m + (1 - alpha) z``, ``alpha = exp(-dt / manoeuvre_memory)``) leaves
+        ``manoeuvre_sigmas`` of its own spread under no manoeuvre, ``sqrt((1 - alpha) / (1 + alpha))``: a
+        steady lag, corrections of one sign frame after frame none of which is large alone (a gentle,
+        drawn-out acceleration of stop-and-go traffic). Flagging starts (or extends) the label's
+        ``manoeuvre_hold`` seconds of full jerk; a label newly flagged by a single correction is an
+        abrupt onset (``_manoeuvre_jerk`` raises its acceleration's variance). A steady lag does not
+        raise it: it is flagged while the filter follows an acceleration it has learned (a car pulling
+        away at 2 m/s^2), whose estimate the raise would discard."""
+        motion = self.config.motion
+        order = np.lexsort((-weights, labels))
+        first = order[np.r_[True, labels[order][1:] != labels[order][:-1]]]
+        chosen = labels[first].tolist()
+        d = self.wrapping.residual(post_means[first] - prior_means[first])[:, 0]
+        z = d / np.sqrt(np.maximum(prior_covs[first, 0, 0] - post_covs[first, 0, 0], 1e-12))
+        jump = np.abs(z) > motion.manoeuvre_sigmas
+        moved = jump.copy()
+        if motion.manoeuvre_memory is not None and self._frame_dt > 0.0:
+            previous = np.array([self._manoeuvre_score.get(lab, (self.t - self._frame_dt, 0.0)) for lab in chosen])
+            alpha = np.exp(-np.maximum(self.t - previous[:, 0], 0.0) / motion.manoeuvre_memory)
+            fading = alpha * previous[:, 1] + (1.0 - alpha) * z
+            self._manoeuvre_score.update(zip(chosen, zip([self.t] * len(chosen), fading.tolist())))
+            a = math.exp(-self._frame_dt / motion.manoeuvre_memory)
+            moved |= np.abs(fading) > motion.manoeuvre_sigmas * math.sqrt((1.0 - a) / (1.0 + a))
+        until = self.t + motion.manoeuvre_hold
+        for lab, abrupt in zip(labels[first][moved].tolist(), jump[moved].tolist()):
+            if abrupt and lab not in self._manoeuvre_until:
+                self._manoeuvre_onset.add(lab)
+            self._manoeuvre_until[lab] = until
 
     def _add_births(self, ego: EgoState, s_ego: float, tracks: Rectangles, track_labels: np.ndarray) -> None:
         """Road births (``tracker.birth.road_births``), but none where ``tracks`` (rectangles in E, with
@@ -452,6 +534,9 @@ class Tracker:
                     self.stats["covariances_repaired"] += repaired
                     if cfg.detection.missed_weight_cap:
                         new_w[0] = cap_missed_weights(missed_w, mix.labels, weights, mix.labels[comp])
+                    if self.dim == 8 and cfg.motion.quiet_jerk is not None:
+                        self._detect_manoeuvres(mix.means[comp], mix.covs[comp], res.mean[inside], post_cov,
+                                                mix.labels[comp], weights)
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
                     new_p.append(post_cov)
