@@ -55,7 +55,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
     # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
     # its unseen length (BirthConfig.correlated_extent, session 12) (the manoeuvre-gated jerk,
-    # MotionConfig.quiet_jerk of session 13, needs the acceleration state): intended changes of the model,
+    # MotionConfig.quiet_jerk of session 13, needs the acceleration state) and no sharp short side taken
+    # whole (MeasurementConfig.sharp_side_whole, session 13): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
@@ -63,7 +64,7 @@ def run_reference() -> dict[str, np.ndarray]:
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
                                   first_scan=False, correlated_extent=False),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
-                                        settled_width_std=None),
+                                        settled_width_std=None, sharp_side_whole=False),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
     )

@@ -199,6 +199,30 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
         assert both.mode[0, 0] == plain.mode[0, 0]
 
 
+def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
+    """A motorcycle (2.2 x 0.8 m) 20 m straight ahead shows its whole 0.8 m rear; predicted as a car
+    (1.9 m wide) the rear covers 42 % of the predicted one. With ``MeasurementConfig.sharp_side_whole``
+    and shadow flags saying neither end borders a nearer object, both ends sharp (half a ray gap,
+    ~4 cm here): the whole rear (``FULL``), so the width can shrink to it. Not without the shadow
+    flags (nothing says an end is free), not with an end in a shadow, not with a blunt end, not with
+    the rule off: partially visible, anchored, as before."""
+    truth = np.array([20.0, 0.0, 10.0, 0.0, 0.0, 2.2, 0.8])
+    k = corners_of(truth)
+    predicted = corners_of(np.array([20.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]) + np.array([1.25, 0, 0, 0, 0, 0, 0]))[None]
+    rays = np.arange(bearing(k[3]) - 0.01, bearing(k[2]) + 0.01, np.radians(0.2))
+    pts, hit = rectangle_scan(k, rays)
+    config = MeasurementConfig()
+    batch = ClusterBatch.of([prepare_cluster(pts, config)])
+    assert np.all(batch.end_margin[0, 0] < 0.05) and not batch.two_sided[0]
+    free = dataclasses.replace(batch, occluded_end=np.array([[False, False]]))
+    structure = build_structure(free, np.array([0]), predicted, config)
+    assert structure.sides[0, 0] == 2 and structure.mode[0, 0] == FULL
+    off = dataclasses.replace(config, sharp_side_whole=False)
+    for other, cfg in ((batch, config), (dataclasses.replace(batch, occluded_end=np.array([[False, True]])), config),
+                       (dataclasses.replace(free, end_margin=np.full_like(batch.end_margin, 0.35)), config), (free, off)):
+        assert build_structure(other, np.array([0]), predicted, cfg).mode[0, 0] != FULL
+
+
 def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:
     """Rays every 0.2 deg at random phase: the extreme returns lie inside the side's ends by up to one
     gap. With the correction the covered extent (chord + margins) is unbiased to 1 cm; without it the

@@ -812,3 +812,21 @@ def test_a_quiet_jerk_gated_by_manoeuvres_steadies_the_speed_and_still_follows_a
     assert quiet < 0.9 * full_quiet
     assert brake < 0.9 * full_brake
     assert blind_brake > 1.4 * full_brake
+
+
+@pytest.mark.parametrize("sharp", [True, False], ids=["sharp-side-whole", "off"])
+def test_a_motorcycle_followed_from_behind_has_its_width_learned(sharp):
+    """A motorcycle (2.2 x 0.8 m) 20 m ahead in the ego's lane shows only its rear. Born with a car's
+    width prior (1.8 m), its 0.8 m rear covers 44 % of the predicted one: with
+    ``MeasurementConfig.sharp_side_whole`` (both ends sharp, neither in a shadow) the rear counts as
+    whole and the width is learned within a second; without, the rear is partially visible and the
+    width is held at the prior."""
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    lane = road.lane_centers[1]
+    scene = Scene(road, Car(20.0, lane, 15.0), [Car(40.0, lane, 15.0, length=2.2, width=0.8)], radar=True)
+    frames, _ = run(scene, config_with("measurement", sharp_side_whole=sharp), 3.0)
+    widths = np.array([tracks[0].width for tracks in frames if tracks])
+    if sharp:
+        assert np.all(np.abs(widths[10:] - 0.8) < 0.1), widths[10:].round(2)
+    else:
+        assert np.all(widths[10:] > 1.5)

@@ -29,7 +29,8 @@ def _sign(x: float) -> float:
 @njit
 def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end, chord_dir, chord_len_in,
                      end_margin, two_in, single_in, fused, velocity, centroid, occluded, ci, corners, min_apparent,
-                     partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord):
+                     partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
+                     sharp_whole):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``."""
     sx = _SX
     sy = _SY
@@ -133,6 +134,10 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         # behind it: partially visible, anchored at the sharp end (a corner anchors the two-sided)
         occ_lo = occluded[c, 0]
         occ_hi = occluded[c, 1]
+        if (sharp_whole and not two and not single and not occ_lo and not occ_hi
+                and end_margin[c, 0, 0] <= free_gap and end_margin[c, 0, 1] <= free_gap):
+            partial0 = False  # both ends sharp, neither in a shadow: the whole side
+            partial1 = False
         shadowed = (not two) and ((occ_hi and not occ_lo and end_margin[c, 0, 0] <= free_gap)
                                   or (occ_lo and not occ_hi and end_margin[c, 0, 1] <= free_gap))
         if shadowed:
