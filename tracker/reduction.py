@@ -77,6 +77,9 @@ def merge_same_label(
     track updated by fragments of one vehicle's points (split clusters), which the Mahalanobis gate
     keeps apart when they are tight. Light components (e.g. the missed-detection copy) are left alone."""
     heavy = mix.weights >= min_weight
+    heavy_labels = mix.labels[heavy].tolist()
+    if len(set(heavy_labels)) == len(heavy_labels):  # the usual frame: no label twice (np.unique costs more)
+        return mix
     labels, counts = np.unique(mix.labels[heavy], return_counts=True)
     shared = labels[counts > 1]
     if len(shared) == 0:

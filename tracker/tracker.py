@@ -230,7 +230,7 @@ class Tracker:
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
-            idle = ~np.isin(mix.labels, np.fromiter(updated, dtype=mix.labels.dtype, count=len(updated)))
+            idle = ~_labels_in(mix.labels, updated)
             if idle.any():
                 f = np.full(int(idle.sum()), math.exp(-dt / coast))
                 motion = self.config.motion
@@ -399,7 +399,9 @@ class Tracker:
         self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
         if self.config.use_radar:
             velocities, joined = cluster_radar(clusters, frame.radar, frame.t, cfg.radar_gate)
-            self._free_radar = np.setdiff1d(self._free_radar, joined)
+            free = np.ones(len(frame.radar), dtype=bool)
+            free[joined[joined >= 0]] = False  # joined: per cluster, its detection or -1
+            self._free_radar = np.flatnonzero(free)
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities

@@ -11,7 +11,7 @@ from tracker.compiled import njit
 from tracker.compiled.geometry import corner_offset
 
 
-@njit
+@njit(inline="always")
 def _locate(s, bucket_cell, starts_next, inv_bucket, hops, last):
     k = min(int(s * inv_bucket), len(bucket_cell) - 1)
     idx = bucket_cell[max(k, 0)]
@@ -21,7 +21,7 @@ def _locate(s, bucket_cell, starts_next, inv_bucket, hops, last):
     return min(idx, last)
 
 
-@njit
+@njit(inline="always")
 def _cos_sin_small(phi):
     p2 = phi * phi
     cos = 1.0 + p2 * (-1 / 2 + p2 * (1 / 24 + p2 * (-1 / 720 + p2 * (1 / 40320 - p2 / 3628800))))
@@ -35,7 +35,7 @@ def _frame_arrays(count):
     return np.empty((count, 2)), np.empty((count, 2)), np.empty(count)
 
 
-@njit
+@njit(inline="always")
 def clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """Position, unit tangent and curvature ``(x, y, tx, ty, kappa)`` at one ``s`` in [0, length];
     ``table`` rows ``(start, x, y, cos0, sin0, kappa0, rate)`` per cell."""
@@ -54,7 +54,7 @@ def clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, wei
             cos0 * ce - sin0 * se, sin0 * ce + cos0 * se, k0 + kr * d)
 
 
-@njit
+@njit(inline="always")
 def hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """As ``clothoid_at``; ``table`` rows ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)``
     (``nodes`` and ``weights`` unused: the same signature as ``clothoid_at``)."""
@@ -75,7 +75,7 @@ def hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weig
 CLOTHOID, HERMITE = 0, 1
 
 
-@njit
+@njit(inline="always")
 def curve_at(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """``clothoid_at`` or ``hermite_at`` by ``kind`` (``CLOTHOID`` or ``HERMITE``)."""
     if kind == CLOTHOID:
@@ -94,7 +94,7 @@ def curve_frame(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, node
     return p, tangent, kappa
 
 
-@njit
+@njit(inline="always")
 def road_frame_at(kind, s, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
     """``Road._frame_flat(s, extrapolate=True)`` at one ``s``: wrapped on a closed road; on an open
     one the frame at ``s`` clipped to [0, length], its position moved along the end tangent

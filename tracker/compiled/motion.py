@@ -12,7 +12,7 @@ import numpy as np
 from tracker.compiled import njit
 
 
-@njit
+@njit(inline="always")
 def _interp(x, xp, fp):
     """``numpy.interp`` at one ``x`` inside ``[xp[0], xp[-1]]`` (the same formula, no allocation).
     ``xp`` is the uniform table of ``FrenetMotion`` (from 0): the interval comes from ``x / step``,
@@ -31,7 +31,7 @@ def _interp(x, xp, fp):
     return (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j]) + fp[j]
 
 
-@njit
+@njit(inline="always")
 def _curvature(s, table_s, table_k, closed, length):
     if closed:
         return _interp(s % length, table_s, table_k)  # Python's float modulo: numpy's np.mod
@@ -40,7 +40,7 @@ def _curvature(s, table_s, table_k, closed, length):
     return _interp(s, table_s, table_k)
 
 
-@njit
+@njit(inline="always")
 def _derivative(x, out, params):
     """``FrenetMotion.derivative`` of one state ``x`` into ``out``; ``params`` as ``rk4_propagate``'s."""
     (table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay, yaw_rate_decay,

@@ -15,7 +15,7 @@ import numpy as np
 from tracker.compiled import njit
 
 
-@njit
+@njit(inline="always")
 def _residual(x, angles, period_index, periods):
     for a in angles:
         x[a] = np.pi - ((np.pi - x[a]) % (2.0 * np.pi))

@@ -16,7 +16,7 @@ from tracker.compiled import njit
 from tracker.compiled.geometry import wrap_angle
 
 
-@njit
+@njit(inline="always")
 def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
     """``Wrapping.wrap`` of one vector in place."""
     for a in angles:
@@ -25,7 +25,7 @@ def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
         x[period_index] = x[period_index] % period
 
 
-@njit
+@njit(inline="always")
 def _residual(x, angles, period_index, period):  # pragma: no cover - compiled
     """``Wrapping.residual`` of one difference vector in place."""
     for a in angles:
