@@ -78,11 +78,15 @@ class _Cells:
     def kernel_args(self) -> tuple:
         """``(kind, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)``: the
         arguments of ``tracker.compiled.centerline``'s curve kernels around ``s`` (``kind``: its
-        ``CLOTHOID`` or ``HERMITE``)."""
-        from tracker.compiled.centerline import CLOTHOID, HERMITE
+        ``CLOTHOID`` or ``HERMITE``). Built once (a centerline does not change after construction):
+        the tracker asks for them several times per frame."""
+        args = self.__dict__.get("_kernel_args")
+        if args is None:
+            from tracker.compiled.centerline import CLOTHOID, HERMITE
 
-        kind = CLOTHOID if isinstance(self, ClothoidCenterline) else HERMITE
-        return (kind, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+            kind = CLOTHOID if isinstance(self, ClothoidCenterline) else HERMITE
+            args = self.__dict__["_kernel_args"] = (kind, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
+        return args
 
     def _frame_compiled(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from tracker.compiled.centerline import curve_frame
