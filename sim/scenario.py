@@ -368,7 +368,8 @@ class GeneratorSpec(_Model):
     [3.5 m], alternating straights (``straight_length`` [30, 150] m) and curves (clothoid ramp in of
     ``ramp_length`` [20, 50] m, arc of ``arc_length`` [40, 160] m, ramp out), each curve turning left
     or right with curvature uniform in ``[1/radius_high, 1/radius_low]`` (``radius`` [60, 400] m),
-    until it is long enough for the ego to drive the scenario's duration.
+    until it is long enough for the ego to drive the scenario's duration; a road that winds back to
+    within its width plus ``sim.generator.ROAD_SELF_CLEARANCE`` (10 m) of itself is drawn again.
     Traffic (when the file has no ``[ego]`` and no ``[[vehicles]]``): the ego (idm, no MOBIL,
     ``ego_speed`` [14, 20] m/s) and ``vehicles`` [3, 8] others at ``spawn`` [-60, 120] m from the
     ego along the road, ``speed`` [12, 25] m/s, ``length`` [4.2, 5.2] m, ``width`` [1.7, 2.1] m

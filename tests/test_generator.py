@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from sim import ScenarioSpec, load_scenario
-from sim.generator import MIN_BUMPER_GAP, draw_traffic, realize
+from sim.generator import MIN_BUMPER_GAP, ROAD_SELF_CLEARANCE, draw_traffic, realize, self_clearance
 from sim.scenario import GeneratorSpec, LaneChange, ScenarioError, parse_scenario
 from sim.world import World
+from tracker import Road
 
 SEEDS = range(50)
 
@@ -48,6 +49,9 @@ def test_fifty_seeds_give_valid_concrete_scenarios(random_road: ScenarioSpec, dr
                 assert m.t < spec.duration
                 if isinstance(m, LaneChange):
                     assert m.wait_for_gap
+        # the road never comes back within its width plus ROAD_SELF_CLEARANCE of itself
+        width = spec.road.lanes * spec.road.lane_width
+        assert self_clearance(road, width + ROAD_SELF_CLEARANCE) >= width + ROAD_SELF_CLEARANCE
         # same-lane neighbours keep MIN_BUMPER_GAP between bumpers
         cars = [spec.ego, *spec.vehicles]
         for i, a in enumerate(cars):
@@ -239,3 +243,34 @@ def test_drawn_classes_carry_their_heights() -> None:
     _, same = draw_traffic(given, np.random.default_rng(3), 3, 4000.0, False, 10.0, 100.0)
     assert [(v["length"], v["width"], v["s"]) for v in same] == [(v["length"], v["width"], v["s"]) for v in vehicles]
     assert {v["height"] for v in same} == {2.4}
+
+
+# -- roads that wind back onto themselves ------------------------------------------------------------
+def test_self_clearance_finds_a_road_that_comes_back_onto_itself() -> None:
+    """A 180 deg turn of radius 20 m between two parallel 100 m straights: the straights run 40 m
+    apart, so they come within 40 m of each other (the turn's own points never count: along an arc a
+    chord is at least 2 / pi of its length) but not within 30 m; a straight road never does."""
+    kappa = 1.0 / 20.0
+    hairpin = Road.from_curvature([(100.0, 0.0, 0.0), (math.pi * 20.0, kappa, kappa), (100.0, 0.0, 0.0)], lanes=2)
+    assert self_clearance(hairpin, 30.0) == math.inf
+    assert abs(self_clearance(hairpin, 45.0) - 40.0) < 0.05
+    assert self_clearance(Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2), 45.0) == math.inf
+
+
+def test_drawn_roads_never_overlap_themselves() -> None:
+    """mixed-traffic's generator (radius down to 50 m) drew a road that crossed itself on seed 17 and
+    one whose centerline ran 9 m from itself (with 11 m of lanes) on seed 1: one place then had two
+    Frenet coordinates, and tracks appeared on the other branch. Now every drawn road keeps its width
+    plus ROAD_SELF_CLEARANCE between its parts; a generator whose tight curves cannot keep it is an
+    error that says what to change."""
+    spec = load_scenario("mixed-traffic")
+    for seed in (1, 17):
+        drawn = realize(spec, seed)
+        road = drawn.build_road()
+        need = drawn.road.lanes * drawn.road.lane_width + ROAD_SELF_CLEARANCE
+        assert self_clearance(road, need) >= need
+    tight = parse_scenario({"name": "tight", "description": "d", "duration": 60.0,
+                            "generator": {"radius": [20.0, 21.0], "straight_length": [1.0, 2.0],
+                                          "arc_length": [200.0, 250.0], "ramp_length": [1.0, 2.0]}})
+    with pytest.raises(ScenarioError, match=r"drawn roads .* all came back within .* of themselves .*generator.radius"):
+        realize(tight, 0)
