@@ -23,6 +23,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
     assert (c.motion.manoeuvre_memory, c.motion.manoeuvre_coasting) == (0.5, True)
     assert c.measurement.sharp_side_whole
+    assert c.reduction.same_label_along_length
     assert c.measurement.settled_width_std == 0.15
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)

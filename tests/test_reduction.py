@@ -67,6 +67,28 @@ def test_merge_same_label_joins_close_heavy_fragments_only():
     assert np.count_nonzero(out.labels == 4) == 2  # 40 m apart: not merged
 
 
+@pytest.mark.parametrize("heading", [0.0, 0.3])
+def test_merge_same_label_reaches_half_a_long_vehicle_along_it(heading):
+    """A 13.5 m truck's points in three clusters updated its track 4.5 m apart along it: with
+    ``along_length`` two heavy posteriors of one label within half the heaviest's length along its
+    heading (and ``distance`` across) are one track; a car's (4.5 m) are not, nor is a truck's
+    posterior 4 m to its side; without ``along_length`` only ``distance`` counts."""
+    from tracker.reduction import merge_same_label
+
+    u, v = np.array([np.cos(heading), np.sin(heading)]), np.array([-np.sin(heading), np.cos(heading)])
+
+    def state(pos, length):  # [s, n, v, xi, xi_dot, L, W]
+        return [pos[0], pos[1], 15.0, heading, 0.0, length, 2.5]
+
+    for length, merged in ((13.5, True), (4.5, False)):
+        far = 4.5 * u + 0.5 * v
+        mix = mixture([1.0, 0.9], [state((0.0, 0.0), length), state(far, length)], [0.01, 0.01], [5, 5])
+        assert (len(merge_same_label(mix, distance=3.0, along_length=True)) == 1) == merged
+        assert len(merge_same_label(mix, distance=3.0, along_length=False)) == 2
+    beside = mixture([1.0, 0.9], [state((0.0, 0.0), 13.5), state(4.0 * v, 13.5)], [0.01, 0.01], [5, 5])
+    assert len(merge_same_label(beside, distance=3.0, along_length=True)) == 2
+
+
 def test_merge_across_the_start_of_a_closed_road():
     # s wraps at 500 m: components at 499.95 m and 0.05 m are 0.1 m apart
     mix = mixture([0.6, 0.6], [[499.95, 0.0], [0.05, 0.0]], [0.01, 0.01], [1, 2])

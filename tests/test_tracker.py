@@ -632,11 +632,13 @@ def test_two_posteriors_of_one_track_2_metres_apart_stay_one_track(distance, tra
     # a car coming out from behind another shows its points in two clusters for a frame, and both
     # update its track: two heavy posteriors of one label, 2.1 m apart along the road (curvy-multi).
     # ReductionConfig.same_label_distance 3 m merges them; with 2 m (before session 11) the lighter one
-    # was reported under a new label, a second track of the car
+    # was reported under a new label, a second track of the car (and without session 13's
+    # ReductionConfig.same_label_along_length, whose half car length, 2.4 m, would merge them too)
     from tracker.reduction import Mixture
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
-    cfg = TrackerConfig() if distance is None else config_with("reduction", same_label_distance=distance)
+    cfg = TrackerConfig() if distance is None else config_with("reduction", same_label_distance=distance,
+                                                               same_label_along_length=False)
     tracker = Tracker(road, cfg)
     ego = EgoState(80.0, -1.75, 0.0, 15.0, 0.0)
     mean = np.array([100.0, 1.75, 15.0, 0.0, 0.0, 4.8, 1.9, 1.5])

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from tracker import compiled as compiled_kernels
@@ -71,11 +73,15 @@ def merge_same_label(
     min_weight: float = 0.5,
     position: tuple[int, int] = (0, 1),
     wrapping: Wrapping = NO_WRAP,
+    along_length: bool = False,
 ) -> Mixture:
     """Merge components of weight >= ``min_weight`` that share a label and whose positions (state
     entries ``position``) lie within ``distance`` metres of the heaviest of them: posteriors of one
     track updated by fragments of one vehicle's points (split clusters), which the Mahalanobis gate
-    keeps apart when they are tight. Light components (e.g. the missed-detection copy) are left alone."""
+    keeps apart when they are tight. Light components (e.g. the missed-detection copy) are left alone.
+    With ``along_length`` also those within half the heaviest's length ``L`` (state entry 5) along its
+    heading (entry 3: ``xi`` in road axes, ``psi`` in Cartesian ones) and ``distance`` across it: the
+    fragments of a truck's or bus's points anchor its posteriors metres apart along it."""
     heavy = mix.weights >= min_weight
     heavy_labels = mix.labels[heavy].tolist()
     if len(set(heavy_labels)) == len(heavy_labels):  # the usual frame: no label twice (np.unique costs more)
@@ -94,6 +100,10 @@ def merge_same_label(
             j = idx[0]
             gap = wrapping.residual(mix.means[idx] - mix.means[j][None, :])[:, pos]
             near = np.linalg.norm(gap, axis=1) <= distance
+            if along_length:
+                c, s = math.cos(mix.means[j, 3]), math.sin(mix.means[j, 3])
+                along, across = gap[:, 0] * c + gap[:, 1] * s, -gap[:, 0] * s + gap[:, 1] * c
+                near |= (np.abs(along) <= 0.5 * mix.means[j, 5]) & (np.abs(across) <= distance)
             w_sum, mean, cov = _moment_match(mix, idx[near], j, wrapping)
             w_out.append(np.array([w_sum]))
             m_out.append(mean[None, :])
@@ -174,10 +184,12 @@ def reduce(
     wrapping: Wrapping = NO_WRAP,
     same_label_distance: float | None = None,
     same_label_min_weight: float = 0.5,
+    same_label_along_length: bool = False,
 ) -> Mixture:
     """Prune, merge, then (with ``same_label_distance``) merge heavy same-label fragments
-    (``merge_same_label``), and cap a mixture."""
+    (``merge_same_label``, ``along_length``), and cap a mixture."""
     mix = merge(prune(mix, prune_threshold), merge_gate, wrapping)
     if same_label_distance is not None:
-        mix = merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping)
+        mix = merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping,
+                               along_length=same_label_along_length)
     return cap(mix, max_components)

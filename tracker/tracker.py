@@ -635,6 +635,7 @@ class Tracker:
             self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
             max_components=red.max_components, wrapping=self.wrapping,
             same_label_distance=red.same_label_distance, same_label_min_weight=red.extraction_threshold,
+            same_label_along_length=red.same_label_along_length,
         )
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
