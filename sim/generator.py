@@ -21,7 +21,6 @@ import math
 from typing import Any
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from sim.scenario import GeneratorSpec, LaneChange, RoadSpec, ScenarioError, ScenarioSpec, parse_scenario
@@ -86,11 +85,9 @@ def self_clearance(road: Road, clearance: float) -> float:
     s = np.arange(0.0, road.length + CLEARANCE_STEP, CLEARANCE_STEP)
     xy, _, _ = road.frame(np.minimum(s, road.length))
     pairs = cKDTree(xy).query_pairs(clearance, output_type="ndarray")
+    gap = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
     if road.closed:  # the start and the end of a closed road are neighbours
-        gap = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
         gap = np.minimum(gap, road.length - gap)
-    else:
-        gap = np.abs(s[pairs[:, 0]] - s[pairs[:, 1]])
     far = pairs[gap > 0.5 * math.pi * clearance]
     if len(far) == 0:
         return math.inf

@@ -54,9 +54,9 @@ def run_reference() -> dict[str, np.ndarray]:
     # vehicle or radar-only updates of coasting tracks (BirthConfig.first_scan, ReductionConfig.
     # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
     # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
-    # its unseen length (BirthConfig.correlated_extent, session 12) (the manoeuvre-gated jerk,
-    # MotionConfig.quiet_jerk of session 13, needs the acceleration state) and no sharp short side taken
-    # whole (MeasurementConfig.sharp_side_whole, session 13): intended changes of the model,
+    # its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
+    # (MeasurementConfig.sharp_side_whole, session 13; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
+    # needs the acceleration state, off here): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(

@@ -550,6 +550,12 @@ class Structure:
     excess: np.ndarray
 
 
+def _sharp_side_whole(config: MeasurementConfig, batch: ClusterBatch) -> bool:
+    """Whether ``MeasurementConfig.sharp_side_whole`` applies: it needs the shadow flags (without them
+    nothing says an end is free)."""
+    return bool(config.sharp_side_whole and batch.occluded_end is not None)
+
+
 def build_structure(
     batch: ClusterBatch,
     cluster_index: np.ndarray,
@@ -607,10 +613,10 @@ def build_structure(
     # end-gap margin at most shadow_free_gap: not a far or grazing side whose next ray skips metres)
     occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
     sharp = batch.end_margin[ci, 0] <= config.shadow_free_gap  # (P, 2 ends) of the one-sided chord
-    if config.sharp_side_whole and batch.occluded_end is not None:
+    if _sharp_side_whole(config, batch):
         # a one-sided part with both ends sharp and neither in a shadow is the whole side, however much
         # shorter than predicted (a convex rectangle shows each visible side whole): a motorcycle's rear
-        # is 0.8 m, not the visible part of a car's 1.8 m (without shadow flags nothing says an end is free)
+        # is 0.8 m, not the visible part of a car's 1.8 m
         whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & ~occ[:, 0] & ~occ[:, 1]
         partial &= ~whole[:, None]
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
@@ -712,7 +718,7 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
         float(config.partial_visibility), float(config.shadow_free_gap), float(config.lidar_sigma) ** 2,
         float(config.radar_velocity_sigma) ** 2,
-        bool(use_radar), config.radar_rows == "speed", MIN_CHORD, bool(config.sharp_side_whole and batch.occluded_end is not None),
+        bool(use_radar), config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
     )
     return Structure(*fields)
 

@@ -14,9 +14,8 @@ weighted means, so components on either side of ``s = 0`` merge.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -59,6 +59,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import Counter
+from collections.abc import Container
 
 import numpy as np
 from scipy.stats import chi2
@@ -175,7 +176,6 @@ class Tracker:
         if self.t is not None and frame.t < self.t - TIME_TOLERANCE:
             raise ValueError(f"frame at t={frame.t!r} s is older than the last one (t={self.t!r} s); frames must not go back in time")
         dt = 0.0 if self.t is None else max(frame.t - self.t, 0.0)
-        t_last = self.t
         self.t = frame.t
         self._frame_dt = dt
         self.stats["frames"] += 1
@@ -185,7 +185,7 @@ class Tracker:
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
         self._radar_updated = set()
-        self._predict(dt, updated_before, t_last)
+        self._predict(dt, updated_before)
         points, scanned = self._preprocess(frame)
         if not scanned:
             # no lidar points at all (a blackout): predict only; no road births, which no scan could
@@ -219,8 +219,8 @@ class Tracker:
         return tracks
 
     # -- steps ------------------------------------------------------------------------------------
-    def _predict(self, dt: float, updated: set[int] | None = None, t_last: float | None = None) -> None:
-        """Predict over ``dt`` (from the last frame's time ``t_last``); with the acceleration state and
+    def _predict(self, dt: float, updated: set[int] | None = None) -> None:
+        """Predict over ``dt``; with the acceleration state and
         ``MotionConfig.coast_acceleration_time``, the components of labels that no cluster updated in the
         last frame (``updated``) first have their acceleration relaxed by ``exp(-dt /
         coast_acceleration_time)`` (mean, and the covariance's row and column: the linear map ``a -> f
@@ -251,13 +251,13 @@ class Tracker:
             self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
         jerk = None
         if self.dim == 8 and self.config.motion.quiet_jerk is not None:
-            mix, jerk = self._manoeuvre_jerk(mix, t_last, updated)
+            mix, jerk = self._manoeuvre_jerk(mix, updated)
         if dt > 0.0 and len(mix):
             means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
         self.mixture = mix
 
-    def _manoeuvre_jerk(self, mix: Mixture, t_last: float | None, updated: set[int] | None) -> tuple[Mixture, np.ndarray]:
+    def _manoeuvre_jerk(self, mix: Mixture, updated: set[int] | None) -> tuple[Mixture, np.ndarray]:
         """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
         label manoeuvres (an update moved it by more than ``manoeuvre_sigmas`` of the correction's
         expected spread within the last ``manoeuvre_hold`` s: ``_detect_manoeuvres``), else
@@ -277,14 +277,14 @@ class Tracker:
                 covs[onset, 7, 7] = np.maximum(covs[onset, 7, 7], floor)
                 mix = Mixture(mix.weights, mix.means, covs, mix.labels)
         self._manoeuvre_onset = set()
-        now = -math.inf if t_last is None else t_last
+        now = -math.inf if self.t is None else self.t - self._frame_dt  # the last frame's time
         self._manoeuvre_until = {lab: t for lab, t in self._manoeuvre_until.items() if t >= now}
         if motion.manoeuvre_memory is not None:  # a fading mean not updated for 10 time constants is ~0: forget it
             forget = now - 10.0 * motion.manoeuvre_memory
             self._manoeuvre_score = {lab: v for lab, v in self._manoeuvre_score.items() if v[0] >= forget}
         jerk = np.full(len(mix), motion.quiet_jerk)
         if self._manoeuvre_until and len(mix):
-            jerk[_labels_in(mix.labels, set(self._manoeuvre_until))] = motion.jerk
+            jerk[_labels_in(mix.labels, self._manoeuvre_until)] = motion.jerk
         if motion.manoeuvre_coasting and updated is not None and len(mix):
             jerk[~_labels_in(mix.labels, updated) & _labels_in(mix.labels, self._ever_reported)] = motion.jerk
         return mix, jerk
@@ -780,9 +780,9 @@ class Tracker:
         return labels
 
 
-def _labels_in(labels: np.ndarray, chosen: set[int]) -> np.ndarray:
-    """Whether each of ``labels`` is in ``chosen`` (a set that grows with the run: one set lookup per
-    label, not an ``isin`` over the set)."""
+def _labels_in(labels: np.ndarray, chosen: Container[int]) -> np.ndarray:
+    """Whether each of ``labels`` is in ``chosen`` (a set or dict that grows with the run: one lookup
+    per label, not an ``isin`` over it)."""
     return np.fromiter((lab in chosen for lab in labels.tolist()), dtype=bool, count=len(labels))
 
 
