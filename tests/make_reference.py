@@ -55,7 +55,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
     # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
     # its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
-    # (MeasurementConfig.sharp_side_whole, session 13; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
+    # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both
+    # need the shadow flags, off here; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
     # needs the acceleration state, off here): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
@@ -64,7 +65,8 @@ def run_reference() -> dict[str, np.ndarray]:
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
                                   first_scan=False, correlated_extent=False),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
-                                        settled_width_std=None, sharp_side_whole=False),
+                                        settled_width_std=None, sharp_side_whole=False,
+                                        sharp_parts_whole=False),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
     )

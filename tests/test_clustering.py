@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.clustering import associate_radar, distance_partition, occluded_ends, points_in_rectangles, split_across
+from tracker import compiled
+from tracker.clustering import (associate_radar, continued_ends, distance_partition, occluded_ends, points_in_rectangles,
+                                split_across)
 from tracker.preparation import prepare_batch
 
 
@@ -143,3 +145,34 @@ def test_occluded_ends_flags_the_end_next_to_a_nearer_return():
     np.testing.assert_array_equal(occluded_ends(_bearing_ends(grazing), grazing, 2.5 * res, 0.5, 100.0, 1.0), [[True, False]])
     assert occluded_ends(np.zeros((0, 2, 2)), scan, 2.5 * res, 0.5).shape == (0, 2)
     assert not occluded_ends(_bearing_ends(rear), np.zeros((0, 2)), 2.5 * res, 0.5).any()
+
+
+@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
+def test_continued_ends_flags_a_side_that_goes_on_in_another_cluster(kernels, monkeypatch):
+    """A truck's left side 2 m to the right of the lidar, seen from 15 to 30 m ahead with rays every
+    0.2 deg (gaps 0.4-1.6 m along it: grazing). One return is missing (at 22 m ahead), and the side
+    falls apart into two clusters. The near part's far end and the far part's near end go on in the
+    other part: continued; the far part's far end and the near part's near end are free. A return
+    1 m beside the side's line beyond the far end (another car's corner) does not continue it; nor
+    does the next ray's return farther than ``rays`` ray gaps along it."""
+    if kernels == "compiled" and not compiled.available():
+        pytest.skip("numba not installed")
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1" if kernels == "compiled" else "0")
+    x = 2.0 / np.tan(np.arange(np.arctan2(2.0, 30.0), np.arctan2(2.0, 15.0), np.radians(0.2)))  # far to near
+    x = x[::-1]  # near to far along the side
+    side = np.column_stack([x, np.full(len(x), -2.0)])
+    hole = int(np.argmin(np.abs(x - 22.0)))
+    near, far = side[:hole], side[hole + 1:]
+    assert len(near) >= 3 and len(far) >= 3
+    batch = prepare_batch([near, far])
+    ends, outward, half_gap = batch.side_ends()
+    # half the ray gap r^2 db / d at each end (d = 2 m), the near part's ends at 15 m and 22 m
+    np.testing.assert_allclose(half_gap[0], 0.5 * np.radians(0.2) * np.hypot(near[[0, -1], 0], 2.0) ** 2 / 2.0, rtol=0.05)
+    scan = np.vstack([near, far, [[far[-1, 0] + 0.8, -3.0]]])
+    got = continued_ends(ends, outward, half_gap, scan, 3.0, 0.3)
+    # bearing order: a side on the right runs from near (lowest bearing) to far
+    np.testing.assert_array_equal(got, [[False, True], [True, False]])
+    # three ray gaps reach past the hole (two gaps); one gap does not
+    np.testing.assert_array_equal(continued_ends(ends, outward, half_gap, scan, 0.9, 0.3), [[False, False], [False, False]])
+    assert continued_ends(ends, outward, half_gap, np.zeros((0, 2)), 3.0, 0.3).shape == (2, 2)
+    assert continued_ends(np.zeros((0, 2, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2)), scan, 3.0, 0.3).shape == (0, 2)

@@ -67,7 +67,7 @@ def _scene_pairs(monkeypatch):
     seen = []
 
     def record(batch, ci, corners, *args, **kwargs):
-        seen.append((batch, np.array(ci), np.array(corners)))
+        seen.append((batch, np.array(ci), np.array(corners), kwargs.get("extent_sd")))
         return build_structure(batch, ci, corners, *args, **kwargs)
 
     monkeypatch.setattr(tracker.update, "build_structure", record)
@@ -83,18 +83,30 @@ def test_compiled_structure_equals_numpy(radar_rows, monkeypatch):
     config = MeasurementConfig(radar_rows=radar_rows)
     pairs = _scene_pairs(monkeypatch)
     assert len(pairs) >= 20
-    assert any(b.occluded_end is not None and b.occluded_end.any() for b, _, _ in pairs)  # the scene has shadows
-    for batch, clu, corners in pairs:
+    assert any(b.occluded_end is not None and b.occluded_end.any() for b, _, _, _ in pairs)  # the scene has shadows
+    assert any(b.continued_end is not None for b, _, _, _ in pairs)
+    assert all(sd is not None for _, _, _, sd in pairs)
+    whole_parts = 0
+    for batch, clu, corners, extent_sd in pairs:
         rng = np.random.default_rng(len(clu))
         fused = dataclasses.replace(batch, fused=np.arange(len(batch.fused)) % 2 == 0,
                                     velocity=rng.normal(size=batch.velocity.shape))
-        # the recorded shadow flags, random ones (every combination of the two ends), and none
-        for occluded in (batch.occluded_end, rng.random((len(batch.points), 2)) < 0.4, None):
-            variant = dataclasses.replace(fused, occluded_end=occluded)
+        # the recorded shadow / continuation flags and extent sds, random ones (every combination of the
+        # two ends; sds that open or shut the gate), and none
+        flags = rng.random((len(batch.points), 2)) < 0.4
+        for occluded, continued, sd in ((batch.occluded_end, batch.continued_end, extent_sd),
+                                        (flags, rng.random(flags.shape) < 0.3, rng.uniform(0.0, 2.0, extent_sd.shape)),
+                                        (None, None, None)):
+            variant = dataclasses.replace(fused, occluded_end=occluded, continued_end=continued)
             for use_radar in (True, False):
-                ref = build_structure(variant, clu, corners, config, use_radar, compiled=False)
-                got = build_structure(variant, clu, corners, config, use_radar, compiled=True)
+                ref = build_structure(variant, clu, corners, config, use_radar, extent_sd=sd, compiled=False)
+                got = build_structure(variant, clu, corners, config, use_radar, extent_sd=sd, compiled=True)
                 assert_fields_equal(ref, got)
+            if sd is not None:
+                off = build_structure(variant, clu, corners, dataclasses.replace(config, sharp_parts_whole=False),
+                                      extent_sd=sd, compiled=False)
+                whole_parts += int((ref.mode != off.mode).sum())
+    assert whole_parts > 0  # the two-sided rule decided some parts
 
 
 def test_switch(monkeypatch):

@@ -23,6 +23,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
     assert (c.motion.manoeuvre_memory, c.motion.manoeuvre_coasting) == (0.5, True)
     assert c.measurement.sharp_side_whole
+    assert c.measurement.sharp_parts_whole and c.measurement.whole_min_points == 4
     assert c.reduction.same_label_along_length
     assert c.measurement.settled_width_std == 0.15
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
@@ -55,6 +56,12 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(manoeuvre_memory=0.0), r"MotionConfig.manoeuvre_memory must be > 0"),
         (lambda: MotionConfig(manoeuvre_coasting=1), r"MotionConfig.manoeuvre_coasting must be true or false"),
         (lambda: MeasurementConfig(sharp_side_whole="yes"), r"MeasurementConfig.sharp_side_whole must be true or false"),
+        (lambda: MeasurementConfig(sharp_parts_whole=1), r"MeasurementConfig.sharp_parts_whole must be true or false"),
+        (lambda: MeasurementConfig(whole_min_points=1), r"MeasurementConfig.whole_min_points must be an integer >= 2"),
+        (lambda: MeasurementConfig(whole_gate_sigmas=-1.0), r"MeasurementConfig.whole_gate_sigmas"),
+        (lambda: MeasurementConfig(whole_gate_slack=float("nan")), r"MeasurementConfig.whole_gate_slack"),
+        (lambda: MeasurementConfig(continuation_rays=0.0), r"MeasurementConfig.continuation_rays"),
+        (lambda: MeasurementConfig(continuation_offset=-0.1), r"MeasurementConfig.continuation_offset"),
         (lambda: DetectionConfig(hidden_update_p_detection=0.0), r"hidden_update_p_detection must be > 0.0 and <= 1.0"),
         (lambda: DetectionConfig(missed_weight_cap=1), r"DetectionConfig.missed_weight_cap must be true or false"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),

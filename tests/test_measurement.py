@@ -192,7 +192,7 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
             assert plain.mode[0, 0] == CENTRE  # the 0.6 m error made the centre the nearest anchor
         # a blunt free end (half a ray gap wider than shadow_free_gap: a far or grazing side) is no
         # corner to anchor at; nor does a shadow at both ends say where the side ends: the rules before
-        blunt = dataclasses.replace(batch, occluded_end=shadow, end_margin=np.full_like(batch.end_margin, 0.5))
+        blunt = dataclasses.replace(batch, occluded_end=shadow, end_gap=np.full_like(batch.end_gap, 0.5))
         assert build_structure(blunt, np.array([0]), predicted, EXACT).mode[0, 0] == \
             build_structure(dataclasses.replace(blunt, occluded_end=None), np.array([0]), predicted, EXACT).mode[0, 0]
         both = build_structure(dataclasses.replace(batch, occluded_end=np.array([[True, True]])), np.array([0]), predicted, EXACT)
@@ -204,8 +204,9 @@ def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     (1.9 m wide) the rear covers 42 % of the predicted one. With ``MeasurementConfig.sharp_side_whole``
     and shadow flags saying neither end borders a nearer object, both ends sharp (half a ray gap,
     ~4 cm here): the whole rear (``FULL``), so the width can shrink to it. Not without the shadow
-    flags (nothing says an end is free), not with an end in a shadow, not with a blunt end, not with
-    the rule off: partially visible, anchored, as before."""
+    flags (nothing says an end is free), not with an end in a shadow or continuing in another cluster,
+    not with a blunt end (half a ray gap over ``shadow_free_gap``), not with the rule off: partially
+    visible, anchored, as before."""
     truth = np.array([20.0, 0.0, 10.0, 0.0, 0.0, 2.2, 0.8])
     k = corners_of(truth)
     predicted = corners_of(np.array([20.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]) + np.array([1.25, 0, 0, 0, 0, 0, 0]))[None]
@@ -213,14 +214,57 @@ def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     pts, hit = rectangle_scan(k, rays)
     config = MeasurementConfig()
     batch = ClusterBatch.of([prepare_cluster(pts, config)])
-    assert np.all(batch.end_margin[0, 0] < 0.05) and not batch.two_sided[0]
+    assert np.all(batch.end_gap[0, 0] < 0.05) and not batch.two_sided[0]
     free = dataclasses.replace(batch, occluded_end=np.array([[False, False]]))
     structure = build_structure(free, np.array([0]), predicted, config)
     assert structure.sides[0, 0] == 2 and structure.mode[0, 0] == FULL
     off = dataclasses.replace(config, sharp_side_whole=False)
     for other, cfg in ((batch, config), (dataclasses.replace(batch, occluded_end=np.array([[False, True]])), config),
-                       (dataclasses.replace(free, end_margin=np.full_like(batch.end_margin, 0.35)), config), (free, off)):
+                       (dataclasses.replace(free, continued_end=np.array([[True, False]])), config),
+                       (dataclasses.replace(free, end_gap=np.full_like(batch.end_gap, 0.35)), config), (free, off)):
         assert build_structure(other, np.array([0]), predicted, cfg).mode[0, 0] != FULL
+
+
+def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_side() -> None:
+    """A motorcycle (2.2 x 0.8 m) 15 m ahead-left shows its rear (0.8 m) and right side (2.2 m), rays
+    every 0.2 deg; predicted as a car (4.5 x 1.8 m) with the same rear-right corner, the parts cover
+    44 % and 49 % of the predicted sides. With ``MeasurementConfig.sharp_parts_whole`` (both far ends
+    sharp and free, both parts with at least ``whole_min_points`` points, the shrinks within 3 sd + 0.3
+    m of the extent's sd) both parts are whole (``FULL``); each condition that fails keeps its part(s)
+    partially visible, anchored at the corner (``FROM_B`` / ``FROM_A``): the rule off, no extent sd
+    (the gate cannot be checked), no shadow flags, a far end in a shadow or continuing in another
+    cluster (that part only), a blunt far end, too few points per part, an sd too small for the
+    shrink (that side only)."""
+    moto = np.array([15.0, 3.5, 10.0, 0.0, 0.0, 2.2, 0.8])
+    k = corners_of(moto)
+    car = moto + np.array([1.15, 0.5, 0.0, 0.0, 0.0, 2.3, 1.0])  # same rear-right corner K3
+    predicted = corners_of(car)[None]
+    np.testing.assert_allclose(predicted[0, 3], k[3], atol=1e-12)
+    b = bearing(k)
+    pts, hit = rectangle_scan(k, np.arange(b[0] + 1e-4, b[2], np.radians(0.2)))
+    assert hit.all()
+    config = MeasurementConfig()
+    batch = ClusterBatch.of([prepare_cluster(pts, config)])
+    assert batch.two_sided[0] and np.all(batch.end_gap[0, [1, 2], [0, 1]] < config.shadow_free_gap)
+    free = dataclasses.replace(batch, occluded_end=np.zeros((1, 2), dtype=bool))
+    sd = np.array([[1.0, 0.4]])  # a car prior's L, W sds: shrinks of 2.3 m and 1.0 m pass the gate
+
+    def modes(b, cfg=config, extent_sd=sd):
+        st = build_structure(b, np.array([0]), predicted, cfg, extent_sd=extent_sd)
+        assert st.two_sided[0] and st.sides[0].tolist() == [3, 2]  # the right side, then the rear
+        return st.mode[0].tolist()
+
+    assert modes(free) == [FULL, FULL]
+    assert modes(free, dataclasses.replace(config, sharp_parts_whole=False)) == [FROM_B, FROM_A]
+    assert modes(free, extent_sd=None) == [FROM_B, FROM_A]
+    assert modes(batch) == [FROM_B, FROM_A]  # no shadow flags: nothing says an end is free
+    assert modes(dataclasses.replace(free, occluded_end=np.array([[True, False]]))) == [FROM_B, FULL]
+    assert modes(dataclasses.replace(free, continued_end=np.array([[False, True]]))) == [FULL, FROM_A]
+    blunt = free.end_gap.copy()
+    blunt[0, 1, 0] = 0.35
+    assert modes(dataclasses.replace(free, end_gap=blunt)) == [FROM_B, FULL]
+    assert modes(free, dataclasses.replace(config, whole_min_points=40)) == [FROM_B, FROM_A]
+    assert modes(free, extent_sd=np.array([[0.2, 0.4]])) == [FROM_B, FULL]  # 2.3 m > 3 x 0.2 + 0.3
 
 
 def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:

@@ -262,3 +262,33 @@ def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: flo
     d = beyond[:, None] * (d - 2.0 * np.pi * np.round(d / (2.0 * np.pi)))  # > 0: beyond the end
     nearer = (d > 0.0) & (d <= window) & (scan_r[None, :] < reach[:, None] - margin)
     return (nearer.any(axis=1) | (reach >= max_range - range_margin)).reshape(len(ends), 2)
+
+
+def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, scan: np.ndarray, rays: float,
+                   offset: float) -> np.ndarray:
+    """Whether the side goes on beyond each end of each cluster: ``(K, 2)`` bool for ``ends (K, 2, 2)``
+    (where each cluster's side ends at its first and last point in bearing, in E), ``outward (K, 2, 2)``
+    (unit directions pointing on beyond them) and ``half_gap (K, 2)`` (half the expected ray gap there,
+    m; ``tracker.measurement.ClusterBatch.side_ends``). An end continues when a return of ``scan (R, 2)``
+    lies beyond it along its line, more than half a ray gap (the next ray's return is a whole gap
+    beyond; the cluster's own points lie at or before the end) and within ``rays`` ray gaps
+    (``2 half_gap`` each), and at most ``offset`` m from that line: the next ray or two along the side
+    found it again in another cluster (a dropped return split the side), so the extreme point is not
+    the side's end. One compiled call
+    (``tracker.compiled.clustering.continued_ends_kernel``) when the kernels are on."""
+    ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
+    outward = np.asarray(outward, dtype=float).reshape(-1, 2, 2)
+    half_gap = np.asarray(half_gap, dtype=float).reshape(-1, 2)
+    reach = 2.0 * float(rays) * half_gap
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=bool)
+    if compiled_kernels.enabled():
+        from tracker.compiled.clustering import continued_ends_kernel
+
+        compiled_kernels.require()
+        return continued_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(outward), np.ascontiguousarray(half_gap),
+                                     np.ascontiguousarray(reach), np.ascontiguousarray(scan, dtype=float), float(offset))
+    d = scan[None, None, :, :] - ends[:, :, None, :]  # (K, 2, R, 2)
+    along = np.einsum("kerd,ked->ker", d, outward)
+    across = np.abs(d[..., 0] * outward[..., None, 1] - d[..., 1] * outward[..., None, 0])
+    return ((along > half_gap[..., None]) & (along <= reach[..., None]) & (across <= offset)).any(axis=2)

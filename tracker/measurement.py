@@ -44,7 +44,13 @@ rectangle shows two sides; each part is matched to the side whose outward normal
 part's line direction turned by +90 deg (``argmax n_k . rot90(u)``; the paper writes the test as
 ``argmin |alpha_i - beta + pi/2|`` with its own normal convention); a two-sided cluster takes the best
 adjacent pair ``(j, j - 1)``. Visibility ``a = (chord + end margins) / predicted side length``; a side
-with ``a <= partial_visibility`` (0.6) is *partially visible*.
+with ``a <= partial_visibility`` (0.9) is *partially visible*, unless the data show where it ends
+(departures from the paper, ``MeasurementConfig``): a one-sided cluster with both ends sharp (half a
+ray gap at most ``shadow_free_gap``) and free (no nearer return beyond it, ``occluded_end``; no return
+continuing its line, ``continued_end``) is the whole side (``sharp_side_whole``), and so is a part of a
+two-sided cluster from the fitted corner to a sharp, free far end, when both parts have enough points
+and the side shrinks by no more than the extent's uncertainty allows (``sharp_parts_whole``); a side
+with an end in a shadow is partially visible whatever its extent.
 
 Measurement generating points (one per point, in the same order, so no association is needed), with
 ``e_lo``, ``e_hi`` the end margins of the part (0 without the correction or at a fitted corner):
@@ -260,7 +266,10 @@ class Cluster:
     point's part chord. ``two_sided`` is the data's verdict; ``corner`` the index of the corner point in
     ``points`` (-1 if one-sided); ``eigen_ratio``; ``end_margin (3, 2)`` per slot, the distance (m)
     assumed between the chord's start / end and the side's corner (half the expected gap between rays
-    at a free end, 0 at the corner of a split; all 0 without ``end_gap_correction``); ``velocity (2,)`` the radar's absolute velocity in E
+    at a free end, at most half the chord; 0 at the corner of a split; all 0 without
+    ``end_gap_correction``); ``end_gap (3, 2)`` the same half ray gap before the cap at half the chord
+    (how sharp an end is: a short chord on a grazing side is not a sharp one; also 0 at the corner of a
+    split and without the correction); ``velocity (2,)`` the radar's absolute velocity in E
     (m/s) or ``None``; ``raw_count`` points before downsampling; ``dropped`` non-finite points removed;
     ``order`` the input index of each kept point.
     """
@@ -277,6 +286,7 @@ class Cluster:
     eigen_ratio: float
     end_margin: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
     velocity: np.ndarray | None = None
+    end_gap: np.ndarray = field(default_factory=lambda: np.zeros((3, 2)))
     raw_count: int = 0
     dropped: int = 0
     order: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
@@ -425,7 +435,7 @@ def prepare_cluster(
     starts = origin + lo[:, None] * direction
     ends = origin + hi[:, None] * direction
     length = hi - lo
-    margin = np.zeros((3, 2))
+    margin, half_gap = np.zeros((3, 2)), np.zeros((3, 2))
     if config.end_gap_correction and n >= 2:
         # half the gap between rays at each free end: along a line at distance d from the sensor a
         # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
@@ -434,9 +444,11 @@ def prepare_cluster(
         dist = np.abs(origin[:, 0] * direction[:, 1] - origin[:, 1] * direction[:, 0])  # (3,) line to sensor
         r2 = np.column_stack([(starts * starts).sum(axis=1), (ends * ends).sum(axis=1)])
         gap = r2 * db / np.maximum(dist, 1e-3)[:, None]
-        margin = 0.5 * np.minimum(np.minimum(gap, MAX_END_GAP), length[:, None])
+        half_gap = 0.5 * np.minimum(gap, MAX_END_GAP)
+        margin = np.minimum(half_gap, 0.5 * length[:, None])
         if two:
             margin[1, 1] = margin[2, 0] = 0.0  # the corner of a split is observed
+            half_gap[1, 1] = half_gap[2, 0] = 0.0
     pts, index = pts[keep], index[keep]
     m = len(pts)
     part = np.zeros(m, dtype=np.intp)
@@ -449,7 +461,7 @@ def prepare_cluster(
     return Cluster(
         points=pts, part=part, proj=proj, chord_start=starts, chord_end=ends, chord_dir=direction,
         chord_len=length, two_sided=bool(two), corner=corner, eigen_ratio=ratio, end_margin=margin, velocity=velocity,
-        raw_count=n, dropped=dropped, order=index,
+        raw_count=n, dropped=dropped, order=index, end_gap=half_gap,
     )
 
 
@@ -457,9 +469,11 @@ def prepare_cluster(
 class ClusterBatch:
     """Clusters padded to a common size ``M`` for batched pairs: ``points (K, M, 2)``, ``valid (K, M)``,
     ``part (K, M)``, ``proj (K, 2, M)``, ``chord_start``, ``chord_end``, ``chord_dir (K, 3, 2)``,
-    ``chord_len (K, 3)``, ``end_margin (K, 3, 2)`` (slots as in ``Cluster``), ``two_sided``, ``single``, ``fused (K,)``,
-    ``velocity (K, 2)``, ``centroid (K, 2)``; ``occluded_end (K, 2)`` (None: no end occluded) whether the
-    first / last point in bearing borders another object's shadow (``tracker.clustering.occluded_ends``)."""
+    ``chord_len (K, 3)``, ``end_margin``, ``end_gap (K, 3, 2)`` (slots as in ``Cluster``), ``two_sided``, ``single``,
+    ``fused (K,)``, ``velocity (K, 2)``, ``centroid (K, 2)``; ``occluded_end (K, 2)`` (None: no end occluded)
+    whether the first / last point in bearing borders another object's shadow
+    (``tracker.clustering.occluded_ends``); ``continued_end (K, 2)`` (None: none) whether the side goes on
+    beyond it in another cluster (``tracker.clustering.continued_ends``)."""
 
     points: np.ndarray
     valid: np.ndarray
@@ -470,12 +484,14 @@ class ClusterBatch:
     chord_dir: np.ndarray
     chord_len: np.ndarray
     end_margin: np.ndarray
+    end_gap: np.ndarray
     two_sided: np.ndarray
     single: np.ndarray
     fused: np.ndarray
     velocity: np.ndarray
     centroid: np.ndarray
     occluded_end: np.ndarray | None = None
+    continued_end: np.ndarray | None = None
 
     def bearing_ends(self) -> np.ndarray:
         """Each cluster's first and last point in bearing order (``K, 2, 2``; the points are kept in
@@ -483,6 +499,15 @@ class ClusterBatch:
         looks for."""
         last = np.maximum(self.valid.sum(axis=1) - 1, 0)
         return np.stack([self.points[:, 0], self.points[np.arange(len(self.points)), last]], axis=1)
+
+    def side_ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where each cluster's side ends at its first and last point in bearing (``K, 2, 2``: the start
+        of the first part's chord, the end of the last part's), the unit direction pointing on beyond
+        each (``K, 2, 2``) and half the expected ray gap there (``K, 2``, m): what
+        ``tracker.clustering.continued_ends`` takes (slots 1, 2 repeat slot 0 for a one-sided cluster)."""
+        ends = np.stack([self.chord_start[:, 1], self.chord_end[:, 2]], axis=1)
+        outward = np.stack([-self.chord_dir[:, 1], self.chord_dir[:, 2]], axis=1)
+        return ends, outward, np.stack([self.end_gap[:, 1, 0], self.end_gap[:, 2, 1]], axis=1)
 
     @classmethod
     def of(cls, clusters: list[Cluster]) -> ClusterBatch:
@@ -507,6 +532,7 @@ class ClusterBatch:
             chord_dir=np.stack([c.chord_dir for c in clusters]),
             chord_len=chord_len,
             end_margin=np.stack([c.end_margin for c in clusters]),
+            end_gap=np.stack([c.end_gap for c in clusters]),
             two_sided=np.array([c.two_sided for c in clusters]),
             single=chord_len[:, 0] <= MIN_CHORD,
             fused=np.array([c.fused for c in clusters]),
@@ -556,6 +582,21 @@ def _sharp_side_whole(config: MeasurementConfig, batch: ClusterBatch) -> bool:
     return bool(config.sharp_side_whole and batch.occluded_end is not None)
 
 
+def _sharp_parts_whole(config: MeasurementConfig, batch: ClusterBatch, extent_sd: np.ndarray | None) -> bool:
+    """Whether ``MeasurementConfig.sharp_parts_whole`` applies: it needs the shadow flags and the
+    predicted extent's standard deviations (its consistency gate)."""
+    return bool(config.sharp_parts_whole and batch.occluded_end is not None and extent_sd is not None)
+
+
+def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
+    """``(P, 2)``: whether each bearing end of the pairs' clusters is free (in no shadow, not continued)."""
+    free = np.ones((len(ci), 2), dtype=bool)
+    for flags in (batch.occluded_end, batch.continued_end):
+        if flags is not None:
+            free &= ~flags[ci]
+    return free
+
+
 def build_structure(
     batch: ClusterBatch,
     cluster_index: np.ndarray,
@@ -563,18 +604,23 @@ def build_structure(
     config: MeasurementConfig,
     use_radar: bool = True,
     *,
+    extent_sd: np.ndarray | None = None,
     compiled: bool | None = None,
 ) -> Structure:
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
-    as in the module docstring. Vectorised over pairs; by the compiled kernel
-    (``tracker.compiled.structure``) when ``compiled`` (default: ``tracker.compiled.enabled()``)."""
+    as in the module docstring. ``extent_sd (P, 2)``: the predicted standard deviations of ``L`` and
+    ``W`` (m), for ``MeasurementConfig.sharp_parts_whole`` (None: that rule off). Vectorised over
+    pairs; by the compiled kernel (``tracker.compiled.structure``) when ``compiled`` (default:
+    ``tracker.compiled.enabled()``)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
+    if extent_sd is not None:
+        extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
     if compiled is None:
         compiled = compiled_kernels.enabled()
     if compiled and len(ci):
         compiled_kernels.require()
-        return _build_structure_compiled(batch, ci, mean_corners, config, use_radar)
+        return _build_structure_compiled(batch, ci, mean_corners, config, use_radar, extent_sd)
     p_count = len(ci)
     rows = np.arange(p_count)
     nrm = side_normals(mean_corners)  # (P, 4, 2)
@@ -612,13 +658,29 @@ def build_structure(
     # one-sided only (a corner anchors the two-sided), and only when the other end is sharp (its
     # end-gap margin at most shadow_free_gap: not a far or grazing side whose next ray skips metres)
     occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
-    sharp = batch.end_margin[ci, 0] <= config.shadow_free_gap  # (P, 2 ends) of the one-sided chord
+    sharp_end = batch.end_gap[ci] <= config.shadow_free_gap  # (P, 3 slots, 2 ends): half a ray gap at most
+    sharp = sharp_end[:, 0]  # (P, 2 ends) of the one-sided chord
+    free = _free_ends(batch, ci)  # (P, 2) the bearing ends: in no shadow, not continued
     if _sharp_side_whole(config, batch):
-        # a one-sided part with both ends sharp and neither in a shadow is the whole side, however much
-        # shorter than predicted (a convex rectangle shows each visible side whole): a motorcycle's rear
-        # is 0.8 m, not the visible part of a car's 1.8 m
-        whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & ~occ[:, 0] & ~occ[:, 1]
+        # a one-sided part with both ends sharp and free is the whole side, however much shorter than
+        # predicted (a convex rectangle shows each visible side whole): a motorcycle's rear is 0.8 m,
+        # not the visible part of a car's 1.8 m
+        whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & free[:, 0] & free[:, 1]
         partial &= ~whole[:, None]
+    if _sharp_parts_whole(config, batch, extent_sd):
+        # each part of a two-sided cluster runs from the fitted corner to a far end, the cluster's first
+        # (part 0, slot 1's start) or last point (part 1, slot 2's end): whole if that end is sharp and
+        # free, both parts have enough points (the corner is where two well-fitted lines meet: with two
+        # points on the other side it is the last return before the corner, up to a ray gap short of it),
+        # and the side it would shrink is within the gate
+        part_pts = np.stack([(batch.valid[ci] & (batch.part[ci] == 0)).sum(axis=1),
+                             (batch.valid[ci] & (batch.part[ci] == 1)).sum(axis=1) + 1], axis=1)  # the corner in both
+        far_sharp = np.stack([sharp_end[:, 1, 0], sharp_end[:, 2, 1]], axis=1)
+        sd = np.where(sides % 2 == 1, extent_sd[:, :1], extent_sd[:, 1:])  # odd sides are the length
+        shrink = side_len[rows[:, None], sides] - covered
+        consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
+        enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
+        partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
     partial |= shadowed[:, None]
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
@@ -706,19 +768,23 @@ def build_structure(
 
 
 def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
-                              use_radar: bool) -> Structure:
+                              use_radar: bool, extent_sd: np.ndarray | None) -> Structure:
     from tracker.compiled.structure import structure_kernel
 
     c = np.ascontiguousarray  # one compiled signature: C-contiguous arrays
+    parts_whole = _sharp_parts_whole(config, batch, extent_sd)
     fields = structure_kernel(
         c(batch.points), c(batch.valid), c(batch.part), c(batch.proj), c(batch.chord_start), c(batch.chord_end),
-        c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.two_sided), c(batch.single), c(batch.fused),
-        c(batch.velocity), c(batch.centroid),
+        c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.end_gap), c(batch.two_sided),
+        c(batch.single), c(batch.fused), c(batch.velocity), c(batch.centroid),
         c(batch.occluded_end if batch.occluded_end is not None else np.zeros((len(batch.points), 2), dtype=bool)),
+        c(~_free_ends(batch, np.arange(len(batch.points)))),
         ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
         float(config.partial_visibility), float(config.shadow_free_gap), float(config.lidar_sigma) ** 2,
         float(config.radar_velocity_sigma) ** 2,
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
+        parts_whole, c(extent_sd if parts_whole else np.zeros((len(ci), 2)), dtype=float),
+        int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
     )
     return Structure(*fields)
 

@@ -164,7 +164,7 @@ def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None]
     n = np.array([len(a) for a in arrays])
     offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
     np.cumsum(n, out=offsets[1:])
-    (points, valid, part, proj, starts, ends, direction, length, margin, two, corner, ratio, order,
+    (points, valid, part, proj, starts, ends, direction, length, margin, half_gap, two, corner, ratio, order,
      kept_count) = prepare_kernel(np.concatenate(arrays), offsets, int(config.max_cluster_points),
                                   int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
                                   bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
@@ -174,7 +174,8 @@ def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None]
     return _Prepared(
         points=c(points[:, :m]), valid=c(valid[:, :m]), part=c(part[:, :m]), proj=c(proj[:, :, :m]),
         chord_start=starts, chord_end=ends, chord_dir=direction, chord_len=length, end_margin=margin,
-        two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=order[:, :m], kept_count=kept_count,
+        end_gap=half_gap, two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=order[:, :m],
+        kept_count=kept_count,
         velocity=vel_out,
     )
 
@@ -253,7 +254,7 @@ def _prepare_numpy(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], c
     starts = origin + lo[..., None] * direction
     ends = origin + hi[..., None] * direction
     length = hi - lo
-    margin = np.zeros((count, 3, 2))
+    margin, half_gap = np.zeros((count, 3, 2)), np.zeros((count, 3, 2))
     if config.end_gap_correction:
         db = np.zeros(count)  # the median bearing step (the upper one of an even count, as np.partition)
         if width > 1:
@@ -262,10 +263,10 @@ def _prepare_numpy(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], c
         dist = np.abs(origin[..., 0] * direction[..., 1] - origin[..., 1] * direction[..., 0])
         r2 = np.stack([(starts * starts).sum(axis=-1), (ends * ends).sum(axis=-1)], axis=-1)
         gap = r2 * db[:, None, None] / np.maximum(dist, 1e-3)[..., None]
-        margin = 0.5 * np.minimum(np.minimum(gap, MAX_END_GAP), length[..., None])
-        margin = np.where((n >= 2)[:, None, None], margin, 0.0)
-        margin[two, 1, 1] = 0.0  # the corner of a split is observed
-        margin[two, 2, 0] = 0.0
+        half_gap = np.where((n >= 2)[:, None, None], 0.5 * np.minimum(gap, MAX_END_GAP), 0.0)
+        half_gap[two, 1, 1] = 0.0  # the corner of a split is observed
+        half_gap[two, 2, 0] = 0.0
+        margin = np.minimum(half_gap, 0.5 * length[..., None])
     # the kept points, compacted, with their part and chord coordinates
     kept_count = keep.sum(axis=1)
     pick = np.argsort(~keep, axis=1, kind="stable")[:, : int(kept_count.max())]  # kept indices first, in order
@@ -278,13 +279,13 @@ def _prepare_numpy(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], c
     src = np.take_along_axis(order, pick, axis=1)
     kept = np.arange(pick.shape[1])[None, :] < kept_count[:, None]
     one = ~two  # one part: slots 1 and 2 repeat slot 0
-    for a in (starts, ends, direction, length, margin):
+    for a in (starts, ends, direction, length, margin, half_gap):
         a[one, 1:] = a[one, :1]
     return _Prepared(
         points=np.where(kept[..., None], kpts, 0.0), valid=kept, part=np.where(kept, part, 0),
         proj=np.where(kept[:, None, :], np.stack([proj0, proj1], axis=1), 0.0),
         chord_start=starts, chord_end=ends, chord_dir=direction, chord_len=length, end_margin=margin,
-        two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=src, kept_count=kept_count,
+        end_gap=half_gap, two_sided=two, corner=corner, eigen_ratio=ratio, raw_count=n, order=src, kept_count=kept_count,
         velocity=vel_out,
     )
 
@@ -302,6 +303,7 @@ class _Prepared:
     chord_dir: np.ndarray
     chord_len: np.ndarray
     end_margin: np.ndarray
+    end_gap: np.ndarray
     two_sided: np.ndarray
     corner: np.ndarray
     eigen_ratio: np.ndarray
@@ -320,6 +322,7 @@ class _Prepared:
                 chord_start=self.chord_start[i], chord_end=self.chord_end[i], chord_dir=self.chord_dir[i],
                 chord_len=self.chord_len[i], two_sided=bool(self.two_sided[i]), corner=int(self.corner[i]),
                 eigen_ratio=float(self.eigen_ratio[i]), end_margin=self.end_margin[i], velocity=self.velocity[i],
+                end_gap=self.end_gap[i],
                 raw_count=int(self.raw_count[i]), dropped=0, order=self.order[i, :m],
             ))
         return out
@@ -331,7 +334,7 @@ class _Prepared:
         return ClusterBatch(
             points=self.points, valid=self.valid, part=self.part, proj=self.proj,
             chord_start=self.chord_start, chord_end=self.chord_end, chord_dir=self.chord_dir,
-            chord_len=self.chord_len, end_margin=self.end_margin, two_sided=self.two_sided.copy(),
+            chord_len=self.chord_len, end_margin=self.end_margin, end_gap=self.end_gap, two_sided=self.two_sided.copy(),
             single=self.chord_len[:, 0] <= MIN_CHORD, fused=fused,
             velocity=np.stack([v if v is not None else np.zeros(2) for v in self.velocity]),
             centroid=self.points.sum(axis=1) / count,

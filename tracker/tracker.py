@@ -67,7 +67,7 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (cluster_radar, dense_components, distance_partition, occluded_ends, points_in_rectangles,
+from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, occluded_ends, points_in_rectangles,
                                 split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
@@ -98,6 +98,7 @@ class Tracker:
     across the road than one vehicle, ``clustering.split_width``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
+    ``cluster_ends_continued`` (ends whose side goes on in another cluster, ``measurement.continuation_rays``),
     ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
@@ -489,13 +490,19 @@ class Tracker:
                 used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
                 prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
                                             [velocities[k] if cfg.use_radar else None for k in used])
-                if cfg.measurement.shadow_window is not None:
+                mcfg = cfg.measurement
+                if mcfg.shadow_window is not None:
                     occluded = occluded_ends(prepared.bearing_ends(), self._scan,
                                              cfg.measurement.shadow_window * cfg.detection.lidar_resolution,
                                              cfg.measurement.shadow_margin, cfg.detection.lidar_range,
                                              cfg.measurement.shadow_range_margin)
                     self.stats["cluster_ends_occluded"] += int(occluded.sum())
-                    prepared = dataclasses.replace(prepared, occluded_end=occluded)
+                    continued = None
+                    if mcfg.continuation_rays is not None and (mcfg.sharp_side_whole or mcfg.sharp_parts_whole):
+                        continued = continued_ends(*prepared.side_ends(), self._scan, mcfg.continuation_rays,
+                                                   mcfg.continuation_offset)
+                        self.stats["cluster_ends_continued"] += int(continued.sum())
+                    prepared = dataclasses.replace(prepared, occluded_end=occluded, continued_end=continued)
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 self.stats["radar_velocities_rejected"] += len(np.unique(clu[res.radar_rejected]))
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]

@@ -194,8 +194,10 @@ def update_pairs(
     sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
     rect = to_vehicle(sigma, ego, road, config.coordinates, euler_s0)  # (U, S) rectangles in E
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
-    structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar)
     pair_means, pair_covs = means[comp], covs[comp]
+    extent_sd = np.sqrt(np.maximum(np.stack([pair_covs[:, LENGTH, LENGTH], pair_covs[:, WIDTH, WIDTH]], axis=1), 0.0))
+    structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar,
+                                extent_sd=extent_sd)
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if config.measurement.grow_extent:
         grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse],

@@ -222,3 +222,26 @@ def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):
             if reach[k, e] >= max_range - range_margin:
                 out[k, e] = True
     return out
+
+
+@njit
+def continued_ends_kernel(ends, outward, start, reach, scan, offset):
+    """``tracker.clustering.continued_ends`` for ``ends``, ``outward (K, 2, 2)``, ``start``, ``reach (K, 2)``
+    (m): whether a return of ``scan`` lies beyond each end along its line, past ``start`` and within
+    ``reach``, and within ``offset`` of the line."""
+    count = len(ends)
+    out = np.zeros((count, 2), dtype=np.bool_)
+    for j in range(len(scan)):
+        qx = scan[j, 0]
+        qy = scan[j, 1]
+        for k in range(count):
+            for e in range(2):
+                if out[k, e]:
+                    continue
+                dx = qx - ends[k, e, 0]
+                dy = qy - ends[k, e, 1]
+                along = dx * outward[k, e, 0] + dy * outward[k, e, 1]
+                if along > start[k, e] and along <= reach[k, e]:
+                    if abs(dx * outward[k, e, 1] - dy * outward[k, e, 0]) <= offset:
+                        out[k, e] = True
+    return out

@@ -103,6 +103,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
     chord_dir = np.zeros((count, 3, 2))
     chord_len = np.zeros((count, 3))
     end_margin = np.zeros((count, 3, 2))
+    end_gap = np.zeros((count, 3, 2))
     two_sided = np.zeros(count, dtype=np.bool_)
     corner_out = np.full(count, -1, dtype=np.intp)
     eigen_ratio = np.zeros(count)
@@ -208,6 +209,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
                 ends[s, d] = origin[s, d] + hi[s] * direction[s, d]
             length[s] = hi[s] - lo[s]
         margin = np.zeros((3, 2))
+        half_gap = np.zeros((3, 2))
         if gap_correction and n >= 2:
             gaps = np.sort(rel[1:] - rel[:-1])
             db = gaps[(n - 1) // 2]
@@ -215,11 +217,15 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
                 dist = abs(origin[s, 0] * direction[s, 1] - origin[s, 1] * direction[s, 0])
                 r2s = starts[s, 0] * starts[s, 0] + starts[s, 1] * starts[s, 1]
                 r2e = ends[s, 0] * ends[s, 0] + ends[s, 1] * ends[s, 1]
-                margin[s, 0] = 0.5 * min(min(r2s * db / max(dist, 1e-3), max_end_gap), length[s])
-                margin[s, 1] = 0.5 * min(min(r2e * db / max(dist, 1e-3), max_end_gap), length[s])
+                half_gap[s, 0] = 0.5 * min(r2s * db / max(dist, 1e-3), max_end_gap)
+                half_gap[s, 1] = 0.5 * min(r2e * db / max(dist, 1e-3), max_end_gap)
+                margin[s, 0] = min(half_gap[s, 0], 0.5 * length[s])
+                margin[s, 1] = min(half_gap[s, 1], 0.5 * length[s])
             if two:
                 margin[1, 1] = 0.0  # the corner of a split is observed
                 margin[2, 0] = 0.0
+                half_gap[1, 1] = 0.0
+                half_gap[2, 0] = 0.0
         # the kept points, compacted, with their part and chord coordinates
         corner = -1
         if two:
@@ -248,10 +254,11 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
                 chord_end[i, s, d] = ends[src, d]
                 chord_dir[i, s, d] = direction[src, d]
                 end_margin[i, s, d] = margin[src, d]
+                end_gap[i, s, d] = half_gap[src, d]
             chord_len[i, s] = length[src]
         two_sided[i] = two
         corner_out[i] = corner
         eigen_ratio[i] = ratio
         kept_count[i] = m
-    return (points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin, two_sided,
+    return (points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided,
             corner_out, eigen_ratio, order_out, kept_count)

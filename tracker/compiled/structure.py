@@ -28,10 +28,11 @@ def _sign(x: float) -> float:
 
 @njit
 def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end, chord_dir, chord_len_in,
-                     end_margin, two_in, single_in, fused, velocity, centroid, occluded, ci, corners, min_apparent,
-                     partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
-                     sharp_whole):
-    """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``."""
+                     end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
+                     corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
+                     min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack):
+    """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
+    whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -134,12 +135,35 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         # behind it: partially visible, anchored at the sharp end (a corner anchors the two-sided)
         occ_lo = occluded[c, 0]
         occ_hi = occluded[c, 1]
-        if (sharp_whole and not two and not single and not occ_lo and not occ_hi
-                and end_margin[c, 0, 0] <= free_gap and end_margin[c, 0, 1] <= free_gap):
-            partial0 = False  # both ends sharp, neither in a shadow: the whole side
+        sharp_lo = end_gap[c, 0, 0] <= free_gap
+        sharp_hi = end_gap[c, 0, 1] <= free_gap
+        if (sharp_whole and not two and not single and not not_free[c, 0] and not not_free[c, 1]
+                and sharp_lo and sharp_hi):
+            partial0 = False  # both ends sharp and free: the whole side
             partial1 = False
-        shadowed = (not two) and ((occ_hi and not occ_lo and end_margin[c, 0, 0] <= free_gap)
-                                  or (occ_lo and not occ_hi and end_margin[c, 0, 1] <= free_gap))
+        if parts_whole and two:
+            # each part from the fitted corner to a sharp, free far end (the first point for part 0,
+            # the last for part 1), with enough points and a shrink within the gate, is its whole side
+            n0 = 0
+            n1 = 1  # the corner point belongs to both parts
+            for m in range(width):
+                if valid_in[c, m]:
+                    if part_in[c, m] == 0:
+                        n0 += 1
+                    else:
+                        n1 += 1
+            sd0 = extent_sd[p, 0] if side0 % 2 == 1 else extent_sd[p, 1]  # odd sides are the length
+            sd1 = extent_sd[p, 0] if side1 % 2 == 1 else extent_sd[p, 1]
+            shrink0 = side_len[side0] - (ln0 + end_margin[c, slot0, 0] + end_margin[c, slot0, 1])
+            shrink1 = side_len[side1] - (ln1 + end_margin[c, slot1, 0] + end_margin[c, slot1, 1])
+            enough = n0 >= min_points and n1 >= min_points  # both: the corner is fitted from two lines
+            if (enough and end_gap[c, 1, 0] <= free_gap and not not_free[c, 0]
+                    and shrink0 <= gate_sigmas * sd0 + gate_slack):
+                partial0 = False
+            if (enough and end_gap[c, 2, 1] <= free_gap and not not_free[c, 1]
+                    and shrink1 <= gate_sigmas * sd1 + gate_slack):
+                partial1 = False
+        shadowed = (not two) and ((occ_hi and not occ_lo and sharp_lo) or (occ_lo and not occ_hi and sharp_hi))
         if shadowed:
             partial0 = True
             partial1 = True
