@@ -246,6 +246,7 @@ def test_compiled_detection_model_equals_numpy(seed, monkeypatch):
     labels = rng.integers(0, 15, 60)
     track_labels = rng.integers(0, 15, 12)
     scan = np.concatenate([tracks.corners().reshape(-1, 2), rng.uniform(-60.0, 60.0, (400, 2))])
+    scan = np.concatenate([scan, scan[:200] * rng.uniform(0.97, 1.03, (200, 1))])  # several beams on one ray
     cases = [(DetectionConfig(), tracks, track_labels, scan), (DetectionConfig(), None, None, scan),
              (DetectionConfig(), tracks, track_labels, None), (DetectionConfig(occlusion=False), tracks, track_labels, scan),
              (DetectionConfig(), tracks.take(np.arange(0)), track_labels[:0], scan[:0])]

@@ -36,6 +36,25 @@ def test_scan_returns_nearer_than_the_car_hide_it_farther_ones_do_not() -> None:
     assert scan_occluded_fraction(rect, wall(20.0, rays + 0.2), RES)[0] == 0.0
 
 
+def test_a_3d_lidars_beams_on_one_ray_hide_one_ray() -> None:
+    """A VLP-16's projected cloud has a return per beam on each ray: a wall hiding half of a car's rays
+    with 16 returns on each (ranges 19.5-20.5 m, bearings within a hundredth of a ray) hides half of its
+    span, as one return per ray does, not all of it (counting returns took a half-hidden car 12 m ahead
+    for a hidden one)."""
+    rect = car_ahead()
+    lo, hi, _ = bearing_spans(rect)
+    rays = np.arange(lo[0], hi[0], RES)
+    half = rays[: len(rays) // 2]
+    one = scan_occluded_fraction(rect, wall(20.0, half), RES)[0]
+    beams = np.concatenate([wall(x, half + 0.01 * RES * (k - 8) / 8) for k, x in enumerate(np.linspace(19.5, 20.5, 16))])
+    assert len(beams) == 16 * len(half)
+    assert 0.45 < one < 0.55
+    assert scan_occluded_fraction(rect, beams, RES)[0] == one
+    config = DetectionConfig()
+    _, p_d = detection_model(rect, np.array([1]), config, scan=beams)
+    assert p_d[0] == config.p_detection  # half visible: detected
+
+
 def test_a_car_hidden_by_the_scan_keeps_its_detection_probability_low() -> None:
     """Behind an untracked occluder (a tree, a wall) P_D drops to 0, so a missed detection does not
     erase the track's weight; in the open it is ``p_detection``."""

@@ -89,23 +89,32 @@ def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_lab
             limit = max(limit, near[c])
         limit -= scan_margin
         m = scan.shape[0]
-        r_scan = np.empty(m)
-        b_scan = np.empty(m)
+        r_all = np.empty(m)
+        b_all = np.empty(m)
+        ray_all = np.empty(m, dtype=np.int64)
+        per_turn = max(int(np.rint(2.0 * np.pi / resolution)), 1)
         k = 0
         for i in range(m):
             r = np.hypot(scan[i, 0], scan[i, 1])
             if r < limit:  # only returns that can hide anything
-                r_scan[k] = r
-                b_scan[k] = np.arctan2(scan[i, 1], scan[i, 0])
+                r_all[k] = r
+                b_all[k] = np.arctan2(scan[i, 1], scan[i, 0])
+                ray_all[k] = np.int64(np.rint(b_all[k] / resolution)) % per_turn  # its ray (bearing bin)
                 k += 1
+        order = np.argsort(ray_all[:k], kind="mergesort")  # the returns of one ray together
+        r_scan = r_all[:k][order]
+        b_scan = b_all[:k][order]
+        ray = ray_all[:k][order]
         for c in range(count):
             centre = 0.5 * (lo[c] + hi[c])
             half = 0.5 * (hi[c] - lo[c])
             threshold = near[c] - scan_margin
-            hides = 0
+            hides = 0  # rays with a hiding return (a 3-D lidar's beams share a ray)
+            last = -1
             for i in range(k):
-                if r_scan[i] < threshold and abs(wrap_angle(b_scan[i] - centre)) <= half:
+                if ray[i] != last and r_scan[i] < threshold and abs(wrap_angle(b_scan[i] - centre)) <= half:
                     hides += 1
+                    last = ray[i]
             frac = min(max(hides * resolution / max(hi[c] - lo[c], resolution), 0.0), 1.0)
             hidden[c] = max(hidden[c], frac)
     for c in range(count):
