@@ -106,6 +106,10 @@ CORNER_MAX_SHIFT = 0.5
 #: between rays; beyond this the correction is capped).
 MAX_END_GAP = 2.0
 
+#: A part's far end is also sharp (``MeasurementConfig.sharp_parts_whole``) when the predicted side goes
+#: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
+MISSED_RAYS_SHARP = 2.0
+
 # structure modes of a part
 FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)
 # corner k = centre + SX[k] L/2 e_x + SY[k] W/2 e_y (e_x the heading, e_y its left normal)
@@ -675,7 +679,11 @@ def build_structure(
         # and the side it would shrink is within the gate
         part_pts = np.stack([(batch.valid[ci] & (batch.part[ci] == 0)).sum(axis=1),
                              (batch.valid[ci] & (batch.part[ci] == 1)).sum(axis=1) + 1], axis=1)  # the corner in both
-        far_sharp = np.stack([sharp_end[:, 1, 0], sharp_end[:, 2, 1]], axis=1)
+        # ... a far end is sharp by its ray gap, or because the predicted side goes on beyond it for
+        # MISSED_RAYS_SHARP whole gaps (2 half gaps each) where the rays found nothing
+        far_gap = np.stack([batch.end_gap[ci, 1, 0], batch.end_gap[ci, 2, 1]], axis=1)
+        beyond = side_len[rows[:, None], sides] - chord_len
+        far_sharp = (far_gap <= config.shadow_free_gap) | (beyond >= MISSED_RAYS_SHARP * 2.0 * far_gap)
         sd = np.where(sides % 2 == 1, extent_sd[:, :1], extent_sd[:, 1:])  # odd sides are the length
         shrink = side_len[rows[:, None], sides] - covered
         consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
@@ -785,6 +793,7 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
         parts_whole, c(extent_sd if parts_whole else np.zeros((len(ci), 2)), dtype=float),
         int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
+        MISSED_RAYS_SHARP,
     )
     return Structure(*fields)
 

@@ -30,7 +30,8 @@ def _sign(x: float) -> float:
 def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end, chord_dir, chord_len_in,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
-                     min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack):
+                     min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
+                     missed_rays):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``."""
     sx = _SX
@@ -157,11 +158,13 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             shrink0 = side_len[side0] - (ln0 + end_margin[c, slot0, 0] + end_margin[c, slot0, 1])
             shrink1 = side_len[side1] - (ln1 + end_margin[c, slot1, 0] + end_margin[c, slot1, 1])
             enough = n0 >= min_points and n1 >= min_points  # both: the corner is fitted from two lines
-            if (enough and end_gap[c, 1, 0] <= free_gap and not not_free[c, 0]
-                    and shrink0 <= gate_sigmas * sd0 + gate_slack):
+            # a far end is sharp by its ray gap, or because the predicted side goes on beyond it for
+            # missed_rays whole gaps where the rays found nothing
+            sharp0 = end_gap[c, 1, 0] <= free_gap or side_len[side0] - ln0 >= missed_rays * 2.0 * end_gap[c, 1, 0]
+            sharp1 = end_gap[c, 2, 1] <= free_gap or side_len[side1] - ln1 >= missed_rays * 2.0 * end_gap[c, 2, 1]
+            if enough and sharp0 and not not_free[c, 0] and shrink0 <= gate_sigmas * sd0 + gate_slack:
                 partial0 = False
-            if (enough and end_gap[c, 2, 1] <= free_gap and not not_free[c, 1]
-                    and shrink1 <= gate_sigmas * sd1 + gate_slack):
+            if enough and sharp1 and not not_free[c, 1] and shrink1 <= gate_sigmas * sd1 + gate_slack:
                 partial1 = False
         shadowed = (not two) and ((occ_hi and not occ_lo and sharp_lo) or (occ_lo and not occ_hi and sharp_hi))
         if shadowed:
