@@ -17,8 +17,8 @@ the ego (the lidar at its centre):
   returns, and its length could not be observed).
 
 ``LENGTH_DELAY`` later the length of the track that GOSPA assigns to it is compared with the truth;
-a vehicle the run ends on within that delay is not counted. A vehicle without a track then counts as a
-miss. ``metrics`` gives ``long_sides_seen`` (vehicles counted), ``long_length_within_1m`` (of them,
+a vehicle the run ends on within that delay, or that is no longer scored then (beyond the lidar range),
+is not counted. A vehicle without a track then counts as a miss. ``metrics`` gives ``long_sides_seen`` (vehicles counted), ``long_length_within_1m`` (of them,
 tracked with ``|L - L_true| <= LENGTH_TOLERANCE``) and ``long_length_err_max_m`` (the largest
 ``|L - L_true|`` among the tracked ones; None without any).
 """
@@ -102,8 +102,8 @@ def length_errors(frames: list[FrameRecord], resolution: float) -> list[tuple[in
         if later is None:
             continue  # the run ends (or the vehicle leaves the scored frames) within the delay
         row = np.flatnonzero(later.truth.ids == tid)
-        if not len(row):
-            continue
+        if not len(row) or not later.scored[row[0]]:
+            continue  # gone, or no longer scored (beyond the lidar range, off the road)
         truth_length = float(later.truth.length[row[0]])
         track = np.flatnonzero(later.track_truth_id == tid)
         error = float(later.track_state[track[0], 5] - truth_length) if len(track) else None

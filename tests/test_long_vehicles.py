@@ -50,7 +50,7 @@ def _frame(t: float, ids, xy, length, points, track_truth_id, track_length) -> S
     state = np.zeros((len(track_truth_id), 7))
     state[:, 5] = track_length
     return SimpleNamespace(t=t, truth=truth, lidar_points=np.array(points), track_truth_id=np.array(track_truth_id),
-                           track_state=state)
+                           track_state=state, scored=np.ones(n, dtype=bool))
 
 
 def test_the_length_is_scored_three_seconds_after_the_side_is_first_seen() -> None:
@@ -70,4 +70,7 @@ def test_the_length_is_scored_three_seconds_after_the_side_is_first_seen() -> No
     assert rows[0][3] == pytest.approx(-0.6) and rows[1][3] is None
     m = metrics(frames, RES)
     assert m == {"long_sides_seen": 2, "long_length_within_1m": 1, "long_length_err_max_m": abs(11.4 - 12.0)}
+    for f in frames[40:]:  # truck 2 beyond the lidar range by 4 s: no longer scored, not counted
+        f.scored[1] = False
+    assert [tid for tid, *_ in length_errors(frames, RES)] == [1]
     assert LENGTH_DELAY == 3.0
