@@ -358,11 +358,10 @@ class MeasurementConfig:
       (``continuation_rays``).
     - ``sharp_parts_whole`` (session 14; needs ``shadow_window``): the same for each part of a two-sided
       cluster, from the fitted corner to its far end: a part with a sharp, free far end (sharp also
-      when the predicted side goes on beyond the last return for ``tracker.measurement.MISSED_RAYS_SHARP``
-      (2) whole ray
-      gaps, where the next rays would have hit it: a 10.1 m truck 20 m away kept the long-vehicle
-      prior's 12 m with a 0.43 m half gap at its side's end) shows its whole
-      side when both parts have at least ``whole_min_points`` points, the corner point included in
+      when the predicted side goes on beyond the last return for two whole ray gaps,
+      ``tracker.measurement.MISSED_RAYS_SHARP``, where the next rays would have hit it: a 10.1 m truck
+      20 m away kept the long-vehicle prior's 12 m with a 0.43 m half gap at its side's end) shows its
+      whole side when both parts have at least ``whole_min_points`` points, the corner point included in
       both (with two or three on the other side, the corner point, which may be the last return on
       this side, pulls the other side's line fit, and the corner lands up to a ray gap short of the
       true one: far cars' rears came out 0.3 m narrow, circuit and occlusion), provided that the side
