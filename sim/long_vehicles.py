@@ -12,9 +12,11 @@ the ego (the lidar at its centre):
   lidar), i.e. the side is sampled densely enough to show its length, not seen edge-on;
 - the vehicle has the returns its visible side and end would give (one per ray), all but
   ``SIDE_MISSING_SHARE`` of them and one more (the lidar drops 1 % of its returns, and a ray count
-  from the corners' bearings is good to a ray): the whole side is in view, not a part of it beside an
-  occluder (a 16 m bus whose front 3-4 m were hidden behind the vehicle ahead showed 84 % of its
-  returns, and its length could not be observed).
+  from the corners' bearings is good to a ray), and, where the frames record them
+  (``FrameRecord.lidar_bearings``), its returns reach both ends of its outline's bearing span to
+  within ``END_RAYS`` rays: the whole side is in view, not a part of it beside an occluder (a 16 m
+  bus whose front 2-4 m, sampled a ray every 0.9 m, were hidden by roadside objects still showed
+  91-95 % of its returns, and its length could not be observed).
 
 ``LENGTH_DELAY`` later the length of the track that GOSPA assigns to it is compared with the truth;
 a vehicle the run ends on within that delay, or that is no longer scored then (beyond the lidar range),
@@ -42,6 +44,8 @@ SIDE_MIN_RAYS = 5.0
 SIDE_MAX_RAY_GAP = 1.0
 #: ... and the vehicle shows all but this share (and one) of the returns its visible sides would give.
 SIDE_MISSING_SHARE = 0.1
+#: ... its returns reaching both ends of its bearing span to within this many rays.
+END_RAYS = 1.5
 #: The length is compared this long (s) after the side is first seen ...
 LENGTH_DELAY = 3.0
 #: ... and counts as learned within this (m).
@@ -56,10 +60,11 @@ def _subtended(ego: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def side_seen(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.ndarray, width: np.ndarray,
-              returns: np.ndarray, resolution: float) -> np.ndarray:
+              returns: np.ndarray, resolution: float, bearings: np.ndarray | None = None) -> np.ndarray:
     """Whether each vehicle (centres ``xy (N, 2)`` in G, ``yaw``, ``length``, ``width``, lidar ``returns``
-    in this frame, each ``(N,)``) is a long vehicle whose side the lidar at ``ego_xy`` (G, m) with
-    angular step ``resolution`` (rad) sees (module docstring)."""
+    in this frame, each ``(N,)``; ``bearings (N, 2)`` the lowest and highest bearing of its returns, as
+    ``FrameRecord.lidar_bearings``, or None) is a long vehicle whose side the lidar at ``ego_xy`` (G, m)
+    with angular step ``resolution`` (rad) sees (module docstring)."""
     ego = np.asarray(ego_xy, dtype=float).reshape(2)
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     c, s = np.cos(yaw), np.sin(yaw)
@@ -80,6 +85,15 @@ def side_seen(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.nd
     distance = np.maximum(np.abs(lat) - half_w, 1e-3)  # the side's line from the lidar
     dense = far**2 * resolution / distance <= SIDE_MAX_RAY_GAP
     shown = np.asarray(returns, dtype=float) >= (1.0 - SIDE_MISSING_SHARE) * (side_rays + end_rays) - 1.0
+    if bearings is not None:  # the returns reach both ends of the outline's bearing span
+        centre = np.arctan2(xy[:, 1] - ego[1], xy[:, 0] - ego[0])
+        corners = np.stack([xy + a * half_l[:, None] * ex + b * half_w[:, None] * ey
+                            for a, b in ((1, 1), (1, -1), (-1, 1), (-1, -1))], axis=1)  # (N, 4, 2)
+        rel = wrap_angle(np.arctan2(corners[..., 1] - ego[1], corners[..., 0] - ego[0]) - centre[:, None])
+        lo, hi = centre + rel.min(axis=1), centre + rel.max(axis=1)
+        got = np.asarray(bearings, dtype=float).reshape(-1, 2)
+        with np.errstate(invalid="ignore"):
+            shown &= (got[:, 0] <= lo + END_RAYS * resolution) & (got[:, 1] >= hi - END_RAYS * resolution)
     return (2.0 * half_l >= LONG_VEHICLE_LENGTH) & (np.abs(lat) > half_w) & (side_rays >= SIDE_MIN_RAYS) & dense & shown
 
 
@@ -93,7 +107,7 @@ def length_errors(frames: list[FrameRecord], resolution: float) -> list[tuple[in
         if not len(snap.ids):
             continue
         seen = side_seen((snap.ego.x, snap.ego.y), snap.xy, snap.yaw, snap.length, snap.width, f.lidar_points,
-                         resolution)
+                         resolution, getattr(f, "lidar_bearings", None))
         for tid in snap.ids[seen].tolist():
             first.setdefault(int(tid), (k, f.t))
     out = []

@@ -75,6 +75,7 @@ from sim.truth import Snapshot
 from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world import World
 from tracker import Frame, Road, Track, TrackerConfig
+from tracker.angles import wrap_angle
 from tracker.compiled import warm_up
 from tracker.track import curvilinear_to_cartesian
 
@@ -127,7 +128,10 @@ class FrameRecord:
     - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
     - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF);
     - ``tracker_events``: the tracker's ``last_events`` after this step, normalised by
-      ``normalize_tracker_events`` (``None`` when the tracker does not expose them)."""
+      ``normalize_tracker_events`` (``None`` when the tracker does not expose them);
+    - ``lidar_bearings`` (N, 2): the lowest and highest bearing from the ego (rad, in G, unwrapped about
+      the bearing of the vehicle's centre) of each truth vehicle's lidar returns in this scan (NaN
+      without any): which part of its outline the lidar reached (``sim.long_vehicles``)."""
 
     t: float
     truth: Snapshot
@@ -146,6 +150,7 @@ class FrameRecord:
     tracker_events: dict[str, list] | None = None
     on_hidden: np.ndarray | None = None
     gospa_seen: GospaResult | None = None
+    lidar_bearings: np.ndarray | None = None
 
     @property
     def n_truth(self) -> int:
@@ -353,6 +358,26 @@ def _lidar_counts(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray:
     if isinstance(scan, LidarScan3D) and len(hit):
         hit = np.unique(np.stack([hit.astype(float), scan.azimuth[on]], axis=1), axis=0)[:, 0].astype(np.int64)
     return np.array([int(np.count_nonzero(hit == i)) for i in snap.ids], dtype=int)
+
+
+def _lidar_bearings(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray:
+    """``FrameRecord.lidar_bearings``: per truth vehicle the lowest and highest bearing (in G) of its
+    returns, unwrapped about the bearing of its centre from the ego (the 3-D lidar's azimuths are its
+    own, from its mount, a metre or so from the ego's centre)."""
+    out = np.full((len(snap), 2), np.nan)
+    on = scan.vehicle_id >= 0
+    if not len(snap) or not on.any():
+        return out
+    rel = snap.xy - np.array([snap.ego.x, snap.ego.y])
+    centre = np.arctan2(rel[:, 1], rel[:, 0])  # (N,) in G
+    row = {int(v): k for k, v in enumerate(snap.ids.tolist())}
+    hit = scan.vehicle_id[on]
+    keep = np.array([int(v) in row for v in hit.tolist()], dtype=bool)
+    rows = np.array([row[int(v)] for v in hit[keep].tolist()], dtype=int)
+    bearing = centre[rows] + wrap_angle(scan.azimuth[on][keep] + snap.ego.yaw - centre[rows])
+    np.fmin.at(out[:, 0], rows, bearing)
+    np.fmax.at(out[:, 1], rows, bearing)
+    return out
 
 
 class CloudScore:
@@ -567,6 +592,7 @@ def run_scenario(
         t_state = truth_state(snap)
         scored = truth_set(snap, road, max_range)
         counts = _lidar_counts(snap, sf.lidar)
+        bearings = _lidar_bearings(snap, sf.lidar)
         cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None))
         visible = scored & (counts >= min_visible_points)
         est = track_states(tracks, road)
@@ -588,6 +614,7 @@ def run_scenario(
                 scored=scored,
                 visible=visible,
                 lidar_points=counts,
+                lidar_bearings=bearings,
                 truth_state=t_state,
                 tracks=tracks,
                 track_state=est,

@@ -21,10 +21,19 @@ def returns_of(xy: tuple[float, float], length: float, width: float) -> int:
     return int(hit.sum())
 
 
-def seen(xy: tuple[float, float], length: float = 12.0, width: float = 2.5, returns: float | None = None) -> bool:
+def bearings_of(xy: tuple[float, float], length: float, width: float) -> np.ndarray:
+    """The lowest and highest bearing of the exact returns (as ``FrameRecord.lidar_bearings``)."""
+    corners = rectangle_corners(np.array(xy), np.array(0.0), np.array(length), np.array(width))
+    _, hit = rectangle_scan(corners, RAYS)
+    b = RAYS[hit]
+    return np.array([b.min(), b.max()])
+
+
+def seen(xy: tuple[float, float], length: float = 12.0, width: float = 2.5, returns: float | None = None,
+         bearings: np.ndarray | None = None) -> bool:
     shown = returns_of(xy, length, width) if returns is None else returns
     return bool(side_seen((0.0, 0.0), np.array([xy]), np.zeros(1), np.array([length]), np.array([width]),
-                          np.array([shown]), RES)[0])
+                          np.array([shown]), RES, None if bearings is None else bearings[None])[0])
 
 
 def test_a_trucks_side_counts_as_seen_only_when_it_faces_the_lidar_densely_and_unhidden() -> None:
@@ -41,6 +50,12 @@ def test_a_trucks_side_counts_as_seen_only_when_it_faces_the_lidar_densely_and_u
     assert not seen((15.0, 3.5), length=4.5, width=1.8)
     assert seen((0.0, -3.5))
     assert seen((-15.0, 3.5))
+    # with the bearings of its returns: reaching both ends of its outline, seen; stopping 3 rays short
+    # of either end (a part hidden there): not seen, whatever their count
+    full = bearings_of((15.0, 3.5), 12.0, 2.5)
+    assert seen((15.0, 3.5), bearings=full)
+    assert not seen((15.0, 3.5), bearings=full - np.array([0.0, 3 * RES]))
+    assert not seen((15.0, 3.5), bearings=full + np.array([3 * RES, 0.0]))
 
 
 def _frame(t: float, ids, xy, length, points, track_truth_id, track_length) -> SimpleNamespace:
