@@ -67,8 +67,8 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, occluded_ends, points_in_rectangles,
-                                split_across)
+from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, occluded_ends,
+                                points_in_rectangles, split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
@@ -493,9 +493,8 @@ class Tracker:
                 mcfg = cfg.measurement
                 if mcfg.shadow_window is not None:
                     occluded = occluded_ends(prepared.bearing_ends(), self._scan,
-                                             cfg.measurement.shadow_window * cfg.detection.lidar_resolution,
-                                             cfg.measurement.shadow_margin, cfg.detection.lidar_range,
-                                             cfg.measurement.shadow_range_margin)
+                                             mcfg.shadow_window * cfg.detection.lidar_resolution, mcfg.shadow_margin,
+                                             cfg.detection.lidar_range, mcfg.shadow_range_margin)
                     self.stats["cluster_ends_occluded"] += int(occluded.sum())
                     continued = None
                     if mcfg.continuation_rays is not None and (mcfg.sharp_side_whole or mcfg.sharp_parts_whole):
