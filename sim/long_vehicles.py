@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tracker.angles import wrap_angle
+from tracker.measurement import rectangle_corners
 
 if TYPE_CHECKING:
     from sim.runner import FrameRecord
@@ -87,8 +88,7 @@ def side_seen(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.nd
     shown = np.asarray(returns, dtype=float) >= (1.0 - SIDE_MISSING_SHARE) * (side_rays + end_rays) - 1.0
     if bearings is not None:  # the returns reach both ends of the outline's bearing span
         centre = np.arctan2(xy[:, 1] - ego[1], xy[:, 0] - ego[0])
-        corners = np.stack([xy + a * half_l[:, None] * ex + b * half_w[:, None] * ey
-                            for a, b in ((1, 1), (1, -1), (-1, 1), (-1, -1))], axis=1)  # (N, 4, 2)
+        corners = rectangle_corners(xy, np.asarray(yaw, dtype=float), 2.0 * half_l, 2.0 * half_w)  # (N, 4, 2)
         rel = wrap_angle(np.arctan2(corners[..., 1] - ego[1], corners[..., 0] - ego[0]) - centre[:, None])
         lo, hi = centre + rel.min(axis=1), centre + rel.max(axis=1)
         got = np.asarray(bearings, dtype=float).reshape(-1, 2)

@@ -370,10 +370,11 @@ def _lidar_bearings(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray
         return out
     rel = snap.xy - np.array([snap.ego.x, snap.ego.y])
     centre = np.arctan2(rel[:, 1], rel[:, 0])  # (N,) in G
-    row = {int(v): k for k, v in enumerate(snap.ids.tolist())}
+    by_id = np.argsort(snap.ids, kind="stable")  # each return's truth row, by id
     hit = scan.vehicle_id[on]
-    keep = np.array([int(v) in row for v in hit.tolist()], dtype=bool)
-    rows = np.array([row[int(v)] for v in hit[keep].tolist()], dtype=int)
+    pos = np.minimum(np.searchsorted(snap.ids[by_id], hit), len(by_id) - 1)
+    keep = snap.ids[by_id][pos] == hit
+    rows = by_id[pos[keep]]
     bearing = centre[rows] + wrap_angle(scan.azimuth[on][keep] + snap.ego.yaw - centre[rows])
     np.fmin.at(out[:, 0], rows, bearing)
     np.fmax.at(out[:, 1], rows, bearing)

@@ -656,7 +656,8 @@ def build_structure(
     chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
     margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
     covered = chord_len + margin.sum(axis=2)
-    alpha = covered / np.maximum(side_len[rows[:, None], sides], 1e-12)
+    predicted = side_len[rows[:, None], sides]  # (P, 2) the predicted length of each part's side
+    alpha = covered / np.maximum(predicted, 1e-12)
     partial = alpha <= config.partial_visibility
     # a part with an end in another object's shadow goes on behind it: partially visible
     # one-sided only (a corner anchors the two-sided), and only when the other end is sharp (its
@@ -682,10 +683,9 @@ def build_structure(
         # ... a far end is sharp by its ray gap, or because the predicted side goes on beyond it for
         # MISSED_RAYS_SHARP whole gaps (2 half gaps each) where the rays found nothing
         far_gap = np.stack([batch.end_gap[ci, 1, 0], batch.end_gap[ci, 2, 1]], axis=1)
-        beyond = side_len[rows[:, None], sides] - chord_len
-        far_sharp = (far_gap <= config.shadow_free_gap) | (beyond >= MISSED_RAYS_SHARP * 2.0 * far_gap)
+        far_sharp = (far_gap <= config.shadow_free_gap) | (predicted - chord_len >= MISSED_RAYS_SHARP * 2.0 * far_gap)
         sd = np.where(sides % 2 == 1, extent_sd[:, :1], extent_sd[:, 1:])  # odd sides are the length
-        shrink = side_len[rows[:, None], sides] - covered
+        shrink = predicted - covered
         consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
         enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
         partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
@@ -772,7 +772,7 @@ def build_structure(
         matrix[:, 8, -2] = matrix[:, 9, -1] = radar
     return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
                      z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors,
-                     excess=np.where(single[:, None], -np.inf, chord_len - side_len[rows[:, None], sides]))
+                     excess=np.where(single[:, None], -np.inf, chord_len - predicted))
 
 
 def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
