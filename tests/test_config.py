@@ -41,6 +41,7 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MeasurementConfig(single_point_min_apparent=2.0), r"single_point_min_apparent must be >= 0.0 and <= 1.0"),
         (lambda: ReductionConfig(confirm_min_points=0), r"ReductionConfig.confirm_min_points must be an integer >= 1"),
         (lambda: ReductionConfig(reidentify_probability=1.0), r"reidentify_probability must be > 0.0 and < 1.0"),
+        (lambda: ReductionConfig(reidentify_brake=0.0), r"ReductionConfig.reidentify_brake must be > 0.0 m/s\^2"),
         (lambda: MotionConfig(acceleration_time=0.0), r"MotionConfig.acceleration_time must be > 0.0 s"),
         (lambda: MotionConfig(acceleration="yes"), r"MotionConfig.acceleration must be true or false"),
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),

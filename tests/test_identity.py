@@ -24,9 +24,10 @@ def cov(pos_std: float = 0.3) -> np.ndarray:
 
 
 def store(road: Road = STRAIGHT, window: float = 5.0, period: float | None = None, accel: float = 0.0,
-          cartesian: bool = False) -> LostTracks:
+          cartesian: bool = False, brake: float | None = None) -> LostTracks:
     config = TrackerConfig(coordinates="cartesian" if cartesian else "curvilinear", motion=MotionConfig(acceleration=False))
-    return LostTracks(window, 0.99, UnscentedTransform(config.ukf), make_motion(config, road), period, accel, cartesian)
+    return LostTracks(window, 0.99, UnscentedTransform(config.ukf), make_motion(config, road), period, accel, cartesian,
+                      brake)
 
 
 def lose(lt: LostTracks, label: int, x: np.ndarray, t: float = 0.0) -> None:
@@ -109,6 +110,46 @@ def test_the_gate_allows_for_acceleration_since_the_last_update_along_the_headin
         lose(lt, 4, north)
         moved = north + np.array([offset[0], 24.0 + offset[1], 0, 0, 0, 0, 0])  # 2.4 s at 10 m/s, then off
         assert lt.match(2.4, moved[None], cov()[None]).tolist() == expected
+
+
+def lose_after_coasting(lt: LostTracks, label: int, x: np.ndarray, updated: float, lost: float) -> None:
+    """``label`` last updated at ``updated`` (state ``x`` then), reported coasting until ``lost``."""
+    lt.observe(updated, np.array([label]), x[None], cov()[None])
+    coasted = x + np.array([x[2] * (lost - updated), 0, 0, 0, 0, 0, 0])
+    lt.observe(lost, np.array([label]), coasted[None], cov()[None], updated=np.array([False]))
+    lt.observe(lost + 0.1, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))
+
+
+def test_the_reach_behind_the_prediction_is_what_braking_loses_and_ends_at_standstill():
+    # a car at 9 m/s unseen for 1.9 s: 12 m behind its constant-speed prediction needs 6.6 m/s^2 of
+    # braking (allowed with brake 8: up to 14.4 m); 12 m ahead needs that much acceleration (not with accel 2)
+    for brake, behind, ahead in ((8.0, [4], [-1]), (None, [-1], [-1])):
+        lt = store(accel=2.0, brake=brake)
+        lose_after_coasting(lt, 4, state(100.0, v=9.0), updated=0.0, lost=1.0)
+        at = 100.0 + 9.0 * 1.9
+        assert lt.match(1.9, state(at - 12.0, v=3.0)[None], cov()[None]).tolist() == behind
+        assert lt.match(1.9, state(at + 12.0, v=14.0)[None], cov()[None]).tolist() == ahead
+    # a car at 2 m/s braking at 8 m/s^2 stops after 0.25 m: after 3 s it lies at most 5.75 m behind the
+    # prediction (not 0.5 * 8 * 3^2 = 36 m: it does not drive backwards)
+    for gap, expected in ((5.5, [4]), (12.0, [-1])):
+        lt = store(accel=2.0, brake=8.0)
+        lose_after_coasting(lt, 4, state(100.0, v=2.0), updated=0.0, lost=0.5)
+        assert lt.match(3.0, state(106.0 - gap, v=0.0)[None], cov()[None]).tolist() == expected
+
+
+def test_a_car_that_braked_while_hidden_keeps_its_label_not_the_bus_behind_it():
+    # stop-and-go (seed 17): a car (label 5, last updated at 4.3 s) and, behind it in the same lane, a
+    # bus (label 8, last updated at 2.8 s), both hidden and coasting until lost; the car braked from 9 to
+    # 3 m/s and re-appears at 6.2 s 12 m behind its prediction and 25 m ahead of the bus's. The reach
+    # behind the car's prediction is what braking loses (14 m), the bus's ahead what 2 m/s^2 gains
+    # (12 m): the car's own label. With a symmetric 2 m/s^2 reach neither (before session 15 the
+    # allowance was a Gaussian spread, and the bus's, grown for longer, took the car).
+    for brake, expected in ((8.0, [5]), (None, [-1])):
+        lt = store(accel=2.0, brake=brake)
+        lose_after_coasting(lt, 8, state(112.0, 3.9, 7.5), updated=2.8, lost=5.8)
+        lose_after_coasting(lt, 5, state(158.0, 3.9, 9.0), updated=4.3, lost=5.6)
+        assert sorted(lt.lost) == [5, 8]
+        assert lt.match(6.2, state(162.9, 3.8, 2.8)[None], cov()[None]).tolist() == expected
 
 
 @pytest.mark.parametrize("window", [0.0])

@@ -16,8 +16,15 @@ squared Mahalanobis distance of the position,
 with the difference along a closed road taken the short way round; a pair is accepted inside the
 chi-square quantile ``probability`` with 2 degrees of freedom. The motion model holds the speed
 constant, and a vehicle hidden while it accelerates or brakes drifts from that prediction by
-``a tau^2 / 2`` after ``tau`` seconds without an update: ``P_lost`` gets ``(accel tau^2 / 2)^2`` along
-the heading (along ``s`` in road coordinates), ``accel`` (m/s^2) the acceleration allowed for. An accepted newcomer takes the lost
+``a tau^2 / 2`` after ``tau`` seconds without an update. The residual's part along the heading (along
+``s`` in road coordinates) that such a speed change explains is removed before the distance is taken:
+up to ``accel tau^2 / 2`` ahead of the prediction (``accel`` m/s^2 the acceleration allowed for) and
+up to the distance braking at ``brake`` loses behind it (``brake tau^2 / 2``, ending at standstill:
+``v tau - v^2 / (2 brake)`` once ``v < brake tau``). The reach is a bound, not a spread: a vehicle is
+no more likely to have driven at exactly its old speed than to have braked. Vehicles brake far
+harder than they accelerate: in stop-and-go traffic a car hidden while it braked from 9 to 3 m/s lay
+12 m behind its coasting prediction, outside a symmetric 2 m/s^2 allowance, and took the label of the
+bus behind it, whose prediction was as far behind the car as the car's own was ahead. An accepted newcomer takes the lost
 track's label. A lost track whose label is reported again by itself leaves the store.
 
 The same match covers a track that is still reported but coasts (no cluster updated it this frame)
@@ -56,16 +63,19 @@ class LostTracks:
     chi-square quantile; ``accel`` (m/s^2): the acceleration the gate allows for while a track is not
     updated; ``period`` (m): the length of a closed road for the position ``s`` (``None``: no wrap);
     ``cartesian``: states are ``[x, y, v, psi, ...]`` (the allowance lies along ``psi``), else road
-    coordinates (along ``s``)."""
+    coordinates (along ``s``); ``brake`` (m/s^2; ``None``: ``accel``): the deceleration allowed for
+    behind the prediction (it stops at standstill)."""
 
     def __init__(self, window: float, probability: float, ut: UnscentedTransform, motion: MotionModel,
-                 period: float | None = None, accel: float = 0.0, cartesian: bool = False) -> None:
+                 period: float | None = None, accel: float = 0.0, cartesian: bool = False,
+                 brake: float | None = None) -> None:
         self.window = float(window)
         self.gate = float(chi2.ppf(probability, 2))
         self.ut = ut
         self.motion = motion
         self.period = period
         self.accel = float(accel)
+        self.brake = None if brake is None else float(brake)
         self.cartesian = cartesian
         self.lost: dict[int, _Lost] = {}
         self._last: dict[int, _Lost] = {}  # last frame's reported tracks
@@ -118,16 +128,12 @@ class LostTracks:
         if extra:
             cand_m, cand_p = np.concatenate([cand_m, coasting[1]]), np.concatenate([cand_p, coasting[2]])
         unseen = t - np.array([self.lost[lab].updated for lab in lost] + [self.last_updated(lab, t) for lab in labels[len(lost):]])
-        pos = cand_p[:, :2, :2].copy()
-        if self.accel > 0.0:  # the speed change a hidden vehicle may have made since its last update
-            drift = 0.5 * self.accel * np.maximum(unseen, 0.0) ** 2
-            u = (np.stack([np.cos(cand_m[:, 3]), np.sin(cand_m[:, 3])], axis=1) if self.cartesian
-                 else np.tile([1.0, 0.0], (len(labels), 1)))
-            pos += drift[:, None, None] ** 2 * u[:, :, None] * u[:, None, :]
         r = means[:, None, :2] - cand_m[None, :, :2]  # (N, K, 2)
         if self.period is not None:
             r[..., 0] = np.mod(r[..., 0] + 0.5 * self.period, self.period) - 0.5 * self.period
-        s = covs[:, None, :2, :2] + pos[None]
+        if self.accel > 0.0 or self.brake is not None:  # the speed change a hidden vehicle may have made
+            r = self._beyond_reach(np.maximum(unseen, 0.0), r, cand_m)
+        s = covs[:, None, :2, :2] + cand_p[None, :, :2, :2]
         d2 = np.einsum("nki,nki->nk", r, np.linalg.solve(s, r[..., None])[..., 0])
         cost = np.where(d2 <= self.gate, d2, _INFEASIBLE)
         rows, cols = linear_sum_assignment(cost)
@@ -136,6 +142,29 @@ class LostTracks:
                 out[i] = labels[k]
                 self.lost.pop(int(labels[k]), None)
         return out
+
+    def _along(self, cand_m: np.ndarray) -> np.ndarray:
+        """The unit vector along which each candidate drives ``(K, 2)``: its heading in G, or ``s``."""
+        if self.cartesian:
+            return np.stack([np.cos(cand_m[:, 3]), np.sin(cand_m[:, 3])], axis=1)
+        return np.tile([1.0, 0.0], (len(cand_m), 1))
+
+    def _beyond_reach(self, tau: np.ndarray, r: np.ndarray, cand_m: np.ndarray) -> np.ndarray:
+        """The residuals ``r (N, K, 2)`` with their part along the road inside the candidate's reach
+        removed: after ``tau (K,)`` s unseen a vehicle at speed ``v`` lies up to ``accel tau^2 / 2``
+        ahead of its constant-speed prediction and up to what braking at ``brake`` loses behind it
+        (``brake tau^2 / 2``, or ``v tau - v^2 / (2 brake)`` once it would have stopped: it does not
+        drive backwards)."""
+        ahead = 0.5 * self.accel * tau ** 2
+        if self.brake is None:
+            behind = ahead
+        else:
+            v = np.maximum(cand_m[:, 2], 0.0)
+            behind = np.where(v < self.brake * tau, v * tau - 0.5 * v ** 2 / self.brake, 0.5 * self.brake * tau ** 2)
+        u = self._along(cand_m)  # (K, 2)
+        along = np.einsum("nki,ki->nk", r, u)
+        inside = np.clip(along, -behind[None, :], ahead[None, :])
+        return r - inside[..., None] * u[None]
 
     def _predicted(self, t: float, labels: list[int]) -> tuple[np.ndarray, np.ndarray]:
         """The lost tracks' states predicted to ``t`` (one UKF prediction per distinct loss time)."""
