@@ -854,3 +854,32 @@ def test_a_motorcycle_followed_from_behind_has_its_width_learned(sharp):
         assert np.all(np.abs(widths[10:] - 0.8) < 0.1), widths[10:].round(2)
     else:
         assert np.all(widths[10:] > 1.5)
+
+
+
+def test_a_duplicate_track_its_vehicles_cluster_updates_only_weakly_is_dropped_inside_it():
+    # mixed-traffic seed 15: a second label for a car (born beside it in the first frame) shares the car's
+    # cluster with the car's track; the cluster's weight goes almost all to the car's track, the
+    # duplicate's posterior stays far below the extraction threshold, its missed-detection copy (the
+    # occlusion model takes it for hidden behind the car) is reported beside the car for a second, and
+    # the two labels trade the car back and forth. A label counts as seen for drop_inside_updated only
+    # when a posterior above the extraction threshold is its; before session 15 any update counted.
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    car = Car(45.0, road.lane_centers[1], 20.0)
+    scene = Scene(road, Car(20.0, road.lane_centers[1], 20.0), [car])
+    tracker = Tracker(road, config_with("reduction", drop_inside_updated=True))
+    for k, tracks in tracks_on(car, tracker, scene, 10):
+        if k == 5:  # the duplicate: 1 m ahead of the car's track, reported (a track group of its own)
+            mix = tracker.mixture
+            i = int(np.argmax(mix.weights))
+            ghost = mix.means[i].copy()
+            ghost[0] += 1.0
+            tracker.mixture = Mixture(np.append(mix.weights, 0.9), np.vstack([mix.means, ghost]),
+                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
+            tracker._ever_reported.add(999)
+            tracker._reported = np.append(tracker._reported, len(mix))
+        elif k == 6:
+            assert 999 in tracker._updated_labels and 999 not in tracker._strong_labels  # weakly updated
+            assert tracker.stats["components_inside_updated_dropped"] >= 1
+        if k > 5:
+            assert [t.label for t in tracks] == [tracks[0].label] and tracks[0].label != 999

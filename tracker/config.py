@@ -724,6 +724,10 @@ class ReductionConfig:
       seen vehicle (a fragment of a bus's points born as a car, coasting inside the bus, which the
       occlusion model would otherwise keep as hidden behind it) or a coasting prediction that a seen
       vehicle shows to be wrong. Its label may come back through re-identification (session 10).
+      Since session 15 a label counts as updated here only when a cluster gave it a posterior above
+      ``extraction_threshold``: a duplicate that shares its vehicle's cluster with the vehicle's track
+      gets a weak posterior and kept its missed-detection copy reported beside the track (mixed-traffic
+      seed 15: the two labels traded the car twice in 1 s).
     """
 
     prune_threshold: float = 1e-4

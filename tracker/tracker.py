@@ -149,6 +149,7 @@ class Tracker:
         self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
         self._reported_labels: set[int] = set()  # the labels reported in the last frame
         self._updated_labels: set[int] = set()
+        self._strong_labels: set[int] = set()  # labels a cluster updated to a reportable posterior this frame
         self._ever_reported: set[int] = set()
         self._scanned = False  # a frame with lidar points has been processed (BirthConfig.first_scan)
         self._free_radar = np.zeros(0, dtype=int)  # the frame's radar detections that joined no cluster
@@ -185,6 +186,7 @@ class Tracker:
         self._s_ego = s_ego
         previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
+        self._strong_labels = set()
         self._radar_updated = set()
         self._predict(dt, updated_before)
         points, scanned = self._preprocess(frame)
@@ -545,6 +547,7 @@ class Tracker:
                     if self.dim == 8 and cfg.motion.quiet_jerk is not None:
                         self._detect_manoeuvres(mix.means[comp], mix.covs[comp], res.mean[inside], post_cov,
                                                 mix.labels[comp], weights)
+                    self._strong_labels.update(int(lab) for lab in mix.labels[comp][weights > cfg.reduction.extraction_threshold])
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
                     new_p.append(post_cov)
@@ -645,15 +648,16 @@ class Tracker:
         )
         if self.road.closed and not self.cartesian and len(self.mixture):
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
-        if red.drop_inside_updated and self._updated_labels and len(self.mixture):
+        if red.drop_inside_updated and self._strong_labels and len(self.mixture):
             self._drop_inside_updated(ego)
 
     def _drop_inside_updated(self, ego: EgoState) -> None:
-        """``ReductionConfig.drop_inside_updated``: drop the components of labels not updated in this
-        frame whose centre lies inside the rectangle of an updated label's component (above the
-        extraction threshold)."""
+        """``ReductionConfig.drop_inside_updated``: drop the components of labels without a reportable
+        posterior in this frame (none above the extraction threshold) whose centre lies inside the
+        rectangle of another label's reportable posterior: a duplicate of the seen vehicle, whether no
+        cluster updated it or its vehicle's cluster did, weakly, beside the track that took it."""
         mix = self.mixture
-        updated = _labels_in(mix.labels, self._updated_labels)
+        updated = _labels_in(mix.labels, self._strong_labels)
         seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
         idle = np.flatnonzero(~updated)
         if not len(seen) or not len(idle):
