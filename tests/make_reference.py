@@ -57,11 +57,12 @@ def run_reference() -> dict[str, np.ndarray]:
     # its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
     # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both
     # need the shadow flags, off here; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
-    # needs the acceleration state, off here): intended changes of the model,
+    # needs the acceleration state, off here) and no absorption of overlapping labels (ReductionConfig.
+    # absorb_overlap, session 15): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
-        reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False),
+        reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
                                   first_scan=False, correlated_extent=False),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.reduction import Mixture, cap, merge, prune, reduce
+from tracker.reduction import UNION_LENGTH_STD, Mixture, absorb_overlapping, cap, merge, prune, reduce
 from tracker.ukf import Wrapping
 
 
@@ -140,3 +140,90 @@ def test_batched_merge_equals_the_one_at_a_time_greedy_merge(seed):
     np.testing.assert_array_equal(got.labels, want.labels)
     for name in ("weights", "means", "covs"):
         np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-12, atol=1e-12, err_msg=name)
+
+
+def vehicles(rows, length_std=0.3, weights=None):
+    """A mixture of states ``[s, n, v, xi, xi_dot, L, W]`` from rows ``(label, s, n, L, W)``."""
+    means = np.array([[s, n, 10.0, 0.0, 0.0, length, width] for _, s, n, length, width in rows])
+    covs = np.array([np.diag([0.2, 0.1, 0.5, 0.01, 0.01, length_std**2, 0.05]) for _ in rows])
+    w = np.ones(len(rows)) if weights is None else np.asarray(weights, float)
+    return Mixture(w, means, covs, np.array([r[0] for r in rows]))
+
+
+def test_two_labels_whose_rectangles_overlap_along_the_road_are_one_vehicle():
+    # a truck's side seen as two fragments, both lengths seen: label 9 (a newcomer, 101.5 .. 106.5 m)
+    # overlaps label 5 (last frame's track, 97 .. 103 m) by 1.5 m; 5 keeps its label and takes the union of
+    # the two, 97 .. 106.5 m; 9 goes with every component it has (a light one too)
+    mix = vehicles([(5, 100.0, 0.1, 6.0, 2.3), (9, 104.0, -0.2, 5.0, 2.5), (9, 103.0, 0.0, 5.0, 2.5), (4, 130.0, 0.0, 4.5, 1.8)],
+                   weights=[0.9, 1.0, 0.2, 1.0])
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5, keep_labels={5})
+    assert absorbed == 1 and sorted(out.labels.tolist()) == [4, 5]
+    k = int(np.flatnonzero(out.labels == 5)[0])
+    assert out.means[k, 0] == pytest.approx(101.75) and out.means[k, 5] == pytest.approx(9.5)
+    assert out.means[k, 6] == pytest.approx(2.5) and out.weights[k] == pytest.approx(1.0)  # the wider, the heavier
+    assert out.covs[k, 0, 0] == pytest.approx(0.2 + 1.75**2) and out.covs[k, 5, 5] == pytest.approx(0.3**2 + 3.5**2)
+    assert out.means[k, 1] == pytest.approx(0.1)  # the keeper's own lateral offset, speed, heading
+    # without last frame's tracks the smaller (older) label keeps (same lengths known: the same union)
+    out, _ = absorb_overlapping(mix, 0.5, 0.5)
+    assert sorted(out.labels.tolist()) == [4, 5]
+    out, _ = absorb_overlapping(mix, 0.5, 0.5, keep_labels={9})
+    assert sorted(out.labels.tolist()) == [4, 9, 9]  # the keeper keeps its light component
+    assert out.means[int(np.flatnonzero(out.labels == 9)[0]), 0] == pytest.approx(101.75)
+
+
+def test_a_prior_length_is_no_evidence_of_where_a_vehicle_ends():
+    # two newcomers for one car from the first scan, each with the prior's 4.5 m (sd 1 m), 3 m apart: the
+    # older keeps its own rectangle (their union, 7.5 m, would be a car's length wrong by 3 m)
+    mix = vehicles([(2, 17.0, 1.6, 4.5, 1.8), (1, 20.0, 1.7, 4.5, 1.8)], length_std=1.0)
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5)
+    assert absorbed == 1 and out.labels.tolist() == [1]
+    assert out.means[0].tolist() == mix.means[1].tolist()
+    assert UNION_LENGTH_STD < 1.0
+    # of two newcomers the longer hypothesis keeps: a truck's prior (12 m) over a car's
+    mix = vehicles([(3, 89.4, 4.2, 7.6, 1.8), (7, 82.8, 4.0, 12.0, 2.5)], length_std=1.0)
+    out, _ = absorb_overlapping(mix, 0.5, 0.5)
+    assert out.labels.tolist() == [7] and out.means[0, 5] == 12.0
+
+
+@pytest.mark.parametrize("rows, why", [
+    ([(1, 100.0, 0.0, 4.5, 1.8), (2, 100.0, 3.5, 4.5, 1.8)], "side by side in adjacent lanes"),
+    ([(1, 100.0, 0.0, 4.5, 1.8), (2, 105.5, 0.0, 4.5, 1.8)], "bumper to bumper, 1 m apart"),
+    ([(1, 100.0, 0.0, 4.5, 1.8), (2, 104.2, 0.0, 4.5, 1.8)], "overlapping by 0.3 m, less than the 0.5 allowed"),
+    ([(1, 100.0, 0.0, 4.5, 1.8), (1, 102.0, 0.0, 4.5, 1.8)], "one label (merge_same_label's case)"),
+])
+def test_vehicles_that_do_not_overlap_keep_their_labels(rows, why):
+    mix = vehicles(rows)
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5)
+    assert absorbed == 0 and out is mix, why
+    # light components (below the extraction threshold) are not tracks: never absorbed
+    heavy = vehicles([(1, 100.0, 0.0, 4.5, 1.8), (2, 101.0, 0.0, 4.5, 1.8)], weights=[1.0, 0.3])
+    assert absorb_overlapping(heavy, 0.5, 0.5)[1] == 0
+
+
+def test_overlap_is_taken_along_the_heading_in_cartesian_states_and_across_a_closed_roads_start():
+    north = lambda label, y, length: [label, 0.0, y, 10.0, np.pi / 2, 0.0, length, 2.5]  # noqa: E731
+    means = np.array([north(1, 100.0, 6.0)[1:], north(2, 104.0, 5.0)[1:]])
+    covs = np.array([np.diag([0.2, 0.2, 0.5, 0.01, 0.01, 0.09, 0.05])] * 2)
+    mix = Mixture(np.ones(2), means, covs, np.array([1, 2]))
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5, cartesian=True)
+    assert absorbed == 1 and out.means[0, 1] == pytest.approx(101.75) and out.means[0, 0] == pytest.approx(0.0)
+    assert out.means[0, 5] == pytest.approx(9.5)
+    # beside each other (3.5 m apart in x, across the heading): two vehicles
+    means[1, :2] = [3.5, 100.0]
+    assert absorb_overlapping(Mixture(np.ones(2), means, covs, np.array([1, 2])), 0.5, 0.5, cartesian=True)[1] == 0
+    # a 1000 m ring: 998 m and 3 m are 5 m apart the short way round; the union's centre wraps
+    ring = vehicles([(1, 998.0, 0.0, 6.0, 2.5), (2, 3.0, 0.0, 6.0, 2.5)])
+    out, absorbed = absorb_overlapping(ring, 0.5, 0.5, Wrapping(periods=((0, 1000.0),)))
+    assert absorbed == 1 and out.means[0, 0] == pytest.approx(0.5) and out.means[0, 5] == pytest.approx(11.0)
+
+
+def test_a_coasting_tracks_label_goes_to_the_updated_newcomer_beside_it():
+    # last frame's track 3 coasts (no cluster updated it: its prediction missed its car, whose points
+    # seeded newcomer 8 beside it, overlapping it by 2 m): the label stays 3, the state is 8's
+    mix = vehicles([(3, 100.0, 0.0, 4.5, 1.8), (8, 102.5, 0.1, 4.5, 1.8)], length_std=1.0, weights=[0.8, 1.0])
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={8})
+    assert absorbed == 1 and out.labels.tolist() == [3]
+    assert out.means[0].tolist() == mix.means[1].tolist() and out.weights[0] == 1.0
+    # both updated (fragments of one vehicle): the keeper's own state
+    out, _ = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={3, 8})
+    assert out.labels.tolist() == [3] and out.means[0].tolist() == mix.means[0].tolist()

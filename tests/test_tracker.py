@@ -702,7 +702,7 @@ def test_a_coasting_track_inside_a_seen_vehicle_is_dropped(drop):
     road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
     car = Car(45.0, road.lane_centers[1], 20.0)
     scene = Scene(road, Car(20.0, road.lane_centers[1], 20.0), [car])
-    tracker = Tracker(road, config_with("reduction", drop_inside_updated=drop))
+    tracker = Tracker(road, config_with("reduction", drop_inside_updated=drop, absorb_overlap=None))  # drop alone
     steps = tracks_on(car, tracker, scene, 12)
     for k, tracks in steps:
         if k == 5:
@@ -883,3 +883,34 @@ def test_a_duplicate_track_its_vehicles_cluster_updates_only_weakly_is_dropped_i
             assert tracker.stats["components_inside_updated_dropped"] >= 1
         if k > 5:
             assert [t.label for t in tracks] == [tracks[0].label] and tracks[0].label != 999
+
+
+@pytest.mark.parametrize("overlap", [0.5, None], ids=["absorbed", "off"])
+def test_a_second_label_overlapping_a_trucks_track_is_absorbed_into_it(overlap):
+    # reduction.absorb_overlap: a 12 m truck tracked; a second label (a fragment of its side's points
+    # tracked apart) centred 7 m ahead of the truck's centre, 1 m beyond its front, overlaps it by 1.25 m:
+    # two vehicles cannot overlap, so the truck's label absorbs it (its centre outside the truck's
+    # rectangle, drop_inside_updated does not apply). Off: reported as a second vehicle.
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    truck = Car(45.0, road.lane_centers[1], 20.0, length=12.0, width=2.5)
+    scene = Scene(road, Car(20.0, road.lane_centers[1], 20.0), [truck])
+    tracker = Tracker(road, config_with("reduction", absorb_overlap=overlap))
+    rng = np.random.default_rng(0)
+    for k in range(12):
+        tracks = tracker.step(scene.frame(0.1 * k, rng))
+        if k == 8:
+            assert len(tracks) == 1 and abs(tracks[0].mean[5] - 12.0) < 1.0  # the truck's length is known
+            label = tracks[0].label
+            mix = tracker.mixture
+            i = int(np.argmax(mix.weights))
+            fragment = mix.means[i].copy()
+            fragment[0] += 7.0
+            fragment[5] = 4.5
+            tracker.mixture = Mixture(np.append(mix.weights, 1.0), np.vstack([mix.means, fragment]),
+                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
+            tracker._ever_reported.add(999)
+            tracker._reported = np.append(tracker._reported, len(mix))
+        elif k > 8:
+            labels = [tr.label for tr in tracks]
+            assert labels == [label] if overlap is not None else 999 in labels
+    assert (tracker.stats["labels_absorbed_overlapping"] >= 1) == (overlap is not None)

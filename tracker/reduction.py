@@ -192,3 +192,101 @@ def reduce(
         mix = merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping,
                                along_length=same_label_along_length)
     return cap(mix, max_components)
+
+
+#: Standard deviation (m) of a length known well enough to widen a keeper's rectangle to the union with
+#: an absorbed one's (``absorb_overlapping``): a side seen; a prior's (a car's 1 m, a truck's 3.5 m) is not.
+UNION_LENGTH_STD = 0.5
+
+
+def absorb_overlapping(
+    mix: Mixture,
+    min_weight: float,
+    overlap: float,
+    wrapping: Wrapping = NO_WRAP,
+    cartesian: bool = False,
+    keep_labels: frozenset[int] | set[int] = frozenset(),
+    updated: frozenset[int] | set[int] = frozenset(),
+) -> tuple[Mixture, int]:
+    """Two vehicles cannot overlap: per pair of labels whose heaviest components (weight >= ``min_weight``)
+    overlap as rectangles along the road (``s``; along the keeper's heading ``psi`` for Cartesian states)
+    by more than ``overlap`` m, each centre within half the narrower width of the other's across it, one
+    label absorbs the other. These are the fragments of one vehicle's points tracked apart: a truck or
+    bus first seen at long range or at grazing incidence, whose side's returns lie farther apart than the
+    clustering distance, becomes two or three short tracks along one line, and the labels trade the
+    vehicle back and forth; or one vehicle born twice from the first scan. The keeper is a label of
+    ``keep_labels`` (last frame's tracks) if one of the two is; of two newcomers the longer (the vehicle
+    is at least as long as either fragment shows: a truck's prior over a car's), at equal lengths the
+    smaller (older) label. The state is the keeper's unless only the other label is in ``updated`` (a
+    cluster gave it a reportable posterior this frame): a coasting track's prediction that missed its
+    vehicle, whose returning points then seeded a newcomer beside it, gives its label to the newcomer's
+    state (as ``tracker.identity`` does for a newcomer confirmed next to a coasting track). Its weight
+    becomes the larger of the two (one target). When both lengths are
+    known to ``UNION_LENGTH_STD`` its rectangle becomes the union of the two along the heading (centre
+    and length ``L``; the larger width ``W``), the variances of the moved centre and of ``L`` and ``W``
+    grown by the squares of their changes (a prior's length says nothing of where the vehicle ends: the
+    union of two duplicates of a car from the first scan, each with the prior's 4.5 m, was 7.6 m).
+    Every component of the absorbed label is dropped. Returns the mixture and the number of labels
+    absorbed."""
+    heavy = np.flatnonzero(mix.weights >= min_weight)
+    if len(heavy) < 2:
+        return mix, 0
+    order = heavy[np.argsort(-mix.weights[heavy], kind="stable")]
+    _, first = np.unique(mix.labels[order], return_index=True)
+    cand = order[np.sort(first)]  # the heaviest component of each label, heaviest first
+    if len(cand) < 2:
+        return mix, 0
+    m = mix.means[cand]
+    d = wrapping.residual(m[None, :, :] - m[:, None, :])  # d[i, j] = m[j] - m[i]
+    if cartesian:
+        c, s = np.cos(m[:, 3])[:, None], np.sin(m[:, 3])[:, None]
+        along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
+    else:
+        along, across = d[..., 0], d[..., 1]
+    length, width = m[:, 5], m[:, 6]
+    over = ((np.abs(along) < 0.5 * (length[:, None] + length[None, :]) - overlap)
+            & (np.abs(across) < 0.5 * np.minimum(width[:, None], width[None, :])))
+    np.fill_diagonal(over, False)
+    if not over.any():
+        return mix, 0
+    weights, means, covs = mix.weights.copy(), mix.means.copy(), mix.covs.copy()
+    gone: set[int] = set()
+    relabel: dict[int, int] = {}
+    absorbed = 0
+    for i, j in zip(*np.nonzero(np.triu(over))):
+        li, lj = int(mix.labels[cand[i]]), int(mix.labels[cand[j]])
+        if li in gone or lj in gone:
+            continue
+        if (li in keep_labels) != (lj in keep_labels):
+            k, a = (i, j) if li in keep_labels else (j, i)
+        elif li not in keep_labels and length[i] != length[j]:  # two newcomers: the longer hypothesis
+            k, a = (i, j) if length[i] > length[j] else (j, i)
+        else:
+            k, a = (i, j) if li < lj else (j, i)
+        label = int(mix.labels[cand[k]])
+        if (li in updated) != (lj in updated):  # the state: the one a cluster updated, not a coasting one
+            k, a = (i, j) if li in updated else (j, i)
+        ck, ca = cand[k], cand[a]
+        weights[ck] = max(weights[ck], mix.weights[ca])
+        gone.add(int(mix.labels[ca]))
+        if int(mix.labels[ck]) != label:
+            relabel[int(mix.labels[ck])] = label
+        absorbed += 1
+        if max(mix.covs[ck, 5, 5], mix.covs[ca, 5, 5]) > UNION_LENGTH_STD**2:
+            continue  # a length not seen: no evidence of where the vehicle ends
+        lo = min(-0.5 * length[k], along[k, a] - 0.5 * length[a])
+        hi = max(0.5 * length[k], along[k, a] + 0.5 * length[a])
+        shift, new_length, new_width = 0.5 * (lo + hi), hi - lo, max(width[k], width[a])
+        u = np.array([np.cos(m[k, 3]), np.sin(m[k, 3])]) if cartesian else np.array([1.0, 0.0])
+        means[ck, :2] += shift * u
+        covs[ck, :2, :2] += shift**2 * np.outer(u, u)
+        covs[ck, 5, 5] += (new_length - length[k]) ** 2
+        covs[ck, 6, 6] += (new_width - width[k]) ** 2
+        means[ck, 5], means[ck, 6] = new_length, new_width
+    keep = ~np.isin(mix.labels, np.array(sorted(gone), dtype=mix.labels.dtype))
+    labels = mix.labels.copy()
+    for source, target in relabel.items():
+        labels[mix.labels == source] = target
+    if not wrapping.empty:
+        means = wrapping.wrap(means)
+    return Mixture(weights[keep], means[keep], covs[keep], labels[keep]), absorbed

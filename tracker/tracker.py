@@ -78,7 +78,7 @@ from tracker.motion import make_motion, predict
 from tracker.point import PointTracker
 from tracker.preparation import prepare_batch
 from tracker.preprocess import filter_points, lidar_points
-from tracker.reduction import Mixture, reduce
+from tracker.reduction import Mixture, absorb_overlapping, reduce
 from tracker.road import Road
 from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
@@ -650,6 +650,11 @@ class Tracker:
             self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
         if red.drop_inside_updated and self._strong_labels and len(self.mixture):
             self._drop_inside_updated(ego)
+        if red.absorb_overlap is not None and len(self.mixture) > 1:
+            self.mixture, absorbed = absorb_overlapping(self.mixture, red.extraction_threshold, red.absorb_overlap,
+                                                        self.wrapping, self.cartesian, self._reported_labels,
+                                                        self._strong_labels)
+            self.stats["labels_absorbed_overlapping"] += absorbed
 
     def _drop_inside_updated(self, ego: EgoState) -> None:
         """``ReductionConfig.drop_inside_updated``: drop the components of labels without a reportable
