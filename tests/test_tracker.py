@@ -59,6 +59,24 @@ def tracks_on(car: Car, tracker: Tracker, scene: Scene, frames: int):
                   if abs(tr.mean[0] - car.s_at(t)) < 3.0 and abs(tr.mean[1] - car.n) < 2.0]
 
 
+def inject_label(tracker: Tracker, along: float, *, weight: float, reported: bool, length: float | None = None,
+                 label: int = 999) -> None:
+    """Add to ``tracker``'s mixture a copy of its heaviest component ``along`` m further along the road
+    (with ``length``, if given) under ``label``, weight ``weight``: a confirmed label (reported before),
+    and with ``reported`` one of last frame's tracks (a track group of its own)."""
+    mix = tracker.mixture
+    i = int(np.argmax(mix.weights))
+    copy = mix.means[i].copy()
+    copy[0] += along
+    if length is not None:
+        copy[5] = length
+    tracker.mixture = Mixture(np.append(mix.weights, weight), np.vstack([mix.means, copy]),
+                              np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, label))
+    tracker._ever_reported.add(label)
+    if reported:
+        tracker._reported = np.append(tracker._reported, len(mix))
+
+
 def nearest(tracks, road, xy):
     """The track whose centre is nearest ``xy`` and that distance (m)."""
     if not tracks:
@@ -707,13 +725,7 @@ def test_a_coasting_track_inside_a_seen_vehicle_is_dropped(drop):
     for k, tracks in steps:
         if k == 5:
             assert len(tracks) == 1
-            mix = tracker.mixture
-            i = int(np.argmax(mix.weights))
-            ghost = mix.means[i].copy()
-            ghost[0] += 1.5
-            tracker.mixture = Mixture(np.append(mix.weights, 0.9), np.vstack([mix.means, ghost]),
-                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
-            tracker._ever_reported.add(999)  # a confirmed label (reported before), not a newborn
+            inject_label(tracker, 1.5, weight=0.9, reported=False)  # a confirmed label, not a newborn
         elif k > 5:
             assert len(tracks) == (1 if drop else 2)
     assert (tracker.stats["components_inside_updated_dropped"] >= 1) == drop
@@ -870,14 +882,7 @@ def test_a_duplicate_track_its_vehicles_cluster_updates_only_weakly_is_dropped_i
     tracker = Tracker(road, config_with("reduction", drop_inside_updated=True))
     for k, tracks in tracks_on(car, tracker, scene, 10):
         if k == 5:  # the duplicate: 1 m ahead of the car's track, reported (a track group of its own)
-            mix = tracker.mixture
-            i = int(np.argmax(mix.weights))
-            ghost = mix.means[i].copy()
-            ghost[0] += 1.0
-            tracker.mixture = Mixture(np.append(mix.weights, 0.9), np.vstack([mix.means, ghost]),
-                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
-            tracker._ever_reported.add(999)
-            tracker._reported = np.append(tracker._reported, len(mix))
+            inject_label(tracker, 1.0, weight=0.9, reported=True)
         elif k == 6:
             assert 999 in tracker._updated_labels and 999 not in tracker._strong_labels  # weakly updated
             assert tracker.stats["components_inside_updated_dropped"] >= 1
@@ -901,15 +906,7 @@ def test_a_second_label_overlapping_a_trucks_track_is_absorbed_into_it(overlap):
         if k == 8:
             assert len(tracks) == 1 and abs(tracks[0].mean[5] - 12.0) < 1.0  # the truck's length is known
             label = tracks[0].label
-            mix = tracker.mixture
-            i = int(np.argmax(mix.weights))
-            fragment = mix.means[i].copy()
-            fragment[0] += 7.0
-            fragment[5] = 4.5
-            tracker.mixture = Mixture(np.append(mix.weights, 1.0), np.vstack([mix.means, fragment]),
-                                      np.concatenate([mix.covs, mix.covs[i:i + 1]]), np.append(mix.labels, 999))
-            tracker._ever_reported.add(999)
-            tracker._reported = np.append(tracker._reported, len(mix))
+            inject_label(tracker, 7.0, weight=1.0, reported=True, length=4.5)
         elif k > 8:
             labels = [tr.label for tr in tracks]
             assert labels == [label] if overlap is not None else 999 in labels
