@@ -97,6 +97,13 @@ def _regular(a: np.ndarray) -> bool:
     return a.ndim == 2 and a.shape[1] == 2 and len(a) > 0 and bool(np.isfinite(a).all())
 
 
+def _all_regular(arrays: list[np.ndarray]) -> bool:
+    """``all(_regular(a) for a in arrays)`` with one finiteness test over all points."""
+    if not all(a.ndim == 2 and a.shape[1] == 2 and len(a) > 0 for a in arrays):
+        return False
+    return bool(np.isfinite(np.concatenate(arrays)).all())
+
+
 def prepare_clusters(
     clusters: Sequence[np.ndarray], config: MeasurementConfig | None = None,
     velocities: Sequence[np.ndarray | None] | None = None,
@@ -126,12 +133,16 @@ def prepare_batch(
     from the padded arrays directly when every cluster is regular (the tracker's case)."""
     config = config if config is not None else MeasurementConfig()
     arrays, velocities = _checked(clusters, velocities)
-    if arrays and all(_regular(a) for a in arrays):
+    if arrays and _all_regular(arrays):
         return _prepare_finite(arrays, velocities, config).batch()
     return ClusterBatch.of(prepare_clusters(arrays, config, velocities))
 
 
 def _checked_velocities(velocities: list[np.ndarray | None]) -> list[np.ndarray | None]:
+    given = [v for v in velocities if v is not None]
+    if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype == np.float64 for v in given) and (
+            not given or np.isfinite(np.stack(given)).all()):
+        return list(velocities)  # the tracker's own: finite float (vx, vy) arrays already
     out: list[np.ndarray | None] = []
     for v in velocities:
         if v is None:

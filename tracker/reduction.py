@@ -237,7 +237,10 @@ def absorb_overlapping(
     if len(cand) < 2:
         return mix, 0
     m = mix.means[cand]
-    d = wrapping.residual(m[None, :, :] - m[:, None, :])  # d[i, j] = m[j] - m[i]
+    d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
+    for index, period in wrapping.periods:  # s on a closed road (angles are not needed here)
+        if index < 2:
+            d[..., index] -= period * np.floor(d[..., index] / period + 0.5)
     if cartesian:
         c, s = np.cos(m[:, 3])[:, None], np.sin(m[:, 3])[:, None]
         along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
