@@ -144,11 +144,18 @@ def test_a_car_that_braked_while_hidden_keeps_its_label_not_the_bus_behind_it():
     # behind the car's prediction is what braking loses (14 m), the bus's ahead what 2 m/s^2 gains
     # (12 m): the car's own label. With a symmetric 2 m/s^2 reach neither (before session 15 the
     # allowance was a Gaussian spread, and the bus's, grown for longer, took the car).
+    bus, car = state(112.0, 3.9, 7.5), state(158.0, 3.9, 9.0)
+    at = lambda x, t0, t: x + np.array([x[2] * (t - t0), 0, 0, 0, 0, 0, 0])  # noqa: E731 (coasting)
     for brake, expected in ((8.0, [5]), (None, [-1])):
         lt = store(accel=2.0, brake=brake)
-        lose_after_coasting(lt, 8, state(112.0, 3.9, 7.5), updated=2.8, lost=5.8)
-        lose_after_coasting(lt, 5, state(158.0, 3.9, 9.0), updated=4.3, lost=5.6)
-        assert sorted(lt.lost) == [5, 8]
+        lt.observe(2.8, np.array([8]), bus[None], cov()[None])
+        lt.observe(4.3, np.array([8, 5]), np.stack([at(bus, 2.8, 4.3), car]), np.stack([cov(), cov()]),
+                   updated=np.array([False, True]))
+        lt.observe(5.6, np.array([8, 5]), np.stack([at(bus, 2.8, 5.6), at(car, 4.3, 5.6)]), np.stack([cov(), cov()]),
+                   updated=np.array([False, False]))
+        lt.observe(5.8, np.array([8]), at(bus, 2.8, 5.8)[None], cov()[None], updated=np.array([False]))
+        lt.observe(5.9, np.zeros(0, dtype=int), np.zeros((0, 7)), np.zeros((0, 7, 7)))
+        assert sorted(lt.lost) == [5, 8] and lt.lost[8].updated == 2.8 and lt.lost[5].updated == 4.3
         assert lt.match(6.2, state(162.9, 3.8, 2.8)[None], cov()[None]).tolist() == expected
 
 

@@ -237,10 +237,8 @@ def absorb_overlapping(
     if len(cand) < 2:
         return mix, 0
     m = mix.means[cand]
-    d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
-    for index, period in wrapping.periods:  # s on a closed road (angles are not needed here)
-        if index < 2:
-            d[..., index] -= period * np.floor(d[..., index] / period + 0.5)
+    position_wrapping = Wrapping(periods=tuple(p for p in wrapping.periods if p[0] < 2))  # s on a closed road
+    d = position_wrapping.residual(m[None, :, :2] - m[:, None, :2])  # d[i, j] = position of j - position of i
     if cartesian:
         c, s = np.cos(m[:, 3])[:, None], np.sin(m[:, 3])[:, None]
         along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
