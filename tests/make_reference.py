@@ -58,13 +58,14 @@ def run_reference() -> dict[str, np.ndarray]:
     # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both
     # need the shadow flags, off here; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
     # needs the acceleration state, off here) and no absorption of overlapping labels (ReductionConfig.
-    # absorb_overlap, session 15): intended changes of the model,
+    # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16):
+    # intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
-                                  first_scan=False, correlated_extent=False),
+                                  first_scan=False, correlated_extent=False, narrow_width=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
                                         settled_width_std=None, sharp_side_whole=False,
                                         sharp_parts_whole=False),

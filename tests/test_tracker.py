@@ -463,6 +463,30 @@ def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(long_width):
         assert bus.length > 10.0 and d_bus < 3.0 and abs(bus.width - 2.5) < 0.2
 
 
+@pytest.mark.parametrize("narrow_width", [1.2, None], ids=["narrow-vehicle-prior", "car-prior"])
+def test_a_motorcycle_seen_only_from_behind_gets_a_motorcycles_length(narrow_width):
+    """A 2.2 x 0.8 m motorcycle 20 m straight ahead in the ego's lane: only its rear is ever seen. With
+    the narrow-vehicle prior (BirthConfig.narrow_width) its track takes a motorcycle's length once its
+    width is measured, and its centre lies within 0.4 m of the motorcycle's; with a car's prior it
+    keeps ~4.5 m and its centre leads the motorcycle's by ~1.2 m. A car in the next lane keeps a car's
+    length."""
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, 0.0, 10.0), [Car(120.0, 0.0, 10.0, length=2.2, width=0.8),
+                                               Car(130.0, 3.5, 10.0)])
+    config = TrackerConfig(birth=dataclasses.replace(TrackerConfig().birth, narrow_width=narrow_width))
+    frames, _ = run(scene, config, 3.0)
+    truth = scene.truth(3.0)
+    moto, d_moto = nearest(frames[-1], road, truth[0, :2])
+    car, d_car = nearest(frames[-1], road, truth[1, :2])
+    assert moto is not None and car is not None and moto.label != car.label
+    assert abs(car.length - 4.8) < 1.0 and d_car < 1.0
+    assert abs(moto.width - 0.8) < 0.15
+    if narrow_width is None:
+        assert moto.length > 4.0 and d_moto > 0.9
+    else:
+        assert abs(moto.length - 2.2) < 0.4 and d_moto < 0.4
+
+
 @pytest.mark.parametrize("split_width", [3.0, None], ids=["split", "no-split"])
 def test_two_buses_side_by_side_are_two_tracks_not_one_wide_one(split_width):
     """A 16 m bus ahead in the ego's lane and another in the left lane, its rear 8 m further on, on a

@@ -344,6 +344,38 @@ def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
     assert res2.mean[0, 0] == pytest.approx(100.0 - 0.5 * e)  # the front (nearest the sensor) stays put
 
 
+def test_narrow_vehicle_prior_gives_a_measured_narrow_rear_a_motorcycles_length():
+    """``narrow_vehicle_prior`` replaces a car's never-measured length by a motorcycle's where the width
+    is measured narrow (centre moved towards the sensor by half the change: the rear stays put), and
+    leaves alone a narrow width that is only a guess, a car's width, a length already short, and one
+    that was measured."""
+    from tracker.config import BirthConfig
+    from tracker.measurement import rectangle_corners
+    from tracker.update import UpdateResult, narrow_vehicle_prior
+
+    cfg = BirthConfig()
+    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 0.8]] * 5)
+    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.03**2]), (5, 1, 1))
+    cov[1, 6, 6] = 0.3**2  # the width not measured
+    mean[2, 6] = 1.8  # a car's width
+    mean[3, 5] = 2.3  # already a motorcycle's length
+    cov[4, 5, 5] = 0.05**2  # the length measured (a side seen)
+    res = UpdateResult(mean.copy(), cov.copy(), np.zeros(5), np.zeros(5), np.zeros(5, dtype=int), np.zeros((5, 2)),
+                       np.zeros((5, 2)))
+    corners = rectangle_corners(np.array([[20.0, 0.0]] * 5), np.zeros(5), mean[:, 5], mean[:, 6])  # ahead, in E
+    hit = narrow_vehicle_prior(res, np.ones(5, dtype=bool), corners, cfg)
+    np.testing.assert_array_equal(hit, [True, False, False, False, False])
+    e = cfg.narrow_length - 4.5  # -2.3 m
+    assert res.mean[0, 5] == pytest.approx(cfg.narrow_length)
+    assert res.mean[0, 0] - 0.5 * res.mean[0, 5] == pytest.approx(100.0 - 0.5 * 4.5)  # the rear stays put
+    assert res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
+    assert res.cov[0, 5, 5] == pytest.approx(cfg.length_std**2 + cfg.narrow_length_std**2)
+    np.testing.assert_array_equal(res.mean[1:], mean[1:])
+    np.testing.assert_array_equal(res.cov[1:], cov[1:])
+    not_held = UpdateResult(mean.copy(), cov.copy(), *(np.zeros(5),) * 2, np.zeros(5, dtype=int), *(np.zeros((5, 2)),) * 2)
+    assert not narrow_vehicle_prior(not_held, np.zeros(5, dtype=bool), corners, cfg).any()  # the length was updated
+
+
 @pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])
 def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None:
     """Two vehicles' rears side by side form one 8 m line; with a loose width prior the update alone

@@ -564,6 +564,14 @@ class BirthConfig:
       birth that wide, and a track whose width reaches it while its length is still unobserved, take the
       length ``long_length`` +- ``long_length_std`` instead of a car's, the end nearest the sensor
       staying put (``tracker.update.long_vehicle_prior``). A side seen later sets the length as usual;
+    - ``narrow_width`` (m, None: off), ``narrow_width_std`` (m), ``narrow_length`` (m),
+      ``narrow_length_std`` (m): the narrow-vehicle prior, the long one's mirror image (session 16). A
+      track whose width is measured (its standard deviation at most ``narrow_width_std``) at most
+      ``narrow_width`` is a motorcycle or a bicycle (cars are at least ~1.5 m wide): while its length is
+      still unobserved it takes ``narrow_length`` +- ``narrow_length_std`` instead of a car's, the end
+      nearest the sensor staying put (``tracker.update.narrow_vehicle_prior``); a side seen later sets
+      the length as usual. Only in the update, not at birth: a birth's width is its first cluster's,
+      which may be a part of a car;
     - ``max_length``, ``max_width`` (m, None: no limit): the largest vehicle. An updated estimate beyond
       either is projected back onto it (the mean's ``L`` or ``W`` set to the limit; the covariance
       kept): road vehicles are at most 2.55 m wide and 25.25 m long (EU), and a cluster of two vehicles
@@ -606,6 +614,10 @@ class BirthConfig:
     long_width: float | None = 2.35
     long_length: float = 12.0
     long_length_std: float = 3.5
+    narrow_width: float | None = 1.2
+    narrow_width_std: float = 0.1
+    narrow_length: float = 2.2
+    narrow_length_std: float = 0.4
     max_length: float | None = 25.0
     max_width: float | None = 3.0
     correlated_extent: bool = True
@@ -621,6 +633,10 @@ class BirthConfig:
             _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "long_length_std", self.long_length_std, low=0.0, low_open=True, unit="m")
+        if self.narrow_width is not None:
+            _check("BirthConfig", "narrow_width", self.narrow_width, low=0.0, low_open=True, unit="m")
+        for name in ("narrow_width_std", "narrow_length", "narrow_length_std"):
+            _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")

@@ -218,6 +218,8 @@ def update_pairs(
         held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
         if config.birth.long_width is not None:
             long_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
+        if config.birth.narrow_width is not None:
+            narrow_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
     for index, limit in ((LENGTH, config.birth.max_length), (WIDTH, config.birth.max_width)):
         if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
@@ -326,7 +328,7 @@ def extent_growth_direction(mean_corners: np.ndarray, heading: np.ndarray, dim: 
     slots (``u = (cos h, sin h)`` along the body for the length, ``(-sin h, cos h)`` across it for the
     width, ``h`` the ``heading`` state ``xi`` or ``psi``), 1 in the extent slot; ``sgn = +1`` when the
     sensor (the E origin) lies behind the centre along that axis of ``mean_corners (P, 4, 2)`` in E.
-    Used by ``grow_extent`` and ``long_vehicle_prior``."""
+    Used by ``grow_extent`` and ``replace_length_prior``."""
     corners = np.asarray(mean_corners, dtype=float)
     body = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis in E
     axis = body if index == LENGTH else np.stack([-body[:, 1], body[:, 0]], axis=-1)
@@ -374,24 +376,51 @@ def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners:
     posterior width is at least ``config.long_width`` and whose length is still a car's prior (below
     ``long_length - long_length_std``, its standard deviation at least half of ``length_std``: never
     measured) takes the length ``long_length``, with the variance ``long_length_std^2``, while the end
-    nearest the sensor stays put: with ``e = long_length - L`` and ``d`` as in ``grow_extent``
-    (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in the ``L`` slot)::
-
-        m += e d,   P += long_length_std^2 d d^T
-
-    (a shift of the length by an uncertain ``e``, the centre moving by half of it away from the sensor).
+    nearest the sensor stays put (``replace_length_prior``).
     A track that already carries the long prior, or whose length was measured, is left alone (applied
     again each frame, the added variance had let a truck's track drift off it: truck-hairpin seed 6).
     Returns the mask of the pairs changed."""
     hit = (held_length & (res.mean[:, WIDTH] >= config.long_width)
            & (res.mean[:, LENGTH] < config.long_length - config.long_length_std)
            & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
+    return replace_length_prior(res, hit, mean_corners, config.long_length, config.long_length_std)
+
+
+def narrow_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
+    """A car's length prior replaced by a motorcycle's where a measured width says so, in place.
+
+    The mirror image of ``long_vehicle_prior``: seen from behind, a motorcycle is a 0.8 m wide rear
+    whose length is never measured, and a track born with a car's 4.5 m puts its centre ~1.2 m ahead of
+    the motorcycle's (mixed-traffic seeds 1 and 2: its length error +2.1 to +2.3 m, its position 1.1-1.3
+    m off for the whole run). Cars are at least ~1.5 m wide, motorcycles and bicycles at most ~1 m, so a
+    pair whose length was held this update, whose posterior width is at most ``config.narrow_width``
+    and known to ``config.narrow_width_std`` (measured, not a prior's guess), and whose length is still
+    a car's prior (above ``narrow_length + narrow_length_std``, its standard deviation at least half of
+    ``length_std``: never measured) takes the length ``narrow_length``, with the variance
+    ``narrow_length_std^2``, the end nearest the sensor staying put (``replace_length_prior``).
+    Returns the mask of the pairs changed."""
+    hit = (held_length & (res.mean[:, WIDTH] <= config.narrow_width)
+           & (res.cov[:, WIDTH, WIDTH] <= config.narrow_width_std**2)
+           & (res.mean[:, LENGTH] > config.narrow_length + config.narrow_length_std)
+           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
+    return replace_length_prior(res, hit, mean_corners, config.narrow_length, config.narrow_length_std)
+
+
+def replace_length_prior(res: UpdateResult, hit: np.ndarray, mean_corners: np.ndarray, length: float, std: float) -> np.ndarray:
+    """Give the pairs ``hit`` the length ``length`` +- ``std`` in place of their unmeasured one, the end
+    nearest the sensor staying put: with ``e = length - L`` and ``d`` as in ``grow_extent``
+    (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in the ``L`` slot)::
+
+        m += e d,   P += std^2 d d^T
+
+    (a shift of the length by an uncertain ``e``, the centre moving by half of it away from the sensor,
+    or towards it when the new length is shorter). Returns ``hit``."""
     if not hit.any():
         return hit
     d = extent_growth_direction(np.asarray(mean_corners, dtype=float)[hit], res.mean[hit, XI], res.mean.shape[1], LENGTH)
-    e = config.long_length - res.mean[hit, LENGTH]
+    e = length - res.mean[hit, LENGTH]
     res.mean[hit] += e[:, None] * d
-    res.cov[hit] += config.long_length_std**2 * d[:, :, None] * d[:, None, :]
+    res.cov[hit] += std**2 * d[:, :, None] * d[:, None, :]
     return hit
 
 
