@@ -58,8 +58,9 @@ def run_reference() -> dict[str, np.ndarray]:
     # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both
     # need the shadow flags, off here; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
     # needs the acceleration state, off here) and no absorption of overlapping labels (ReductionConfig.
-    # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16):
-    # intended changes of the model,
+    # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16;
+    # its shadowed sides longer than predicted taken whole, MeasurementConfig.shadowed_longer_whole,
+    # need the shadow flags, off here): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(

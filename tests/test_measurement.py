@@ -199,6 +199,40 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
         assert both.mode[0, 0] == plain.mode[0, 0]
 
 
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_a_shadowed_side_longer_than_predicted_is_measured_whole(compiled) -> None:
+    """A truck (2.5 m wide) 40 m straight ahead, predicted with a narrow car's 1.7 +- 0.3 m width: its
+    rear's left end lies in a nearer object's shadow and 2.4 m of it show. Its chord longer than the
+    prediction by more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (0.7 > 0.6 m), the visible
+    part is a lower bound of the width that the prediction falls short of: measured whole (``FULL``)
+    with ``MeasurementConfig.shadowed_longer_whole``, so the width grows to it; partially visible,
+    anchored at the free end (``FROM_A``), without the rule, with a settled width (its sd below
+    ``settled_width_std``: a heading lagging a lane change), without the extent's sd, or when the
+    visible part is shorter than the prediction."""
+    from tracker.measurement import GROWTH_MIN_EXCESS, GROWTH_SIGMAS
+
+    truth = np.array([40.0, 0.0, 10.0, 0.0, 0.0, 12.0, 2.5])
+    k = corners_of(truth)
+    predicted = corners_of(np.array([36.0, -0.4, 10.0, 0.0, 0.0, 4.5, 1.7]))[None]  # its rear on the truck's
+    b3, b2 = bearing(k[3]), bearing(k[2])
+    pts, hit = rectangle_scan(k, np.linspace(b3, b3 + 0.96 * (b2 - b3), 14))
+    assert hit.all()
+    batch = dataclasses.replace(ClusterBatch.of([prepare_cluster(pts, EXACT)]), occluded_end=np.array([[False, True]]))
+    chord = float(batch.chord_len[0, 0])
+    sd = np.array([[1.0, 0.3]])
+    assert chord - 1.7 > max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * 0.3)  # the scene is what the rule is about
+
+    def mode(config, extent_sd=sd, corners=predicted):
+        return build_structure(batch, np.array([0]), corners, config, extent_sd=extent_sd, compiled=compiled).mode[0, 0]
+
+    assert mode(EXACT) == FULL
+    assert mode(dataclasses.replace(EXACT, shadowed_longer_whole=False)) == FROM_A
+    assert mode(EXACT, extent_sd=np.array([[1.0, 0.1]])) == FROM_A  # a settled width is not grown
+    assert mode(EXACT, extent_sd=None) == FROM_A  # no extent sd: the rule needs it
+    wide = corners_of(np.array([36.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.6]))[None]  # predicted wider than what shows
+    assert mode(EXACT, corners=wide) == FROM_A
+
+
 def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     """A motorcycle (2.2 x 0.8 m) 20 m straight ahead shows its whole 0.8 m rear; predicted as a car
     (1.9 m wide) the rear covers 42 % of the predicted one. With ``MeasurementConfig.sharp_side_whole``

@@ -356,6 +356,13 @@ class MeasurementConfig:
       cap at half the chord that ``end_margin`` has: a two-point chord on a grazing side is not sharp)
       is at most ``shadow_free_gap``, and free when it neither borders a shadow nor continues
       (``continuation_rays``).
+    - ``shadowed_longer_whole`` (session 16; needs ``shadow_window`` and ``grow_extent``): a one-sided
+      part with one end in a shadow (partially visible, above) whose chord is longer than the predicted
+      side by the evidence ``grow_extent`` widens the prior on (``tracker.measurement.GROWTH_MIN_EXCESS``
+      0.5 m and ``GROWTH_SIGMAS`` 2 sd; not a short side longer than a settled width) is measured whole:
+      the vehicle is at least that long, or wide, a lower bound its prediction falls short of. Partially
+      visible, the part had left the extent at its prior: a far truck whose rear's other half a car hid
+      kept a car's 1.8 m width for seconds, so the long-vehicle prior never applied (mixed-traffic).
     - ``sharp_parts_whole`` (session 14; needs ``shadow_window``): the same for each part of a two-sided
       cluster, from the fitted corner to its far end: a part with a sharp, free far end (sharp also
       when the predicted side goes on beyond the last return for two whole ray gaps,
@@ -419,6 +426,7 @@ class MeasurementConfig:
     shadow_free_gap: float = 0.3
     sharp_side_whole: bool = True
     sharp_parts_whole: bool = True
+    shadowed_longer_whole: bool = True
     whole_min_points: int = 4
     whole_gate_sigmas: float = 3.0
     whole_gate_slack: float = 0.3
@@ -438,7 +446,7 @@ class MeasurementConfig:
         _check("MeasurementConfig", "shadow_margin", self.shadow_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_range_margin", self.shadow_range_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_free_gap", self.shadow_free_gap, low=0.0, unit="m")
-        for name in ("sharp_side_whole", "sharp_parts_whole"):
+        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"MeasurementConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check_int("MeasurementConfig", "whole_min_points", self.whole_min_points, 2)

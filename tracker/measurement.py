@@ -106,6 +106,13 @@ CORNER_MAX_SHIFT = 0.5
 #: between rays; beyond this the correction is capped).
 MAX_END_GAP = 2.0
 
+#: A side's chord must exceed its predicted length by more than ``GROWTH_MIN_EXCESS`` (m) and by more
+#: than ``GROWTH_SIGMAS`` standard deviations of the extent to be evidence of a longer side, not noise:
+#: ``tracker.update.grow_extent`` then widens the prior, and a one-sided part with an end in a shadow
+#: is taken whole (``MeasurementConfig.shadowed_longer_whole``).
+GROWTH_MIN_EXCESS = 0.5
+GROWTH_SIGMAS = 2.0
+
 #: A part's far end is also sharp (``MeasurementConfig.sharp_parts_whole``) when the predicted side goes
 #: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
 MISSED_RAYS_SHARP = 2.0
@@ -592,6 +599,27 @@ def _sharp_parts_whole(config: MeasurementConfig, batch: ClusterBatch, extent_sd
     return bool(config.sharp_parts_whole and batch.occluded_end is not None and extent_sd is not None)
 
 
+def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, extent_sd: np.ndarray | None) -> bool:
+    """Whether ``MeasurementConfig.shadowed_longer_whole`` applies: it needs the shadow flags, the
+    predicted extent's standard deviations and the extent growth it goes with (``grow_extent``)."""
+    return bool(config.shadowed_longer_whole and config.grow_extent and batch.occluded_end is not None
+                and extent_sd is not None)
+
+
+def _longer_than_predicted(chord: np.ndarray, predicted: np.ndarray, side: np.ndarray, extent_sd: np.ndarray,
+                           settled_width_std: float | None) -> np.ndarray:
+    """Whether a one-sided chord ``(P,)`` on side ``side`` shows its side longer than ``predicted``: by
+    more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` of ``L`` for the odd, long sides, of
+    ``W`` for the others, from ``extent_sd (P, 2)``), and not a short side longer than a settled width
+    (its sd below ``settled_width_std``: the heading lagging a lane change, as in ``grow_extent``)."""
+    long_side = side % 2 == 1
+    sd = np.where(long_side, extent_sd[:, 0], extent_sd[:, 1])
+    longer = chord - predicted > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
+    if settled_width_std is not None:
+        longer &= long_side | (sd >= settled_width_std)
+    return longer
+
+
 def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
     """``(P, 2)``: whether each bearing end of the pairs' clusters is free (in no shadow, not continued)."""
     free = np.ones((len(ci), 2), dtype=bool)
@@ -690,6 +718,12 @@ def build_structure(
         enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
         partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
+    if _shadowed_longer_whole(config, batch, extent_sd):
+        # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
+        # bound the prediction falls short of, so the part is measured whole (a far truck's rear half
+        # hidden by a car kept a car's width, and length, for seconds: mixed-traffic seed 16)
+        shadowed &= ~_longer_than_predicted(chord_len[:, 0], predicted[:, 0], sides[:, 0], extent_sd,
+                                            config.settled_width_std)
     partial |= shadowed[:, None]
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
@@ -791,9 +825,10 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         float(config.partial_visibility), float(config.shadow_free_gap), float(config.lidar_sigma) ** 2,
         float(config.radar_velocity_sigma) ** 2,
         bool(use_radar), config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
-        parts_whole, c(extent_sd if parts_whole else np.zeros((len(ci), 2)), dtype=float),
+        parts_whole, c(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float),
         int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-        MISSED_RAYS_SHARP,
+        MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+        -1.0 if config.settled_width_std is None else float(config.settled_width_std),
     )
     return Structure(*fields)
 

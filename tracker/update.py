@@ -29,7 +29,8 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements, to_vehicle
+from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, Cluster, ClusterBatch, Structure, build_structure,
+                                 predict_measurements, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -266,10 +267,9 @@ def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.nd
                                r=np.where(mask, structure.r, 1.0)), rejected
 
 
-#: A side's measured extent must exceed its predicted length by more than this (m) and by more than
-#: ``GROWTH_SIGMAS`` standard deviations of the extent before ``grow_extent`` widens the prior.
-GROWTH_MIN_EXCESS = 0.5
-GROWTH_SIGMAS = 2.0
+# A side's measured extent must exceed its predicted length by more than GROWTH_MIN_EXCESS (m) and by
+# more than GROWTH_SIGMAS standard deviations of the extent before grow_extent widens the prior (both
+# in tracker.measurement, which also takes a shadowed side that long whole).
 
 
 def grow_extent(

@@ -31,9 +31,11 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                      min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
-                     missed_rays):
+                     missed_rays, longer_whole, growth_min, growth_sigmas, settled_sd):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
-    whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``."""
+    whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
+    ``longer_whole``: ``MeasurementConfig.shadowed_longer_whole`` with the growth evidence ``growth_min``,
+    ``growth_sigmas`` and the settled width ``settled_sd`` (negative: None)."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -167,6 +169,13 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             if enough and sharp1 and not not_free[c, 1] and shrink1 <= gate_sigmas * sd1 + gate_slack:
                 partial1 = False
         shadowed = (not two) and ((occ_hi and not occ_lo and sharp_lo) or (occ_lo and not occ_hi and sharp_hi))
+        if shadowed and longer_whole:  # ... unless longer than predicted: a lower bound, measured whole
+            sd_side = extent_sd[p, 0] if side0 % 2 == 1 else extent_sd[p, 1]
+            longer = ln0 - side_len[side0] > max(growth_min, growth_sigmas * sd_side)
+            if settled_sd >= 0.0 and side0 % 2 == 0 and sd_side < settled_sd:
+                longer = False
+            if longer:
+                shadowed = False
         if shadowed:
             partial0 = True
             partial1 = True
