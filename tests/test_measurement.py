@@ -207,8 +207,8 @@ def test_a_shadowed_side_longer_than_predicted_is_measured_whole(compiled) -> No
     part is a lower bound of the width that the prediction falls short of: measured whole (``FULL``)
     with ``MeasurementConfig.shadowed_longer_whole``, so the width grows to it; partially visible,
     anchored at the free end (``FROM_A``), without the rule, with a settled width (its sd below
-    ``settled_width_std``: a heading lagging a lane change), without the extent's sd, or when the
-    visible part is shorter than the prediction."""
+    ``settled_width_std``: a heading lagging a lane change), without the extent's sd, when the
+    visible part is shorter than the prediction, or wider than any vehicle."""
     from tracker.measurement import GROWTH_MIN_EXCESS, GROWTH_SIGMAS
 
     truth = np.array([40.0, 0.0, 10.0, 0.0, 0.0, 12.0, 2.5])
@@ -231,6 +231,14 @@ def test_a_shadowed_side_longer_than_predicted_is_measured_whole(compiled) -> No
     assert mode(EXACT, extent_sd=None) == FROM_A  # no extent sd: the rule needs it
     wide = corners_of(np.array([36.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.6]))[None]  # predicted wider than what shows
     assert mode(EXACT, corners=wide) == FROM_A
+    # a chord wider than any vehicle (2.55 m) is no one vehicle's rear (two side by side, a vehicle and a
+    # roadside object): no lower bound of its width, partially visible as before
+    merged = corners_of(np.array([40.0, 0.0, 10.0, 0.0, 0.0, 12.0, 3.6]))
+    b3, b2 = bearing(merged[3]), bearing(merged[2])
+    pts, hit = rectangle_scan(merged, np.linspace(b3, b3 + 0.96 * (b2 - b3), 14))
+    batch = dataclasses.replace(ClusterBatch.of([prepare_cluster(pts, EXACT)]), occluded_end=np.array([[False, True]]))
+    assert batch.chord_len[0, 0] > 2.55
+    assert mode(EXACT) == FROM_A
 
 
 def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:

@@ -112,6 +112,11 @@ MAX_END_GAP = 2.0
 #: is taken whole (``MeasurementConfig.shadowed_longer_whole``).
 GROWTH_MIN_EXCESS = 0.5
 GROWTH_SIGMAS = 2.0
+#: The widest and the longest road vehicle (m; EU limits): a chord beyond them is not one vehicle's
+#: side (two vehicles' points in one cluster, or a vehicle and a roadside object), so it is no lower
+#: bound of one vehicle's extent (``MeasurementConfig.shadowed_longer_whole``).
+WIDEST_VEHICLE = 2.55
+LONGEST_VEHICLE = 25.25
 
 #: A part's far end is also sharp (``MeasurementConfig.sharp_parts_whole``) when the predicted side goes
 #: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
@@ -615,6 +620,7 @@ def _longer_than_predicted(chord: np.ndarray, predicted: np.ndarray, side: np.nd
     long_side = side % 2 == 1
     sd = np.where(long_side, extent_sd[:, 0], extent_sd[:, 1])
     longer = chord - predicted > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
+    longer &= chord <= np.where(long_side, LONGEST_VEHICLE, WIDEST_VEHICLE)  # one vehicle's side
     if settled_width_std is not None:
         longer &= long_side | (sd >= settled_width_std)
     return longer
@@ -828,6 +834,7 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         parts_whole, c(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float),
         int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
         MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+        WIDEST_VEHICLE, LONGEST_VEHICLE,
         -1.0 if config.settled_width_std is None else float(config.settled_width_std),
     )
     return Structure(*fields)
