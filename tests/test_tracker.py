@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scenes import Car, Scene
 
-from tracker import Frame, Road, Tracker, TrackerConfig
+from tracker import Frame, Road, Track, Tracker, TrackerConfig
 from tracker.frame import EgoState, RadarDetections
 from tracker.reduction import Mixture
 from tracker.transforms import to_global, to_local
@@ -441,22 +441,30 @@ def test_raw_3d_clouds_give_the_tracks_of_their_2d_points(curve):
     assert len(a) == 2
 
 
+def _seen_from_behind(length: float, width: float, ahead: float, **birth) -> tuple[Track, float]:
+    """A vehicle ``length`` x ``width`` m ``ahead`` m straight ahead in the ego's lane (only its rear is
+    ever seen) and a car in the next lane, tracked for 3 s with ``BirthConfig`` fields ``birth``: the
+    vehicle's track and its centre's distance from the truth (m); the car keeps a car's length."""
+    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(100.0, 0.0, 10.0), [Car(100.0 + ahead, 0.0, 10.0, length=length, width=width),
+                                               Car(130.0, 3.5, 10.0)])
+    config = TrackerConfig(birth=dataclasses.replace(TrackerConfig().birth, **birth))
+    frames, _ = run(scene, config, 3.0)
+    truth = scene.truth(3.0)
+    vehicle, d_vehicle = nearest(frames[-1], road, truth[0, :2])
+    car, d_car = nearest(frames[-1], road, truth[1, :2])
+    assert vehicle is not None and car is not None and vehicle.label != car.label
+    assert abs(car.length - 4.8) < 1.0 and d_car < 1.0
+    return vehicle, d_vehicle
+
+
 @pytest.mark.parametrize("long_width", [2.35, None], ids=["long-vehicle-prior", "car-prior"])
 def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(long_width):
     """A 16 m, 2.5 m wide bus 25 m straight ahead in the ego's lane: only its rear is ever seen. With
     the long-vehicle prior (BirthConfig.long_width) its track takes a truck's or bus's length and its
     centre lies within a few metres of the bus's; with a car's prior it keeps 4.5 m and its centre
     trails the bus's by ~6 m (beyond GOSPA's 5 m cut-off). A car ahead keeps a car's length."""
-    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
-    scene = Scene(road, Car(100.0, 0.0, 10.0), [Car(125.0, 0.0, 10.0, length=16.0, width=2.5),
-                                               Car(130.0, 3.5, 10.0)])
-    config = TrackerConfig(birth=dataclasses.replace(TrackerConfig().birth, long_width=long_width))
-    frames, _ = run(scene, config, 3.0)
-    truth = scene.truth(3.0)
-    bus, d_bus = nearest(frames[-1], road, truth[0, :2])
-    car, d_car = nearest(frames[-1], road, truth[1, :2])
-    assert bus is not None and car is not None and bus.label != car.label
-    assert abs(car.length - 4.8) < 1.0 and d_car < 1.0
+    bus, d_bus = _seen_from_behind(16.0, 2.5, 25.0, long_width=long_width)
     if long_width is None:
         assert bus.length < 6.0 and d_bus > 5.0
     else:
@@ -470,16 +478,7 @@ def test_a_motorcycle_seen_only_from_behind_gets_a_motorcycles_length(narrow_wid
     width is measured, and its centre lies within 0.4 m of the motorcycle's; with a car's prior it
     keeps ~4.5 m and its centre leads the motorcycle's by ~1.2 m. A car in the next lane keeps a car's
     length."""
-    road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
-    scene = Scene(road, Car(100.0, 0.0, 10.0), [Car(120.0, 0.0, 10.0, length=2.2, width=0.8),
-                                               Car(130.0, 3.5, 10.0)])
-    config = TrackerConfig(birth=dataclasses.replace(TrackerConfig().birth, narrow_width=narrow_width))
-    frames, _ = run(scene, config, 3.0)
-    truth = scene.truth(3.0)
-    moto, d_moto = nearest(frames[-1], road, truth[0, :2])
-    car, d_car = nearest(frames[-1], road, truth[1, :2])
-    assert moto is not None and car is not None and moto.label != car.label
-    assert abs(car.length - 4.8) < 1.0 and d_car < 1.0
+    moto, d_moto = _seen_from_behind(2.2, 0.8, 20.0, narrow_width=narrow_width)
     assert abs(moto.width - 0.8) < 0.15
     if narrow_width is None:
         assert moto.length > 4.0 and d_moto > 0.9
