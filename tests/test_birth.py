@@ -77,6 +77,32 @@ def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(long_width):
         assert covs[0, 5, 5] == pytest.approx((cfg.long_length_std if long else cfg.length_std) ** 2)
 
 
+@pytest.mark.parametrize("limits", [True, False], ids=["limits", "no-limits"])
+def test_a_cluster_birth_is_no_longer_or_wider_than_any_vehicle(limits):
+    """A cluster tracing a 34 m x 3.6 m rectangle in the next lane ahead (two vehicles' points in one
+    connected component: buses nose to tail, a car beside them) is no one vehicle: the birth's extent
+    is projected onto BirthConfig.max_length / max_width (25 m, 3 m), its end nearest the sensor kept;
+    without the limits the birth is as long and as wide as the fitted cluster (beyond both limits)."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego_s = 40.0
+    ego_xy = road.to_cartesian(ego_s, road.lane_centers[1])
+    ego_yaw = float(road.heading(ego_s))
+    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 15.0)
+    s_rear, n_mid = 60.0, road.lane_centers[2]
+    centre = road.to_cartesian(s_rear + 17.0, n_mid)
+    corners = to_local(rectangle_corners(centre, np.array(float(road.heading(s_rear + 17.0))), np.array(34.0),
+                                         np.array(3.6)), ego_xy, ego_yaw)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    cfg = BirthConfig() if limits else BirthConfig(max_length=None, max_width=None)
+    means, _ = cluster_births([points], [None], ego, road, cfg)
+    s, _, _, _, _, length, width = means[0]
+    if limits:
+        assert length == pytest.approx(25.0) and width == pytest.approx(3.0)
+        assert s - 0.5 * length == pytest.approx(s_rear, abs=0.5)  # the near end (the rear) stays put
+    else:
+        assert length > 27.0 and width > 3.4  # beyond both limits
+
+
 def _sparse_cluster(road: Road, ahead: float, n_car: float):
     """One lidar point on the rear corner of a 4.8 x 2 m car ``ahead`` m ahead of the ego (which
     drives in the middle lane), the rest of it hidden: the point, the ego, the car's centre (s, n)."""

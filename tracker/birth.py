@@ -112,6 +112,13 @@ def cluster_births(
         long = config.long_width is not None and fit_wid >= config.long_width and length < config.long_length
         if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen
             length = config.long_length
+        # no road vehicle is longer or wider than the limits: a larger cluster is two vehicles' points (or
+        # a vehicle's and a roadside object's); the birth keeps the end nearest the sensor, as the
+        # update projects its estimates back onto the limits (tracker.update.update_pairs)
+        if config.max_length is not None:
+            length = min(length, config.max_length)
+        if config.max_width is not None:
+            width = min(width, config.max_width)
         centre = fit.center.copy()
         # the unseen extent lies beyond the points; a sparse cluster's points most likely lie across a
         # rear or a front, so it is not shifted sideways
