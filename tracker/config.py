@@ -587,8 +587,9 @@ class BirthConfig:
     - ``max_length``, ``max_width`` (m, None: no limit): the largest vehicle. An updated estimate beyond
       either is projected back onto it (the mean's ``L`` or ``W`` set to the limit; the covariance
       kept), and so is a cluster birth's extent (session 16; its end nearest the sensor kept: a birth
-      from a 36 m cluster of a truck and the cars stopped in front of it had reported a 36 m track): road vehicles are at most 2.55 m wide and 25.25 m long (EU), and a cluster of two vehicles
-      side by side or nose to tail must not become one 8 m wide or 33 m long rectangle.
+      from a 36 m cluster of a truck and the cars stopped in front of it had reported a 36 m track):
+      road vehicles are at most 2.55 m wide and 25.25 m long (EU), and a cluster of two vehicles side
+      by side or nose to tail must not become one 8 m wide or 33 m long rectangle.
     - ``correlated_extent`` (default on since session 12; False: a diagonal birth covariance): a cluster
       birth's centre is the visible edge plus half the unseen extent, so its position is correlated
       with that extent, ``cov((s, n), L) = g var(L)`` and ``var((s, n)) += g g^T var(L)`` (``g`` half the
