@@ -611,19 +611,28 @@ def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, exten
                 and extent_sd is not None)
 
 
+def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,
+                      settled_width_std: float | None) -> np.ndarray:
+    """Whether a chord ``excess`` (m) longer than its predicted side is evidence of a longer side, not
+    noise: more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` that extent's standard
+    deviation), and not a short side (``width_side``) longer than a settled width (its sd below
+    ``settled_width_std``: the track's heading lagging a lane change, the side next to it in the
+    chord). Used by ``tracker.update.grow_extent`` and ``MeasurementConfig.shadowed_longer_whole``."""
+    longer = excess > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
+    if settled_width_std is not None:
+        longer &= ~np.asarray(width_side) | (sd >= settled_width_std)
+    return longer
+
+
 def _longer_than_predicted(chord: np.ndarray, predicted: np.ndarray, side: np.ndarray, extent_sd: np.ndarray,
                            settled_width_std: float | None) -> np.ndarray:
-    """Whether a one-sided chord ``(P,)`` on side ``side`` shows its side longer than ``predicted``: by
-    more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` of ``L`` for the odd, long sides, of
-    ``W`` for the others, from ``extent_sd (P, 2)``), and not a short side longer than a settled width
-    (its sd below ``settled_width_std``: the heading lagging a lane change, as in ``grow_extent``)."""
+    """Whether a one-sided chord ``(P,)`` on side ``side`` shows its side longer than ``predicted``
+    (``shows_longer_side``, ``sd`` of ``L`` for the odd, long sides, of ``W`` for the others, from
+    ``extent_sd (P, 2)``), and no longer or wider than one vehicle."""
     long_side = side % 2 == 1
     sd = np.where(long_side, extent_sd[:, 0], extent_sd[:, 1])
-    longer = chord - predicted > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
-    longer &= chord <= np.where(long_side, LONGEST_VEHICLE, WIDEST_VEHICLE)  # one vehicle's side
-    if settled_width_std is not None:
-        longer &= long_side | (sd >= settled_width_std)
-    return longer
+    return (shows_longer_side(chord - predicted, sd, ~long_side, settled_width_std)
+            & (chord <= np.where(long_side, LONGEST_VEHICLE, WIDEST_VEHICLE)))  # one vehicle's side
 
 
 def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:

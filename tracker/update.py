@@ -29,8 +29,8 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, Cluster, ClusterBatch, Structure, build_structure,
-                                 predict_measurements, to_vehicle)
+from tracker.measurement import (FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements,
+                                 shows_longer_side, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -267,11 +267,6 @@ def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.nd
                                r=np.where(mask, structure.r, 1.0)), rejected
 
 
-# A side's measured extent must exceed its predicted length by more than GROWTH_MIN_EXCESS (m) and by
-# more than GROWTH_SIGMAS standard deviations of the extent before grow_extent widens the prior (both
-# in tracker.measurement, which also takes a shadowed side that long whole).
-
-
 def grow_extent(
     means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray,
     settled_width_std: float | None = None,
@@ -283,7 +278,7 @@ def grow_extent(
     is far outside the gate, the track is not updated, and a newborn takes the cluster (issue 10,
     stop-and-go: 25 ID switches per run). A side's chord (the extent of its points, without the end-gap
     margins) is a lower bound of its length, so an excess ``e = chord - predicted`` (``Structure.excess``)
-    above ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sqrt(P[L, L]))`` is evidence that the prior is wrong,
+    above ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sqrt(P[L, L]))`` (``tracker.measurement.shows_longer_side``) is evidence that the prior is wrong,
     not noise. (Measured with the margins included, cars' converged lengths grew falsely at grazing
     views: cut-in length RMSE 0.05 -> 0.39 m over 10 seeds.) The prior then gets
     the variance ``e^2`` along the direction in which the vehicle can grow while the end nearest the
@@ -306,10 +301,7 @@ def grow_extent(
     for index, is_part in ((LENGTH, long_part), (WIDTH, ~long_part)):
         e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
         sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
-        hit = e > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
-        if index == WIDTH and settled_width_std is not None:
-            hit &= sd >= settled_width_std
-        hits.append((e, hit))
+        hits.append((e, shows_longer_side(e, sd, index == WIDTH, settled_width_std)))
     if not (hits[0][1].any() or hits[1][1].any()):  # the common case: no side longer than predicted
         return grown, out
     for index, (e, hit) in zip((LENGTH, WIDTH), hits):
