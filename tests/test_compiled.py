@@ -288,9 +288,11 @@ def test_compiled_curvature_interpolation_equals_numpy_interp():
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 @pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True)], ids=["default", "acceleration"])
 def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
-    """``tracker.motion.predict`` with the compiled sigma points and moments against numpy: headings
-    near +-pi (wrapped sigma points), ``s`` near a closed road's seam, wide and narrow covariances; a
-    covariance that is not positive definite takes the numpy path, which repairs and counts it."""
+    """``tracker.motion.predict`` with the compiled kernels (one fused call) against numpy: headings
+    near +-pi (wrapped sigma points), ``s`` near a closed road's seam, wide and narrow covariances,
+    per-state jerks; the fused call gives exactly the numbers of the compiled steps one by one; a NaN
+    is refused; a covariance that is not positive definite takes the numpy path, which repairs and
+    counts it."""
     from tracker.motion import predict
     from tracker.ukf import UnscentedTransform
 
@@ -309,16 +311,26 @@ def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
     mean[5:10, 0] = [0.0, 0.05, road.length - 0.05, 1e-9, road.length - 1e-9]  # across the seam or the open ends
     root = rng.normal(0.0, 1.0, (count, model.dim, model.dim)) * rng.uniform(0.01, 2.0, (count, 1, 1))
     cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(model.dim)
+    jerks = (None, rng.uniform(0.5, 3.0, count)) if model.dim == 8 else (None,)
     for dt in (0.1, 1.0 / 14.0):
-        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-        ref_pts = ut.sigma_points(mean, cov, model.wrapping)
-        ref = predict(ut, model, mean, cov, dt)
-        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
-        np.testing.assert_allclose(ut.sigma_points(mean, cov, model.wrapping), ref_pts, rtol=0.0, atol=1e-12)
-        got = predict(ut, model, mean, cov, dt)
-        for a, b in zip(ref, got):
-            assert a.shape == b.shape
-            np.testing.assert_allclose(b, a, rtol=1e-10, atol=1e-10)
+        for jerk in jerks:
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref_pts = ut.sigma_points(mean, cov, model.wrapping)
+            ref = predict(ut, model, mean, cov, dt, jerk)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            np.testing.assert_allclose(ut.sigma_points(mean, cov, model.wrapping), ref_pts, rtol=0.0, atol=1e-12)
+            got = predict(ut, model, mean, cov, dt, jerk)  # one fused call (FrenetMotion.predict_compiled)
+            for a, b in zip(ref, got):
+                assert a.shape == b.shape
+                np.testing.assert_allclose(b, a, rtol=1e-10, atol=1e-10)
+            with monkeypatch.context() as m:  # the compiled steps one by one: the very same numbers
+                m.setattr(FrenetMotion, "predict_compiled", None)
+                steps = predict(ut, model, mean, cov, dt, jerk)
+            assert all(np.array_equal(a, b) for a, b in zip(steps, got))
+    nan = mean.copy()
+    nan[2, 1] = np.nan
+    with pytest.raises(ValueError, match="must be finite"):
+        predict(ut, model, nan, cov, 0.1)
     bad = cov.copy()
     bad[3] = -np.eye(model.dim)  # not positive definite
     before = ut.repairs

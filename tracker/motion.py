@@ -123,10 +123,25 @@ def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarra
     dt = _check_dt(dt)
     mean = np.asarray(mean, dtype=float)
     c, s = np.cos(mean[..., XI]), np.sin(mean[..., XI])
+    q0, k_u, k_p, a2d2 = noise_coefficients(dt, noise)
+    q = np.broadcast_to(q0, mean.shape[:-1] + (7, 7)).copy()
+    # the direction's entries (the same products as k_u u u^T + k_p u_perp u_perp^T element by element)
+    cc, cs, ss = c * c, c * s, s * s
+    q[..., 0, 0] = k_u * cc + k_p * ss
+    q[..., 0, 1] = q[..., 1, 0] = k_u * cs + k_p * -cs
+    q[..., 1, 1] = k_u * ss + k_p * cc
+    q[..., 0, V] = q[..., V, 0] = a2d2 * c
+    q[..., 1, V] = q[..., V, 1] = a2d2 * s
+    return q
+
+
+def noise_coefficients(dt: float, noise: ProcessNoise) -> tuple[np.ndarray, float, float, float]:
+    """``process_noise``'s parts over ``dt`` (s): the entries that do not depend on the direction of
+    motion ``q0 (7, 7)`` (zero in the position block and its ``v`` column), and the coefficients
+    ``k_u = accel^2 dt^3/3 + along^2 dt``, ``k_p = lateral^2 dt`` and ``accel^2 dt^2/2`` of
+    ``Q[pos, pos] = k_u u u^T + k_p u_perp u_perp^T`` and ``Q[pos, v] = accel^2 dt^2/2 u``."""
     a2, y2 = noise.accel**2, noise.yaw_accel**2
     d1, d2, d3 = dt, dt * dt / 2.0, dt**3 / 3.0
-    # the blocks that do not depend on the direction, then the direction's (same products as
-    # k_u u u^T + k_p u_perp u_perp^T element by element)
     q0 = np.zeros((7, 7))
     q0[V, V] = a2 * d1
     q0[XI, XI] = y2 * d3 + noise.heading**2 * d1
@@ -134,15 +149,7 @@ def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarra
     q0[XI_DOT, XI_DOT] = y2 * d1
     q0[LENGTH, LENGTH] = noise.length**2 * d1
     q0[WIDTH, WIDTH] = noise.width**2 * d1
-    q = np.broadcast_to(q0, mean.shape[:-1] + (7, 7)).copy()
-    k_u, k_p = a2 * d3 + noise.along**2 * d1, noise.lateral**2 * d1
-    cc, cs, ss = c * c, c * s, s * s
-    q[..., 0, 0] = k_u * cc + k_p * ss
-    q[..., 0, 1] = q[..., 1, 0] = k_u * cs + k_p * -cs
-    q[..., 1, 1] = k_u * ss + k_p * cc
-    q[..., 0, V] = q[..., V, 0] = a2 * d2 * c
-    q[..., 1, V] = q[..., V, 1] = a2 * d2 * s
-    return q
+    return q0, a2 * d3 + noise.along**2 * d1, noise.lateral**2 * d1, a2 * d2
 
 
 class MotionModel(Protocol):
@@ -182,6 +189,7 @@ class FrenetMotion:
         # the white acceleration on v: lower with the acceleration state (MotionConfig.residual_accel)
         self._noise7 = (dataclasses.replace(self.noise, accel=self.config.residual_accel) if self.dim == 8
                         else self.noise)
+        self._noise_cache: dict[float, tuple] = {}  # _noise_parts by dt
 
     def curvature(self, s: np.ndarray) -> np.ndarray:
         """The road's curvature (1/m) at ``s`` from the table: wrapped on a closed road, 0 beyond the
@@ -274,6 +282,64 @@ class FrenetMotion:
             q8[..., ACCEL, ACCEL] += scale * block[1, 1]
             q = q8
         return q
+
+
+    def predict_compiled(self, ut: UnscentedTransform, mean: np.ndarray, cov: np.ndarray, dt: float,
+                         jerk: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """``predict`` of a batch ``mean (C, D)``, ``cov (C, D, D)`` in one compiled call
+        (``tracker.compiled.motion.ukf_predict_kernel``: the same steps as ``predict``'s compiled path,
+        the same numbers); ``None`` where that path does not apply (``dt = 0``, another shape, or a
+        covariance that is not positive definite: ``predict`` then takes its own path, which repairs
+        and counts it)."""
+        if mean.ndim != 2 or mean.shape[1] != self.dim or cov.shape != mean.shape + (self.dim,) or len(mean) == 0:
+            return None
+        dt = _check_dt(dt)
+        if dt == 0.0:
+            return None
+        from tracker.compiled.motion import ukf_predict_kernel
+
+        q_const, k_u, k_p, a2d2, singer = self._noise_parts(dt)
+        if self.dim == 8:
+            scale = (np.full(len(mean), self.config.jerk**2) if jerk is None
+                     else np.ascontiguousarray(np.broadcast_to(np.asarray(jerk, dtype=float) ** 2, mean.shape[:-1])))
+        else:
+            scale = np.zeros(len(mean))
+        steps = max(1, int(math.ceil(dt / self.step_limit - 1e-9)))
+        cfg = self.config
+        try:
+            m, p, finite = ukf_predict_kernel(
+                np.ascontiguousarray(mean, dtype=float), np.ascontiguousarray(cov, dtype=float), ut.scale, ut.wm, ut.wc,
+                *self.wrapping.kernel_args(), steps, dt / steps, self._table_s, self._table_k, bool(self.road.closed),
+                float(self.road.length), float(cfg.min_denominator), float(cfg.slip_lever), float(cfg.heading_decay),
+                float(cfg.yaw_rate_decay), float(cfg.acceleration_time), MAX_SIN_SLIP, SLIP_MIN_SPEED,
+                q_const, k_u, k_p, a2d2, scale, singer)
+        except np.linalg.LinAlgError:
+            return None
+        if not finite:
+            raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
+        return m, p
+
+    def _noise_parts(self, dt: float) -> tuple[np.ndarray, float, float, float, np.ndarray]:
+        """``process_noise``'s parts for the compiled prediction over ``dt`` (cached: a tracker's frames
+        mostly share one ``dt``): the direction-free entries ``(D, D)`` (the road-following prior's
+        heading block in place; without the jerk's Singer block), ``k_u``, ``k_p``, ``accel^2 dt^2/2``
+        (``noise_coefficients``), and the unit jerk's Singer block ``(2, 2)`` of ``(v, a)`` (zeros
+        without the acceleration state)."""
+        hit = self._noise_cache.get(dt)
+        if hit is not None:
+            return hit
+        q0, k_u, k_p, a2d2 = noise_coefficients(dt, self._noise7 if self.dim == 8 else self.noise)
+        if self.config.heading_decay > 0.0 or self.config.yaw_rate_decay > 0.0:
+            q0[XI:XI_DOT + 1, XI:XI_DOT + 1] = heading_noise_block(
+                dt, self.config.heading_decay, self.config.yaw_rate_decay, self.noise)
+        q = np.zeros((self.dim, self.dim))
+        q[:7, :7] = q0
+        singer = (_heading_noise_block(dt, 0.0, 1.0 / self.config.acceleration_time, 0.0, 1.0).copy() if self.dim == 8
+                  else np.zeros((2, 2)))
+        if len(self._noise_cache) >= 64:
+            self._noise_cache.clear()
+        self._noise_cache[dt] = hit = (q, float(k_u), float(k_p), float(a2d2), singer)
+        return hit
 
 
 def heading_noise_block(dt: float, heading_decay: float, yaw_rate_decay: float, noise: ProcessNoise) -> np.ndarray:
@@ -374,6 +440,11 @@ def predict(
     ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals).
     ``jerk`` (one per Gaussian; ``FrenetMotion`` with the acceleration state only) replaces
     ``MotionConfig.jerk`` in ``Q``."""
+    fused = getattr(model, "predict_compiled", None)
+    if fused is not None and compiled_kernels.enabled() and np.ndim(mean) == 2:
+        out = fused(ut, np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), dt, jerk)
+        if out is not None:
+            return out
     pts = ut.sigma_points(mean, cov, model.wrapping)
     moved = model.propagate(pts, dt)
     noise = (lambda m: model.process_noise(m, dt)) if jerk is None else (lambda m: model.process_noise(m, dt, jerk))

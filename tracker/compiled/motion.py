@@ -1,7 +1,9 @@
 """Compiled Frenet motion: ``FrenetMotion.propagate``'s RK4 sub-steps of ``FrenetMotion.derivative``
 (``tracker.motion``) over all states in one numba call: the curvature by linear interpolation of the
 same table (wrapped on a closed road, 0 beyond an open road's ends), the kinematic slip, the
-road-following prior's decays and the optional acceleration state. Wrapping stays with the caller."""
+road-following prior's decays and the optional acceleration state (``rk4_propagate``; wrapping stays
+with the caller). ``ukf_predict_kernel``: the whole UKF prediction of a batch (sigma points, RK4,
+moments, process noise) in one call, the same steps as ``tracker.motion.predict``'s compiled path."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
+from tracker.compiled.ukf import _wrap, moments_kernel, sigma_kernel
 
 
 @njit(inline="always")
@@ -93,3 +96,59 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
             for j in range(dim):
                 xi[j] = xi[j] + (h / 6.0) * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     return out
+
+
+@njit
+def ukf_predict_kernel(means, covs, scale, wm, wc, angles, period_index, period, steps, h, table_s, table_k, closed,
+                       length, min_denominator, slip_lever, heading_decay, yaw_rate_decay, acceleration_time,
+                       max_sin_slip, slip_min_speed, q_const, k_u, k_p, a2d2, jerk_scale, singer):  # pragma: no cover - compiled
+    """``tracker.motion.predict`` with ``FrenetMotion`` in one call: the sigma points of ``N(means,
+    covs)`` (``sigma_kernel``), ``steps`` RK4 steps of ``h`` s (``rk4_propagate``), wrapped, their
+    weighted moments (``moments_kernel``), plus ``FrenetMotion.process_noise`` about the predicted
+    mean, symmetrised. The noise's direction-free entries come as ``q_const (D, D)``; per state the
+    position block ``k_u u u^T + k_p u_perp u_perp^T`` and ``Q[pos, v] = a2d2 u`` (``u`` the heading's
+    direction), and with the acceleration state (``D = 8``) ``jerk_scale[c]`` times the unit jerk's
+    Singer block ``singer (2, 2)`` on ``(v, a)``. Returns ``(mean, cov, finite)``; ``finite`` False
+    (and nothing computed) when a mean or covariance holds a NaN or an infinity."""
+    count, dim = means.shape
+    for c in range(count):
+        for j in range(dim):
+            if not math.isfinite(means[c, j]):
+                return means.copy(), covs.copy(), False
+            for k in range(dim):
+                if not math.isfinite(covs[c, j, k]):
+                    return means.copy(), covs.copy(), False
+    pts = sigma_kernel(means, covs, scale, angles, period_index, period)
+    sigma = pts.shape[1]
+    moved = rk4_propagate(pts.reshape(count * sigma, dim), steps, h, table_s, table_k, closed, length,
+                          min_denominator, slip_lever, heading_decay, yaw_rate_decay, acceleration_time,
+                          max_sin_slip, slip_min_speed)
+    for i in range(count * sigma):
+        _wrap(moved[i], angles, period_index, period)
+    mean, cov = moments_kernel(moved.reshape(count, sigma, dim), wm, wc, angles, period_index, period)
+    q = np.empty((dim, dim))
+    out = np.empty((count, dim, dim))
+    for c in range(count):
+        q[:, :] = q_const
+        co, si = math.cos(mean[c, 3]), math.sin(mean[c, 3])
+        cc, cs, ss = co * co, co * si, si * si
+        q[0, 0] = k_u * cc + k_p * ss
+        q[0, 1] = k_u * cs + k_p * -cs
+        q[1, 0] = q[0, 1]
+        q[1, 1] = k_u * ss + k_p * cc
+        q[0, 2] = a2d2 * co
+        q[2, 0] = q[0, 2]
+        q[1, 2] = a2d2 * si
+        q[2, 1] = q[1, 2]
+        if dim == 8:
+            q[2, 2] += jerk_scale[c] * singer[0, 0]
+            q[2, 7] += jerk_scale[c] * singer[0, 1]
+            q[7, 2] += jerk_scale[c] * singer[1, 0]
+            q[7, 7] += jerk_scale[c] * singer[1, 1]
+        for j in range(dim):
+            for k in range(dim):
+                cov[c, j, k] += q[j, k]
+        for j in range(dim):
+            for k in range(dim):
+                out[c, j, k] = 0.5 * (cov[c, j, k] + cov[c, k, j])
+    return mean, out, True
