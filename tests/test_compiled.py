@@ -404,26 +404,47 @@ def test_compiled_kalman_update_equals_numpy(extra, periodic, monkeypatch):
 
 def test_compiled_kalman_update_of_a_tracked_scene_equals_numpy(monkeypatch):
     """The tracker's own update batches (clusters of three cars and a bus with radar rows): each one
-    updated by the kernel and by numpy."""
+    updated by the kernel and by numpy, both ``kalman_update`` alone (its inputs from a numpy run) and
+    ``update_pairs`` whole (whose compiled path predicts the measurements, gates the radar rows and
+    updates in one call, ``tracker.compiled.kalman.measurement_update_kernel``)."""
+    import tracker.tracker as tt
     import tracker.update as tu
 
-    batches = []
-    original = tu.kalman_update
+    kalman_batches, pair_batches = [], []
+    original, original_pairs = tu.kalman_update, tu.update_pairs
 
     def keep(*args, **kwargs):
-        batches.append((args, kwargs))
+        kalman_batches.append((args, kwargs))
         return original(*args, **kwargs)
 
+    def keep_pairs(*args, **kwargs):
+        pair_batches.append((args, kwargs))
+        return original_pairs(*args, **kwargs)
+
     monkeypatch.setattr(tu, "kalman_update", keep)
+    monkeypatch.setattr(tt, "update_pairs", keep_pairs)
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
     track_scene(12)
-    assert sum(b[0][4].shape[0] for b in batches) >= 20
-    for args, kwargs in batches:
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    assert sum(b[0][4].shape[0] for b in kalman_batches) >= 20
+    for args, kwargs in kalman_batches:
         monkeypatch.setenv(compiled.ENV_SWITCH, "0")
         ref = original(*args, **kwargs)
         monkeypatch.setenv(compiled.ENV_SWITCH, "1")
         got = original(*args, **kwargs)
         for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation"):
             np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9, err_msg=name)
+    fused = 0
+    for args, kwargs in pair_batches:
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = original_pairs(*args, **kwargs)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = original_pairs(*args, **kwargs)
+        fused += int(np.asarray(args[2].fused).sum())
+        assert np.array_equal(got.radar_rejected, ref.radar_rejected) and np.array_equal(got.dim, ref.dim)
+        for name in ("mean", "cov", "log_likelihood", "nis", "predicted", "innovation"):
+            np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9, err_msg=name)
+    assert fused >= 20  # clusters with a radar velocity took part
 
 
 @pytest.mark.parametrize("seed", range(4))

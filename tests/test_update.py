@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from tracker import Road
+from tracker import compiled as compiled_kernels
 from tracker.config import MeasurementConfig, TrackerConfig
 from tracker.measurement import prepare_cluster, rectangle_scan, to_vehicle
 from tracker.motion import make_motion, predict
@@ -399,16 +400,20 @@ def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None
         assert post[6] == pytest.approx(max_width)
 
 
+@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
 @pytest.mark.parametrize("radar_rows", ["speed", "velocity"])
 @pytest.mark.parametrize("off, gate, rejected", [(20.0, 25.0, True), (3.0, 25.0, False), (20.0, None, False)],
                          ids=["false-alarm", "braking", "gate-off"])
 def test_a_radar_velocity_no_pair_explains_is_set_aside(circle80: Road, off: float, gate, rejected: bool,
-                                                         radar_rows: str) -> None:
+                                                         radar_rows: str, kernels: str, monkeypatch) -> None:
     """``MeasurementConfig.radar_gate``: a cluster's radar velocity 20 m/s slower than the prediction
     (speed std 3 m/s: normalised innovation ~43 > 25) is a false alarm: set aside, the posterior is the
     lidar-only one. 3 m/s slower (~1) is a braking the prediction lags behind: kept, it pulls the speed
     down. Without the gate the false alarm pulls the speed down by metres per second. The same with the
-    paper's two velocity rows."""
+    paper's two velocity rows. By numpy and by the compiled kernel (``measurement_update_kernel``)."""
+    if kernels == "compiled" and not compiled_kernels.available():
+        pytest.skip("numba is not installed")
+    monkeypatch.setenv(compiled_kernels.ENV_SWITCH, "1" if kernels == "compiled" else "0")
     scn = CurveScenario(circle80, 1)
     cfg = TrackerConfig(measurement=MeasurementConfig(radar_gate=gate, radar_rows=radar_rows))
     pts = scn.scan(0, np.random.default_rng(4), 0.03)

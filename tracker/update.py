@@ -29,8 +29,8 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import (FULL, Cluster, ClusterBatch, Structure, build_structure, predict_measurements,
-                                 shows_longer_side, to_vehicle)
+from tracker.measurement import (FULL, Cluster, ClusterBatch, Rectangles, Structure, build_structure,
+                                 predict_measurements, shows_longer_side, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -208,13 +208,16 @@ def update_pairs(
             pair_sigma = pair_sigma.copy()
             pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
             pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
-    z_sigma = predict_measurements(pair_rect, structure)
-    rejected = np.zeros(len(comp), dtype=bool)
-    if config.measurement.radar_gate is not None and structure.radar.any():
-        structure, rejected = gate_radar_rows(ut, structure, z_sigma, clu, config.measurement.radar_gate)
-    res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
-                        structure.mask, wrapping, structure.factors)
-    res = dataclasses.replace(res, radar_rejected=rejected)
+    res = _measure_compiled(ut, pair_sigma, pair_means, pair_covs, pair_rect, structure, clu,
+                            config.measurement.radar_gate, wrapping)
+    if res is None:  # numpy (the reference): the same three steps
+        z_sigma = predict_measurements(pair_rect, structure)
+        rejected = np.zeros(len(comp), dtype=bool)
+        if config.measurement.radar_gate is not None and structure.radar.any():
+            structure, rejected = gate_radar_rows(ut, structure, z_sigma, clu, config.measurement.radar_gate)
+        res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
+                            structure.mask, wrapping, structure.factors)
+        res = dataclasses.replace(res, radar_rejected=rejected)
     if config.measurement.hold_unobserved_extent:
         held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
         if config.birth.long_width is not None:
@@ -225,6 +228,34 @@ def update_pairs(
         if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
     return res
+
+
+def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,
+                      structure: Structure, cluster_index: np.ndarray, gate: float | None,
+                      wrapping: Wrapping) -> UpdateResult | None:
+    """``predict_measurements``, ``gate_radar_rows`` and ``kalman_update`` of the pairs in one compiled
+    call (``tracker.compiled.kalman.measurement_update_kernel``; the same steps, the numbers agree to
+    rounding); ``None`` where the kernels are off or do not apply (more than one periodic coordinate,
+    or a non-finite input the numpy path reports)."""
+    if not compiled_kernels.enabled() or len(wrapping.periods) > 1 or not len(means):
+        return None
+    if np.any(structure.r[structure.mask] <= 0):
+        raise ValueError("kalman_update: measurement noise variances r must be > 0")
+    from tracker.compiled.kalman import measurement_update_kernel
+
+    c = np.ascontiguousarray
+    shape = sigma.shape[:2]
+    try:
+        out = measurement_update_kernel(
+            c(sigma), c(means), c(covs), c(rect.center),
+            *(c(a) if a.shape == shape else c(np.broadcast_to(a, shape)) for a in (rect.psi, rect.v, rect.length, rect.width)),
+            c(structure.matrix), c(structure.z), c(structure.r),
+            c(structure.mask), c(np.zeros((len(means), 0, structure.z.shape[1])) if structure.factors is None
+                                 else structure.factors), c(structure.radar), c(cluster_index),
+            -1.0 if gate is None else float(gate), ut.wm, ut.wc, *wrapping.kernel_args())
+    except np.linalg.LinAlgError:  # a non-finite input: the numpy path says what it makes of it
+        return None
+    return UpdateResult(*out)
 
 
 def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.ndarray, cluster_index: np.ndarray,

@@ -152,3 +152,103 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles
                 post_cov[p, j, i] = 0.5 * ((cov[p, j, i] - t_ji) + (cov[p, i, j] - t_ij))
                 post_cov[p, i, j] = post_cov[p, j, i]
     return post_mean, post_cov, loglik, nis, dim, y, innovation
+
+
+@njit
+def _features(center, psi, v, length, width, p, i, out):  # pragma: no cover - compiled
+    """``tracker.measurement.predict_measurements``' features of sigma point ``i`` of pair ``p``."""
+    c, s = math.cos(psi[p, i]), math.sin(psi[p, i])
+    out[0] = center[p, i, 0]
+    out[1] = center[p, i, 1]
+    out[2] = length[p, i] * c
+    out[3] = length[p, i] * s
+    out[4] = c
+    out[5] = s
+    out[6] = width[p, i] * s
+    out[7] = width[p, i] * c
+    out[8] = v[p, i] * c
+    out[9] = v[p, i] * s
+
+
+@njit
+def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, matrix, z, r, mask, factors, radar,
+                              cluster_index, gate, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
+    """``tracker.update.update_pairs``' measurement step of the pairs in one call: the predicted
+    measurement sigma points ``features @ matrix`` (``predict_measurements``; the sigma points'
+    rectangles ``center (P, S, 2)``, ``psi``, ``v``, ``length``, ``width (P, S)``), the radar gate
+    (``gate_radar_rows``; ``gate < 0``: off): a cluster's radar rows (the last two of ``D`` that any
+    pair uses) are set aside when no pair with ``radar`` explains them (their own normalised
+    innovation squared above ``gate``), and the UKF update (``kalman_kernel``). Returns
+    ``kalman_kernel``'s outputs and, per pair, whether its radar rows were set aside."""
+    pairs, num_sigma, n = sigma.shape
+    rows = matrix.shape[2]
+    z_sigma = np.empty((pairs, num_sigma, rows))
+    feats = np.empty(10)
+    for p in range(pairs):
+        for i in range(num_sigma):
+            _features(center, psi, v, length, width, p, i, feats)
+            for d in range(rows):
+                acc = 0.0
+                for k in range(10):
+                    acc += feats[k] * matrix[p, k, d]
+                z_sigma[p, i, d] = acc
+    rejected = np.zeros(pairs, dtype=np.bool_)
+    if gate >= 0.0 and pairs:
+        radar_rows = np.zeros(2, dtype=np.int64)
+        used = 0
+        for d in range(max(rows - 2, 0), rows):
+            for p in range(pairs):
+                if mask[p, d]:
+                    radar_rows[used] = d
+                    used += 1
+                    break
+        clusters = 0
+        for p in range(pairs):
+            clusters = max(clusters, cluster_index[p] + 1)
+        explained = np.zeros(clusters, dtype=np.bool_)
+        y_v = np.empty(2)
+        nu = np.empty(2)
+        s_v = np.empty((2, 2))
+        for p in range(pairs):
+            if not radar[p]:
+                continue
+            if used == 0:  # no radar rows in use: nothing to set aside
+                explained[cluster_index[p]] = True
+                continue
+            for a in range(used):
+                acc = 0.0
+                for i in range(num_sigma):
+                    acc += wm[i] * z_sigma[p, i, radar_rows[a]]
+                y_v[a] = acc
+                nu[a] = z[p, radar_rows[a]] - acc
+            for a in range(used):
+                for b in range(used):
+                    acc = 0.0
+                    for i in range(num_sigma):
+                        acc += wc[i] * (z_sigma[p, i, radar_rows[a]] - y_v[a]) * (z_sigma[p, i, radar_rows[b]] - y_v[b])
+                    s_v[a, b] = acc
+                s_v[a, a] += r[p, radar_rows[a]]
+            if used == 1:
+                q = nu[0] * nu[0] / s_v[0, 0]
+            else:  # nu^T S^-1 nu of the 2 x 2 block
+                det = s_v[0, 0] * s_v[1, 1] - s_v[0, 1] * s_v[1, 0]
+                q = (s_v[1, 1] * nu[0] * nu[0] - (s_v[0, 1] + s_v[1, 0]) * nu[0] * nu[1] + s_v[0, 0] * nu[1] * nu[1]) / det
+            if q <= gate:
+                explained[cluster_index[p]] = True
+        any_rejected = False
+        for p in range(pairs):
+            rejected[p] = radar[p] and not explained[cluster_index[p]]
+            any_rejected = any_rejected or rejected[p]
+        if any_rejected:
+            mask = mask.copy()
+            z = z.copy()
+            r = r.copy()
+            for p in range(pairs):
+                if rejected[p]:
+                    for d in range(max(rows - 2, 0), rows):
+                        mask[p, d] = False
+                        z[p, d] = 0.0
+                        r[p, d] = 1.0
+    post_mean, post_cov, loglik, nis, dim, y, innovation = kalman_kernel(
+        sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles, period_index, period)
+    return post_mean, post_cov, loglik, nis, dim, y, innovation, rejected
