@@ -447,6 +447,48 @@ def test_compiled_kalman_update_of_a_tracked_scene_equals_numpy(monkeypatch):
     assert fused >= 20  # clusters with a radar velocity took part
 
 
+@pytest.mark.parametrize("dim", [7, 8])
+def test_compiled_extent_rules_equal_numpy(dim, monkeypatch):
+    """``tracker.update.apply_extent_rules`` by ``tracker.compiled.extent`` and by numpy on random pairs
+    built to reach every rule: lengths and widths held or seen whole, trucks' widths with a car's length
+    (the long-vehicle prior), measured narrow widths (the narrow one), estimates beyond the largest
+    vehicle, the sensor ahead of and behind the rectangles; the same numbers, bit for bit, with the
+    rules on and off."""
+    from tracker.config import BirthConfig
+    from tracker.measurement import FROM_A, FULL, Structure
+    from tracker.update import UpdateResult, apply_extent_rules
+
+    rng = np.random.default_rng(7)
+    pairs = 400
+    prior = np.zeros((pairs, dim))
+    prior[:, 0], prior[:, 1], prior[:, 2] = rng.uniform(0, 200, pairs), rng.uniform(-5, 5, pairs), rng.uniform(0, 30, pairs)
+    prior[:, 3] = rng.normal(0.0, 0.5, pairs)
+    prior[:, 5] = rng.choice([2.0, 4.5, 13.0, 30.0], pairs) + rng.normal(0.0, 0.3, pairs)
+    prior[:, 6] = rng.choice([0.8, 1.8, 2.5, 3.4], pairs) + rng.normal(0.0, 0.05, pairs)
+    root = rng.normal(0.0, 1.0, (pairs, dim, dim)) * rng.uniform(0.02, 0.6, (pairs, 1, 1))
+    prior_cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(dim)
+    post = prior + rng.normal(0.0, 0.3, (pairs, dim))
+    post_cov = prior_cov * rng.uniform(0.5, 1.0, (pairs, 1, 1))
+    mode = rng.choice([FULL, FROM_A], (pairs, 2))
+    sides = rng.integers(0, 4, (pairs, 2))
+    centre = rng.normal(0.0, 30.0, (pairs, 1, 2))
+    corners = centre + rng.normal(0.0, 2.0, (pairs, 4, 2))
+    structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=mode, radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=None)
+    for birth, hold in ((BirthConfig(), True), (BirthConfig(), False),
+                        (BirthConfig(long_width=None, narrow_width=None, max_length=None, max_width=None), True),
+                        (BirthConfig(narrow_width_std=0.6, length_std=0.2), True)):
+        config = TrackerConfig(birth=birth, measurement=MeasurementConfig(hold_unobserved_extent=hold))
+        out = {}
+        for flag in ("0", "1"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, flag)
+            res = UpdateResult(post.copy(), post_cov.copy(), *([None] * 5))
+            out[flag] = apply_extent_rules(res, prior, prior_cov, structure, corners, config)
+        assert np.array_equal(out["0"].mean, out["1"].mean) and np.array_equal(out["0"].cov, out["1"].cov)
+        changed = ~np.isclose(out["1"].mean[:, 5], post[:, 5])
+        assert changed.sum() >= 20  # the rules did something
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points) and points exactly on the

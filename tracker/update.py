@@ -16,12 +16,16 @@ the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` p
 ``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
 noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation). With the compiled
 kernels on (``tracker.compiled``), ``kalman_update`` is one numba call over the pairs
-(``tracker.compiled.kalman``, tested against this numpy code within 1e-9).
+(``tracker.compiled.kalman``, tested against this numpy code within 1e-9); in ``update_pairs`` the
+predicted measurements, the radar gate and the update are one call
+(``tracker.compiled.kalman.measurement_update_kernel``), the extent rules after it another
+(``tracker.compiled.extent``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,13 +222,39 @@ def update_pairs(
         res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
                             structure.mask, wrapping, structure.factors)
         res = dataclasses.replace(res, radar_rejected=rejected)
+    return apply_extent_rules(res, pair_means, pair_covs, structure, mean_corners[inverse], config)
+
+
+def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
+                       mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
+    """The extent rules after the update, in place: ``hold_unobserved_extent`` (with
+    ``MeasurementConfig.hold_unobserved_extent``), then where a length was held ``long_vehicle_prior``
+    and ``narrow_vehicle_prior`` (``BirthConfig.long_width``, ``narrow_width``), then the largest
+    vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto it). By the
+    compiled kernel (``tracker.compiled.extent``: the same numbers) when the kernels are on."""
+    b = config.birth
+    if compiled_kernels.enabled() and len(res.mean):
+        from tracker.compiled.extent import extent_rules_kernel
+
+        mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)
+        extent_rules_kernel(
+            mean, cov, np.ascontiguousarray(prior_mean), np.ascontiguousarray(prior_cov),
+            np.ascontiguousarray(structure.mode), np.ascontiguousarray(structure.sides),
+            np.ascontiguousarray(mean_corners, dtype=float), bool(config.measurement.hold_unobserved_extent),
+            b.long_width is not None, float(b.long_width or 0.0), b.long_length - b.long_length_std,
+            b.long_length_std**2, float(b.long_length), b.narrow_width is not None, float(b.narrow_width or 0.0),
+            b.narrow_width_std**2, b.narrow_length + b.narrow_length_std, b.narrow_length_std**2,
+            float(b.narrow_length), 0.25 * b.length_std**2,
+            math.inf if b.max_length is None else float(b.max_length),
+            math.inf if b.max_width is None else float(b.max_width))
+        return res if mean is res.mean and cov is res.cov else dataclasses.replace(res, mean=mean, cov=cov)
     if config.measurement.hold_unobserved_extent:
-        held_length = hold_unobserved_extent(res, pair_means, pair_covs, structure)
-        if config.birth.long_width is not None:
-            long_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
-        if config.birth.narrow_width is not None:
-            narrow_vehicle_prior(res, held_length, mean_corners[inverse], config.birth)
-    for index, limit in ((LENGTH, config.birth.max_length), (WIDTH, config.birth.max_width)):
+        held_length = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
+        if b.long_width is not None:
+            long_vehicle_prior(res, held_length, mean_corners, b)
+        if b.narrow_width is not None:
+            narrow_vehicle_prior(res, held_length, mean_corners, b)
+    for index, limit in ((LENGTH, b.max_length), (WIDTH, b.max_width)):
         if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
     return res

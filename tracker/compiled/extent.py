@@ -1,0 +1,84 @@
+"""Compiled extent rules applied after the UKF update of the pairs (``tracker.update``): the Schmidt
+hold of an unobserved length or width (``hold_unobserved_extent``), the long- and narrow-vehicle priors
+(``long_vehicle_prior``, ``narrow_vehicle_prior``, through ``replace_length_prior``) and the largest
+vehicle's limits (``BirthConfig.max_length``, ``max_width``), in place, in the numpy reference's order
+and with its products (the same numbers)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tracker.compiled import njit
+
+FULL = 0  # tracker.measurement.FULL
+LENGTH, WIDTH = 5, 6
+XI = 3
+
+
+@njit
+def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
+    """``replace_length_prior`` of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
+    its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along
+    ``d`` (``extent_growth_direction``), the end nearest the sensor staying put."""
+    dim = mean.shape[0]
+    bx, by = corners[0, 0] - corners[3, 0], corners[0, 1] - corners[3, 1]  # the body axis in E
+    cx = (((corners[0, 0] + corners[1, 0]) + corners[2, 0]) + corners[3, 0]) / 4.0
+    cy = (((corners[0, 1] + corners[1, 1]) + corners[2, 1]) + corners[3, 1]) / 4.0
+    sgn = 1.0 if cx * bx + cy * by >= 0.0 else -1.0
+    d = np.zeros(dim)
+    d[0] = 0.5 * sgn * math.cos(mean[XI])
+    d[1] = 0.5 * sgn * math.sin(mean[XI])
+    d[LENGTH] = 1.0
+    e = length - mean[LENGTH]
+    for j in range(dim):
+        mean[j] += e * d[j]
+    for j in range(dim):
+        for k in range(dim):
+            cov[j, k] += variance * d[j] * d[k]
+
+
+@njit
+def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, hold, long_on, long_width,
+                        long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
+                        narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
+                        max_width):  # pragma: no cover - compiled
+    """The posteriors ``mean (P, D)``, ``cov (P, D, D)`` after the extent rules, in place (module
+    docstring). ``mode``, ``sides (P, 2)``: the structure's parts; ``corners (P, 4, 2)``: the predicted
+    mean rectangles. With ``hold``: a length (width) no part shows whole keeps its prior mean and
+    variance (both held: their joint block), then, where the length was held, the long-vehicle prior
+    (``long_on``: width at least ``long_width``, length below ``long_below``, its variance at least
+    ``unmeasured_var``) and the narrow one (``narrow_on``: width at most ``narrow_width`` with variance at
+    most ``narrow_width_var``, length above ``narrow_above``). Then ``L <= max_length``, ``W <= max_width``."""
+    pairs = mean.shape[0]
+    for p in range(pairs):
+        if hold:
+            seen_length = False
+            seen_width = False
+            for part in range(2):
+                if mode[p, part] == FULL:
+                    if sides[p, part] % 2 == 1:
+                        seen_length = True
+                    else:
+                        seen_width = True
+            if not seen_length:
+                mean[p, LENGTH] = prior_mean[p, LENGTH]
+                cov[p, LENGTH, LENGTH] = prior_cov[p, LENGTH, LENGTH]
+            if not seen_width:
+                mean[p, WIDTH] = prior_mean[p, WIDTH]
+                cov[p, WIDTH, WIDTH] = prior_cov[p, WIDTH, WIDTH]
+            if not seen_length and not seen_width:
+                cov[p, LENGTH, WIDTH] = prior_cov[p, LENGTH, WIDTH]
+                cov[p, WIDTH, LENGTH] = prior_cov[p, WIDTH, LENGTH]
+            if not seen_length:
+                if (long_on and mean[p, WIDTH] >= long_width and mean[p, LENGTH] < long_below
+                        and cov[p, LENGTH, LENGTH] >= unmeasured_var):
+                    _replace_length(mean[p], cov[p], corners[p], long_length, long_variance)
+                if (narrow_on and mean[p, WIDTH] <= narrow_width and cov[p, WIDTH, WIDTH] <= narrow_width_var
+                        and mean[p, LENGTH] > narrow_above and cov[p, LENGTH, LENGTH] >= unmeasured_var):
+                    _replace_length(mean[p], cov[p], corners[p], narrow_length, narrow_variance)
+        if mean[p, LENGTH] > max_length:  # np.minimum (a NaN stays a NaN)
+            mean[p, LENGTH] = max_length
+        if mean[p, WIDTH] > max_width:
+            mean[p, WIDTH] = max_width
