@@ -489,6 +489,36 @@ def test_compiled_extent_rules_equal_numpy(dim, monkeypatch):
         assert changed.sum() >= 20  # the rules did something
 
 
+@pytest.mark.parametrize("settled", [None, 0.15])
+def test_compiled_grow_extent_equals_numpy(settled, monkeypatch):
+    """``tracker.update.grow_extent`` by ``tracker.compiled.extent.grow_extent_kernel`` and by numpy:
+    random excesses (some not finite) on long and short parts, narrow and wide extent spreads, the
+    sensor on either side; the same mask and covariances, bit for bit, and both extents grown somewhere."""
+    from tracker.measurement import Structure
+    from tracker.update import grow_extent
+
+    rng = np.random.default_rng(11)
+    pairs, dim = 300, 8
+    means = rng.normal(0.0, 1.0, (pairs, dim)) * np.r_[50.0, 3.0, 10.0, 0.5, 0.1, 3.0, 0.5, 1.0]
+    root = rng.normal(0.0, 1.0, (pairs, dim, dim)) * rng.uniform(0.02, 0.8, (pairs, 1, 1))
+    covs = root @ np.swapaxes(root, 1, 2) + 1e-4 * np.eye(dim)
+    excess = rng.normal(0.0, 2.0, (pairs, 2))
+    excess[rng.random((pairs, 2)) < 0.1] = np.nan
+    excess[rng.random((pairs, 2)) < 0.05] = np.inf
+    sides = rng.integers(0, 4, (pairs, 2))
+    corners = rng.normal(0.0, 30.0, (pairs, 1, 2)) + rng.normal(0.0, 2.0, (pairs, 4, 2))
+    structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=None, radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=excess)
+    out = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv(compiled.ENV_SWITCH, flag)
+        out[flag] = grow_extent(means, covs, structure, corners, settled)
+    assert np.array_equal(out["0"][0], out["1"][0]) and np.array_equal(out["0"][1], out["1"][1])
+    grown = out["1"][0]
+    for index in (5, 6):
+        assert (grown & (out["1"][1][:, index, index] > covs[:, index, index])).sum() >= 10
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points) and points exactly on the

@@ -33,8 +33,8 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import (FULL, Cluster, ClusterBatch, Rectangles, Structure, build_structure,
-                                 predict_measurements, shows_longer_side, to_vehicle)
+from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, Cluster, ClusterBatch, Rectangles, Structure,
+                                 build_structure, predict_measurements, shows_longer_side, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -353,7 +353,16 @@ def grow_extent(
     ``settled_width_std`` (``MeasurementConfig``) is not grown: a short side longer than a settled
     width is the track's heading lagging (the side next to it joined the chord), not a wider vehicle.
     Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
-    False)."""
+    False). By the compiled kernel (``tracker.compiled.extent.grow_extent_kernel``: the same numbers)
+    when the kernels are on."""
+    if compiled_kernels.enabled() and len(means):
+        from tracker.compiled.extent import grow_extent_kernel
+
+        c = np.ascontiguousarray
+        return grow_extent_kernel(c(means, dtype=float), c(covs, dtype=float), c(structure.excess, dtype=float),
+                                  c(structure.sides), c(mean_corners, dtype=float),
+                                  -1.0 if settled_width_std is None else float(settled_width_std),
+                                  GROWTH_MIN_EXCESS, GROWTH_SIGMAS)
     long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
     excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
     out = covs.copy()

@@ -1,8 +1,9 @@
-"""Compiled extent rules applied after the UKF update of the pairs (``tracker.update``): the Schmidt
-hold of an unobserved length or width (``hold_unobserved_extent``), the long- and narrow-vehicle priors
+"""Compiled extent rules of the UKF update of the pairs (``tracker.update``): before it, the prior
+widened where a side shows longer than predicted (``grow_extent``); after it, the Schmidt hold of an
+unobserved length or width (``hold_unobserved_extent``), the long- and narrow-vehicle priors
 (``long_vehicle_prior``, ``narrow_vehicle_prior``, through ``replace_length_prior``) and the largest
-vehicle's limits (``BirthConfig.max_length``, ``max_width``), in place, in the numpy reference's order
-and with its products (the same numbers)."""
+vehicle's limits (``BirthConfig.max_length``, ``max_width``), in place. In the numpy reference's order
+and with its products: the same numbers."""
 
 from __future__ import annotations
 
@@ -18,25 +19,74 @@ XI = 3
 
 
 @njit
-def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
-    """``replace_length_prior`` of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
-    its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along
-    ``d`` (``extent_growth_direction``), the end nearest the sensor staying put."""
-    dim = mean.shape[0]
+def _growth_direction(corners, heading, index, d):  # pragma: no cover - compiled
+    """``tracker.update.extent_growth_direction`` of one pair into ``d (D,)`` (zeroed first):
+    ``0.5 sgn u`` in the position slots (``u`` along the body for ``index = LENGTH``, across it for
+    ``WIDTH``), 1 in the extent slot; ``sgn = +1`` when the sensor lies behind the centre along that
+    axis of ``corners (4, 2)``."""
     bx, by = corners[0, 0] - corners[3, 0], corners[0, 1] - corners[3, 1]  # the body axis in E
+    if index != LENGTH:
+        bx, by = -by, bx
     cx = (((corners[0, 0] + corners[1, 0]) + corners[2, 0]) + corners[3, 0]) / 4.0
     cy = (((corners[0, 1] + corners[1, 1]) + corners[2, 1]) + corners[3, 1]) / 4.0
     sgn = 1.0 if cx * bx + cy * by >= 0.0 else -1.0
-    d = np.zeros(dim)
-    d[0] = 0.5 * sgn * math.cos(mean[XI])
-    d[1] = 0.5 * sgn * math.sin(mean[XI])
-    d[LENGTH] = 1.0
+    c, s = math.cos(heading), math.sin(heading)
+    d[:] = 0.0
+    if index == LENGTH:
+        d[0] = 0.5 * sgn * c
+        d[1] = 0.5 * sgn * s
+    else:
+        d[0] = 0.5 * sgn * -s
+        d[1] = 0.5 * sgn * c
+    d[index] = 1.0
+
+
+@njit
+def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
+    """``replace_length_prior`` of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
+    its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along
+    ``d`` (``_growth_direction``), the end nearest the sensor staying put."""
+    dim = mean.shape[0]
+    d = np.empty(dim)
+    _growth_direction(corners, mean[XI], LENGTH, d)
     e = length - mean[LENGTH]
     for j in range(dim):
         mean[j] += e * d[j]
     for j in range(dim):
         for k in range(dim):
             cov[j, k] += variance * d[j] * d[k]
+
+
+@njit
+def grow_extent_kernel(means, covs, excess, sides, corners, settled_width_std, min_excess,
+                       sigmas):  # pragma: no cover - compiled
+    """``tracker.update.grow_extent``: per pair, the largest excess of a part over its predicted side
+    (``excess (P, 2)``; long parts, odd ``sides``, for ``L``, the others for ``W``), and where it is
+    evidence of a longer side (above ``max(min_excess, sigmas sd)``; for ``W`` not with its sd below
+    ``settled_width_std``, negative: no such test) the prior widened by ``e^2 d d^T``. Returns the
+    mask of widened pairs and the covariances (a copy)."""
+    pairs, dim = means.shape
+    out = covs.copy()
+    grown = np.zeros(pairs, dtype=np.bool_)
+    d = np.empty(dim)
+    for p in range(pairs):
+        for index in (LENGTH, WIDTH):
+            e = -math.inf
+            for part in range(2):
+                if (sides[p, part] % 2 == 1) == (index == LENGTH) and math.isfinite(excess[p, part]):
+                    e = max(e, excess[p, part])
+            sd = math.sqrt(max(covs[p, index, index], 0.0))
+            if not e > max(min_excess, sigmas * sd):
+                continue
+            if index == WIDTH and settled_width_std >= 0.0 and not sd >= settled_width_std:
+                continue
+            _growth_direction(corners[p], means[p, XI], index, d)
+            e2 = e * e
+            for j in range(dim):
+                for k in range(dim):
+                    out[p, j, k] += e2 * d[j] * d[k]
+            grown[p] = True
+    return grown, out
 
 
 @njit
