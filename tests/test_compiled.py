@@ -201,6 +201,52 @@ def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_compiled_sigma_rectangles_equal_the_two_steps(name, monkeypatch):
+    """``tracker.update.sigma_rectangles`` (sigma points and their rectangles in one compiled call)
+    gives exactly the compiled ``sigma_points`` then ``to_vehicle``, and numpy's within 1e-9; 8-state
+    Gaussians across the seam and beyond the ends; a NaN is refused, a covariance that is not positive
+    definite goes the numpy way (repaired and counted)."""
+    from tracker.measurement import to_vehicle
+    from tracker.motion import curvilinear_wrapping
+    from tracker.ukf import UnscentedTransform
+    from tracker.update import sigma_rectangles
+
+    road = _roads()[name]
+    wrapping = curvilinear_wrapping(road)
+    ut = UnscentedTransform(n=8)
+    rng = np.random.default_rng(5)
+    ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
+    mean = rng.normal(0.0, 1.0, (25, 8)) * np.r_[1.0, 3.0, 10.0, 0.3, 0.1, 1.0, 0.3, 1.0] + np.r_[0.0, 0, 0, 0, 0, 5.0, 2.0, 0]
+    mean[:, 0] = rng.uniform(-20.0, road.length + 20.0, 25)
+    if road.closed:
+        mean[:, 0] %= road.length
+    root = rng.normal(0.0, 1.0, (25, 8, 8)) * rng.uniform(0.02, 1.0, (25, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(8)
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    sigma, rect = sigma_rectangles(ut, mean, cov, wrapping, ego, road, "curvilinear")
+    steps = ut.sigma_points(mean, cov, wrapping)
+    ref = to_vehicle(steps, ego, road)
+    assert np.array_equal(sigma, steps)
+    for field in ("center", "psi", "v", "length", "width"):
+        assert np.array_equal(getattr(rect, field), getattr(ref, field))
+    assert np.array_equal(rect.corners(), ref.corners())
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+    sigma0, rect0 = sigma_rectangles(ut, mean, cov, wrapping, ego, road, "curvilinear")
+    np.testing.assert_allclose(sigma, sigma0, rtol=0.0, atol=1e-9)
+    np.testing.assert_allclose(rect.corners(), rect0.corners(), rtol=0.0, atol=1e-9)
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    bad = cov.copy()
+    bad[4] = -np.eye(8)
+    before = ut.repairs
+    sigma_b, _ = sigma_rectangles(ut, mean, bad, wrapping, ego, road, "curvilinear")
+    assert ut.repairs > before and np.isfinite(sigma_b).all()
+    nan = mean.copy()
+    nan[3, 2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        sigma_rectangles(ut, nan, cov, wrapping, ego, road, "curvilinear")
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 @pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True), MotionConfig(slip_lever=0.0)],
                          ids=["default", "acceleration", "no-slip"])
 def test_compiled_frenet_propagation_equals_numpy(name, motion, monkeypatch):

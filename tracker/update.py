@@ -33,8 +33,8 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, TrackerConfig
 from tracker.frame import EgoState
-from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, Cluster, ClusterBatch, Rectangles, Structure,
-                                 build_structure, predict_measurements, shows_longer_side, to_vehicle)
+from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
+                                 Structure, build_structure, predict_measurements, shows_longer_side, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -196,8 +196,7 @@ def update_pairs(
     if config.measurement.conversion == "euler" and config.coordinates == "curvilinear":
         ego_state = EgoState.coerce(ego)
         euler_s0 = float(road.to_frenet((ego_state.x, ego_state.y))[0])  # the paper integrates from the ego
-    sigma = ut.sigma_points(means[used], covs[used], wrapping)  # (U, S, 7)
-    rect = to_vehicle(sigma, ego, road, config.coordinates, euler_s0)  # (U, S) rectangles in E
+    sigma, rect = sigma_rectangles(ut, means[used], covs[used], wrapping, ego, road, config.coordinates, euler_s0)
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
     pair_means, pair_covs = means[comp], covs[comp]
     extent_sd = np.sqrt(np.maximum(np.stack([pair_covs[:, LENGTH, LENGTH], pair_covs[:, WIDTH, WIDTH]], axis=1), 0.0))
@@ -258,6 +257,36 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
         if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
     return res
+
+
+def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray, wrapping: Wrapping,
+                     ego: EgoState | tuple, road: Road | None, coordinates: str,
+                     euler_s0: float | None = None) -> tuple[np.ndarray, Rectangles]:
+    """The sigma points ``(C, S, n)`` of ``N(means, covs)`` and their rectangles in E ``(C, S)``
+    (``UnscentedTransform.sigma_points``, then ``tracker.measurement.to_vehicle``); for curvilinear
+    states with the exact conversion, by one compiled call when the kernels are on
+    (``tracker.compiled.centerline.sigma_rectangles_kernel``: the same numbers)."""
+    if (compiled_kernels.enabled() and coordinates == "curvilinear" and euler_s0 is None and road is not None
+            and len(wrapping.periods) <= 1 and means.ndim == 2 and len(means)):
+        from tracker.compiled.centerline import sigma_rectangles_kernel
+
+        ego = EgoState.coerce(ego)
+        kind, *curve = road._curve.kernel_args()
+        try:
+            sigma, center, psi, corners, finite = sigma_rectangles_kernel(
+                np.ascontiguousarray(means, dtype=float), np.ascontiguousarray(covs, dtype=float), ut.scale,
+                *wrapping.kernel_args(), kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length,
+                road._ends_array, *curve, MIN_EXTENT)
+        except np.linalg.LinAlgError:  # not positive definite: sigma_points repairs and counts it
+            finite = None
+        if finite is False:
+            raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
+        if finite:
+            rect = Rectangles(center, psi, sigma[..., 2], np.maximum(sigma[..., 5], MIN_EXTENT),
+                              np.maximum(sigma[..., 6], MIN_EXTENT))
+            return sigma, rect.with_corners(corners)
+    sigma = ut.sigma_points(means, covs, wrapping)
+    return sigma, to_vehicle(sigma, ego, road, coordinates, euler_s0)
 
 
 def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,

@@ -9,6 +9,7 @@ import numpy as np
 
 from tracker.compiled import njit
 from tracker.compiled.geometry import corner_offset
+from tracker.compiled.ukf import sigma_kernel
 
 
 @njit(inline="always")
@@ -170,3 +171,30 @@ def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends,
             corners[i, k, 0] = center[i, 0] + cp * lx - sp * ly
             corners[i, k, 1] = center[i, 1] + sp * lx + cp * ly
     return center, psi, corners
+
+
+@njit
+def sigma_rectangles_kernel(means, covs, scale, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed,
+                            length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
+                            min_extent):  # pragma: no cover - compiled
+    """The sigma points of ``N(means, covs)`` (``tracker.compiled.ukf.sigma_kernel``) and their
+    rectangles in E (``to_vehicle_kernel``) in one call: ``tracker.update.update_pairs``' first step.
+    Returns ``(sigma (C, S, D), center (C, S, 2), psi (C, S), corners (C, S, 4, 2), finite)``;
+    ``finite`` False (nothing computed) when a mean or covariance holds a NaN or an infinity."""
+    count, dim = means.shape
+    for c in range(count):
+        for j in range(dim):
+            if not np.isfinite(means[c, j]):
+                return (np.empty((0, 0, dim)), np.empty((0, 0, 2)), np.empty((0, 0)), np.empty((0, 0, 4, 2)),
+                        False)
+            for k in range(dim):
+                if not np.isfinite(covs[c, j, k]):
+                    return (np.empty((0, 0, dim)), np.empty((0, 0, 2)), np.empty((0, 0)), np.empty((0, 0, 4, 2)),
+                            False)
+    sigma = sigma_kernel(means, covs, scale, angles, period_index, period)
+    points = sigma.shape[1]
+    center, psi, corners = to_vehicle_kernel(kind, sigma.reshape(count * points, dim), ego_x, ego_y, ego_yaw, closed,
+                                             length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes,
+                                             weights, min_extent)
+    return (sigma, center.reshape(count, points, 2), psi.reshape(count, points),
+            corners.reshape(count, points, 4, 2), True)
