@@ -565,6 +565,58 @@ def test_compiled_grow_extent_equals_numpy(settled, monkeypatch):
         assert (grown & (out["1"][1][:, index, index] > covs[:, index, index])).sum() >= 10
 
 
+@pytest.mark.parametrize("bin_deg", [0.2, 0.37])
+def test_compiled_bearing_filter_equals_numpy(bin_deg, monkeypatch):
+    """``tracker.preprocess.bearing_filter`` by ``bearing_filter_kernel`` and by numpy: a scan of rays
+    on the bins' centres, points sharing a bin at equal ranges (the first index wins), points across
+    +-pi (one bin when the bins tile the circle, 0.2 deg; not for 0.37 deg); the same indices."""
+    from tracker.preprocess import bearing_filter
+
+    rng = np.random.default_rng(13)
+    width = np.deg2rad(bin_deg)
+    rays = np.arange(-np.pi, np.pi, width)
+    ranges = rng.uniform(2.0, 90.0, len(rays))
+    pts = [np.column_stack([ranges * np.cos(rays), ranges * np.sin(rays)])]
+    pts.append(rng.normal(0.0, 30.0, (500, 2)))
+    twin = pts[0][::7] * 1.0  # the same points again: equal ranges in one bin
+    pts.append(twin)
+    pts.append(np.array([[-10.0, 1e-12], [-10.0, -1e-12], [-12.0, 0.0]]))  # across +-pi
+    pts = np.concatenate(pts)
+    rng.shuffle(pts)
+    out = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv(compiled.ENV_SWITCH, flag)
+        out[flag] = bearing_filter(pts, width)
+    assert np.array_equal(out["0"], out["1"]) and len(out["1"]) >= len(rays) // 2
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_compiled_projection_seed_equals_numpy(name, monkeypatch):
+    """``Road.to_frenet`` without a hint seeds its Newton iterations by ``seed_kernel`` when the
+    kernels are on: on the seed grid exactly numpy's seed (``Road._nearest_node`` then ``Road._seed``),
+    off it (points far from the road) left to the k-d tree; ``(s, n)`` within 1e-9 of numpy's for
+    points on the road, far off it, and mixed."""
+    from tracker.compiled.centerline import seed_kernel
+    from tracker.road import PROJECTION_MIN_DENOMINATOR, SEED_GRID_RESOLUTION
+
+    road = _roads()[name]
+    rng = np.random.default_rng(17)
+    near = road.to_cartesian(rng.uniform(0.0, road.length, 400), rng.uniform(-10.0, 10.0, 400))
+    far = near + rng.normal(0.0, 200.0, (400, 2))
+    pts = np.ascontiguousarray(np.concatenate([near, far]))
+    got, missing = seed_kernel(pts, road._grid_origin, 1.0 / SEED_GRID_RESOLUTION, road._grid, road._node_frame,
+                               road._nodes, PROJECTION_MIN_DENOMINATOR)
+    assert missing.any() and (~missing).any()
+    assert np.array_equal(got[~missing], road._seed(pts, road._nearest_node(pts))[~missing])
+    for xy in (near, far, pts):
+        out = {}
+        for flag in ("1", "0"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, flag)
+            out[flag] = road.to_frenet(xy)
+        for a, b in zip(out["0"], out["1"]):
+            np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points) and points exactly on the

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.cloud import CloudConfig, CloudResult, process_cloud
 from tracker.config import ClusteringConfig
 from tracker.frame import EgoState, Frame
@@ -71,11 +72,16 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
     pts = np.asarray(points_e, dtype=float).reshape(-1, 2)
     if len(pts) == 0:
         return np.zeros(0, dtype=int)
+    count = round(2.0 * np.pi / bin_width)
+    tiles = abs(count * bin_width - 2.0 * np.pi) <= 1e-9  # the bins tile the circle: -pi and pi are one bin
+    if compiled_kernels.enabled():  # the same selection, one compiled call
+        from tracker.compiled.clustering import bearing_filter_kernel
+
+        return bearing_filter_kernel(np.ascontiguousarray(pts), float(bin_width), int(max(count, 1)), bool(tiles))
     bearing = np.arctan2(pts[:, 1], pts[:, 0])
     rng = np.hypot(pts[:, 0], pts[:, 1])
     bins = np.floor(bearing / bin_width + 0.5).astype(np.int64)
-    count = round(2.0 * np.pi / bin_width)
-    if abs(count * bin_width - 2.0 * np.pi) <= 1e-9:  # the bins tile the circle: -pi and pi are one bin
+    if tiles:
         bins = np.mod(bins, count)
     order = np.lexsort((rng, bins))  # by bin, then by range
     first = np.ones(len(order), dtype=bool)

@@ -451,14 +451,25 @@ class Road:
             idx[missing] = self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1]
         return idx
 
+    def _seed(self, pts: np.ndarray, node: np.ndarray) -> np.ndarray:
+        """The first Newton step from the curve samples ``node`` (one per point), whose frames are
+        stored: no curve evaluation."""
+        x, y, tx, ty, kappa = np.take(self._node_frame, node, axis=0).T
+        dx, dy = pts[:, 0] - x, pts[:, 1] - y
+        denom = np.maximum(1.0 - kappa * (dy * tx - dx * ty), PROJECTION_MIN_DENOMINATOR)
+        return self._nodes[node] + (dx * tx + dy * ty) / denom
+
     def _project(self, pts: np.ndarray, s_start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        if s_start is None:
-            # first Newton step from the nearest sample, whose frame is stored: no curve evaluation
-            node = self._nearest_node(pts)
-            x, y, tx, ty, kappa = np.take(self._node_frame, node, axis=0).T
-            dx, dy = pts[:, 0] - x, pts[:, 1] - y
-            denom = np.maximum(1.0 - kappa * (dy * tx - dx * ty), PROJECTION_MIN_DENOMINATOR)
-            s = self._nodes[node] + (dx * tx + dy * ty) / denom
+        if s_start is None and self._grid is not None and compiled_kernels.enabled():
+            from tracker.compiled.centerline import seed_kernel  # _nearest_node and _seed in one call
+
+            pts = np.ascontiguousarray(pts, dtype=float)
+            s, missing = seed_kernel(pts, self._grid_origin, 1.0 / SEED_GRID_RESOLUTION, self._grid, self._node_frame,
+                                     self._nodes, PROJECTION_MIN_DENOMINATOR)
+            if missing.any():
+                s[missing] = self._seed(pts[missing], self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1])
+        elif s_start is None:
+            s = self._seed(pts, self._nearest_node(pts))
         else:
             s = s_start
         if compiled_kernels.enabled():  # the same iterations, one compiled call

@@ -198,3 +198,29 @@ def sigma_rectangles_kernel(means, covs, scale, angles, period_index, period, ki
                                              weights, min_extent)
     return (sigma, center.reshape(count, points, 2), psi.reshape(count, points),
             corners.reshape(count, points, 4, 2), True)
+
+
+@njit
+def seed_kernel(pts, origin, inv_resolution, grid, node_frame, nodes, min_denominator):  # pragma: no cover - compiled
+    """``Road._project``'s start without a hint: per point the curve sample its seed-grid cell stores
+    (``Road._nearest_node``) and one Newton step from that sample's stored frame, ``s = s_node + (d . t)
+    / max(1 - kappa (d x t), min_denominator)``. Returns ``(s, missing)``: ``missing`` where the point
+    is off the grid or its cell holds no sample (the caller seeds those from the k-d tree)."""
+    count = pts.shape[0]
+    s = np.zeros(count)
+    missing = np.zeros(count, dtype=np.bool_)
+    for i in range(count):
+        cx = np.floor((pts[i, 0] - origin[0]) * inv_resolution)
+        cy = np.floor((pts[i, 1] - origin[1]) * inv_resolution)
+        node = -1
+        if cx >= 0.0 and cy >= 0.0 and cx < grid.shape[0] and cy < grid.shape[1]:
+            node = grid[int(cx), int(cy)]
+        if node < 0:
+            missing[i] = True
+            continue
+        dx = pts[i, 0] - node_frame[node, 0]
+        dy = pts[i, 1] - node_frame[node, 1]
+        tx, ty, kappa = node_frame[node, 2], node_frame[node, 3], node_frame[node, 4]
+        denom = max(1.0 - kappa * (dy * tx - dx * ty), min_denominator)
+        s[i] = nodes[node] + (dx * tx + dy * ty) / denom
+    return s, missing

@@ -245,3 +245,35 @@ def continued_ends_kernel(ends, outward, start, reach, scan, offset):
                     if abs(dx * outward[k, e, 1] - dy * outward[k, e, 0]) <= offset:
                         out[k, e] = True
     return out
+
+
+@njit
+def bearing_filter_kernel(pts, bin_width, count, wrap):  # pragma: no cover - compiled
+    """``tracker.preprocess.bearing_filter``: indices of the closest point of each bearing bin (the
+    first by index among equal ranges), in increasing bearing order (ties by index). Bins ``floor(bearing
+    / bin_width + 1/2)``, taken modulo ``count`` when ``wrap``."""
+    size = pts.shape[0]
+    bearing = np.empty(size)
+    rng = np.empty(size)
+    bins = np.empty(size, dtype=np.int64)
+    for i in range(size):
+        bearing[i] = np.arctan2(pts[i, 1], pts[i, 0])
+        rng[i] = np.hypot(pts[i, 0], pts[i, 1])
+        b = np.int64(np.floor(bearing[i] / bin_width + 0.5))
+        bins[i] = b % count if wrap else b
+    order = np.argsort(bins, kind="mergesort")  # stable: by bin, then by index
+    kept = np.empty(size, dtype=np.int64)
+    n_kept = 0
+    i = 0
+    while i < size:
+        best = order[i]
+        j = i + 1
+        while j < size and bins[order[j]] == bins[order[i]]:
+            if rng[order[j]] < rng[best]:
+                best = order[j]
+            j += 1
+        kept[n_kept] = best
+        n_kept += 1
+        i = j
+    kept = kept[:n_kept]
+    return kept[np.argsort(bearing[kept], kind="mergesort")]
