@@ -116,6 +116,25 @@ def test_switch(monkeypatch):
     assert compiled.enabled() == compiled.available()
 
 
+def test_pinned_switch_is_read_once_per_block(monkeypatch):
+    """``compiled.pinned()`` (one ``Tracker.step``): the switch as it was when the outermost block
+    began, whatever the environment says inside; read again after the block (also after an error)."""
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+    with compiled.pinned() as on:
+        assert on is False
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        assert not compiled.enabled()
+        with compiled.pinned():
+            assert not compiled.enabled()
+        assert not compiled.enabled()  # the inner block left the outer one's value
+    assert compiled.enabled() == compiled.available()
+    with pytest.raises(RuntimeError):
+        with compiled.pinned():
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            raise RuntimeError("a failed frame")
+    assert not compiled.enabled()
+
+
 def _roads():
     open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
                                     lanes=3, lane_width=3.5)

@@ -173,6 +173,10 @@ class Tracker:
     # -- public -----------------------------------------------------------------------------------
     def step(self, frame: Frame) -> list[Track]:
         """Process one frame (its lidar points, radar detections and ego pose); returns the tracks."""
+        with compiled_kernels.pinned():  # the kernels' switch read once per frame
+            return self._step(frame)
+
+    def _step(self, frame: Frame) -> list[Track]:
         if not isinstance(frame, Frame):
             raise ValueError(f"Tracker.step needs a tracker.Frame; got {type(frame).__name__}")
         if self.t is not None and frame.t < self.t - TIME_TOLERANCE:

@@ -37,9 +37,35 @@ def available() -> bool:
     return _numba is not None
 
 
+_PINNED: bool | None = None  # enabled() inside a pinned block (pinned(): one Tracker.step)
+
+
 def enabled() -> bool:
-    """Whether the tracker uses the compiled kernels: numba installed and ``EOT_NUMBA`` not ``0``."""
+    """Whether the tracker uses the compiled kernels: numba installed and ``EOT_NUMBA`` not ``0``
+    (inside a ``pinned()`` block: as it was when the block began)."""
+    if _PINNED is not None:
+        return _PINNED
     return _numba is not None and os.environ.get(ENV_SWITCH, "1").strip() not in ("0", "false", "no", "off")
+
+
+class pinned:
+    """``with pinned():`` reads the switch once and answers ``enabled()`` from it until the block ends
+    (``Tracker.step`` asks ~25 times per frame; the environment lookup costs ~1 us each). Nested blocks
+    keep the outermost value. Changing ``EOT_NUMBA`` inside a block takes effect after it."""
+
+    __slots__ = ("_outer",)
+
+    def __enter__(self) -> bool:
+        global _PINNED
+        self._outer = _PINNED is None
+        if self._outer:
+            _PINNED = enabled()
+        return _PINNED
+
+    def __exit__(self, *exc) -> None:
+        global _PINNED
+        if self._outer:
+            _PINNED = None
 
 
 def require() -> None:
