@@ -13,9 +13,15 @@ use and are cached next to this package (``cache=True``): a fresh checkout compi
 project's machines), later processes load them (~0.3 s).
 
 Kernels: ``preparation`` (cluster preparation), ``structure`` (the measurement structure),
-``centerline`` (clothoid and Hermite frames), ``motion`` (Frenet RK4), ``clustering`` (distance
-partition, radar association, points in rectangles, overlap groups, ends next to a shadow),
-``reduction`` (merging), ``kalman`` (the UKF update of the pairs).
+``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
+points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
+(bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
+next to a shadow), ``reduction`` (merging), ``kalman`` (the UKF update of the pairs; with the predicted
+measurements and the radar gate), ``extent`` (the extent rules before and after the update).
+Where one kernel does the work of several numpy steps it repeats their operations in their order, so
+that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix
+products, the Kalman update): there they agree to rounding (``tests/test_compiled.py`` says which).
+``pinned()``: the switch read once for a block (one ``Tracker.step``).
 """
 
 from __future__ import annotations
