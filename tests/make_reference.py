@@ -60,7 +60,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # needs the acceleration state, off here) and no absorption of overlapping labels (ReductionConfig.
     # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16;
     # its shadowed sides longer than predicted taken whole, MeasurementConfig.shadowed_longer_whole,
-    # need the shadow flags, off here): intended changes of the model,
+    # need the shadow flags, off here) and no one-point fragments joined to the track they continue
+    # (ClusteringConfig.fragment_points, session 17): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(
@@ -72,6 +73,7 @@ def run_reference() -> dict[str, np.ndarray]:
                                         sharp_parts_whole=False),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
+        clustering=dataclasses.replace(base.clustering, fragment_points=None),
     )
     tracker = Tracker(scene.road, config)
     frame_idx, labels, weights, means, covs = [], [], [], [], []

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tracker import compiled
-from tracker.clustering import (associate_radar, continued_ends, distance_partition, occluded_ends, points_in_rectangles,
-                                split_across)
+from tracker.clustering import (associate_radar, continued_ends, distance_partition, fragment_owners, occluded_ends,
+                                points_in_rectangles, split_across)
 from tracker.preparation import prepare_batch
 
 
@@ -176,3 +176,38 @@ def test_continued_ends_flags_a_side_that_goes_on_in_another_cluster(kernels, mo
     np.testing.assert_array_equal(continued_ends(ends, outward, half_gap, scan, 0.9, 0.3), [[False, False], [False, False]])
     assert continued_ends(ends, outward, half_gap, np.zeros((0, 2)), 3.0, 0.3).shape == (2, 2)
     assert continued_ends(np.zeros((0, 2, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2)), scan, 3.0, 0.3).shape == (0, 2)
+
+
+@pytest.mark.parametrize("ahead", [True, False], ids=["track-ahead", "track-behind"])
+def test_fragment_owners_take_small_free_fragments_past_the_far_end_only(ahead: bool) -> None:
+    """``fragment_owners``: a 6 x 2.5 m track 50 m ahead (or behind: then its rear is the far end) whose
+    length is uncertain by 2 m, stretched 4 m at the far end, plus the 1 m margin. Taken: a one-point and
+    a two-point fragment 2-3 m past the far end on its side line. Not taken: 7 m past it, 2.5 m past
+    the near end (that end is not stretched), a three-point fragment, one beside the rectangle, one
+    whose other point another track owns, anything past the far end when the length is settled, and
+    anything for a rectangle that holds no points of its own this frame (``seen``)."""
+    sign = 1.0 if ahead else -1.0
+    centre = np.array([[50.0 * sign, 0.0]])
+    pts = np.array([
+        [56.0, 1.2],                          # 0: one point 3 m past the far end: taken
+        [55.0, 1.0], [55.5, 1.0],             # 1: two points 2-2.5 m past it: taken
+        [60.0, 1.2],                          # 2: 7 m past it
+        [44.5, 1.2],                          # 3: 2.5 m past the near end
+        [55.0, -1.0], [55.4, -1.0], [55.8, -1.0],  # 4: three points
+        [55.0, 3.0],                          # 5: beside the rectangle
+        [55.2, 0.0], [55.6, 0.0],             # 6: its second point owned by another track
+    ]) * [sign, 1.0]
+    component = np.array([0, 1, 1, 2, 3, 4, 4, 4, 5, 6, 6])
+    free = np.ones(len(pts), dtype=bool)
+    free[10] = False
+    args = (centre, np.zeros(1), np.array([6.0]), np.array([2.5]))
+    got = fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0)
+    assert got.tolist() == [0, 0, 0] + [-1] * 8
+    settled = fragment_owners(pts, component, free, *args, np.array([0.0]), 1.0, 2, 2.0)
+    assert (settled == -1).all()
+    assert fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0, np.array([True])).tolist() == got.tolist()
+    unseen = fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0, np.array([False]))
+    assert (unseen == -1).all()  # a rectangle holding no points of its own (coasting) takes no fragment
+    assert (fragment_owners(pts, component, np.zeros(len(pts), dtype=bool), *args, np.array([2.0]), 1.0, 2, 2.0) == -1).all()
+    assert (fragment_owners(pts, component, free, np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0),
+                            1.0, 2, 2.0) == -1).all()

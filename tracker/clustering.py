@@ -110,6 +110,53 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     return rank[labels]
 
 
+def fragment_owners(points: np.ndarray, component: np.ndarray, free: np.ndarray, centres: np.ndarray, yaw: np.ndarray,
+                    length: np.ndarray, width: np.ndarray, length_sd: np.ndarray, margin: float, max_points: int,
+                    sigmas: float, seen: np.ndarray | None = None) -> np.ndarray:
+    """The rectangle each small fragment continues at its far end: per point ``(N,)`` a rectangle index,
+    or -1.
+
+    A connected component (``component (N,)``) of at most ``max_points`` points, all of them ``free``
+    (owned by no rectangle), whose points all lie in one rectangle (``centres``, ``yaw``, ``length``,
+    ``width``, E, m and rad) stretched at its end away from the sensor (the E origin) by ``sigmas`` times
+    its length's standard deviation ``length_sd`` and widened by ``margin`` on every side, gets that
+    rectangle's index; with ``seen (T,)`` only a rectangle that holds points of its own this frame (a
+    fragment continues a side being seen: a coasting track's stretched rectangle does not reach for the
+    first lone return of its vehicle coming back into view, which may lie anywhere about it). The side of a truck seen at grazing incidence far away
+    returns one point every 2-3 m (the ray spacing ``r delta / sin(incidence)``), beyond the clustering
+    distance: while its track's length is still a car's, the points past the predicted front are one-
+    and two-point clusters, each updating the track into a posterior of its own (a split label) or
+    seeding a newborn. Only the far end is stretched (the near end is where the returns start), and only
+    by what the length is still uncertain by: a settled length takes nothing past its rectangle."""
+    out = np.full(len(component), -1)
+    free = np.asarray(free, dtype=bool)
+    if not free.any() or len(centres) == 0:
+        return out
+    size = np.bincount(component)
+    free_size = np.bincount(component, weights=free, minlength=len(size))
+    small = np.flatnonzero(free & (size[component] <= max_points) & (free_size[component] == size[component]))
+    if not len(small):
+        return out
+    stretch = sigmas * np.asarray(length_sd, dtype=float)
+    if seen is not None:
+        stretch = np.where(seen, stretch, 0.0)
+    axis = np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
+    far = np.where(np.einsum("td,td->t", centres, axis) >= 0.0, 1.0, -1.0)  # the sensor behind: the front is far
+    hit = points_in_rectangles(points[small], centres + (0.5 * stretch * far)[:, None] * axis, yaw, length + stretch,
+                               width, margin)
+    _, which = np.unique(component[small], return_inverse=True)
+    lo = np.full(which.max() + 1, np.iinfo(np.int64).max)
+    hi = np.full(which.max() + 1, -1)
+    np.minimum.at(lo, which, hit)
+    np.maximum.at(hi, which, hit)
+    whole = (lo >= 0) & (lo == hi)  # every point of the fragment in one and the same rectangle
+    if seen is not None:
+        whole &= np.asarray(seen, dtype=bool)[np.maximum(lo, 0)]
+    take = whole[which]
+    out[small[take]] = lo[which][take]
+    return out
+
+
 def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = 8) -> np.ndarray:
     """Part index (0..P-1) of each point: the points of each ``group`` (integer labels, any values)
     whose extent in ``n`` (the lateral road offset, m) exceeds ``width`` are cut at their largest gap

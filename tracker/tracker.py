@@ -67,14 +67,14 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, occluded_ends,
-                                points_in_rectangles, split_across)
+from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, fragment_owners,
+                                occluded_ends, points_in_rectangles, split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
-from tracker.motion import make_motion, predict
+from tracker.motion import LENGTH, make_motion, predict
 from tracker.point import PointTracker
 from tracker.preparation import prepare_batch
 from tracker.preprocess import filter_points, lidar_points
@@ -389,6 +389,14 @@ class Tracker:
             component = distance_partition(points, cfg.distance)
             inside = owner >= 0  # inside a rectangle (plus margin), before strays are adopted
             owner = _adopt_strays(component, owner)
+            if cfg.fragment_points is not None and len(tracks):  # a far truck's side past its track's front
+                sd = np.sqrt(np.maximum(self.mixture.covs[tracks, LENGTH, LENGTH], 0.0))
+                seen = np.isin(groups, owner[owner >= 0])  # the tracks whose group holds points this frame
+                adopted = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length,
+                                          rect.width, sd, cfg.track_margin, cfg.fragment_points, cfg.fragment_sigmas,
+                                          seen)
+                self.stats["fragment_points_adopted"] += int((adopted >= 0).sum())
+                owner = np.where(adopted >= 0, groups[np.maximum(adopted, 0)], owner)
             # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
             # the other points form one cluster per connected component
             key = np.where(owner >= 0, owner, len(tracks) + component)
