@@ -180,34 +180,67 @@ def test_continued_ends_flags_a_side_that_goes_on_in_another_cluster(kernels, mo
 
 @pytest.mark.parametrize("ahead", [True, False], ids=["track-ahead", "track-behind"])
 def test_fragment_owners_take_small_free_fragments_past_the_far_end_only(ahead: bool) -> None:
-    """``fragment_owners``: a 6 x 2.5 m track 50 m ahead (or behind: then its rear is the far end) whose
-    length is uncertain by 2 m, stretched 4 m at the far end, plus the 1 m margin. Taken: a one-point and
-    a two-point fragment 2-3 m past the far end on its side line. Not taken: 7 m past it, 2.5 m past
-    the near end (that end is not stretched), a three-point fragment, one beside the rectangle, one
-    whose other point another track owns, anything past the far end when the length is settled, and
-    anything for a rectangle that holds no points of its own this frame (``seen``)."""
+    """``fragment_owners``: a 6 x 2.5 m track 50 m ahead in the next lane (or behind: then its rear is
+    the far end) whose length is uncertain by 2 m, stretched 4 m at the far end, plus the 1 m margin;
+    its right side (2.25 m left of the sensor's axis) faces the sensor. Taken: a one-point and a
+    two-point fragment 2-3 m past the far end on that side's line. Not taken: 7 m past it, 2.5 m past
+    the near end (that end is not stretched), a three-point fragment, one beside the rectangle, one whose
+    other point another track owns; nothing when the length is known to within the margin or the track
+    holds no points of its own (``seen``); not the same fragments on the far side's line (the body hides
+    them; nor are they on the side facing the sensor); and never a point the rectangle hides from the
+    sensor."""
     sign = 1.0 if ahead else -1.0
-    centre = np.array([[50.0 * sign, 0.0]])
+    centre = np.array([[50.0 * sign, 3.5]])
     pts = np.array([
-        [56.0, 1.2],                          # 0: one point 3 m past the far end: taken
-        [55.0, 1.0], [55.5, 1.0],             # 1: two points 2-2.5 m past it: taken
-        [60.0, 1.2],                          # 2: 7 m past it
-        [44.5, 1.2],                          # 3: 2.5 m past the near end
-        [55.0, -1.0], [55.4, -1.0], [55.8, -1.0],  # 4: three points
-        [55.0, 3.0],                          # 5: beside the rectangle
-        [55.2, 0.0], [55.6, 0.0],             # 6: its second point owned by another track
+        [56.0, 2.3],                          # 0: one point 3 m past the far end: taken
+        [55.0, 2.35], [55.5, 2.3],            # 1: two points 2-2.5 m past it: taken
+        [60.0, 2.3],                          # 2: 7 m past it
+        [44.5, 2.3],                          # 3: 2.5 m past the near end
+        [55.0, 4.5], [55.4, 4.5], [55.8, 4.5],  # 4: three points
+        [55.0, 0.5],                          # 5: beside the rectangle
+        [55.2, 3.0], [55.6, 3.0],             # 6: its second point owned by another track
     ]) * [sign, 1.0]
     component = np.array([0, 1, 1, 2, 3, 4, 4, 4, 5, 6, 6])
     free = np.ones(len(pts), dtype=bool)
     free[10] = False
     args = (centre, np.zeros(1), np.array([6.0]), np.array([2.5]))
-    got = fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0)
+    sd = np.array([2.0])
+    got = fragment_owners(pts, component, free, *args, sd, 1.0, 2, 2.0)
     assert got.tolist() == [0, 0, 0] + [-1] * 8
-    settled = fragment_owners(pts, component, free, *args, np.array([0.0]), 1.0, 2, 2.0)
-    assert (settled == -1).all()
-    assert fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0, np.array([True])).tolist() == got.tolist()
-    unseen = fragment_owners(pts, component, free, *args, np.array([2.0]), 1.0, 2, 2.0, np.array([False]))
-    assert (unseen == -1).all()  # a rectangle holding no points of its own (coasting) takes no fragment
-    assert (fragment_owners(pts, component, np.zeros(len(pts), dtype=bool), *args, np.array([2.0]), 1.0, 2, 2.0) == -1).all()
+    for settled in (0.0, 0.45):  # 2 sd within the 1 m margin: not stretched
+        assert (fragment_owners(pts, component, free, *args, np.array([settled]), 1.0, 2, 2.0) == -1).all()
+    assert (fragment_owners(pts, component, np.zeros(len(pts), dtype=bool), *args, sd, 1.0, 2, 2.0) == -1).all()
     assert (fragment_owners(pts, component, free, np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0),
                             1.0, 2, 2.0) == -1).all()
+    assert fragment_owners(pts, component, free, *args, sd, 1.0, 2, 2.0, np.array([True])).tolist() == got.tolist()
+    unseen = fragment_owners(pts, component, free, *args, sd, 1.0, 2, 2.0, np.array([False]))
+    assert (unseen == -1).all()  # a rectangle holding no points of its own (coasting) takes no fragment
+    assert fragment_owners(pts, component, free, *args, sd, 1.0, 2, 2.0, None, 0.3).tolist() == got.tolist()
+    far_side = pts.copy()
+    far_side[:3, 1] = 7.0 - far_side[:3, 1]  # mirrored about the track's axis: on its left side's line,
+    for tolerance in (None, 0.3):  # which the body hides from the sensor (and which does not face it)
+        assert (fragment_owners(far_side, component, free, *args, sd, 1.0, 2, 2.0, None, tolerance)[:3] == -1).all()
+    # the track straight ahead: its rear hides a point 1.2 m left of its axis past its front
+    ahead_of_sensor = (centre * [1.0, 0.0], *args[1:])
+    hidden = np.array([[56.0 * sign, 1.2]])
+    assert fragment_owners(hidden, np.zeros(1, dtype=int), np.ones(1, dtype=bool), *ahead_of_sensor, sd, 1.0, 2,
+                           2.0).tolist() == [-1]
+    seen_past = np.array([[56.0 * sign, 1.6]])  # 1.6 m left: the ray passes the rear's corner
+    assert fragment_owners(seen_past, np.zeros(1, dtype=int), np.ones(1, dtype=bool), *ahead_of_sensor, sd, 1.0, 2,
+                           2.0).tolist() == [0]
+
+
+def test_segment_crosses_box_by_the_slab_test() -> None:
+    """``segment_crosses_box`` against hand-made cases: through the middle, past a corner, ending short
+    of the box, starting inside, parallel inside and outside a slab, touching an edge (the box is
+    open), an empty box."""
+    from tracker.clustering import segment_crosses_box
+
+    start = np.array([[-10.0, 0.0], [-10.0, 2.0], [-10.0, 0.0], [0.0, 0.0], [-10.0, 0.5], [-10.0, 1.5], [-10.0, 1.0],
+                      [-10.0, 0.0]])
+    end = np.array([[10.0, 0.0], [10.0, 1.5], [-3.0, 0.0], [10.0, 5.0], [10.0, 0.5], [10.0, 1.5], [10.0, 1.0],
+                    [10.0, 0.0]])
+    half_l = np.array([2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 0.0])
+    half_w = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    assert segment_crosses_box(start, end, half_l, half_w).tolist() == [True, False, False, True, True, False, False,
+                                                                         False]

@@ -112,22 +112,30 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
 
 def fragment_owners(points: np.ndarray, component: np.ndarray, free: np.ndarray, centres: np.ndarray, yaw: np.ndarray,
                     length: np.ndarray, width: np.ndarray, length_sd: np.ndarray, margin: float, max_points: int,
-                    sigmas: float, seen: np.ndarray | None = None) -> np.ndarray:
+                    sigmas: float, seen: np.ndarray | None = None, side_tolerance: float | None = None) -> np.ndarray:
     """The rectangle each small fragment continues at its far end: per point ``(N,)`` a rectangle index,
     or -1.
 
-    A connected component (``component (N,)``) of at most ``max_points`` points, all of them ``free``
-    (owned by no rectangle), whose points all lie in one rectangle (``centres``, ``yaw``, ``length``,
-    ``width``, E, m and rad) stretched at its end away from the sensor (the E origin) by ``sigmas`` times
-    its length's standard deviation ``length_sd`` and widened by ``margin`` on every side, gets that
-    rectangle's index; with ``seen (T,)`` only a rectangle that holds points of its own this frame (a
-    fragment continues a side being seen: a coasting track's stretched rectangle does not reach for the
-    first lone return of its vehicle coming back into view, which may lie anywhere about it). The side of a truck seen at grazing incidence far away
-    returns one point every 2-3 m (the ray spacing ``r delta / sin(incidence)``), beyond the clustering
-    distance: while its track's length is still a car's, the points past the predicted front are one-
-    and two-point clusters, each updating the track into a posterior of its own (a split label) or
-    seeding a newborn. Only the far end is stretched (the near end is where the returns start), and only
-    by what the length is still uncertain by: a settled length takes nothing past its rectangle."""
+    The side of a truck seen at grazing incidence far away returns one point every 2-3 m (the ray
+    spacing ``r delta / sin(incidence)``), beyond the clustering distance: while its track's length is
+    still a car's, the points past the predicted front are one-point clusters, each updating the track
+    into a posterior of its own (a split label) or seeding a newborn. So a connected component
+    (``component (N,)``) of at most ``max_points`` points, all of them ``free`` (owned by no rectangle),
+    gets the index of the rectangle (``centres``, ``yaw``, ``length``, ``width``, E, m and rad) whose
+    stretched version holds all its points, when
+
+    - the stretch: the rectangle grows at its end away from the sensor (the E origin; the near end is
+      where the returns start) by ``sigmas`` times its length's standard deviation ``length_sd``, plus
+      ``margin`` on every side; a length known to within ``margin`` (``sigmas`` sd at most ``margin``)
+      is not stretched (a lone return past a measured car is noise: lidar spikes grew such a car, and the
+      grown uncertainty reached for the next spike);
+    - with ``seen (T,)``: the rectangle holds points of its own this frame (a fragment continues a side
+      being seen; a coasting track does not reach for the first lone return of its vehicle coming back
+      into view, which may lie anywhere about it);
+    - with ``side_tolerance`` (m): the point lies within that distance of the line of the rectangle's
+      long side facing the sensor (a side going on; a spurious return lands anywhere across);
+    - the rectangle itself, shrunk by ``OCCLUSION_SHRINK``, does not hide the point from the sensor (a
+      lidar spike along a ray that hit the vehicle lands behind it; a side going on is seen past it)."""
     out = np.full(len(component), -1)
     free = np.asarray(free, dtype=bool)
     if not free.any() or len(centres) == 0:
@@ -138,23 +146,64 @@ def fragment_owners(points: np.ndarray, component: np.ndarray, free: np.ndarray,
     if not len(small):
         return out
     stretch = sigmas * np.asarray(length_sd, dtype=float)
+    stretch = np.where(stretch > margin, stretch, 0.0)  # a length known to within the margin: not stretched
     if seen is not None:
         stretch = np.where(seen, stretch, 0.0)
     axis = np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
     far = np.where(np.einsum("td,td->t", centres, axis) >= 0.0, 1.0, -1.0)  # the sensor behind: the front is far
     hit = points_in_rectangles(points[small], centres + (0.5 * stretch * far)[:, None] * axis, yaw, length + stretch,
                                width, margin)
+    k = np.maximum(hit, 0)
+    normal = np.stack([-axis[k, 1], axis[k, 0]], axis=-1)
+    rel = points[small] - centres[k]
+    along, across = np.einsum("pd,pd->p", rel, axis[k]), np.einsum("pd,pd->p", rel, normal)
+    sensor_along, sensor_across = np.einsum("pd,pd->p", -centres[k], axis[k]), np.einsum("pd,pd->p", -centres[k], normal)
+    if side_tolerance is not None:  # on the line of the long side facing the sensor
+        side = np.where(sensor_across >= 0.0, 0.5, -0.5) * np.asarray(width, dtype=float)[k]
+        hit = np.where(np.abs(across - side) <= side_tolerance, hit, -1)
+    # not behind the vehicle's own body: the ray to a real return does not cross the rectangle (shrunk by
+    # ``OCCLUSION_SHRINK`` against its uncertainty); a spurious one along a ray that hit the vehicle does
+    half_l = 0.5 * np.asarray(length, dtype=float)[k] - OCCLUSION_SHRINK
+    half_w = 0.5 * np.asarray(width, dtype=float)[k] - OCCLUSION_SHRINK
+    hidden = segment_crosses_box(np.stack([sensor_along, sensor_across], -1), np.stack([along, across], -1),
+                                 half_l, half_w)
+    hit = np.where(hidden, -1, hit)
     _, which = np.unique(component[small], return_inverse=True)
     lo = np.full(which.max() + 1, np.iinfo(np.int64).max)
     hi = np.full(which.max() + 1, -1)
     np.minimum.at(lo, which, hit)
     np.maximum.at(hi, which, hit)
     whole = (lo >= 0) & (lo == hi)  # every point of the fragment in one and the same rectangle
-    if seen is not None:
-        whole &= np.asarray(seen, dtype=bool)[np.maximum(lo, 0)]
+    whole &= stretch[np.maximum(lo, 0)] > 0.0  # (seen, and a length still uncertain)
     take = whole[which]
     out[small[take]] = lo[which][take]
     return out
+
+
+#: Metres by which ``fragment_owners`` shrinks a rectangle before asking whether it hides a fragment.
+OCCLUSION_SHRINK = 0.2
+
+
+def segment_crosses_box(start: np.ndarray, end: np.ndarray, half_length: np.ndarray, half_width: np.ndarray) -> np.ndarray:
+    """Whether each segment ``start (P, 2)`` -> ``end (P, 2)`` (in the box's own axes) passes through the
+    open box ``|x| < half_length``, ``|y| < half_width`` (``P,`` boxes; an empty box, a half-extent
+    not above 0, is crossed by nothing). The slab test: the parameter intervals in which the segment
+    lies inside each slab must overlap within ``[0, 1]``."""
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    d = end - start
+    lo, hi = np.zeros(len(start)), np.ones(len(start))
+    ok = (np.asarray(half_length) > 0.0) & (np.asarray(half_width) > 0.0)
+    for axis, half in ((0, np.asarray(half_length, dtype=float)), (1, np.asarray(half_width, dtype=float))):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0 = (-half - start[:, axis]) / d[:, axis]
+            t1 = (half - start[:, axis]) / d[:, axis]
+        parallel = d[:, axis] == 0.0
+        inside = np.abs(start[:, axis]) < half
+        ok &= ~parallel | inside  # parallel to the slab and outside it: never in
+        enter = np.where(parallel, -np.inf, np.minimum(t0, t1))
+        leave = np.where(parallel, np.inf, np.maximum(t0, t1))
+        lo, hi = np.maximum(lo, enter), np.minimum(hi, leave)
+    return ok & (lo < hi)
 
 
 def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = 8) -> np.ndarray:

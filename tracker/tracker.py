@@ -394,7 +394,7 @@ class Tracker:
                 seen = np.isin(groups, owner[owner >= 0])  # the tracks whose group holds points this frame
                 adopted = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length,
                                           rect.width, sd, cfg.track_margin, cfg.fragment_points, cfg.fragment_sigmas,
-                                          seen)
+                                          seen, cfg.fragment_side_tolerance)
                 self.stats["fragment_points_adopted"] += int((adopted >= 0).sum())
                 owner = np.where(adopted >= 0, groups[np.maximum(adopted, 0)], owner)
             # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
