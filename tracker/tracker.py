@@ -391,12 +391,15 @@ class Tracker:
             owner = _adopt_strays(component, owner)
             if cfg.fragment_points is not None and len(tracks):  # a far truck's side past its track's front
                 sd = np.sqrt(np.maximum(self.mixture.covs[tracks, LENGTH, LENGTH], 0.0))
-                seen = np.isin(groups, owner[owner >= 0])  # the tracks whose group holds points this frame
+                held = np.zeros(int(groups.max()) + 1, dtype=bool)
+                held[owner[owner >= 0]] = True  # the groups holding points this frame
                 adopted = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length,
                                           rect.width, sd, cfg.track_margin, cfg.fragment_points, cfg.fragment_sigmas,
-                                          seen, cfg.fragment_side_tolerance)
-                self.stats["fragment_points_adopted"] += int((adopted >= 0).sum())
-                owner = np.where(adopted >= 0, groups[np.maximum(adopted, 0)], owner)
+                                          held[groups], cfg.fragment_side_tolerance)
+                taken = adopted >= 0
+                if taken.any():
+                    self.stats["fragment_points_adopted"] += int(taken.sum())
+                    owner = np.where(taken, groups[np.maximum(adopted, 0)], owner)
             # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
             # the other points form one cluster per connected component
             key = np.where(owner >= 0, owner, len(tracks) + component)
