@@ -95,7 +95,8 @@ class Tracker:
     ``stats`` counts, over the tracker's life: ``frames``, ``predict_only_frames``,
     ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
     ``clusters_fused``, ``clusters_too_small``, ``clusters_split`` (parts added by cutting clusters wider
-    across the road than one vehicle, ``clustering.split_width``), ``pairs_pre_gated`` (centroid within the gating
+    across the road than one vehicle, ``clustering.split_width``), ``fragment_points_adopted`` (lone returns
+    joined to the track whose side they continue, ``clustering.fragment_points``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
     ``cluster_ends_continued`` (ends whose side goes on in another cluster, ``measurement.continuation_rays``),
