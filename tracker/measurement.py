@@ -155,6 +155,15 @@ class Rectangles:
             object.__setattr__(self, "_corners", cached)
         return cached
 
+    @classmethod
+    def of_states(cls, states: np.ndarray, center: np.ndarray, psi: np.ndarray, corners: np.ndarray) -> Rectangles:
+        """The rectangles of states ``(..., 7 or 8)`` whose centres ``(..., 2)``, headings ``(...)`` and
+        corners ``(..., 4, 2)`` in E a compiled kernel computed: the speed from the states, the extent
+        floored at ``MIN_EXTENT`` (as ``to_vehicle``)."""
+        rect = cls(center, psi, states[..., 2], np.maximum(states[..., 5], MIN_EXTENT),
+                   np.maximum(states[..., 6], MIN_EXTENT))
+        return rect.with_corners(corners)
+
     def with_corners(self, corners: np.ndarray) -> Rectangles:
         """These rectangles with their corners already computed (``corners()`` then returns them,
         read-only): for a producer that computes them anyway (the compiled ``to_vehicle``)."""
@@ -226,9 +235,8 @@ def to_vehicle(
             kind, *curve = road._curve.kernel_args()
             center, psi, corners = to_vehicle_kernel(kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
                                                      road.length, road._ends_array, *curve, MIN_EXTENT)
-            rect = Rectangles(center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]), x[..., 2],
-                              np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
-            return rect.with_corners(corners.reshape(x.shape[:-1] + (4, 2)))
+            return Rectangles.of_states(x, center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]),
+                                        corners.reshape(x.shape[:-1] + (4, 2)))
         if euler_s0 is None:
             xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
         else:

@@ -91,8 +91,7 @@ def kalman_update(
         raise ValueError(
             f"kalman_update: inconsistent shapes sigma {sigma.shape}, z_sigma {z_sigma.shape}, z {z.shape}, r {r.shape}"
         )
-    if np.any(r[mask] <= 0):
-        raise ValueError("kalman_update: measurement noise variances r must be > 0")
+    _check_noise(r, mask)
     if compiled_kernels.enabled() and len(wrapping.periods) <= 1 and z.shape[0]:
         from tracker.compiled.kalman import kalman_kernel
 
@@ -144,6 +143,12 @@ def kalman_update(
     post_cov = 0.5 * (post_cov + np.swapaxes(post_cov, 1, 2))
     loglik = -0.5 * (dim * LOG_2PI + logdet + nis)
     return UpdateResult(post_mean, post_cov, loglik, nis, dim, y, (z - y) * mask)
+
+
+def _check_noise(r: np.ndarray, mask: np.ndarray) -> None:
+    """A clear error for a measurement noise variance (of a row in use) that is not positive."""
+    if np.any(r[mask] <= 0):
+        raise ValueError("kalman_update: measurement noise variances r must be > 0")
 
 
 def state_wrapping(road: Road | None, coordinates: str) -> Wrapping:
@@ -282,9 +287,7 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
         if finite is False:
             raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
         if finite:
-            rect = Rectangles(center, psi, sigma[..., 2], np.maximum(sigma[..., 5], MIN_EXTENT),
-                              np.maximum(sigma[..., 6], MIN_EXTENT))
-            return sigma, rect.with_corners(corners)
+            return sigma, Rectangles.of_states(sigma, center, psi, corners)
     sigma = ut.sigma_points(means, covs, wrapping)
     return sigma, to_vehicle(sigma, ego, road, coordinates, euler_s0)
 
@@ -298,8 +301,7 @@ def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarr
     or a non-finite input the numpy path reports)."""
     if not compiled_kernels.enabled() or len(wrapping.periods) > 1 or not len(means):
         return None
-    if np.any(structure.r[structure.mask] <= 0):
-        raise ValueError("kalman_update: measurement noise variances r must be > 0")
+    _check_noise(structure.r, structure.mask)
     from tracker.compiled.kalman import measurement_update_kernel
 
     c = np.ascontiguousarray

@@ -12,10 +12,8 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
-
-FULL = 0  # tracker.measurement.FULL
-LENGTH, WIDTH = 5, 6
-XI = 3
+from tracker.compiled.structure import FULL
+from tracker.motion import LENGTH, WIDTH, XI
 
 
 @njit
