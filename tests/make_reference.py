@@ -61,7 +61,9 @@ def run_reference() -> dict[str, np.ndarray]:
     # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16;
     # its shadowed sides longer than predicted taken whole, MeasurementConfig.shadowed_longer_whole,
     # need the shadow flags, off here) and no one-point fragments joined to the track they continue
-    # (ClusteringConfig.fragment_points, session 17): intended changes of the model,
+    # (ClusteringConfig.fragment_points, session 17) and no shadowed parts of two-sided clusters held
+    # partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs the shadow flags,
+    # off here): intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(

@@ -241,6 +241,53 @@ def test_a_shadowed_side_longer_than_predicted_is_measured_whole(compiled) -> No
     assert mode(EXACT) == FROM_A
 
 
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predicted(compiled) -> None:
+    """A 16 m bus 25 m ahead, 5 m left, shows its right side and rear, rays every 0.05 deg; its front
+    1.2 m lie in a nearer object's shadow (``ClusterBatch.occluded_end[:, 0]``, the side's far end is
+    the cluster's first point). Predicted at its true 16 m, the visible side covers over 90 % of it:
+    the whole side before (``FULL``, the length pulled to what shows), partially visible and anchored at
+    the corner (``FROM_B``) with ``MeasurementConfig.shadowed_parts_partial``. Predicted 12 m long (same
+    rear-right corner), the side is longer than predicted: measured whole, to the last return (no
+    end-gap margin at the shadowed end, so the first point is the far corner: ``c1 = 0``). The rule
+    off, no shadow flags, or the shadow at the other end (the rear's): ``FULL`` as before."""
+    bus = np.array([25.0, 5.0, 10.0, 0.0, 0.0, 16.0, 2.5])
+    k = corners_of(bus)  # K0 front-right (lowest bearing), K3 rear-right, K2 rear-left
+    visible_front = k[0] + 1.2 * (k[3] - k[0]) / 16.0
+    pts, hit = rectangle_scan(k, np.arange(bearing(visible_front), bearing(k[2]), np.radians(0.05)))
+    assert hit.all()
+    config = MeasurementConfig()
+    batch = ClusterBatch.of([prepare_cluster(pts, config)])
+    assert batch.two_sided[0]
+    shadowed = dataclasses.replace(batch, occluded_end=np.array([[True, False]]))
+    true_length = corners_of(bus)[None]
+    short = corners_of(bus + np.array([-2.0, 0.0, 0.0, 0.0, 0.0, -4.0, 0.0]))[None]  # 12 m, same K3
+    np.testing.assert_allclose(short[0, 3], k[3], atol=1e-12)
+    sd = np.array([[1.0, 0.2]])
+    off = dataclasses.replace(config, shadowed_parts_partial=False)
+
+    def structure(b, corners=true_length, cfg=config):
+        st = build_structure(b, np.array([0]), corners, cfg, extent_sd=sd, compiled=compiled)
+        assert st.two_sided[0] and st.sides[0].tolist() == [3, 2]  # the right side, then the rear
+        return st
+
+    covered = batch.chord_len[0, 1] + batch.end_margin[0, 1].sum()
+    assert 0.9 * 16.0 < covered < 16.0  # what the rule is about: over partial_visibility, short of the side
+    assert structure(shadowed).mode[0, 0] == FROM_B
+    assert structure(shadowed, cfg=off).mode[0, 0] == FULL
+    assert structure(batch).mode[0, 0] == FULL  # no flags
+    assert structure(dataclasses.replace(batch, occluded_end=np.array([[False, True]]))).mode[0, 0] == FULL
+    longer = structure(shadowed, corners=short)
+    assert longer.mode[0, 0] == FULL and abs(longer.c1[0, 0]) < 1e-12  # to the last return
+    before = structure(shadowed, corners=short, cfg=off)
+    assert before.mode[0, 0] == FULL and before.c1[0, 0] > 0.0  # the end-gap margin beyond it
+    # both paths agree
+    other = build_structure(shadowed, np.array([0]), short, config, extent_sd=sd, compiled=not compiled)
+    np.testing.assert_array_equal(other.mode, longer.mode)
+    np.testing.assert_allclose(other.coef, longer.coef, atol=1e-12)
+    np.testing.assert_allclose(other.r, longer.r, atol=1e-12)
+
+
 def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     """A motorcycle (2.2 x 0.8 m) 20 m straight ahead shows its whole 0.8 m rear; predicted as a car
     (1.9 m wide) the rear covers 42 % of the predicted one. With ``MeasurementConfig.sharp_side_whole``

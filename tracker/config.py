@@ -367,6 +367,14 @@ class MeasurementConfig:
       ``LONGEST_VEHICLE`` 25.25 m): that is two vehicles', or a vehicle's and a roadside object's,
       points in one cluster (without this guard, on ``hill-vlp16`` with the VLP-16 a van's track became
       3 m wide and then, by the long-vehicle prior, 12 m long: length RMSE 0.39 -> 0.73 m).
+    - ``shadowed_parts_partial`` (session 18; needs ``shadow_window``): a part of a two-sided cluster
+      whose far end (the cluster's first or last point in bearing) borders another object's shadow goes
+      on behind it, so it is partially visible, anchored at the fitted corner, whatever its extent,
+      unless it covers more than its predicted side (then, as before, it is measured whole: the vehicle
+      is at least that long). Without it such a part counted as the whole side as long as it covered
+      ``partial_visibility`` of the prediction, and the extent shrank with the visible part: a 16 m bus
+      seen from behind and beside whose front roadside objects hid, 0.5 m more every frame, lost 1 m of
+      length before the part fell below 90 % (stop-and-go, issue 10).
     - ``sharp_parts_whole`` (session 14; needs ``shadow_window``): the same for each part of a two-sided
       cluster, from the fitted corner to its far end: a part with a sharp, free far end (sharp also
       when the predicted side goes on beyond the last return for two whole ray gaps,
@@ -431,6 +439,7 @@ class MeasurementConfig:
     sharp_side_whole: bool = True
     sharp_parts_whole: bool = True
     shadowed_longer_whole: bool = True
+    shadowed_parts_partial: bool = True
     whole_min_points: int = 4
     whole_gate_sigmas: float = 3.0
     whole_gate_slack: float = 0.3
@@ -450,7 +459,7 @@ class MeasurementConfig:
         _check("MeasurementConfig", "shadow_margin", self.shadow_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_range_margin", self.shadow_range_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_free_gap", self.shadow_free_gap, low=0.0, unit="m")
-        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole"):
+        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole", "shadowed_parts_partial"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"MeasurementConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check_int("MeasurementConfig", "whole_min_points", self.whole_min_points, 2)

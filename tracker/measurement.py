@@ -50,7 +50,9 @@ ray gap at most ``shadow_free_gap``) and free (no nearer return beyond it, ``occ
 continuing its line, ``continued_end``) is the whole side (``sharp_side_whole``), and so is a part of a
 two-sided cluster from the fitted corner to a sharp, free far end, when both parts have enough points
 and the side shrinks by no more than the extent's uncertainty allows (``sharp_parts_whole``); a side
-with an end in a shadow is partially visible whatever its extent.
+with an end in a shadow is partially visible whatever its extent (one-sided, when its other end is
+sharp; a part of a two-sided cluster, ``shadowed_parts_partial``, unless its chord is longer than the
+predicted side: then it is measured whole to its last return, no end-gap margin at the shadowed end).
 
 Measurement generating points (one per point, in the same order, so no association is needed), with
 ``e_lo``, ``e_hi`` the end margins of the part (0 without the correction or at a fitted corner):
@@ -619,6 +621,11 @@ def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, exten
                 and extent_sd is not None)
 
 
+def _shadowed_parts_partial(config: MeasurementConfig, batch: ClusterBatch) -> bool:
+    """Whether ``MeasurementConfig.shadowed_parts_partial`` applies: it needs the shadow flags."""
+    return bool(config.shadowed_parts_partial and batch.occluded_end is not None)
+
+
 def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,
                       settled_width_std: float | None) -> np.ndarray:
     """Whether a chord ``excess`` (m) longer than its predicted side is evidence of a longer side, not
@@ -706,6 +713,13 @@ def build_structure(
     slots = np.where(two[:, None], np.array([1, 2]), np.array([0, 0]))  # (P, 2)
     chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
     margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
+    occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
+    shadowed_parts = _shadowed_parts_partial(config, batch)
+    if shadowed_parts:
+        # a two-sided part's far end (part 0: the first point, part 1: the last) in a shadow is no end of
+        # the side: no end-gap margin there, the chord reaches at least to the last return
+        margin[:, 0, 0] = np.where(two & occ[:, 0], 0.0, margin[:, 0, 0])
+        margin[:, 1, 1] = np.where(two & occ[:, 1], 0.0, margin[:, 1, 1])
     covered = chord_len + margin.sum(axis=2)
     predicted = side_len[rows[:, None], sides]  # (P, 2) the predicted length of each part's side
     alpha = covered / np.maximum(predicted, 1e-12)
@@ -713,7 +727,6 @@ def build_structure(
     # a part with an end in another object's shadow goes on behind it: partially visible
     # one-sided only (a corner anchors the two-sided), and only when the other end is sharp (its
     # end-gap margin at most shadow_free_gap: not a far or grazing side whose next ray skips metres)
-    occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
     sharp_end = batch.end_gap[ci] <= config.shadow_free_gap  # (P, 3 slots, 2 ends): half a ray gap at most
     sharp = sharp_end[:, 0]  # (P, 2 ends) of the one-sided chord
     free = _free_ends(batch, ci)  # (P, 2) the bearing ends: in no shadow, not continued
@@ -740,6 +753,11 @@ def build_structure(
         consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
         enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
         partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
+    if shadowed_parts:
+        # ... and the side goes on behind it: partially visible, anchored at the corner, unless the chord
+        # is longer than its predicted side (a lower bound: measured whole, to the last return); a bus
+        # whose front roadside objects hid frame by frame shrank with its visible side
+        partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
     if _shadowed_longer_whole(config, batch, extent_sd):
         # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
@@ -853,6 +871,7 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
         WIDEST_VEHICLE, LONGEST_VEHICLE,
         -1.0 if config.settled_width_std is None else float(config.settled_width_std),
+        _shadowed_parts_partial(config, batch),
     )
     return Structure(*fields)
 

@@ -31,12 +31,13 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                      min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
-                     missed_rays, longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd):
+                     missed_rays, longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd,
+                     parts_shadowed):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
     ``longer_whole``: ``MeasurementConfig.shadowed_longer_whole`` with the growth evidence ``growth_min``,
     ``growth_sigmas``, the widest and longest vehicle ``widest``, ``longest`` and the settled width
-    ``settled_sd`` (negative: None)."""
+    ``settled_sd`` (negative: None); ``parts_shadowed``: ``MeasurementConfig.shadowed_parts_partial``."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -133,8 +134,17 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         slot1 = 2 if two else 0
         ln0 = chord_len_in[c, slot0]
         ln1 = chord_len_in[c, slot1]
-        partial0 = (ln0 + end_margin[c, slot0, 0] + end_margin[c, slot0, 1]) / max(side_len[side0], 1e-12) <= partial_visibility
-        partial1 = (ln1 + end_margin[c, slot1, 0] + end_margin[c, slot1, 1]) / max(side_len[side1], 1e-12) <= partial_visibility
+        m0_lo = end_margin[c, slot0, 0]  # end-gap margins of each part's two ends
+        m0_hi = end_margin[c, slot0, 1]
+        m1_lo = end_margin[c, slot1, 0]
+        m1_hi = end_margin[c, slot1, 1]
+        if parts_shadowed and two:  # a far end in a shadow is no end of the side: no margin there
+            if occluded[c, 0]:
+                m0_lo = 0.0
+            if occluded[c, 1]:
+                m1_hi = 0.0
+        partial0 = (ln0 + m0_lo + m0_hi) / max(side_len[side0], 1e-12) <= partial_visibility
+        partial1 = (ln1 + m1_lo + m1_hi) / max(side_len[side1], 1e-12) <= partial_visibility
         # a one-sided part with exactly one end in another object's shadow and a sharp other end goes on
         # behind it: partially visible, anchored at the sharp end (a corner anchors the two-sided)
         occ_lo = occluded[c, 0]
@@ -158,8 +168,8 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                         n1 += 1
             sd0 = extent_sd[p, 0] if side0 % 2 == 1 else extent_sd[p, 1]  # odd sides are the length
             sd1 = extent_sd[p, 0] if side1 % 2 == 1 else extent_sd[p, 1]
-            shrink0 = side_len[side0] - (ln0 + end_margin[c, slot0, 0] + end_margin[c, slot0, 1])
-            shrink1 = side_len[side1] - (ln1 + end_margin[c, slot1, 0] + end_margin[c, slot1, 1])
+            shrink0 = side_len[side0] - (ln0 + m0_lo + m0_hi)
+            shrink1 = side_len[side1] - (ln1 + m1_lo + m1_hi)
             enough = n0 >= min_points and n1 >= min_points  # both: the corner is fitted from two lines
             # a far end is sharp by its ray gap, or because the predicted side goes on beyond it for
             # missed_rays whole gaps where the rays found nothing
@@ -169,6 +179,13 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                 partial0 = False
             if enough and sharp1 and not not_free[c, 1] and shrink1 <= gate_sigmas * sd1 + gate_slack:
                 partial1 = False
+        if parts_shadowed and two:
+            # a part whose far end borders a shadow goes on behind it, unless longer than predicted
+            # (its margin there is 0: a lower bound to the last return)
+            if occ_lo and ln0 + (m0_lo + m0_hi) < side_len[side0]:
+                partial0 = True
+            if occ_hi and ln1 + (m1_lo + m1_hi) < side_len[side1]:
+                partial1 = True
         shadowed = (not two) and ((occ_hi and not occ_lo and sharp_lo) or (occ_lo and not occ_hi and sharp_hi))
         if shadowed and longer_whole:  # ... unless longer than predicted: a lower bound, measured whole
             sd_side = extent_sd[p, 0] if side0 % 2 == 1 else extent_sd[p, 1]
@@ -220,8 +237,8 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             ec = sides[p, part]
             slot = slot1 if part == 1 else slot0
             ln = chord_len_in[c, slot]
-            e_lo = end_margin[c, slot, 0]
-            e_hi = end_margin[c, slot, 1]
+            e_lo = m1_lo if part == 1 else m0_lo
+            e_hi = m1_hi if part == 1 else m0_hi
             frac = (proj + e_lo) / max(ln + e_lo + e_hi, min_chord)
             px = points[c, m, 0]
             py = points[c, m, 1]
