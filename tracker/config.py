@@ -370,11 +370,16 @@ class MeasurementConfig:
     - ``shadowed_parts_partial`` (session 18; needs ``shadow_window``): a part of a two-sided cluster
       whose far end (the cluster's first or last point in bearing) borders another object's shadow goes
       on behind it, so it is partially visible, anchored at the fitted corner, whatever its extent,
-      unless it covers more than its predicted side (then, as before, it is measured whole: the vehicle
-      is at least that long). Without it such a part counted as the whole side as long as it covered
-      ``partial_visibility`` of the prediction, and the extent shrank with the visible part: a 16 m bus
-      seen from behind and beside whose front roadside objects hid, 0.5 m more every frame, lost 1 m of
-      length before the part fell below 90 % (stop-and-go, issue 10).
+      unless it covers more than its predicted side: then it is measured whole, to its last return (no
+      end-gap margin at the shadowed end: a lower bound; with the margin, a car whose front bordered a
+      nearer car's shadow ratcheted up with every noisy chord above its prediction, hard-accel). Without
+      it such a part counted as the whole side as long as it covered ``partial_visibility`` of the
+      prediction, and the extent shrank with the visible part: a 16 m bus seen from behind and beside
+      whose front roadside objects hid, 0.5 m more every frame, lost 1-2 m of length before the part
+      fell below 90 % (stop-and-go, issue 10). Fused, 13 scenarios x 20 seeds: long vehicles' length
+      within 1 m 3 s after the side is seen 63 -> 70 of 72; position RMSE dense-highway, circuit,
+      standing-vehicle -0.01 to -0.02 m; worse: stop-and-go GOSPA +0.01 to +0.02 m (issue 10's session
+      18 note).
     - ``sharp_parts_whole`` (session 14; needs ``shadow_window``): the same for each part of a two-sided
       cluster, from the fitted corner to its far end: a part with a sharp, free far end (sharp also
       when the predicted side goes on beyond the last return for two whole ray gaps,
