@@ -283,7 +283,6 @@ class FrenetMotion:
             q = q8
         return q
 
-
     def predict_compiled(self, ut: UnscentedTransform, mean: np.ndarray, cov: np.ndarray, dt: float,
                          jerk: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """``predict`` of a batch ``mean (C, D)``, ``cov (C, D, D)`` in one compiled call

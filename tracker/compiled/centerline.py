@@ -9,7 +9,7 @@ import numpy as np
 
 from tracker.compiled import njit
 from tracker.compiled.geometry import corner_offset
-from tracker.compiled.ukf import sigma_kernel
+from tracker.compiled.ukf import all_finite, sigma_kernel
 
 
 @njit(inline="always")
@@ -182,15 +182,8 @@ def sigma_rectangles_kernel(means, covs, scale, angles, period_index, period, ki
     Returns ``(sigma (C, S, D), center (C, S, 2), psi (C, S), corners (C, S, 4, 2), finite)``;
     ``finite`` False (nothing computed) when a mean or covariance holds a NaN or an infinity."""
     count, dim = means.shape
-    for c in range(count):
-        for j in range(dim):
-            if not np.isfinite(means[c, j]):
-                return (np.empty((0, 0, dim)), np.empty((0, 0, 2)), np.empty((0, 0)), np.empty((0, 0, 4, 2)),
-                        False)
-            for k in range(dim):
-                if not np.isfinite(covs[c, j, k]):
-                    return (np.empty((0, 0, dim)), np.empty((0, 0, 2)), np.empty((0, 0)), np.empty((0, 0, 4, 2)),
-                            False)
+    if not all_finite(means, covs):
+        return np.empty((0, 0, dim)), np.empty((0, 0, 2)), np.empty((0, 0)), np.empty((0, 0, 4, 2)), False
     sigma = sigma_kernel(means, covs, scale, angles, period_index, period)
     points = sigma.shape[1]
     center, psi, corners = to_vehicle_kernel(kind, sigma.reshape(count * points, dim), ego_x, ego_y, ego_yaw, closed,

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
-from tracker.compiled.ukf import _wrap, moments_kernel, sigma_kernel
+from tracker.compiled.ukf import _wrap, all_finite, moments_kernel, sigma_kernel
 
 
 @njit(inline="always")
@@ -111,13 +111,8 @@ def ukf_predict_kernel(means, covs, scale, wm, wc, angles, period_index, period,
     Singer block ``singer (2, 2)`` on ``(v, a)``. Returns ``(mean, cov, finite)``; ``finite`` False
     (and nothing computed) when a mean or covariance holds a NaN or an infinity."""
     count, dim = means.shape
-    for c in range(count):
-        for j in range(dim):
-            if not math.isfinite(means[c, j]):
-                return means.copy(), covs.copy(), False
-            for k in range(dim):
-                if not math.isfinite(covs[c, j, k]):
-                    return means.copy(), covs.copy(), False
+    if not all_finite(means, covs):
+        return means.copy(), covs.copy(), False
     pts = sigma_kernel(means, covs, scale, angles, period_index, period)
     sigma = pts.shape[1]
     moved = rk4_propagate(pts.reshape(count * sigma, dim), steps, h, table_s, table_k, closed, length,

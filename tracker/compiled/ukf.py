@@ -34,6 +34,21 @@ def _residual(x, angles, period_index, period):  # pragma: no cover - compiled
         x[period_index] -= period * math.floor(x[period_index] / period + 0.5)
 
 
+@njit(inline="always")
+def all_finite(means, covs):  # pragma: no cover - compiled
+    """Whether every entry of the means ``(C, D)`` and covariances ``(C, D, D)`` is finite (the
+    kernels that start from ``sigma_kernel`` refuse a NaN or an infinity before any work)."""
+    count, dim = means.shape
+    for c in range(count):
+        for j in range(dim):
+            if not math.isfinite(means[c, j]):
+                return False
+            for k in range(dim):
+                if not math.isfinite(covs[c, j, k]):
+                    return False
+    return True
+
+
 @njit
 def sigma_kernel(means, covs, scale, angles, period_index, period):  # pragma: no cover - compiled
     """Sigma points ``(C, 2n + 1, n)`` of ``N(means[c], covs[c])``: the mean, then the mean plus and
