@@ -63,7 +63,10 @@ def run_reference() -> dict[str, np.ndarray]:
     # need the shadow flags, off here) and no one-point fragments joined to the track they continue
     # (ClusteringConfig.fragment_points, session 17) and no shadowed parts of two-sided clusters held
     # partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs the shadow flags,
-    # off here): intended changes of the model,
+    # off here) and no births spread on either side of a cluster whose near end borders a shadow
+    # (BirthConfig.shadow_aware, session 19; needs the shadow flags) nor radar-only updates holding the
+    # extent (MeasurementConfig.radar_only_holds_extent, session 19; radar-only updates are off here):
+    # intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
     config = TrackerConfig(

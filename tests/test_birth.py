@@ -223,3 +223,39 @@ def test_a_birth_seen_from_its_side_couples_its_lateral_position_with_its_unseen
     bus_points, _ = rectangle_scan(bus, np.arange(-np.pi, np.pi, np.radians(0.2)))
     means, covs = cluster_births([bus_points, bus_points[:2]], [None, np.array([15.0, 0.0])], ego, road, cfg)
     assert means[0, 5] == pytest.approx(cfg.long_length) and np.all(covs[:, :2, 5:] == 0.0)
+
+
+@pytest.mark.parametrize("shadow_aware", [True, False], ids=["shadow-aware", "off"])
+@pytest.mark.parametrize("near_end_shadowed", [True, False], ids=["near-end-shadowed", "far-end-shadowed"])
+def test_a_side_whose_near_end_borders_a_shadow_may_go_on_either_way(shadow_aware, near_end_shadowed):
+    """A car abeam-ahead on a straight road shows 2 m of its left side, from x = 110 to 112 (the side at
+    y = 4); the prior length 4.5 m leaves 2.5 m unseen. Away from the sensor (ahead) is where the birth
+    puts it, correlated with L: centre 112.25, ``cov(s, L) = var(L) / 2``. When the cluster's *near* end
+    (x = 110) borders another object's shadow, the unseen part may lie behind that object as well: the
+    centre stays at the points' (111) and ``var(s)`` takes ``(2.5 / 2)^2`` more, uncorrelated with L.
+    A shadow at the far end changes nothing (it agrees with "away"); so does the rule switched off."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = EgoState(100.0, 0.0, 0.0, 15.0)
+    x = np.linspace(110.0, 112.0, 9)
+    points = np.column_stack([x - 100.0, np.full_like(x, 4.0)])  # in E (ego at x = 100, heading +x)
+    near, far = points[0], points[-1]
+    shadowed = [(near, far) if near_end_shadowed else (far, near)]
+    cfg = BirthConfig(shadow_aware=shadow_aware)
+    means, covs = cluster_births([points], [None], ego, road, cfg, shadowed)
+    plain_means, plain_covs = cluster_births([points], [None], ego, road, cfg)
+    s, p = means[0, 0], covs[0]
+    missing = cfg.length - 2.0
+    if shadow_aware and near_end_shadowed:
+        assert s == pytest.approx(111.0, abs=0.05)
+        assert p[0, 5] == pytest.approx(0.0, abs=1e-3)
+        assert p[0, 0] == pytest.approx(0.25 + (0.5 * missing) ** 2, rel=1e-2)
+    else:
+        np.testing.assert_allclose(means, plain_means)
+        np.testing.assert_allclose(covs, plain_covs)
+        assert s == pytest.approx(111.0 + 0.5 * missing, abs=0.05)
+        assert p[0, 5] == pytest.approx(0.5 * cfg.length_std**2, rel=1e-2)
+    # across the side both ends lie on one line: the width's unseen half is placed as always (the fit's
+    # heading is ~0.01 rad off, so a different centre along the side moves n by ~1 cm)
+    assert means[0, 1] == pytest.approx(4.0 + 0.5 * cfg.width, abs=0.05)
+    assert means[0, 1] == pytest.approx(plain_means[0, 1], abs=0.02)
+    assert np.linalg.eigvalsh(p).min() > 0.0

@@ -5,7 +5,9 @@
   (where vehicles enter the field of view), in road coordinates;
 - ``cluster_births``: one component per cluster of the previous frame that no track explained, from
   an L-shape rectangle fit (centre, heading, extent; a side that was not seen takes the prior extent and
-  the centre moves away from the sensor by the missing half), the fit's axes turned by the quarter
+  the centre moves away from the sensor by the missing half, unless the cluster's near end borders
+  another object's shadow: then the missing half may lie on either side, a spread instead of a
+  shift, ``BirthConfig.shadow_aware``), the fit's axes turned by the quarter
   turn that puts the heading closest to the road direction (``|xi| <= pi/4``: vehicles drive along the
   road), and the speed from an associated radar detection when fused.
 
@@ -57,6 +59,20 @@ def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, 
 SPARSE_POINTS = 3
 """A cluster of fewer points than this shows no orientation (``cluster_births``)."""
 
+SHADOW_SIDE_MIN = 0.5
+"""m: a cluster's shadowed end says on which side of the points an unseen extent lies only along a
+direction in which its two ends lie at least this far apart (``cluster_births``, ``shadowed``): across a
+side, both ends of the side lie on the same line."""
+
+
+def shadow_side(shadowed_end: np.ndarray, free_end: np.ndarray, direction: np.ndarray) -> float:
+    """On which side of a cluster along ``direction`` (unit, E) its unseen part lies when one end
+    (``shadowed_end``, E, m) borders another object's shadow and the other (``free_end``) does not:
+    ``+1`` or ``-1`` (the shadowed end's side), ``0`` when the ends lie less than ``SHADOW_SIDE_MIN``
+    apart along it (the shadow says nothing there)."""
+    along = float((np.asarray(shadowed_end) - np.asarray(free_end)) @ direction)
+    return 0.0 if abs(along) < SHADOW_SIDE_MIN else float(np.sign(along))
+
 
 def _fewest_points(config: BirthConfig, points: np.ndarray, fused: bool) -> int:
     """The fewest points an unexplained cluster ``points (N, 2)`` (E, m) needs to seed a birth:
@@ -78,15 +94,23 @@ def cluster_births(
     ego: EgoState,
     road: Road,
     config: BirthConfig,
+    shadowed: list[tuple[np.ndarray, np.ndarray] | None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
-    optional radar velocity ``(vx, vy)`` in E (m/s). Clusters with fewer than
+    optional radar velocity ``(vx, vy)`` in E (m/s). ``shadowed`` (per cluster, None: none): the
+    cluster's end in bearing that borders another object's shadow and its other, free end (E, m), where
+    exactly one does (``BirthConfig.shadow_aware``): where the shadowed end is the one nearer the sensor
+    along an extent, the unseen part of that extent may lie beyond the points or behind the object, so
+    the centre stays at the points' and the position takes half the unseen extent as its spread along
+    it, uncorrelated with the extent. Clusters with fewer than
     ``config.min_cluster_points`` points are skipped, unless a radar detection joined them and they
     have ``config.min_cluster_points_fused``, or they lie ``config.sparse_min_range`` or farther and have
     ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
     takes the road's direction as its heading."""
-    means, stds, length_stds, sparse, levers = [], [], [], [], []
-    for pts, vel in zip(clusters, velocities):  # a handful per frame; the fit itself is vectorised
+    means, stds, length_stds, sparse, levers, spreads = [], [], [], [], [], []
+    if shadowed is None or not config.shadow_aware:
+        shadowed = [None] * len(clusters)
+    for pts, vel, shadow in zip(clusters, velocities, shadowed):  # a handful per frame; the fit is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):
             continue
         sparse_k = len(pts) < SPARSE_POINTS
@@ -124,8 +148,13 @@ def cluster_births(
         # rear or a front, so it is not shifted sideways
         unseen = ((axis, length - fit_len),) if sparse_k else ((axis, length - fit_len), (lateral, width - fit_wid))
         shifts = np.zeros((2, 2))  # per extent (L, W): the centre's shift in E per metre of it (0: none)
+        either = np.zeros((2, 2))  # per extent: half the unseen extent along it, where its side is unknown
         for k, (direction, missing) in enumerate(unseen):
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
+            if shadow is not None and missing > 0.0 and shadow_side(shadow[0], shadow[1], direction) == -away:
+                # ... or behind the object whose shadow the near end borders: either side
+                either[k] = 0.5 * missing * direction
+                continue
             centre += away * 0.5 * missing * direction
             if missing > 0.0 and not long:
                 shifts[k] = away * 0.5 * direction
@@ -134,7 +163,9 @@ def cluster_births(
         _, theta, curvature = road.frame(np.array([s]), extrapolate=True)
         # the shifts in road coordinates: E's axes turned onto the road's (e_s, e_n), s scaled by the
         # road metric 1 / (1 - kappa n)
-        levers.append(rotate(shifts, ego.yaw - theta[0]) * [1.0 / max(1.0 - float(curvature[0]) * n, 0.1), 1.0])
+        metric = [1.0 / max(1.0 - float(curvature[0]) * n, 0.1), 1.0]
+        levers.append(rotate(shifts, ego.yaw - theta[0]) * metric)
+        spreads.append(rotate(either, ego.yaw - theta[0]) * metric)
         xi = 0.0 if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
@@ -154,6 +185,8 @@ def cluster_births(
     covs[np.array(sparse), 0, 0] = (0.5 * config.length) ** 2
     if config.correlated_extent:
         correlate_unseen_extent(covs, np.array(levers), ~np.array(sparse))
+    g = np.array(spreads)  # (B, 2, 2): an unseen half that may lie on either side of the points
+    covs[:, :2, :2] += np.einsum("bki,bkj->bij", g, g)
     return np.array(means), covs
 
 

@@ -328,6 +328,26 @@ def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
     return velocities, index
 
 
+def bearing_extremes(clusters: list[np.ndarray]) -> np.ndarray:
+    """Each cluster's first and last point in bearing from the lidar at E's origin: ``(K, 2, 2)`` for
+    ``clusters`` of points ``(N, 2)`` in E (bearings taken about each cluster's centroid bearing, so a
+    cluster across the -x axis is not split by the +-pi wrap), the input of ``occluded_ends``."""
+    out = np.zeros((len(clusters), 2, 2))
+    if not clusters:
+        return out
+    size = np.array([len(c) for c in clusters])
+    pts = np.concatenate(clusters)
+    start = np.cumsum(size) - size
+    centroid = np.add.reduceat(pts, start) / size[:, None]
+    owner = np.repeat(np.arange(len(clusters)), size)
+    rel = np.arctan2(pts[:, 1], pts[:, 0]) - np.arctan2(centroid[owner, 1], centroid[owner, 0])
+    rel = (rel + np.pi) % (2.0 * np.pi) - np.pi
+    order = np.lexsort((rel, owner))  # by cluster, then by bearing
+    out[:, 0] = pts[order[start]]
+    out[:, 1] = pts[order[start + size - 1]]
+    return out
+
+
 def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: float,
                   max_range: float = np.inf, range_margin: float = 0.0) -> np.ndarray:
     """Whether each end of each cluster borders a shadow: ``(K, 2)`` bool for ``ends (K, 2, 2)``, each

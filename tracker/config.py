@@ -417,6 +417,12 @@ class MeasurementConfig:
       std of the detection about the predicted rectangle's point nearest the sensor, per axis: the
       radar's 0.5 m plus the model's error (the radar sits on the bumper and reports the nearest
       *visible* point).
+    - ``radar_only_holds_extent`` (session 19): a radar-only update (``radar_only_update``) keeps ``L``
+      and ``W`` at their prior mean and variance (the Schmidt update of
+      ``tracker.update.hold_unobserved_extent`` with both held): the nearest visible point of a hidden
+      vehicle says where it is, not how long it is. Without it the update splits the detection's
+      offset between the position and the extent by their variances, and a track off its vehicle
+      shrank: stop-and-go seed 2, a car hidden ahead of a bus, 4.5 -> 0.01 m long in 1.5 s.
     - ``shadow_range_margin`` (m): an end within this of ``DetectionConfig.lidar_range`` counts as
       occluded as well: the next ray along a far (or grazing) side may return nothing because the
       side goes on beyond the range, not because the vehicle ends there (a bus's side at 99 m).
@@ -445,6 +451,7 @@ class MeasurementConfig:
     sharp_parts_whole: bool = True
     shadowed_longer_whole: bool = True
     shadowed_parts_partial: bool = True
+    radar_only_holds_extent: bool = True
     whole_min_points: int = 4
     whole_gate_sigmas: float = 3.0
     whole_gate_slack: float = 0.3
@@ -464,7 +471,8 @@ class MeasurementConfig:
         _check("MeasurementConfig", "shadow_margin", self.shadow_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_range_margin", self.shadow_range_margin, low=0.0, unit="m")
         _check("MeasurementConfig", "shadow_free_gap", self.shadow_free_gap, low=0.0, unit="m")
-        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole", "shadowed_parts_partial"):
+        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole", "shadowed_parts_partial",
+                     "radar_only_holds_extent"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"MeasurementConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check_int("MeasurementConfig", "whole_min_points", self.whole_min_points, 2)
@@ -619,6 +627,18 @@ class BirthConfig:
       fewer than ``SPARSE_POINTS`` points (which side they lie on is unknown). Worse: curve-single
       position 0.098 -> 0.112 m (a length learned 0.18 m too long from a side seen at grazing
       incidence now moves the centre with it; issue 10's session 12 note).
+    - ``shadow_aware`` (session 19; needs ``MeasurementConfig.shadow_window``): a cluster birth puts its
+      unseen extent beyond the points, away from the sensor, and correlates the centre with that extent
+      (``correlated_extent``). Where exactly one of the cluster's two ends in bearing borders another
+      object's shadow (``tracker.clustering.occluded_ends``) and it is the end *nearer* the sensor along
+      an extent (the ends at least ``tracker.birth.SHADOW_SIDE_MIN`` apart along it), the unseen part may
+      as well lie behind that object: the centre stays at the points' along that extent and its position
+      takes half the unseen extent as standard deviation along it, with no correlation, so the first
+      update's anchor (the free end, ``tracker.measurement``) places it. A car 70 m ahead in a hairpin
+      showed the front half of its side next to a truck's shadow; born half a car beyond the points, its
+      track sat 1-2 m ahead of the truth for up to a second (the birth's correlation let the update move
+      only 60 % of the way to its anchor). Session 18 put the unseen part behind the object instead
+      (not kept: in stop-and-go queues the shadowed end was often the car's own rear corner).
     """
 
     weight: float = 0.05
@@ -649,6 +669,7 @@ class BirthConfig:
     max_length: float | None = 25.0
     max_width: float | None = 3.0
     correlated_extent: bool = True
+    shadow_aware: bool = True
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
@@ -668,7 +689,7 @@ class BirthConfig:
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
-        for name in ("road", "correlated_extent"):
+        for name in ("road", "correlated_extent", "shadow_aware"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"BirthConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)

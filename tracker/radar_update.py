@@ -46,7 +46,7 @@ from tracker.frame import EgoState, RadarDetections
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform
-from tracker.update import kalman_update, state_wrapping
+from tracker.update import hold_extent, kalman_update, state_wrapping
 
 #: Measurement rows of a radar-only detection: position (x, y) and velocity (vx, vy) in E.
 RADAR_DIM = 4
@@ -138,6 +138,9 @@ def update_coasting(
     r = np.array([m.radar_position_sigma**2] * 2 + [m.radar_velocity_sigma**2] * 2)
     res = kalman_update(ut, sigma[inverse], means[idx][inverse], covs[idx][inverse], z_sigma[inverse], z[det],
                         np.broadcast_to(r, (len(comp), RADAR_DIM)), wrapping=wrapping)
+    if m.radar_only_holds_extent:  # the nearest visible point says where the vehicle is, not its extent
+        every = np.ones(len(comp), dtype=bool)
+        hold_extent(res, means[idx][inverse], covs[idx][inverse], every, every)
     gated = res.nis <= chi2.ppf(config.gating.probability, RADAR_DIM)
     if not gated.any():
         return RadarOnlyResult.empty(dim)

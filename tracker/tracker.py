@@ -67,8 +67,8 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (cluster_radar, continued_ends, dense_components, distance_partition, fragment_owners,
-                                occluded_ends, points_in_rectangles, split_across)
+from tracker.clustering import (bearing_extremes, cluster_radar, continued_ends, dense_components, distance_partition,
+                                fragment_owners, occluded_ends, points_in_rectangles, split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
@@ -103,7 +103,8 @@ class Tracker:
     ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
-    ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``),
+    ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_shadowed``
+    (unexplained clusters with exactly one end in bearing next to another object's shadow, ``birth.shadow_aware``),
     ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
@@ -618,7 +619,7 @@ class Tracker:
         """Birth components (means, covariances) of the clusters neither ``explained`` nor owned by a track."""
         idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
         means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
-                                     ego, self.road, self.config.birth)
+                                     ego, self.road, self.config.birth, self._shadowed_ends([clusters[k] for k in idle]))
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         return self._with_acceleration(means, covs)
@@ -633,6 +634,19 @@ class Tracker:
             self.mixture = self._with_births(self.mixture, means, covs)
             self.stats["births_first_scan"] += len(means)
         return born
+
+    def _shadowed_ends(self, clusters: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray] | None] | None:
+        """Per cluster, its end in bearing that borders another object's shadow and its free end, where
+        exactly one end does (``BirthConfig.shadow_aware``; None without the shadow flags)."""
+        mcfg, det = self.config.measurement, self.config.detection
+        if not (self.config.birth.shadow_aware and mcfg.shadow_window is not None and clusters and len(self._scan)):
+            return None
+        ends = bearing_extremes(clusters)
+        occ = occluded_ends(ends, self._scan, mcfg.shadow_window * det.lidar_resolution, mcfg.shadow_margin,
+                            det.lidar_range, mcfg.shadow_range_margin)
+        one = occ[:, 0] != occ[:, 1]
+        self.stats["births_shadowed"] += int(one.sum())
+        return [(e[0], e[1]) if o[0] else (e[1], e[0]) if k else None for e, o, k in zip(ends, occ, one)]
 
     def _with_acceleration(self, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth components ``(B, 7)`` with the acceleration state appended when the motion model has

@@ -448,15 +448,23 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     mask of pairs whose ``L`` was held."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
-    held = {}
-    for index, seen in ((LENGTH, (full & long_side).any(axis=1)), (WIDTH, (full & ~long_side).any(axis=1))):
-        hold = held[index] = ~seen
+    hold_length, hold_width = ~(full & long_side).any(axis=1), ~(full & ~long_side).any(axis=1)
+    hold_extent(res, prior_mean, prior_cov, hold_length, hold_width)
+    return hold_length
+
+
+def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, hold_length: np.ndarray,
+                hold_width: np.ndarray) -> None:
+    """The Schmidt update's consider parameters, in place: ``L`` where ``hold_length`` and ``W`` where
+    ``hold_width`` (masks over the pairs) keep their prior mean and variance, and where both are held
+    their joint 2 x 2 block stays the prior's (``hold_unobserved_extent``; the radar-only update holds
+    both, ``MeasurementConfig.radar_only_holds_extent``)."""
+    for index, hold in ((LENGTH, hold_length), (WIDTH, hold_width)):
         res.mean[hold, index] = prior_mean[hold, index]
         res.cov[hold, index, index] = prior_cov[hold, index, index]
-    both = held[LENGTH] & held[WIDTH]  # both consider parameters: their joint block stays the prior's
+    both = hold_length & hold_width  # both consider parameters: their joint block stays the prior's
     res.cov[both, LENGTH, WIDTH] = prior_cov[both, LENGTH, WIDTH]
     res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
-    return held[LENGTH]
 
 
 def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
