@@ -936,6 +936,27 @@ def test_a_second_label_overlapping_a_trucks_track_is_absorbed_into_it(overlap):
     assert (tracker.stats["labels_absorbed_overlapping"] >= 1) == (overlap is not None)
 
 
+def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration: float):
+    """A short fused run of one of the hard suite's scenarios with ``tracker.<section>.<key> = value``."""
+    import copy
+
+    from sim.montecarlo import scenario_task_data
+    from sim.runner import run_scenario
+    from sim.scenario import parse_scenario, resolve_scenario_path
+
+    _, source, data = scenario_task_data(resolve_scenario_path(scenario))
+    data = copy.deepcopy(data)
+    data.setdefault("tracker", {}).setdefault(section, {})[key] = value
+    return run_scenario(parse_scenario(data, source), seed, "curvilinear-fused", duration=duration)
+
+
+def _tracked_mean(frame, truth_id: int, what: str) -> np.ndarray:
+    """The state of the track the scorer assigned to the true vehicle ``truth_id`` in ``frame``."""
+    k = [i for i, tid in enumerate(frame.track_truth_id) if tid == truth_id]
+    assert k, f"{what} is tracked"
+    return frame.tracks[k[0]].mean
+
+
 @pytest.mark.parametrize("fragment_points", [1, None], ids=["fragments-joined", "fragments-apart"])
 def test_a_vans_side_past_its_tracks_front_joins_its_cluster(fragment_points):
     """The hard suite's emergency-brake, seed 4: a 6 m van ~50 m ahead in the next lane, born from its
@@ -944,16 +965,7 @@ def test_a_vans_side_past_its_tracks_front_joins_its_cluster(fragment_points):
     length over seconds (4.67 m at t = 0.1 s, 5.36 m at 0.2 s). With ``ClusteringConfig.fragment_points``
     they join the van's cluster (within its rectangle stretched by 4 sd of its length at the far end),
     and the track has 6.0 m at the first update."""
-    import copy
-
-    from sim.montecarlo import scenario_task_data
-    from sim.runner import run_scenario
-    from sim.scenario import parse_scenario, resolve_scenario_path
-
-    _, source, data = scenario_task_data(resolve_scenario_path("emergency-brake"))
-    data = copy.deepcopy(data)
-    data.setdefault("tracker", {}).setdefault("clustering", {})["fragment_points"] = fragment_points
-    result = run_scenario(parse_scenario(data, source), 4, "curvilinear-fused", duration=0.25)
+    result = _run_hard("emergency-brake", 4, "clustering", "fragment_points", fragment_points, 0.25)
     lengths = []
     for frame in result.frames[1:3]:  # t = 0.1, 0.2 s
         van = int(np.flatnonzero(np.isclose(frame.truth.length, 6.0))[0])
@@ -974,22 +986,11 @@ def test_a_bus_whose_front_disappears_in_a_shadow_keeps_its_length(rule):
     covered 90 % of the prediction, the visible part pulled the track's length down with it (15.2 m at
     1 s, 14.7 m at 1.5 s); with ``MeasurementConfig.shadowed_parts_partial`` the part is partially
     visible, anchored at the corner, and the track keeps what it had learnt."""
-    import copy
-
-    from sim.montecarlo import scenario_task_data
-    from sim.runner import run_scenario
-    from sim.scenario import parse_scenario, resolve_scenario_path
-
-    _, source, data = scenario_task_data(resolve_scenario_path("stop-and-go"))
-    data = copy.deepcopy(data)
-    data.setdefault("tracker", {}).setdefault("measurement", {})["shadowed_parts_partial"] = rule
-    result = run_scenario(parse_scenario(data, source), 13, "curvilinear-fused", duration=1.55)
+    result = _run_hard("stop-and-go", 13, "measurement", "shadowed_parts_partial", rule, 1.55)
     frame = result.frames[-1]
     assert abs(frame.t - 1.5) < 1e-9
     bus = int(np.flatnonzero(np.isclose(frame.truth.length, 16.0))[0])
-    k = [i for i, tid in enumerate(frame.track_truth_id) if tid == frame.truth.ids[bus]]
-    assert k, "the bus is tracked"
-    length = float(frame.tracks[k[0]].mean[5])
+    length = float(_tracked_mean(frame, frame.truth.ids[bus], "the bus")[5])
     if rule:
         assert abs(length - 16.0) < 0.6
     else:
@@ -1004,22 +1005,11 @@ def test_a_far_car_half_hidden_by_a_truck_is_born_where_its_free_end_puts_it(rul
     its centre correlated with that length, the track sat ~1 m ahead of the car for its first frames
     (the update could move it only 60 % of the way to the free end's anchor); with
     ``BirthConfig.shadow_aware`` the unseen half may lie on either side and the anchor places it."""
-    import copy
-
-    from sim.montecarlo import scenario_task_data
-    from sim.runner import run_scenario
-    from sim.scenario import parse_scenario, resolve_scenario_path
-
-    _, source, data = scenario_task_data(resolve_scenario_path("truck-hairpin"))
-    data = copy.deepcopy(data)
-    data.setdefault("tracker", {}).setdefault("birth", {})["shadow_aware"] = rule
-    result = run_scenario(parse_scenario(data, source), 0, "curvilinear-fused", duration=0.25)
+    result = _run_hard("truck-hairpin", 0, "birth", "shadow_aware", rule, 0.25)
     errors = []
     for frame in result.frames:
         car = int(np.flatnonzero(frame.truth.ids == 3)[0])
-        k = [i for i, tid in enumerate(frame.track_truth_id) if tid == 3]
-        assert k, "the far car is tracked"
-        errors.append(abs(float(frame.tracks[k[0]].mean[0]) - float(frame.truth.s[car])))
+        errors.append(abs(float(_tracked_mean(frame, 3, "the far car")[0]) - float(frame.truth.s[car])))
     assert len(errors) == 3
     if rule:
         assert max(errors) < 0.6, errors
@@ -1033,23 +1023,12 @@ def test_radar_only_updates_of_a_hidden_car_leave_its_length_alone(hold):
     then hidden, is followed by the radar alone; its track sat ~2 m behind it. Each radar-only update
     split the detection's offset between the position and the length, and the length went from 4.5 to
     0.1 m in 1.5 s; with ``MeasurementConfig.radar_only_holds_extent`` it stays at the prior's 4.5 m."""
-    import copy
-
-    from sim.montecarlo import scenario_task_data
-    from sim.runner import run_scenario
-    from sim.scenario import parse_scenario, resolve_scenario_path
-
-    _, source, data = scenario_task_data(resolve_scenario_path("stop-and-go"))
-    data = copy.deepcopy(data)
-    data.setdefault("tracker", {}).setdefault("measurement", {})["radar_only_holds_extent"] = hold
-    result = run_scenario(parse_scenario(data, source), 2, "curvilinear-fused", duration=2.55)
+    result = _run_hard("stop-and-go", 2, "measurement", "radar_only_holds_extent", hold, 2.55)
     frame = result.frames[-1]
     assert abs(frame.t - 2.5) < 1e-9
     car = int(np.flatnonzero(frame.truth.ids == 2)[0])
     assert frame.lidar_points[car] == 0  # hidden
-    k = [i for i, tid in enumerate(frame.track_truth_id) if tid == 2]
-    assert k, "the hidden car is tracked"
-    length = float(frame.tracks[k[0]].mean[5])
+    length = float(_tracked_mean(frame, 2, "the hidden car")[5])
     if hold:
         assert abs(length - 4.5) < 0.05
     else:
