@@ -259,3 +259,17 @@ def test_a_side_whose_near_end_borders_a_shadow_may_go_on_either_way(shadow_awar
     assert means[0, 1] == pytest.approx(4.0 + 0.5 * cfg.width, abs=0.05)
     assert means[0, 1] == pytest.approx(plain_means[0, 1], abs=0.02)
     assert np.linalg.eigvalsh(p).min() > 0.0
+
+
+def test_a_rear_whose_near_end_borders_a_shadow_is_born_as_before():
+    """Across the road the shadow rule does not apply (``BirthConfig.shadow_aware`` acts along the
+    length only): 1.2 m of a rear 20 m ahead, its near end (in bearing) next to another object's
+    shadow, is born exactly as without the flags, the unseen width placed away from the sensor."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = EgoState(100.0, 0.0, 0.0, 15.0)
+    y = np.linspace(1.0, 2.2, 7)
+    points = np.column_stack([np.full_like(y, 20.0), y])  # in E: a rear across the road, 1-2.2 m left
+    means, covs = cluster_births([points], [None], ego, road, BirthConfig(), [(points[0], points[-1])])
+    plain_means, plain_covs = cluster_births([points], [None], ego, road, BirthConfig())
+    np.testing.assert_allclose(means, plain_means)
+    np.testing.assert_allclose(covs, plain_covs)

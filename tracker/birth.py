@@ -100,9 +100,9 @@ def cluster_births(
     optional radar velocity ``(vx, vy)`` in E (m/s). ``shadowed`` (per cluster, None: none): the
     cluster's end in bearing that borders another object's shadow and its other, free end (E, m), where
     exactly one does (``BirthConfig.shadow_aware``): where the shadowed end is the one nearer the sensor
-    along an extent, the unseen part of that extent may lie beyond the points or behind the object, so
-    the centre stays at the points' and the position takes half the unseen extent as its spread along
-    it, uncorrelated with the extent. Clusters with fewer than
+    along the length, the unseen part of the length may lie beyond the points or behind the object, so
+    the centre stays at the points' along it and the position takes half the unseen length as its
+    spread, uncorrelated with ``L``. Clusters with fewer than
     ``config.min_cluster_points`` points are skipped, unless a radar detection joined them and they
     have ``config.min_cluster_points_fused``, or they lie ``config.sparse_min_range`` or farther and have
     ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
@@ -151,8 +151,8 @@ def cluster_births(
         either = np.zeros((2, 2))  # per extent: half the unseen extent along it, where its side is unknown
         for k, (direction, missing) in enumerate(unseen):
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
-            if shadow is not None and missing > 0.0 and shadow_side(shadow[0], shadow[1], direction) == -away:
-                # ... or behind the object whose shadow the near end borders: either side
+            if k == 0 and shadow is not None and missing > 0.0 and shadow_side(shadow[0], shadow[1], direction) == -away:
+                # ... or, along the length, behind the object whose shadow the near end borders: either side
                 either[k] = 0.5 * missing * direction
                 continue
             centre += away * 0.5 * missing * direction
