@@ -148,12 +148,12 @@ def cluster_births(
         # rear or a front, so it is not shifted sideways
         unseen = ((axis, length - fit_len),) if sparse_k else ((axis, length - fit_len), (lateral, width - fit_wid))
         shifts = np.zeros((2, 2))  # per extent (L, W): the centre's shift in E per metre of it (0: none)
-        either = np.zeros((2, 2))  # per extent: half the unseen extent along it, where its side is unknown
+        either = np.zeros(2)  # half the unseen length, along it, where its side is unknown (E, m)
         for k, (direction, missing) in enumerate(unseen):
             away = 1.0 if float(centre @ direction) >= 0.0 else -1.0  # the unseen half lies beyond
             if k == 0 and shadow is not None and missing > 0.0 and shadow_side(shadow[0], shadow[1], direction) == -away:
                 # ... or, along the length, behind the object whose shadow the near end borders: either side
-                either[k] = 0.5 * missing * direction
+                either = 0.5 * missing * direction
                 continue
             centre += away * 0.5 * missing * direction
             if missing > 0.0 and not long:
@@ -185,8 +185,8 @@ def cluster_births(
     covs[np.array(sparse), 0, 0] = (0.5 * config.length) ** 2
     if config.correlated_extent:
         correlate_unseen_extent(covs, np.array(levers), ~np.array(sparse))
-    g = np.array(spreads)  # (B, 2, 2): an unseen half that may lie on either side of the points
-    covs[:, :2, :2] += np.einsum("bki,bkj->bij", g, g)
+    g = np.array(spreads)  # (B, 2) in (s, n): an unseen half that may lie on either side of the points
+    covs[:, :2, :2] += g[:, :, None] * g[:, None, :]
     return np.array(means), covs
 
 

@@ -21,6 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from tracker import compiled as compiled_kernels
+from tracker.angles import wrap_angle
 from tracker.frame import RadarDetections
 
 #: Up to this many runs of consecutive linked points, their graph's components are found densely.
@@ -340,8 +341,7 @@ def bearing_extremes(clusters: list[np.ndarray]) -> np.ndarray:
     start = np.cumsum(size) - size
     centroid = np.add.reduceat(pts, start) / size[:, None]
     owner = np.repeat(np.arange(len(clusters)), size)
-    rel = np.arctan2(pts[:, 1], pts[:, 0]) - np.arctan2(centroid[owner, 1], centroid[owner, 0])
-    rel = (rel + np.pi) % (2.0 * np.pi) - np.pi
+    rel = wrap_angle(np.arctan2(pts[:, 1], pts[:, 0]) - np.arctan2(centroid[owner, 1], centroid[owner, 0]))
     order = np.lexsort((rel, owner))  # by cluster, then by bearing
     out[:, 0] = pts[order[start]]
     out[:, 1] = pts[order[start + size - 1]]

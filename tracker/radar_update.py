@@ -136,11 +136,12 @@ def update_coasting(
     z_sigma = radar_measurement(to_vehicle(sigma, ego, road, config.coordinates))  # (U, S, 4)
     m = config.measurement
     r = np.array([m.radar_position_sigma**2] * 2 + [m.radar_velocity_sigma**2] * 2)
-    res = kalman_update(ut, sigma[inverse], means[idx][inverse], covs[idx][inverse], z_sigma[inverse], z[det],
+    prior_m, prior_p = means[idx][inverse], covs[idx][inverse]
+    res = kalman_update(ut, sigma[inverse], prior_m, prior_p, z_sigma[inverse], z[det],
                         np.broadcast_to(r, (len(comp), RADAR_DIM)), wrapping=wrapping)
     if m.radar_only_holds_extent:  # the nearest visible point says where the vehicle is, not its extent
         every = np.ones(len(comp), dtype=bool)
-        hold_extent(res, means[idx][inverse], covs[idx][inverse], every, every)
+        hold_extent(res, prior_m, prior_p, every, every)
     gated = res.nis <= chi2.ppf(config.gating.probability, RADAR_DIM)
     if not gated.any():
         return RadarOnlyResult.empty(dim)

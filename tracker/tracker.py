@@ -618,8 +618,9 @@ class Tracker:
                         explained: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth components (means, covariances) of the clusters neither ``explained`` nor owned by a track."""
         idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
-        means, covs = cluster_births([clusters[k] for k in idle], [velocities[k] if self.config.use_radar else None for k in idle],
-                                     ego, self.road, self.config.birth, self._shadowed_ends([clusters[k] for k in idle]))
+        points = [clusters[k] for k in idle]
+        means, covs = cluster_births(points, [velocities[k] if self.config.use_radar else None for k in idle],
+                                     ego, self.road, self.config.birth, self._shadowed_ends(points))
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         return self._with_acceleration(means, covs)
