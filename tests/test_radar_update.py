@@ -217,9 +217,11 @@ def test_a_radar_only_update_moves_the_position_not_the_extent(straight, hold):
     the car's rear says the rear is 1.5 m further on. Held (``MeasurementConfig.radar_only_holds_extent``):
     ``L`` and ``W`` keep their prior mean and variance, the position moves towards the detection (by
     the Schmidt gain, which counts the length's uncertainty); updated: most of the offset goes into
-    ``L``, which shrinks by half a metre (4.6 -> 4.04 m)."""
+    ``L``, which shrinks by half a metre (4.6 -> 4.04 m). The detection's spread is 1 m here (the
+    default 2 m moves the position only 0.03 m, too little to show the split)."""
     base = TrackerConfig()
-    config = dataclasses.replace(base, measurement=dataclasses.replace(base.measurement, radar_only_holds_extent=hold))
+    config = dataclasses.replace(base, measurement=dataclasses.replace(base.measurement, radar_only_holds_extent=hold,
+                                                                       radar_position_sigma=1.0))
     ut = UnscentedTransform(config.ukf, n=8)
     mean, cov = coasting(straight, 48.5, 0.0, 6.0, sd_s=0.3)
     cov[0, 5, 5] = 1.0
