@@ -422,7 +422,7 @@ class MeasurementConfig:
       the true rectangle's point nearest the E origin, 2.0 m at the 95th percentile along: the
       visible part of a half-hidden car is where the radar sees it. With 1 m each update pulled a
       hidden track towards its visible corner, where the lidar should then have seen it: occlusion
-      seed 15, a car hidden for 2.5 s, lost at 13.0 s 0.38 m from it (its weight below
+      seed 15, a car hidden from 12.7 s, lost at 13.0 s 0.38 m from it (its weight below
       ``keep_threshold``), kept with 2 m. Fused, 13 scenarios x 20 seeds against 1 m: occlusion GOSPA
       -0.093 +- 0.058 m, stop-and-go -0.022 +- 0.009 (position -0.012 +- 0.007), truck-hairpin
       position -0.005 +- 0.004; no metric worse by more than 0.001 on any scenario. 3 and 5 m gained
