@@ -227,3 +227,16 @@ def test_a_coasting_tracks_label_goes_to_the_updated_newcomer_beside_it():
     # both updated (fragments of one vehicle): the keeper's own state
     out, _ = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={3, 8})
     assert out.labels.tolist() == [3] and out.means[0].tolist() == mix.means[0].tolist()
+
+
+def test_a_coasting_tracks_prediction_is_no_fragment_of_the_newcomers_vehicle():
+    # both lengths known (a car's 4.8 m, seen before): coasting track 3's prediction missed its car by
+    # 2.5 m and newcomer 8 sits on it; the label is 3's and the state 8's, with 8's own length, not the
+    # 7.3 m union of a prediction and a measurement (Cartesian occlusion, seeds 3, 9 and 11: 9.5-9.9 m)
+    mix = vehicles([(3, 100.0, 0.0, 4.8, 1.9), (8, 102.5, 0.1, 4.8, 1.9)], length_std=0.2, weights=[0.8, 1.0])
+    out, absorbed = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={8})
+    assert absorbed == 1 and out.labels.tolist() == [3]
+    assert out.means[0].tolist() == mix.means[1].tolist() and out.means[0, 5] == pytest.approx(4.8)
+    # both seen (two fragments of one long vehicle): their union
+    out, _ = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={3, 8})
+    assert out.means[0, 5] == pytest.approx(7.3)
