@@ -268,7 +268,8 @@ def absorb_overlapping(
         else:
             k, a = (i, j) if li < lj else (j, i)
         label = int(mix.labels[cand[k]])
-        if (li in updated) != (lj in updated):  # the state: the one a cluster updated, not a coasting one
+        one_coasts = (li in updated) != (lj in updated)
+        if one_coasts:  # the state: the one a cluster updated, not a coasting one
             k, a = (i, j) if li in updated else (j, i)
         ck, ca = cand[k], cand[a]
         weights[ck] = max(weights[ck], mix.weights[ca])
@@ -278,7 +279,7 @@ def absorb_overlapping(
         absorbed += 1
         if max(mix.covs[ck, 5, 5], mix.covs[ca, 5, 5]) > UNION_LENGTH_STD**2:
             continue  # a length not seen: no evidence of where the vehicle ends
-        if (li in updated) != (lj in updated):
+        if one_coasts:
             continue  # a coasting track's predicted rectangle is no fragment that was seen
         lo = min(-0.5 * length[k], along[k, a] - 0.5 * length[a])
         hi = max(0.5 * length[k], along[k, a] + 0.5 * length[a])
