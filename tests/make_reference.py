@@ -65,7 +65,10 @@ def run_reference() -> dict[str, np.ndarray]:
     # partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs the shadow flags,
     # off here) and no births spread on either side of a cluster whose near end borders a shadow
     # (BirthConfig.shadow_aware, session 19; needs the shadow flags) nor radar-only updates holding the
-    # extent (MeasurementConfig.radar_only_holds_extent, session 19; radar-only updates are off here):
+    # extent (MeasurementConfig.radar_only_holds_extent, session 19; radar-only updates are off here)
+    # nor two-sided clusters partially visible where the prediction shows one side (MeasurementConfig.
+    # two_sided_data_partial, session 21) nor the softer update of parts going on behind a shadow
+    # (shadowed_lidar_sigma, session 21; needs the shadow flags):
     # intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
@@ -75,7 +78,8 @@ def run_reference() -> dict[str, np.ndarray]:
                                   first_scan=False, correlated_extent=False, narrow_width=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
                                         settled_width_std=None, sharp_side_whole=False,
-                                        sharp_parts_whole=False),
+                                        sharp_parts_whole=False, two_sided_data_partial=False,
+                                        shadowed_lidar_sigma=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
         clustering=dataclasses.replace(base.clustering, fragment_points=None),

@@ -556,3 +556,73 @@ def test_euler_conversion_follows_the_exact_one_with_the_papers_error() -> None:
         errors.append(float(np.linalg.norm(exact.center - euler.center)))
         assert errors[-1] == pytest.approx(0.25 * d / 80.0, rel=0.25)
     assert errors == sorted(errors)
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_a_two_sided_cluster_whose_prediction_shows_one_side_is_partially_visible(compiled) -> None:
+    """A car ahead-left shows its rear and right side (the data: two-sided, a corner); its prediction,
+    1.2 m to the right and so straight ahead, shows the rear alone. With
+    ``MeasurementConfig.two_sided_data_partial`` off (the model before) the whole cluster, rear and
+    side, is taken as one whole side (``FULL``), whose chord pulls the predicted side to the span of
+    both; with the rule the part is partially visible (anchored), so the update holds the extent. A
+    prediction that shows both sides is untouched."""
+    car = np.array([12.0, 1.2, 10.0, 0.0, 0.0, 4.7, 1.9])
+    k = corners_of(car)
+    assert visible_sides(k).tolist() == [False, False, True, True]
+    config = MeasurementConfig()
+    batch = ClusterBatch.of([prepare_cluster(two_sided_scan(k, 0, 3, 2), config)])
+    assert batch.two_sided[0]
+    ahead = corners_of(car - np.array([0.0, 1.2, 0.0, 0.0, 0.0, 0.0, 0.0]))[None]
+    assert visible_sides(ahead[0]).tolist() == [False, False, True, False]
+    sd = np.array([[0.5, 0.2]])
+
+    def structure(corners, cfg):
+        st = build_structure(batch, np.array([0]), corners, cfg, extent_sd=sd, compiled=compiled)
+        other = build_structure(batch, np.array([0]), corners, cfg, extent_sd=sd, compiled=not compiled)
+        np.testing.assert_array_equal(other.mode, st.mode)
+        np.testing.assert_allclose(other.coef, st.coef, atol=1e-12)
+        return st
+
+    before = structure(ahead, dataclasses.replace(config, two_sided_data_partial=False))
+    assert not before.two_sided[0] and before.mode[0].tolist() == [FULL, FULL]
+    after = structure(ahead, config)
+    assert not after.two_sided[0] and after.mode[0, 0] in (FROM_A, FROM_B, CENTRE)
+    both = structure(k[None], config)  # the prediction shows the corner: two whole sides
+    assert both.two_sided[0] and both.mode[0].tolist() == [FULL, FULL]
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_the_points_of_a_part_going_on_behind_a_shadow_update_with_the_shadowed_sigma(compiled) -> None:
+    """A car 15 m ahead shows the left 1.2 m of its 1.9 m rear; with an end of it bordering a nearer
+    object's shadow (``occluded_end``) it is partially visible, anchored at the other end, and its
+    points' variance in the update is ``MeasurementConfig.shadowed_lidar_sigma^2`` (0.15 m); with the
+    rule off, or with no end in a shadow (the flags say both ends are free: the whole side of a narrow
+    vehicle; no flags: partially visible by its extent, but nothing hides it), ``lidar_sigma^2``
+    (0.1 m). The radar's row keeps its variance."""
+    car = np.array([15.0, 0.3, 10.0, 0.0, 0.0, 4.5, 1.9])
+    k = corners_of(car)
+    assert visible_sides(k).tolist() == [False, False, True, False]  # the rear: K2 (left) -> K3 (right)
+    right_end = k[2] + 1.2 * (k[3] - k[2]) / 1.9
+    pts, hit = rectangle_scan(k, np.linspace(bearing(k[2]), bearing(right_end), 24))
+    assert hit.all()
+    config = MeasurementConfig()
+    batch = ClusterBatch.of([prepare_cluster(pts[::-1] if bearing(pts[0]) > bearing(pts[-1]) else pts, config)])
+    batch = dataclasses.replace(batch, fused=np.array([True]), velocity=np.array([[10.0, 0.0]]))
+    lidar_rows = np.repeat(batch.valid[0], 2)
+
+    def variances(b, cfg=config, anchored=False):
+        st = build_structure(b, np.array([0]), k[None], cfg, extent_sd=np.array([[0.5, 0.2]]), compiled=compiled)
+        other = build_structure(b, np.array([0]), k[None], cfg, extent_sd=np.array([[0.5, 0.2]]), compiled=not compiled)
+        np.testing.assert_allclose(other.r, st.r, atol=1e-15)
+        assert (st.mode[0, 0] in (FROM_A, FROM_B, CENTRE)) == anchored
+        assert st.r[0, -2] == pytest.approx(config.radar_velocity_sigma**2)  # the radar's speed row
+        return np.unique(st.r[0, :-2][lidar_rows])
+
+    for end in ([[True, False]], [[False, True]]):
+        flagged = dataclasses.replace(batch, occluded_end=np.array(end))
+        assert variances(flagged, anchored=True) == pytest.approx([0.15**2])
+        off = dataclasses.replace(config, shadowed_lidar_sigma=None)
+        assert variances(flagged, off, anchored=True) == pytest.approx([0.1**2])
+    assert variances(dataclasses.replace(batch, occluded_end=np.array([[False, False]]))) == pytest.approx([0.1**2])
+    # no shadow flags at all: partially visible by its extent, anchored, but no shadow said so
+    assert variances(batch, anchored=True) == pytest.approx([0.1**2])

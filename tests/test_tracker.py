@@ -1035,6 +1035,43 @@ def test_radar_only_updates_of_a_hidden_car_leave_its_length_alone(hold):
         assert length < 2.0
 
 
+@pytest.mark.parametrize("rule", [True, False], ids=["partial", "one-whole-side"])
+def test_a_corner_the_prediction_does_not_show_does_not_shrink_the_car(rule):
+    """The standard suite's curve-single, seed 1: at 0.1 s the car ahead-left shows its rear and right
+    side (23 returns, two-sided by the data), but the new track's mean shows one side only. Taken as
+    that one whole side, the corner's chord pulled ``L`` from 4.50 to 3.65 m (the car is 4.8 m) and the
+    centre 0.74 m back, and the side was not seen whole again for a second; with
+    ``MeasurementConfig.two_sided_data_partial`` the part is partially visible, the length is held
+    (4.50 m) and learnt from the next frames' corners (4.46-5.12 m by 0.3 s)."""
+    result = _run_hard("curve-single", 1, "measurement", "two_sided_data_partial", rule, 0.35)
+    lengths = [float(_tracked_mean(frame, 1, "the car")[5]) for frame in result.frames[1:4]]  # 0.1-0.3 s
+    if rule:
+        assert all(abs(length - 4.8) < 0.45 for length in lengths)
+    else:
+        assert all(length < 3.7 for length in lengths)
+
+
+@pytest.mark.parametrize("sigma", [0.15, None], ids=["softened", "lidar-sigma"])
+def test_a_car_going_behind_another_stays_tracked_when_its_shadowed_parts_update_softly(sigma):
+    """The standard suite's occlusion, seed 1: car 5 disappears behind a nearer car from 2.8 s (five
+    returns, then three, one, none at 3.2 s). Each frame shows a part of it that goes on into the
+    nearer car's shadow; with every point at ``lidar_sigma`` (0.1 m) those fragments pulled the track
+    off the car, the lidar's missed detections then took its weight, and at 3.2 s it was gone (the car
+    missed for 3.8 s, until it came out again). With ``MeasurementConfig.shadowed_lidar_sigma`` 0.15 m
+    for such parts' points (the update only; the weight keeps 0.1 m) the track follows the car into
+    the shadow and is kept (0.24 m from it)."""
+    result = _run_hard("occlusion", 1, "measurement", "shadowed_lidar_sigma", sigma, 3.25)
+    frame = result.frames[-1]
+    assert abs(frame.t - 3.2) < 1e-9
+    car = int(np.flatnonzero(frame.truth.ids == 5)[0])
+    assert frame.lidar_points[car] == 0  # hidden
+    if sigma is not None:
+        mean = _tracked_mean(frame, 5, "the hidden car")
+        assert abs(float(mean[0]) - float(frame.truth.s[car])) < 0.5
+    else:
+        assert 5 not in frame.track_truth_id.tolist()
+
+
 @pytest.mark.parametrize("sigma", [2.0, 1.0], ids=["radar-spread-2m", "radar-spread-1m"])
 def test_a_hidden_car_stays_tracked_when_its_radar_detection_is_its_visible_part(sigma):
     """The standard suite's occlusion, seed 15: car 5, hidden from the lidar from 12.7 s, is followed by

@@ -137,6 +137,41 @@ def test_low_rank_update_equals_dense_textbook_update() -> None:
         assert res.dim[p] == rows.sum()
 
 
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_likelihood_variances_change_the_weights_not_the_posterior(compiled, monkeypatch) -> None:
+    """``kalman_update(..., r_likelihood=...)`` (``MeasurementConfig.shadowed_lidar_sigma``: the update
+    softened, the weights and the gate not): the posterior is the update with ``r``, the log-likelihood and NIS
+    those of the update with ``r_likelihood`` (against scipy's density with the dense ``S``), for the
+    pairs where they differ; a pair where they agree is untouched."""
+    monkeypatch.setenv("EOT_NUMBA", "1" if compiled else "0")
+    rng = np.random.default_rng(3)
+    ut = UnscentedTransform()
+    wrap = Wrapping(angles=(3,))
+    p_count, d = 3, 10
+    mean = rng.standard_normal((p_count, 7))
+    a = rng.standard_normal((p_count, 7, 7))
+    cov = a @ np.swapaxes(a, 1, 2) / 7 + 0.1 * np.eye(7)
+    sigma = ut.sigma_points(mean, cov, wrap)
+    z_sigma = np.tanh(sigma @ rng.standard_normal((d, 7)).T)
+    z = rng.standard_normal((p_count, d))
+    factors = 0.1 * rng.standard_normal((p_count, 2, d))
+    mask = np.ones((p_count, d), dtype=bool)
+    soft = np.full((p_count, d), 0.15**2)
+    nominal = np.full((p_count, d), 0.1**2)
+    soft[2] = nominal[2]  # pair 2: the same variances
+    got = kalman_update(ut, sigma, mean, cov, z_sigma, z, soft, mask, wrap, factors, r_likelihood=nominal)
+    update = kalman_update(ut, sigma, mean, cov, z_sigma, z, soft, mask, wrap, factors)
+    weight = kalman_update(ut, sigma, mean, cov, z_sigma, z, nominal, mask, wrap, factors)
+    np.testing.assert_allclose(got.mean, update.mean, atol=1e-12)
+    np.testing.assert_allclose(got.cov, update.cov, atol=1e-12)
+    np.testing.assert_allclose(got.log_likelihood, weight.log_likelihood, rtol=1e-10)
+    np.testing.assert_allclose(got.nis, weight.nis, rtol=1e-10)
+    assert abs(update.log_likelihood[0] - weight.log_likelihood[0]) > 1.0  # what the option changes
+    dz = z_sigma[0] - ut.wm @ z_sigma[0]
+    s_mat = (ut.wc[:, None] * dz).T @ dz + np.diag(nominal[0]) + factors[0].T @ factors[0]
+    assert got.log_likelihood[0] == pytest.approx(multivariate_normal(ut.wm @ z_sigma[0], s_mat).logpdf(z[0]), rel=1e-10)
+
+
 def test_batched_pairs_equal_single_updates(circle80: Road) -> None:
     """Two components x two clusters of different sizes in one batch give the same posteriors and
     likelihoods as four separate updates; the right component explains the cluster better."""

@@ -659,6 +659,17 @@ def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
     return free
 
 
+def _lidar_variance(config: MeasurementConfig, mode: np.ndarray, shadowed: np.ndarray) -> np.ndarray:
+    """Per pair, the variance of each lidar coordinate in the update: ``shadowed_lidar_sigma^2`` for a
+    pair with a part partially visible (``mode (P, 2)`` anchored) whose cluster borders a shadow
+    (``shadowed (P,)``), ``lidar_sigma^2`` otherwise."""
+    base = np.full(len(mode), config.lidar_sigma**2)
+    if config.shadowed_lidar_sigma is None:
+        return base
+    anchored = ((mode == FROM_A) | (mode == FROM_B) | (mode == CENTRE)).any(axis=1)
+    return np.where(anchored & shadowed, config.shadowed_lidar_sigma**2, base)
+
+
 def build_structure(
     batch: ClusterBatch,
     cluster_index: np.ndarray,
@@ -766,6 +777,9 @@ def build_structure(
         shadowed &= ~_longer_than_predicted(chord_len[:, 0], predicted[:, 0], sides[:, 0], extent_sd,
                                             config.settled_width_std)
     partial |= shadowed[:, None]
+    if config.two_sided_data_partial:
+        # the data say two sides, the prediction shows one: what is seen is not one whole side
+        partial |= (batch.two_sided[ci] & ~two & ~single)[:, None]
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
     q_end = mean_corners[rows, end_c[:, 0]]
@@ -826,7 +840,8 @@ def build_structure(
     mask = np.concatenate([np.repeat(valid, 2, axis=1), np.repeat(radar[:, None], 2, axis=1)], axis=1)
     z = np.concatenate([pts.reshape(p_count, 2 * m), batch.velocity[ci]], axis=1)
     r = np.concatenate(
-        [np.full((p_count, 2 * m), config.lidar_sigma**2), np.full((p_count, 2), config.radar_velocity_sigma**2)],
+        [np.repeat(_lidar_variance(config, mode, occ.any(axis=1))[:, None], 2 * m, axis=1),
+         np.full((p_count, 2), config.radar_velocity_sigma**2)],
         axis=1,
     )
     factors = np.concatenate([factors, np.zeros((p_count, 2, 2))], axis=2)  # no end noise on radar rows
@@ -871,7 +886,8 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
         MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
         WIDEST_VEHICLE, LONGEST_VEHICLE,
         -1.0 if config.settled_width_std is None else float(config.settled_width_std),
-        _shadowed_parts_partial(config, batch),
+        _shadowed_parts_partial(config, batch), bool(config.two_sided_data_partial),
+        -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2,
     )
     return Structure(*fields)
 

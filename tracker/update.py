@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracker import compiled as compiled_kernels
-from tracker.config import BirthConfig, TrackerConfig
+from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
                                  Structure, build_structure, predict_measurements, shows_longer_side, to_vehicle)
@@ -77,13 +77,16 @@ def kalman_update(
     mask: np.ndarray | None = None,
     wrapping: Wrapping = Wrapping(),
     factors: np.ndarray | None = None,
+    r_likelihood: np.ndarray | None = None,
 ) -> UpdateResult:
     """UKF update of ``P`` Gaussians (``mean (P, n)``, ``cov (P, n, n)``, their sigma points
     ``sigma (P, S, n)``) by measurements ``z (P, D)`` with predicted measurement sigma points
     ``z_sigma (P, S, D)``, noise ``R = diag(r) + sum_e f_e f_e^T`` (variances ``r (P, D)``, optional
     low-rank ``factors (P, E, D)``) and row mask ``mask (P, D)`` (False rows are padding and take no
     part). Low-rank form, see the module docstring: the noise factors enter like extra sigma-point
-    columns with weight 1 and no state deviation."""
+    columns with weight 1 and no state deviation. ``r_likelihood (P, D)`` (default ``r``): the variances
+    of the log-likelihood and NIS, where they differ from the update's
+    (``MeasurementConfig.shadowed_lidar_sigma`` softens the update, not the weights or the gate)."""
     sigma, mean, cov = (np.asarray(a, dtype=float) for a in (sigma, mean, cov))
     z_sigma, z, r = (np.asarray(a, dtype=float) for a in (z_sigma, z, r))
     mask = np.ones(z.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -92,11 +95,16 @@ def kalman_update(
             f"kalman_update: inconsistent shapes sigma {sigma.shape}, z_sigma {z_sigma.shape}, z {z.shape}, r {r.shape}"
         )
     _check_noise(r, mask)
+    r_like = r if r_likelihood is None else np.asarray(r_likelihood, dtype=float)
+    if r_like is not r:
+        if r_like.shape != r.shape:
+            raise ValueError(f"kalman_update: r_likelihood {r_like.shape} must have the shape of r {r.shape}")
+        _check_noise(r_like, mask)
     if compiled_kernels.enabled() and len(wrapping.periods) <= 1 and z.shape[0]:
         from tracker.compiled.kalman import kalman_kernel
 
         extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
-        contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, mask, extra))
+        contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
         try:
             return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))
         except np.linalg.LinAlgError:  # a non-finite input: the numpy path below says what it makes of it
@@ -142,6 +150,12 @@ def kalman_update(
     post_cov = cov - t_st
     post_cov = 0.5 * (post_cov + np.swapaxes(post_cov, 1, 2))
     loglik = -0.5 * (dim * LOG_2PI + logdet + nis)
+    differs = np.flatnonzero(np.any(mask & (r_like != r), axis=1))
+    if len(differs):  # the likelihood and NIS of these pairs under r_likelihood
+        other = kalman_update(ut, sigma[differs], mean[differs], cov[differs], z_sigma[differs], z[differs],
+                              r_like[differs], mask[differs], wrapping,
+                              None if factors is None else np.asarray(factors, dtype=float)[differs])
+        loglik[differs], nis[differs] = other.log_likelihood, other.nis
     return UpdateResult(post_mean, post_cov, loglik, nis, dim, y, (z - y) * mask)
 
 
@@ -217,14 +231,15 @@ def update_pairs(
             pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
             pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
     res = _measure_compiled(ut, pair_sigma, pair_means, pair_covs, pair_rect, structure, clu,
-                            config.measurement.radar_gate, wrapping)
+                            config.measurement.radar_gate, wrapping, likelihood_variances(structure, config.measurement))
     if res is None:  # numpy (the reference): the same three steps
         z_sigma = predict_measurements(pair_rect, structure)
         rejected = np.zeros(len(comp), dtype=bool)
         if config.measurement.radar_gate is not None and structure.radar.any():
             structure, rejected = gate_radar_rows(ut, structure, z_sigma, clu, config.measurement.radar_gate)
         res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
-                            structure.mask, wrapping, structure.factors)
+                            structure.mask, wrapping, structure.factors,
+                            likelihood_variances(structure, config.measurement))
         res = dataclasses.replace(res, radar_rejected=rejected)
     return apply_extent_rules(res, pair_means, pair_covs, structure, mean_corners[inverse], config)
 
@@ -292,9 +307,20 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
     return sigma, to_vehicle(sigma, ego, road, coordinates, euler_s0)
 
 
+def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.ndarray | None:
+    """The variances ``(P, D)`` of the pairs' likelihood and NIS: ``structure.r`` with every lidar row at
+    ``lidar_sigma^2`` (``MeasurementConfig.shadowed_lidar_sigma`` softens the update of some pairs, not
+    their weight or their gate); None where the rule is off."""
+    if config.shadowed_lidar_sigma is None:
+        return None
+    r = structure.r.copy()
+    r[:, :-2] = np.where(structure.mask[:, :-2], config.lidar_sigma**2, r[:, :-2])
+    return r
+
+
 def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,
                       structure: Structure, cluster_index: np.ndarray, gate: float | None,
-                      wrapping: Wrapping) -> UpdateResult | None:
+                      wrapping: Wrapping, r_like: np.ndarray | None = None) -> UpdateResult | None:
     """``predict_measurements``, ``gate_radar_rows`` and ``kalman_update`` of the pairs in one compiled
     call (``tracker.compiled.kalman.measurement_update_kernel``; the same steps, the numbers agree to
     rounding); ``None`` where the kernels are off or do not apply (more than one periodic coordinate,
@@ -310,7 +336,7 @@ def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarr
         out = measurement_update_kernel(
             c(sigma), c(means), c(covs), c(rect.center),
             *(c(a) if a.shape == shape else c(np.broadcast_to(a, shape)) for a in (rect.psi, rect.v, rect.length, rect.width)),
-            c(structure.matrix), c(structure.z), c(structure.r),
+            c(structure.matrix), c(structure.z), c(structure.r), c(structure.r if r_like is None else r_like),
             c(structure.mask), c(np.zeros((len(means), 0, structure.z.shape[1])) if structure.factors is None
                                  else structure.factors), c(structure.radar), c(cluster_index),
             -1.0 if gate is None else float(gate), ut.wm, ut.wc, *wrapping.kernel_args())

@@ -47,12 +47,14 @@ def _dot(a, b, count):  # pragma: no cover - compiled
 
 
 @njit(fastmath=True)
-def kalman_kernel(sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles, period_index,
+def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc, angles, period_index,
                   period):  # pragma: no cover - compiled
     """Posterior ``mean (P, n)``, ``cov (P, n, n)``, ``loglik (P,)``, ``nis (P,)``, ``dim (P,)``, the
     predicted measurement ``y (P, D)`` and the innovation ``(P, D)`` (both 0 on padded rows) of each
-    pair (``tracker.update.kalman_update``; ``factors (P, E, D)``, ``E`` may be 0). Every sum runs over
-    a contiguous row (the loops are laid out for it), so that fastmath may vectorise it."""
+    pair (``tracker.update.kalman_update``; ``factors (P, E, D)``, ``E`` may be 0). The posterior uses
+    the variances ``r``, the likelihood and the NIS ``r_like`` (a second pass for the pairs where they
+    differ). Every sum runs over a contiguous row (the loops are laid out for it), so that fastmath may
+    vectorise it."""
     pairs, num_sigma, n = sigma.shape
     rows = z.shape[1]
     extra = factors.shape[1]
@@ -151,6 +153,48 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles
                 t_ij = _dot(xwg[i], xw[j], cols) - vtv[1 + i, 1 + j]
                 post_cov[p, j, i] = 0.5 * ((cov[p, j, i] - t_ji) + (cov[p, i, j] - t_ij))
                 post_cov[p, i, j] = post_cov[p, j, i]
+        differs = False
+        for d in range(rows):
+            if mask[p, d] and r_like[p, d] != r[p, d]:
+                differs = True
+        if not differs:
+            continue
+        # the likelihood and NIS under r_like: the same low-rank form, whitened by r_like
+        logdet_r = 0.0
+        count = 0
+        for d in range(rows):
+            if not mask[p, d]:
+                continue
+            isr = 1.0 / math.sqrt(r_like[p, d])
+            logdet_r += math.log(r_like[p, d])
+            nu[count] = innovation[p, d] * isr
+            for i in range(num_sigma):
+                a_cols[i, count] = (z_sigma[p, i, d] - y[p, d]) * isr
+            for e in range(extra):
+                a_cols[num_sigma + e, count] = factors[p, e, d] * isr
+            count += 1
+        for k in range(cols):
+            g[k] = _dot(a_cols[k], nu, count)
+            for l in range(k + 1):
+                gram[k, l] = _dot(a_cols[k], a_cols[l], count)
+                gram[l, k] = gram[k, l]
+        for k in range(cols):
+            for l in range(cols):
+                m_mat[k, l] = sw[k] * gram[k, l] * sw[l]
+            m_mat[k, k] += 1.0
+        _cholesky(m_mat, low)
+        logdet_m = 0.0
+        quad = 0.0
+        for k in range(cols):  # v = L^-1 a, a = sqrt(W) g: a^T M^-1 a = |v|^2
+            logdet_m += math.log(low[k, k])
+            acc = sw[k] * g[k]
+            for l in range(k):
+                acc -= low[k, l] * vee[l, 0]
+            vee[k, 0] = acc / low[k, k]
+            quad += vee[k, 0] * vee[k, 0]
+        q = _dot(nu, nu, count) - quad
+        nis[p] = q
+        loglik[p] = -0.5 * (count * log_2pi + 2.0 * logdet_m + logdet_r + q)
     return post_mean, post_cov, loglik, nis, dim, y, innovation
 
 
@@ -171,14 +215,15 @@ def _features(center, psi, v, length, width, p, i, out):  # pragma: no cover - c
 
 
 @njit
-def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, matrix, z, r, mask, factors, radar,
-                              cluster_index, gate, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
+def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, matrix, z, r, r_like, mask, factors,
+                              radar, cluster_index, gate, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
     """``tracker.update.update_pairs``' measurement step of the pairs in one call: the predicted
     measurement sigma points ``features @ matrix`` (``predict_measurements``; the sigma points'
     rectangles ``center (P, S, 2)``, ``psi``, ``v``, ``length``, ``width (P, S)``), the radar gate
     (``gate_radar_rows``; ``gate < 0``: off): a cluster's radar rows (the last two of ``D`` that any
     pair uses) are set aside when no pair with ``radar`` explains them (their own normalised
-    innovation squared above ``gate``), and the UKF update (``kalman_kernel``). Returns
+    innovation squared above ``gate``), and the UKF update (``kalman_kernel``; ``r_like`` the variances
+    of its likelihood and NIS). Returns
     ``kalman_kernel``'s outputs and, per pair, whether its radar rows were set aside."""
     pairs, num_sigma, n = sigma.shape
     rows = matrix.shape[2]
@@ -243,12 +288,14 @@ def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, m
             mask = mask.copy()
             z = z.copy()
             r = r.copy()
+            r_like = r_like.copy()
             for p in range(pairs):
                 if rejected[p]:
                     for d in range(max(rows - 2, 0), rows):
                         mask[p, d] = False
                         z[p, d] = 0.0
                         r[p, d] = 1.0
+                        r_like[p, d] = 1.0
     post_mean, post_cov, loglik, nis, dim, y, innovation = kalman_kernel(
-        sigma, mean, cov, z_sigma, z, r, mask, factors, wm, wc, angles, period_index, period)
+        sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc, angles, period_index, period)
     return post_mean, post_cov, loglik, nis, dim, y, innovation, rejected

@@ -32,12 +32,14 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                      min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
                      missed_rays, longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd,
-                     parts_shadowed):
+                     parts_shadowed, data_partial, shadowed_var):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
     ``longer_whole``: ``MeasurementConfig.shadowed_longer_whole`` with the growth evidence ``growth_min``,
     ``growth_sigmas``, the widest and longest vehicle ``widest``, ``longest`` and the settled width
-    ``settled_sd`` (negative: None); ``parts_shadowed``: ``MeasurementConfig.shadowed_parts_partial``."""
+    ``settled_sd`` (negative: None); ``parts_shadowed``: ``MeasurementConfig.shadowed_parts_partial``;
+    ``data_partial``: ``two_sided_data_partial``; ``shadowed_var``: ``shadowed_lidar_sigma`` squared
+    (negative: None)."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -199,6 +201,9 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         if shadowed:
             partial0 = True
             partial1 = True
+        if data_partial and two_in[c] and not two and not single:  # two sides in the data, one predicted
+            partial0 = True
+            partial1 = True
         # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
         ps = (side0 + 1) % 4
         pe = side0
@@ -226,6 +231,11 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         excess[p, 1] = -np.inf if single else ln1 - side_len[side1]
         radar = fused[c] and use_radar
         radar_out[p] = radar
+        point_var = lidar_var  # the update's variance of this pair's points
+        if shadowed_var >= 0.0 and (occ_lo or occ_hi):
+            for q in range(2):
+                if mode[p, q] == FROM_A or mode[p, q] == FROM_B or mode[p, q] == CENTRE:
+                    point_var = shadowed_var
         last_part = 1 if two else 0
         for m in range(width):
             ok = valid_in[c, m]
@@ -301,8 +311,8 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             mask[p, 2 * m + 1] = True
             z[p, 2 * m] = px
             z[p, 2 * m + 1] = py
-            r[p, 2 * m] = lidar_var
-            r[p, 2 * m + 1] = lidar_var
+            r[p, 2 * m] = point_var
+            r[p, 2 * m + 1] = point_var
             xs = 2 * m
             ys = 2 * m + 1
             matrix[p, 0, xs] = 1.0
