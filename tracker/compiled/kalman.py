@@ -47,6 +47,22 @@ def _dot(a, b, count):  # pragma: no cover - compiled
 
 
 @njit(fastmath=True)
+def _gram(a_cols, nu, count, sw, g, gram, m_mat):  # pragma: no cover - compiled
+    """Of the whitened columns ``a_cols (cols, count)`` and innovation ``nu``: ``g = A^T nu``, the Gram
+    matrix ``A^T A`` and ``M = I + sqrt(W) A^T A sqrt(W)`` (in place)."""
+    cols = len(sw)
+    for k in range(cols):
+        g[k] = _dot(a_cols[k], nu, count)
+        for l in range(k + 1):
+            gram[k, l] = _dot(a_cols[k], a_cols[l], count)
+            gram[l, k] = gram[k, l]
+    for k in range(cols):
+        for l in range(cols):
+            m_mat[k, l] = sw[k] * gram[k, l] * sw[l]
+        m_mat[k, k] += 1.0
+
+
+@njit(fastmath=True)
 def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc, angles, period_index,
                   period):  # pragma: no cover - compiled
     """Posterior ``mean (P, n)``, ``cov (P, n, n)``, ``loglik (P,)``, ``nis (P,)``, ``dim (P,)``, the
@@ -108,15 +124,8 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc
             _residual(dev, angles, period_index, period)
             for j in range(n):
                 xw[j, i] = dev[j] * wc[i]
+        _gram(a_cols, nu, count, sw, g, gram, m_mat)
         for k in range(cols):
-            g[k] = _dot(a_cols[k], nu, count)
-            for l in range(k + 1):
-                gram[k, l] = _dot(a_cols[k], a_cols[l], count)
-                gram[l, k] = gram[k, l]
-        for k in range(cols):
-            for l in range(cols):
-                m_mat[k, l] = sw[k] * gram[k, l] * sw[l]
-            m_mat[k, k] += 1.0
             rhs[0, k] = sw[k] * g[k]
         for j in range(n):
             for k in range(cols):
@@ -173,15 +182,7 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc
             for e in range(extra):
                 a_cols[num_sigma + e, count] = factors[p, e, d] * isr
             count += 1
-        for k in range(cols):
-            g[k] = _dot(a_cols[k], nu, count)
-            for l in range(k + 1):
-                gram[k, l] = _dot(a_cols[k], a_cols[l], count)
-                gram[l, k] = gram[k, l]
-        for k in range(cols):
-            for l in range(cols):
-                m_mat[k, l] = sw[k] * gram[k, l] * sw[l]
-            m_mat[k, k] += 1.0
+        _gram(a_cols, nu, count, sw, g, gram, m_mat)
         _cholesky(m_mat, low)
         logdet_m = 0.0
         quad = 0.0
