@@ -100,19 +100,24 @@ def position_error(road: Road, est: np.ndarray, truth: np.ndarray) -> float:
 
 
 # -- the update's algebra ----------------------------------------------------------------------------
-def test_low_rank_update_equals_dense_textbook_update() -> None:
-    """The matrix-inversion-lemma update equals K = T S^-1 with the full D x D innovation covariance,
-    including the low-rank noise factors and masked padding rows; the log-likelihood equals scipy's."""
-    rng = np.random.default_rng(0)
+def _random_pairs(rng: np.random.Generator, p_count: int, d: int):
+    """``p_count`` random Gaussians of a 7-state (yaw wrapped), their sigma points and a nonlinear
+    ``d``-row measurement of them: ``(ut, wrap, mean, cov, sigma, z_sigma)``."""
     ut = UnscentedTransform()
     wrap = Wrapping(angles=(3,))
-    p_count, d = 3, 12
     mean = rng.standard_normal((p_count, 7))
     a = rng.standard_normal((p_count, 7, 7))
     cov = a @ np.swapaxes(a, 1, 2) / 7 + 0.1 * np.eye(7)
     sigma = ut.sigma_points(mean, cov, wrap)
-    h = rng.standard_normal((d, 7))
-    z_sigma = np.tanh(sigma @ h.T)  # a nonlinear measurement
+    return ut, wrap, mean, cov, sigma, np.tanh(sigma @ rng.standard_normal((d, 7)).T)
+
+
+def test_low_rank_update_equals_dense_textbook_update() -> None:
+    """The matrix-inversion-lemma update equals K = T S^-1 with the full D x D innovation covariance,
+    including the low-rank noise factors and masked padding rows; the log-likelihood equals scipy's."""
+    rng = np.random.default_rng(0)
+    p_count, d = 3, 12
+    ut, wrap, mean, cov, sigma, z_sigma = _random_pairs(rng, p_count, d)
     z = rng.standard_normal((p_count, d))
     r = rng.uniform(0.01, 0.1, (p_count, d))
     factors = 0.1 * rng.standard_normal((p_count, 2, d))
@@ -145,14 +150,8 @@ def test_likelihood_variances_change_the_weights_not_the_posterior(compiled, mon
     pairs where they differ; a pair where they agree is untouched."""
     monkeypatch.setenv("EOT_NUMBA", "1" if compiled else "0")
     rng = np.random.default_rng(3)
-    ut = UnscentedTransform()
-    wrap = Wrapping(angles=(3,))
     p_count, d = 3, 10
-    mean = rng.standard_normal((p_count, 7))
-    a = rng.standard_normal((p_count, 7, 7))
-    cov = a @ np.swapaxes(a, 1, 2) / 7 + 0.1 * np.eye(7)
-    sigma = ut.sigma_points(mean, cov, wrap)
-    z_sigma = np.tanh(sigma @ rng.standard_normal((d, 7)).T)
+    ut, wrap, mean, cov, sigma, z_sigma = _random_pairs(rng, p_count, d)
     z = rng.standard_normal((p_count, d))
     factors = 0.1 * rng.standard_normal((p_count, 2, d))
     mask = np.ones((p_count, d), dtype=bool)
