@@ -76,8 +76,10 @@ velocity along the predicted mean's heading ``u`` against ``u . v (cos psi_E, si
 same features), with ``radar_velocity_sigma^2``; ``"velocity"`` (the paper) two rows
 ``v (cos psi_E, sin psi_E)``, the target's absolute velocity in E's axes, against the radar's
 ``(vx, vy)``, with ``radar_velocity_sigma^2 I2``; the lidar rows have
-``lidar_sigma^2 I2`` per point. The radar's timestamp is not used: the velocity of a vehicle changes
-little within one lidar period.
+``lidar_sigma^2 I2`` per point (``shadowed_lidar_sigma^2 I2`` in the update of a pair whose part is
+partially visible and whose cluster borders a shadow; its weight keeps ``lidar_sigma``:
+``tracker.update.likelihood_variances``). The radar's timestamp is not used: the velocity of a vehicle
+changes little within one lidar period.
 """
 
 from __future__ import annotations
