@@ -606,7 +606,7 @@ def test_the_points_of_a_part_going_on_behind_a_shadow_update_with_the_shadowed_
     pts, hit = rectangle_scan(k, np.linspace(bearing(k[2]), bearing(right_end), 24))
     assert hit.all()
     config = MeasurementConfig()
-    batch = ClusterBatch.of([prepare_cluster(pts[::-1] if bearing(pts[0]) > bearing(pts[-1]) else pts, config)])
+    batch = ClusterBatch.of([prepare_cluster(pts, config)])
     batch = dataclasses.replace(batch, fused=np.array([True]), velocity=np.array([[10.0, 0.0]]))
     lidar_rows = np.repeat(batch.valid[0], 2)
 

@@ -310,11 +310,12 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
 def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.ndarray | None:
     """The variances ``(P, D)`` of the pairs' likelihood and NIS: ``structure.r`` with every lidar row at
     ``lidar_sigma^2`` (``MeasurementConfig.shadowed_lidar_sigma`` softens the update of some pairs, not
-    their weight or their gate); None where the rule is off."""
-    if config.shadowed_lidar_sigma is None:
+    their weight or their gate); None where no pair's update was softened."""
+    lidar, nominal = structure.mask[:, :-2], config.lidar_sigma**2  # the last two rows are the radar's
+    if config.shadowed_lidar_sigma is None or not np.any(structure.r[:, :-2][lidar] != nominal):
         return None
     r = structure.r.copy()
-    r[:, :-2] = np.where(structure.mask[:, :-2], config.lidar_sigma**2, r[:, :-2])
+    r[:, :-2] = np.where(lidar, nominal, r[:, :-2])
     return r
 
 

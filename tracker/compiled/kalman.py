@@ -166,6 +166,7 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc
         for d in range(rows):
             if mask[p, d] and r_like[p, d] != r[p, d]:
                 differs = True
+                break
         if not differs:
             continue
         # the likelihood and NIS under r_like: the same low-rank form, whitened by r_like
