@@ -235,13 +235,16 @@ def absorb_overlapping(
     if len(heavy) < 2:
         return mix, 0
     order = heavy[np.argsort(-mix.weights[heavy], kind="stable")]
-    _, first = np.unique(mix.labels[order], return_index=True)
-    cand = order[np.sort(first)]  # the heaviest component of each label, heaviest first
+    seen: set[int] = set()  # a few heavy components: a set beats numpy.unique's sort
+    first = [k for k, lab in enumerate(mix.labels[order].tolist()) if not (lab in seen or seen.add(lab))]
+    cand = order[first]  # the heaviest component of each label, heaviest first
     if len(cand) < 2:
         return mix, 0
     m = mix.means[cand]
-    position_wrapping = Wrapping(periods=tuple(p for p in wrapping.periods if p[0] < 2))  # s on a closed road
-    d = position_wrapping.residual(m[None, :, :2] - m[:, None, :2])  # d[i, j] = position of j - position of i
+    d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
+    position_periods = tuple(p for p in wrapping.periods if p[0] < 2)  # s on a closed road
+    if position_periods:
+        d = Wrapping(periods=position_periods).residual(d)
     if cartesian:
         c, s = np.cos(m[:, 3])[:, None], np.sin(m[:, 3])[:, None]
         along, across = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c

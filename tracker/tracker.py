@@ -73,6 +73,7 @@ from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
+from tracker.indices import unique_indices
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict
 from tracker.point import PointTracker
@@ -494,7 +495,7 @@ class Tracker:
             p_d = np.where(lift, floor, p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
-            size = np.array([len(c) for c in clusters])
+            size = cluster_size = np.array([len(c) for c in clusters])
             centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
@@ -506,7 +507,7 @@ class Tracker:
             comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
-                used, slot = np.unique(clu, return_inverse=True)  # prepare only clusters in some pair
+                used, slot = unique_indices(clu, len(clusters))  # prepare only clusters in some pair
                 prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
                                             [velocities[k] if cfg.use_radar else None for k in used])
                 mcfg = cfg.measurement
@@ -522,7 +523,8 @@ class Tracker:
                         self.stats["cluster_ends_continued"] += int(continued.sum())
                     prepared = dataclasses.replace(prepared, occluded_end=occluded, continued_end=continued)
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
-                self.stats["radar_velocities_rejected"] += len(np.unique(clu[res.radar_rejected]))
+                rejected = res.radar_rejected
+                self.stats["radar_velocities_rejected"] += len(np.unique(clu[rejected])) if rejected.any() else 0
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
                 # a track's own cluster (its points lie in its predicted rectangle) is associated by
                 # geometry: it updates the track even when the model fits it badly (a manoeuvre, partial
@@ -544,10 +546,10 @@ class Tracker:
                         - gamma[comp] + size * np.log(gamma[comp])
                         + res.log_likelihood[inside] - size * math.log(lam_c)
                     )
-                    explained[np.unique(clu)] = True
+                    explained[clu] = True
                     # normalise per cluster in the log domain; a single-point cluster's denominator
                     # also holds delta_{|W|,1} = 1 (log 0), the clutter alternative
-                    single = np.array([len(c) == 1 for c in clusters])
+                    single = cluster_size == 1
                     peak = np.full(len(clusters), -np.inf)
                     peak[single] = 0.0
                     np.maximum.at(peak, clu, log_num)

@@ -33,6 +33,7 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
 from tracker.frame import EgoState
+from tracker.indices import unique_indices
 from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
                                  Structure, build_structure, predict_measurements, shows_longer_side, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
@@ -210,7 +211,7 @@ def update_pairs(
         d = 2 * (0 if batch is None else batch.points.shape[1]) + 2
         return UpdateResult(np.zeros((0, dim)), np.zeros((0, dim, dim)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int),
                             np.zeros((0, d)), np.zeros((0, d)), np.zeros(0, dtype=bool))
-    used, inverse = np.unique(comp, return_inverse=True)
+    used, inverse = unique_indices(comp, len(means))
     euler_s0 = None
     if config.measurement.conversion == "euler" and config.coordinates == "curvilinear":
         ego_state = EgoState.coerce(ego)
@@ -311,9 +312,13 @@ def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.
     """The variances ``(P, D)`` of the pairs' likelihood and NIS: ``structure.r`` with every lidar row at
     ``lidar_sigma^2`` (``MeasurementConfig.shadowed_lidar_sigma`` softens the update of some pairs, not
     their weight or their gate); None where no pair's update was softened."""
-    lidar, nominal = structure.mask[:, :-2], config.lidar_sigma**2  # the last two rows are the radar's
-    if config.shadowed_lidar_sigma is None or not np.any(structure.r[:, :-2][lidar] != nominal):
+    nominal = config.lidar_sigma**2
+    if config.shadowed_lidar_sigma is None or not len(structure.r):
         return None
+    # a pair's lidar rows share one variance (tracker.measurement): its first row, always a point, tells
+    if not np.any(structure.r[:, 0][structure.mask[:, 0]] != nominal):
+        return None
+    lidar = structure.mask[:, :-2]  # the last two rows are the radar's
     r = structure.r.copy()
     r[:, :-2] = np.where(lidar, nominal, r[:, :-2])
     return r

@@ -1,7 +1,9 @@
 """Compiled mixture merging: ``tracker.reduction.merge`` in one numba call.
 
 The same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T P_i^-1 d_ij``
-(``d_ij = m_i - m_j``, wrapped coordinates wrapped), the greedy grouping (the heaviest remaining
+(``d_ij = m_i - m_j``, wrapped coordinates wrapped; a pair whose ``d_k^2 / P_i[k, k]``, a lower
+bound of it, already exceeds the gate on ``s`` or ``n`` is rejected without it, and ``P_i^-1`` is
+computed only for the components some pair needs it of), the greedy grouping (the heaviest remaining
 component takes every remaining one within the gate; ties of weight in index order), and the moment
 match of each group about its heaviest component (weighted mean, circular for angles; weighted
 covariances plus the weighted spread, symmetrised)."""
@@ -24,14 +26,18 @@ def _residual(x, angles, period_index, periods):
         x[i] -= periods[k] * math.floor(x[i] / periods[k] + 0.5)
 
 
+#: A pair is skipped without its Mahalanobis distance only when a coordinate's bound exceeds the gate
+#: by this factor: the bound holds exactly, so the skipped pairs are those the full test rejects.
+MERGE_BOUND_MARGIN = 1.0 + 1e-6
+
+
 @njit
 def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
     """Merged weights ``(G,)``, means ``(G, D)``, covariances ``(G, D, D)`` and the index of each
     group's heaviest component ``(G,)``."""
     n, dim = means.shape
     inv = np.empty((n, dim, dim))
-    for i in range(n):
-        inv[i] = np.linalg.inv(covs[i])
+    inverted = np.zeros(n, dtype=np.bool_)  # P_i^-1 computed when a pair first needs it
     order = np.argsort(-weights, kind="mergesort")
     remaining = np.ones(n, dtype=np.bool_)
     group = np.full(n, -1, dtype=np.int64)
@@ -47,6 +53,15 @@ def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
             for k in range(dim):
                 d[k] = means[i, k] - means[j, k]
             _residual(d, angles, period_index, periods)
+            # d^T P^-1 d >= d_k^2 / P_kk for every coordinate k (Cauchy-Schwarz): a pair that the
+            # position alone puts beyond the gate (with a margin far above rounding) is not merged,
+            # without the inverse and the quadratic form (most pairs: other vehicles)
+            if (d[0] * d[0] > MERGE_BOUND_MARGIN * gate * covs[i, 0, 0]
+                    or d[1] * d[1] > MERGE_BOUND_MARGIN * gate * covs[i, 1, 1]):
+                continue
+            if not inverted[i]:
+                inv[i] = np.linalg.inv(covs[i])
+                inverted[i] = True
             maha = 0.0
             for a in range(dim):
                 row = 0.0
