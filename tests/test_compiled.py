@@ -638,13 +638,14 @@ def test_compiled_projection_seed_equals_numpy(name, monkeypatch):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
-    """Scattered points, a dense random walk (cells holding many points) and points exactly on the
-    grid's cell boundaries; thresholds from 0.2 to 3 m."""
+    """Scattered points, a dense random walk (cells holding many points), points exactly on the
+    grid's cell boundaries and points too far apart for the grid's keys; thresholds from 0.2 to 3 m."""
     from tracker.clustering import distance_partition
 
     rng = np.random.default_rng(seed)
     clouds = [rng.uniform(-80.0, 80.0, (600, 2)), np.cumsum(rng.normal(0.0, 0.4, (700, 2)), axis=0),
-              np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2))]
+              np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2)),
+              np.array([[0.0, 0.0], [1e18, -1e18], [0.5, 0.0]])]  # keys that would overflow: the numpy path
     for pts in clouds:
         for threshold in (0.2, 0.5 * np.sqrt(2.0), 1.0, 3.0):
             monkeypatch.setenv(compiled.ENV_SWITCH, "0")
@@ -770,7 +771,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
-               kl.partition_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
+               kl.partition_kernel, kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel]
     before = [len(k.signatures) for k in kernels]

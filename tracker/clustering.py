@@ -80,15 +80,14 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     n = len(pts)
     if n == 0:
         return np.zeros(0, dtype=int)
-    if compiled_kernels.enabled() and np.isfinite(pts).all():
-        cell = np.floor(pts * (np.sqrt(2.0) / threshold)).astype(np.int64)  # side threshold / sqrt(2)
-        cell -= cell.min(axis=0) - 2  # cells from 2: the neighbours two cells away have keys >= 0
-        span = cell.max(axis=0) + 4
-        if float(span[0]) * float(span[1]) < 2.0**62:  # else the keys could overflow: the numpy path
-            from tracker.compiled.clustering import partition_kernel
+    if compiled_kernels.enabled():
+        # cells of side threshold / sqrt(2) from 2 (the neighbours two cells away have keys >= 0); a
+        # non-finite point, or keys that could overflow, take the numpy path
+        from tracker.compiled.clustering import partition_points_kernel
 
-            return partition_kernel(np.ascontiguousarray(pts), float(threshold), cell[:, 0].copy(), cell[:, 1].copy(),
-                                    int(span[1]))
+        labels, ok = partition_points_kernel(np.ascontiguousarray(pts), float(threshold))
+        if ok:
+            return labels
     pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")  # i < j
     linked = np.zeros(n, dtype=bool)  # linked[i]: an edge joins point i - 1 and point i
     linked[pairs[pairs[:, 1] - pairs[:, 0] == 1, 1]] = True

@@ -141,8 +141,8 @@ def prepare_batch(
 def _checked_velocities(velocities: list[np.ndarray | None]) -> list[np.ndarray | None]:
     given = [v for v in velocities if v is not None]
     if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype == np.float64 for v in given) and (
-            not given or np.isfinite(np.stack(given)).all()):
-        return list(velocities)  # the tracker's own: finite float (vx, vy) arrays already
+            not given or math.isfinite(sum(float(v[0]) + float(v[1]) for v in given))):
+        return list(velocities)  # the tracker's own: finite float (vx, vy) arrays (a sum that overflows: checked below)
     out: list[np.ndarray | None] = []
     for v in velocities:
         if v is None:
@@ -341,12 +341,15 @@ class _Prepared:
     def batch(self) -> ClusterBatch:
         """The rows as a ``ClusterBatch`` (what ``ClusterBatch.of(self.records())`` gives)."""
         fused = np.array([v is not None for v in self.velocity], dtype=bool)
+        velocity = np.zeros((len(fused), 2))
+        if fused.any():
+            velocity[fused] = [v for v in self.velocity if v is not None]
         count = np.maximum(self.kept_count, 1)[:, None]
         return ClusterBatch(
             points=self.points, valid=self.valid, part=self.part, proj=self.proj,
             chord_start=self.chord_start, chord_end=self.chord_end, chord_dir=self.chord_dir,
             chord_len=self.chord_len, end_margin=self.end_margin, end_gap=self.end_gap, two_sided=self.two_sided.copy(),
             single=self.chord_len[:, 0] <= MIN_CHORD, fused=fused,
-            velocity=np.stack([v if v is not None else np.zeros(2) for v in self.velocity]),
+            velocity=velocity,
             centroid=self.points.sum(axis=1) / count,
         )

@@ -191,7 +191,7 @@ class Tracker:
         ego = frame.ego
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
-        previous = [int(lab) for lab in self.mixture.labels[self._reported]]  # last frame's tracks
+        previous = self.mixture.labels[self._reported].tolist()  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
         self._strong_labels = set()
         self._radar_updated = set()
@@ -317,9 +317,15 @@ class Tracker:
         away at 2 m/s^2), whose estimate the raise would discard."""
         motion = self.config.motion
         order = np.lexsort((-weights, labels))
-        first = order[np.r_[True, labels[order][1:] != labels[order][:-1]]]
+        ordered = labels[order]
+        head = np.ones(len(order), dtype=bool)
+        np.not_equal(ordered[1:], ordered[:-1], out=head[1:])
+        first = order[head]
         chosen = labels[first].tolist()
-        d = self.wrapping.residual(post_means[first] - prior_means[first])[:, 0]
+        d = post_means[first, 0] - prior_means[first, 0]
+        for index, period in self.wrapping.periods:  # Wrapping.residual of s alone (s on a closed road)
+            if index == 0:
+                d -= period * np.floor(d / period + 0.5)
         z = d / np.sqrt(np.maximum(prior_covs[first, 0, 0] - post_covs[first, 0, 0], 1e-12))
         jump = np.abs(z) > motion.manoeuvre_sigmas
         moved = jump.copy()
@@ -534,7 +540,7 @@ class Tracker:
                 inside |= own
                 comp, clu = comp[inside], clu[inside]
                 self.stats["pairs_updated"] += len(comp)
-                self._updated_labels.update(int(lab) for lab in mix.labels[comp])
+                self._updated_labels.update(mix.labels[comp].tolist())
                 if len(comp):
                     size = size[clu]
                     for lab, n_pts in zip(mix.labels[comp].tolist(), size.tolist()):
@@ -553,9 +559,10 @@ class Tracker:
                     peak = np.full(len(clusters), -np.inf)
                     peak[single] = 0.0
                     np.maximum.at(peak, clu, log_num)
-                    total = np.bincount(clu, weights=np.exp(log_num - peak[clu]), minlength=len(clusters))
+                    scaled = np.exp(log_num - peak[clu])
+                    total = np.bincount(clu, weights=scaled, minlength=len(clusters))
                     total += np.where(single, np.exp(-np.clip(peak, -700.0, 700.0)), 0.0)
-                    weights = np.exp(log_num - peak[clu]) / total[clu]
+                    weights = scaled / total[clu]
                     # the UKF's posterior is a covariance only when the sigma points represent the prior;
                     # after a long gap (heading spread over the circle, wrapped residuals) it may not be:
                     # lift such matrices to positive definite and count them
@@ -566,7 +573,7 @@ class Tracker:
                     if self.dim == 8 and cfg.motion.quiet_jerk is not None:
                         self._detect_manoeuvres(mix.means[comp], mix.covs[comp], res.mean[inside], post_cov,
                                                 mix.labels[comp], weights)
-                    self._strong_labels.update(int(lab) for lab in mix.labels[comp][weights > cfg.reduction.extraction_threshold])
+                    self._strong_labels.update(mix.labels[comp][weights > cfg.reduction.extraction_threshold].tolist())
                     new_w.append(weights)
                     new_m.append(res.mean[inside])
                     new_p.append(post_cov)

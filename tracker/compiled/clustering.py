@@ -46,6 +46,32 @@ def _labels_in_order(parent):
 
 
 @njit
+def partition_points_kernel(pts, threshold):
+    """``partition_kernel`` with the cells computed here as ``tracker.clustering.distance_partition``
+    computes them (``floor(p sqrt(2) / threshold)``, shifted to start at 2). Returns ``(labels, ok)``;
+    ``ok`` False (nothing computed) when a point is not finite or the cell keys could overflow (the
+    caller then takes the numpy path)."""
+    n = len(pts)
+    scale = np.sqrt(2.0) / threshold
+    cx = np.empty(n, dtype=np.int64)
+    cy = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        if not (np.isfinite(pts[i, 0]) and np.isfinite(pts[i, 1])):
+            return np.empty(0, dtype=np.int64), False
+        cx[i] = np.int64(np.floor(pts[i, 0] * scale))
+        cy[i] = np.int64(np.floor(pts[i, 1] * scale))
+    shift_x = cx.min() - 2
+    shift_y = cy.min() - 2
+    cx -= shift_x
+    cy -= shift_y
+    span_x = cx.max() + 4
+    span_y = cy.max() + 4
+    if float(span_x) * float(span_y) >= 2.0**62:
+        return np.empty(0, dtype=np.int64), False
+    return partition_kernel(pts, threshold, cx, cy, span_y), True
+
+
+@njit
 def partition_kernel(pts, threshold, cx, cy, span_y):
     """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
     shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
