@@ -111,12 +111,7 @@ class Track:
         t = float(t)
         for lab, m, p, w in zip(np.asarray(labels).tolist(), means, covs, np.asarray(weights, dtype=float).tolist()):
             track = object.__new__(cls)
-            object.__setattr__(track, "label", int(lab))
-            object.__setattr__(track, "t", t)
-            object.__setattr__(track, "mean", m)
-            object.__setattr__(track, "cov", p)
-            object.__setattr__(track, "weight", float(w))
-            object.__setattr__(track, "extent", True)
+            track.__dict__.update(label=int(lab), t=t, mean=m, cov=p, weight=float(w), extent=True)  # frozen: no __setattr__
             out.append(track)
         return out
 
