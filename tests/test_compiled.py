@@ -71,6 +71,7 @@ def _scene_pairs(monkeypatch):
         return build_structure(batch, ci, corners, *args, **kwargs)
 
     monkeypatch.setattr(tracker.update, "build_structure", record)
+    monkeypatch.setattr(tracker.update, "_update_pairs_fused", lambda *args: None)  # the staged path builds it
     tr = Tracker(road, TrackerConfig())
     rng = np.random.default_rng(3)
     for k in range(30):
@@ -767,15 +768,60 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.structure as ks
     import tracker.compiled.detection as kd
     import tracker.compiled.kalman as kk
+    import tracker.compiled.pairs as kq
     import tracker.compiled.ukf as ku
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
-               kl.partition_kernel, kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
+               kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
-               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel]
+               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel, kq.update_pairs_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)
     assert [len(k.signatures) for k in kernels] == before
     assert compiled.warm_up()
+
+
+def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
+    """``tracker.update.update_pairs`` by one compiled call (``tracker.compiled.pairs``) gives the staged
+    kernels' numbers bit for bit: every call of a tracked scene (a bus, radar, shadows) replayed both
+    ways, and the same calls with the priors' lengths cut to 2 m (sides longer than predicted: the
+    kernel hands the pairs back for the widened prior, and the staged path runs)."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+    from tracker.motion import LENGTH
+
+    calls = []
+    original = tt.update_pairs
+
+    def keep(*args):
+        calls.append(args)
+        return original(*args)
+
+    monkeypatch.setattr(tt, "update_pairs", keep)
+    track_scene(15)
+    monkeypatch.setattr(tt, "update_pairs", original)
+    assert len(calls) >= 14
+    fused = tu._update_pairs_fused
+    taken = []
+
+    def counting(*args):
+        out = fused(*args)
+        taken.append(out is not None)
+        return out
+
+    shortened = []
+    for means, covs, *rest in calls:
+        short = means.copy()
+        short[:, LENGTH] = 2.0
+        shortened.append((short, covs, *rest))
+    for case in calls + shortened:
+        monkeypatch.setattr(tu, "_update_pairs_fused", counting)
+        got = tu.update_pairs(*case)
+        monkeypatch.setattr(tu, "_update_pairs_fused", lambda *args: None)
+        ref = tu.update_pairs(*case)
+        for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation", "radar_rejected"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    assert all(taken[: len(calls)])  # the scene's own calls: all by the fused kernel
+    assert not all(taken[len(calls):])  # some shortened priors grew: handed back to the staged path

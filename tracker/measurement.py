@@ -867,30 +867,44 @@ def build_structure(
                      excess=np.where(single[:, None], -np.inf, chord_len - predicted))
 
 
+def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
+    """The clusters' arguments of the compiled structure kernel (``tracker.compiled.structure``), in its
+    order: the batch's arrays (C-contiguous: one compiled signature), its shadow flags (none: no end in
+    a shadow) and whether each bearing end is in a shadow or continues."""
+    c = np.ascontiguousarray
+    return (c(batch.points), c(batch.valid), c(batch.part), c(batch.proj), c(batch.chord_start), c(batch.chord_end),
+            c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.end_gap), c(batch.two_sided),
+            c(batch.single), c(batch.fused), c(batch.velocity), c(batch.centroid),
+            c(batch.occluded_end if batch.occluded_end is not None else np.zeros((len(batch.points), 2), dtype=bool)),
+            c(~_free_ends(batch, np.arange(len(batch.points)))))
+
+
+def structure_config_args(config: MeasurementConfig, batch: ClusterBatch, use_radar: bool,
+                          has_extent_sd: bool) -> tuple[tuple, tuple]:
+    """The settings' arguments of the compiled structure kernel, those before its ``extent_sd`` and
+    those after it (``has_extent_sd``: the pairs' predicted extent sd are known, so the rules that need
+    them apply)."""
+    extent_sd = np.zeros((0, 2)) if has_extent_sd else None  # the helpers ask only whether it is known
+    head = (float(config.single_point_min_apparent), float(config.partial_visibility), float(config.shadow_free_gap),
+            float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2, bool(use_radar),
+            config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
+            _sharp_parts_whole(config, batch, extent_sd))
+    tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
+            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+            WIDEST_VEHICLE, LONGEST_VEHICLE, -1.0 if config.settled_width_std is None else float(config.settled_width_std),
+            _shadowed_parts_partial(config, batch), bool(config.two_sided_data_partial),
+            -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
+    return head, tail
+
+
 def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
                               use_radar: bool, extent_sd: np.ndarray | None) -> Structure:
     from tracker.compiled.structure import structure_kernel
 
-    c = np.ascontiguousarray  # one compiled signature: C-contiguous arrays
-    parts_whole = _sharp_parts_whole(config, batch, extent_sd)
-    fields = structure_kernel(
-        c(batch.points), c(batch.valid), c(batch.part), c(batch.proj), c(batch.chord_start), c(batch.chord_end),
-        c(batch.chord_dir), c(batch.chord_len), c(batch.end_margin), c(batch.end_gap), c(batch.two_sided),
-        c(batch.single), c(batch.fused), c(batch.velocity), c(batch.centroid),
-        c(batch.occluded_end if batch.occluded_end is not None else np.zeros((len(batch.points), 2), dtype=bool)),
-        c(~_free_ends(batch, np.arange(len(batch.points)))),
-        ci, c(mean_corners, dtype=float), float(config.single_point_min_apparent),
-        float(config.partial_visibility), float(config.shadow_free_gap), float(config.lidar_sigma) ** 2,
-        float(config.radar_velocity_sigma) ** 2,
-        bool(use_radar), config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
-        parts_whole, c(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float),
-        int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-        MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
-        WIDEST_VEHICLE, LONGEST_VEHICLE,
-        -1.0 if config.settled_width_std is None else float(config.settled_width_std),
-        _shadowed_parts_partial(config, batch), bool(config.two_sided_data_partial),
-        -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2,
-    )
+    head, tail = structure_config_args(config, batch, use_radar, extent_sd is not None)
+    sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
+    fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
+                              sd, *tail)
     return Structure(*fields)
 
 

@@ -35,7 +35,8 @@ from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.indices import unique_indices
 from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
-                                 Structure, build_structure, predict_measurements, shows_longer_side, to_vehicle)
+                                 Structure, build_structure, predict_measurements, shows_longer_side,
+                                 structure_batch_args, structure_config_args, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
@@ -216,6 +217,10 @@ def update_pairs(
     if config.measurement.conversion == "euler" and config.coordinates == "curvilinear":
         ego_state = EgoState.coerce(ego)
         euler_s0 = float(road.to_frenet((ego_state.x, ego_state.y))[0])  # the paper integrates from the ego
+    if euler_s0 is None and batch is not None:
+        fused = _update_pairs_fused(means[used], covs[used], inverse, clu, batch, ego, road, config, ut, wrapping)
+        if fused is not None:
+            return fused
     sigma, rect = sigma_rectangles(ut, means[used], covs[used], wrapping, ego, road, config.coordinates, euler_s0)
     mean_corners = rect.take((slice(None), 0)).corners()  # (U, 4, 2): the central sigma point is the mean
     pair_means, pair_covs = means[comp], covs[comp]
@@ -245,6 +250,52 @@ def update_pairs(
     return apply_extent_rules(res, pair_means, pair_covs, structure, mean_corners[inverse], config)
 
 
+def _extent_rule_args(config: TrackerConfig) -> tuple:
+    """The settings' arguments of the compiled extent rules (``tracker.compiled.extent.extent_rules_kernel``
+    after its arrays): the hold, the long- and narrow-vehicle priors and the largest vehicle."""
+    b = config.birth
+    return (bool(config.measurement.hold_unobserved_extent),
+            b.long_width is not None, float(b.long_width or 0.0), b.long_length - b.long_length_std,
+            b.long_length_std**2, float(b.long_length), b.narrow_width is not None, float(b.narrow_width or 0.0),
+            b.narrow_width_std**2, b.narrow_length + b.narrow_length_std, b.narrow_length_std**2,
+            float(b.narrow_length), 0.25 * b.length_std**2,
+            math.inf if b.max_length is None else float(b.max_length),
+            math.inf if b.max_width is None else float(b.max_width))
+
+
+def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray, clu: np.ndarray, batch: ClusterBatch,
+                        ego: EgoState | tuple, road: Road | None, config: TrackerConfig, ut: UnscentedTransform,
+                        wrapping: Wrapping) -> UpdateResult | None:
+    """``update_pairs``' compiled steps in one call (``tracker.compiled.pairs.update_pairs_kernel``: the
+    same kernels in the same order, the same numbers) for the components ``means (U, D)``, ``covs`` in
+    some pair (pair ``p``: component ``inverse[p]``, cluster ``clu[p]``); ``None`` where the kernels are
+    off or do not apply (Cartesian states, more than one periodic coordinate) or where the kernel hands
+    the pairs back (a non-finite or not positive definite prior, a widened prior, a variance that is not
+    positive): the staged path then runs, as it always did."""
+    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None
+            or len(wrapping.periods) > 1 or not len(means)):
+        return None
+    from tracker.compiled.pairs import DONE, update_pairs_kernel
+
+    mcfg = config.measurement
+    ego = EgoState.coerce(ego)
+    kind, *curve = road._curve.kernel_args()
+    head, tail = structure_config_args(mcfg, batch, config.use_radar, True)
+    c = np.ascontiguousarray
+    try:
+        status, *out = update_pairs_kernel(
+            c(means, dtype=float), c(covs, dtype=float), c(inverse, dtype=np.intp), c(clu, dtype=np.intp), ut.scale,
+            ut.wm, ut.wc, *wrapping.kernel_args(), kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
+            road.length, road._ends_array, *curve, MIN_EXTENT, *structure_batch_args(batch), *head, *tail,
+            bool(mcfg.grow_extent), -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate),
+            *_extent_rule_args(config))
+    except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the staged path
+        return None
+    if status != DONE:
+        return None
+    return UpdateResult(*out)
+
+
 def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
     """The extent rules after the update, in place: ``hold_unobserved_extent`` (with
@@ -260,13 +311,7 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
         extent_rules_kernel(
             mean, cov, np.ascontiguousarray(prior_mean), np.ascontiguousarray(prior_cov),
             np.ascontiguousarray(structure.mode), np.ascontiguousarray(structure.sides),
-            np.ascontiguousarray(mean_corners, dtype=float), bool(config.measurement.hold_unobserved_extent),
-            b.long_width is not None, float(b.long_width or 0.0), b.long_length - b.long_length_std,
-            b.long_length_std**2, float(b.long_length), b.narrow_width is not None, float(b.narrow_width or 0.0),
-            b.narrow_width_std**2, b.narrow_length + b.narrow_length_std, b.narrow_length_std**2,
-            float(b.narrow_length), 0.25 * b.length_std**2,
-            math.inf if b.max_length is None else float(b.max_length),
-            math.inf if b.max_width is None else float(b.max_width))
+            np.ascontiguousarray(mean_corners, dtype=float), *_extent_rule_args(config))
         return res if mean is res.mean and cov is res.cov else dataclasses.replace(res, mean=mean, cov=cov)
     if config.measurement.hold_unobserved_extent:
         held_length = hold_unobserved_extent(res, prior_mean, prior_cov, structure)

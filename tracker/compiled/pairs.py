@@ -1,0 +1,120 @@
+"""Compiled update of the pairs: ``tracker.update.update_pairs``' compiled steps chained in one numba
+call, so that none of their intermediate arrays goes back to Python.
+
+The steps are the staged path's kernels, called in its order with its arguments: the sigma points of
+the components in some pair and their rectangles in E (``centerline.sigma_rectangles_kernel``), the
+measurement structure of every pair (``structure.structure_kernel``, the predicted extent's standard
+deviations from the pairs' priors), the extent growth (``extent.grow_extent_kernel``), the likelihood's
+variances (``tracker.update.likelihood_variances``), the measurement update with the radar gate
+(``kalman.measurement_update_kernel``) and the extent rules (``extent.extent_rules_kernel``): the same
+numbers as the staged path. Where that path leaves the kernels or raises (a NaN or an infinity in a
+mean or covariance, a pair whose prior the growth widened, a measurement variance that is not
+positive), the kernel returns a status instead of a result and the caller takes the staged path, which
+handles it as before."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.compiled import njit
+from tracker.compiled.centerline import sigma_rectangles_kernel
+from tracker.compiled.extent import extent_rules_kernel, grow_extent_kernel
+from tracker.compiled.kalman import measurement_update_kernel
+from tracker.compiled.structure import structure_kernel
+from tracker.motion import LENGTH, WIDTH
+
+#: ``update_pairs_kernel`` statuses: done; the staged path is needed (see the module docstring).
+DONE, NOT_FINITE, GROWN, BAD_NOISE = 0, 1, 2, 3
+
+
+@njit
+def _empty_result(pairs, dim, rows):  # pragma: no cover - compiled
+    return (np.empty((0, dim)), np.empty((0, dim, dim)), np.empty(0), np.empty(0), np.empty(0, dtype=np.int64),
+            np.empty((0, rows)), np.empty((0, rows)), np.zeros(0, dtype=np.bool_))
+
+
+@njit
+def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_index, period, kind, ego_x, ego_y,
+                        ego_yaw, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
+                        min_extent, points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
+                        end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, min_apparent,
+                        partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
+                        sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, longer_whole,
+                        growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed, data_partial,
+                        shadowed_var, grow, gate, hold, long_on, long_width, long_below, long_variance,
+                        long_length, narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance,
+                        narrow_length, unmeasured_var, max_length, max_width):  # pragma: no cover - compiled
+    """The posteriors of the pairs ``(component used[inverse[p]], cluster ci[p])`` of the components
+    ``means (U, D)``, ``covs (U, D, D)`` (the ones in some pair) and the prepared clusters (the
+    ``tracker.measurement.ClusterBatch`` fields). Returns ``(status, mean, cov, log_likelihood, nis,
+    dim, predicted, innovation, radar_rejected)``: ``measurement_update_kernel``'s outputs after the
+    extent rules when ``status`` is ``DONE``, empty arrays otherwise."""
+    count, dim = means.shape
+    pairs = len(ci)
+    rows = 2 * points.shape[1] + 2
+    sigma, center, psi, corners, finite = sigma_rectangles_kernel(
+        means, covs, scale, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table,
+        bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent)
+    if not finite:
+        return (NOT_FINITE,) + _empty_result(pairs, dim, rows)
+    num_sigma = sigma.shape[1]
+    # the pairs' priors, their mean rectangles' corners (the central sigma point is the mean) and the
+    # sigma points' rectangles (Rectangles.of_states: the extent floored at min_extent)
+    pair_means = np.empty((pairs, dim))
+    pair_covs = np.empty((pairs, dim, dim))
+    mean_corners = np.empty((pairs, 4, 2))
+    extent_sd = np.empty((pairs, 2))
+    pair_sigma = np.empty((pairs, num_sigma, dim))
+    pair_center = np.empty((pairs, num_sigma, 2))
+    pair_psi = np.empty((pairs, num_sigma))
+    pair_v = np.empty((pairs, num_sigma))
+    pair_length = np.empty((pairs, num_sigma))
+    pair_width = np.empty((pairs, num_sigma))
+    for p in range(pairs):
+        u = inverse[p]
+        pair_means[p] = means[u]
+        pair_covs[p] = covs[u]
+        mean_corners[p] = corners[u, 0]
+        extent_sd[p, 0] = np.sqrt(max(covs[u, LENGTH, LENGTH], 0.0))
+        extent_sd[p, 1] = np.sqrt(max(covs[u, WIDTH, WIDTH], 0.0))
+        pair_sigma[p] = sigma[u]
+        pair_center[p] = center[u]
+        pair_psi[p] = psi[u]
+        for i in range(num_sigma):
+            pair_v[p, i] = sigma[u, i, 2]
+            pair_length[p, i] = max(sigma[u, i, LENGTH], min_extent)
+            pair_width[p, i] = max(sigma[u, i, WIDTH], min_extent)
+    (_a, _b, _c1, _c2, _coef, matrix, _valid, _two, sides, mode, radar, z, r, mask, factors,
+     excess) = structure_kernel(points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
+                                end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, ci,
+                                mean_corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var,
+                                use_radar, speed_row, min_chord, sharp_whole, parts_whole, extent_sd, min_points,
+                                gate_sigmas, gate_slack, missed_rays, longer_whole, growth_min, growth_sigmas, widest,
+                                longest, settled_sd, parts_shadowed, data_partial, shadowed_var)
+    if grow:
+        grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, settled_sd,
+                                                growth_min, growth_sigmas)
+        if grown.any():  # new sigma points for the widened pairs: the staged path (numpy's factor)
+            return (GROWN,) + _empty_result(pairs, dim, rows)
+    width = r.shape[1]
+    softened = False
+    for p in range(pairs):
+        for d in range(width):
+            if mask[p, d] and not r[p, d] > 0.0:
+                return (BAD_NOISE,) + _empty_result(pairs, dim, rows)
+        if shadowed_var >= 0.0 and mask[p, 0] and r[p, 0] != lidar_var:
+            softened = True  # a pair's lidar rows share one variance: its first row, always a point, tells
+    r_like = r
+    if softened:  # tracker.update.likelihood_variances: the likelihood at the nominal lidar variance
+        r_like = r.copy()
+        for p in range(pairs):
+            for d in range(width - 2):
+                if mask[p, d]:
+                    r_like[p, d] = lidar_var
+    mean, cov, log_likelihood, nis, dims, predicted, innovation, rejected = measurement_update_kernel(
+        pair_sigma, pair_means, pair_covs, pair_center, pair_psi, pair_v, pair_length, pair_width, matrix, z, r,
+        r_like, mask, factors, radar, ci, gate, wm, wc, angles, period_index, period)
+    extent_rules_kernel(mean, cov, pair_means, pair_covs, mode, sides, mean_corners, hold, long_on, long_width,
+                        long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
+                        narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length, max_width)
+    return DONE, mean, cov, log_likelihood, nis, dims, predicted, innovation, rejected
