@@ -287,7 +287,10 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
 
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
-        pts = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in cluster_points])
+        if all(type(p) is np.ndarray and p.ndim == 2 and p.shape[1] == 2 and p.dtype == np.float64 for p in cluster_points):
+            pts = np.concatenate(cluster_points)  # the tracker's clusters: (n, 2) float arrays already
+        else:
+            pts = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in cluster_points])
         return radar_association_kernel(pts, offsets, np.ascontiguousarray(radar), float(gate))
     dist = np.full((len(cluster_points), len(radar)), np.inf)
     if sizes.sum():
@@ -322,9 +325,10 @@ def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
     if len(radar) == 0 or not clusters:
         return velocities, np.full(len(clusters), -1, dtype=int)
     index = np.asarray(associate_radar(clusters, radar.positions_at(t), gate), dtype=int)
+    velocity = np.column_stack([radar.vx, radar.vy]).astype(float)  # one (vx, vy) row per detection
     for k, r in enumerate(index.tolist()):
         if r >= 0:
-            velocities[k] = np.array([radar.vx[r], radar.vy[r]])
+            velocities[k] = velocity[r]
     return velocities, index
 
 

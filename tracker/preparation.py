@@ -97,11 +97,13 @@ def _regular(a: np.ndarray) -> bool:
     return a.ndim == 2 and a.shape[1] == 2 and len(a) > 0 and bool(np.isfinite(a).all())
 
 
-def _all_regular(arrays: list[np.ndarray]) -> bool:
-    """``all(_regular(a) for a in arrays)`` with one finiteness test over all points."""
+def _all_regular(arrays: list[np.ndarray]) -> np.ndarray | None:
+    """All the points (concatenated) when ``all(_regular(a) for a in arrays)``, with one finiteness test
+    over all of them; else None."""
     if not all(a.ndim == 2 and a.shape[1] == 2 and len(a) > 0 for a in arrays):
-        return False
-    return bool(np.isfinite(np.concatenate(arrays)).all())
+        return None
+    flat = np.concatenate(arrays)
+    return flat if np.isfinite(flat).all() else None
 
 
 def prepare_clusters(
@@ -133,8 +135,9 @@ def prepare_batch(
     from the padded arrays directly when every cluster is regular (the tracker's case)."""
     config = config if config is not None else MeasurementConfig()
     arrays, velocities = _checked(clusters, velocities)
-    if arrays and _all_regular(arrays):
-        return _prepare_finite(arrays, velocities, config).batch()
+    flat = _all_regular(arrays) if arrays else None
+    if flat is not None:
+        return _prepare_finite(arrays, velocities, config, flat=flat).batch()
     return ClusterBatch.of(prepare_clusters(arrays, config, velocities))
 
 
@@ -156,27 +159,28 @@ def _checked_velocities(velocities: list[np.ndarray | None]) -> list[np.ndarray 
 
 
 def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None], config: MeasurementConfig,
-                    *, compiled: bool | None = None) -> _Prepared:
+                    *, compiled: bool | None = None, flat: np.ndarray | None = None) -> _Prepared:
     """The padded arrays of finite, non-empty clusters: by the compiled kernel
     (``tracker.compiled.preparation``) when ``compiled`` (default: ``tracker.compiled.enabled()``), else
-    by numpy (the reference)."""
+    by numpy (the reference). ``flat``: the clusters' points concatenated, when the caller has them."""
     vel_out = _checked_velocities(velocities)
     if compiled is None:
         compiled = compiled_kernels.enabled()
     if compiled:
         compiled_kernels.require()
-        return _prepare_compiled(arrays, vel_out, config)
+        return _prepare_compiled(arrays, vel_out, config, flat)
     return _prepare_numpy(arrays, vel_out, config)
 
 
-def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], config: MeasurementConfig) -> _Prepared:
+def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], config: MeasurementConfig,
+                      flat: np.ndarray | None = None) -> _Prepared:
     from tracker.compiled.preparation import prepare_kernel
 
     n = np.array([len(a) for a in arrays])
     offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
     np.cumsum(n, out=offsets[1:])
     (points, valid, part, proj, starts, ends, direction, length, margin, half_gap, two, corner, ratio, order,
-     kept_count) = prepare_kernel(np.concatenate(arrays), offsets, int(config.max_cluster_points),
+     kept_count) = prepare_kernel(np.concatenate(arrays) if flat is None else flat, offsets, int(config.max_cluster_points),
                                   int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
                                   bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
                                   CORNER_MAX_SHIFT, MAX_END_GAP)
