@@ -22,6 +22,7 @@ from sim.benchmarks._table import format_table
 from sim.benchmarks._tracking import in_view, sensor_frames
 from sim.benchmarks._traffic import MIN_GAP, layout
 from sim.cli import main
+from tracker.tracker import STAGES
 
 HAS_STONESOUP = True
 try:
@@ -95,6 +96,11 @@ def test_quick_run_tracker_rows(quick):
             assert row["frames_timed"] == 10
             assert row["in_view_mean"] == int(count)  # the scene keeps every car in view
             assert row["lanes"] == 4
+            # where the frame goes: every stage of Tracker.step, inside the step's own time
+            assert list(row["stage_ms"]) == list(STAGES)
+            assert all(ms >= 0.0 for ms in row["stage_ms"].values()) and row["stage_ms"]["update"] > 0.0
+            assert sum(row["stage_ms"].values()) <= row["ms_mean"] + 1e-3
+    assert "where a frame goes (curvilinear-fused" in quick[2]
 
 
 def test_quick_run_other_sections(quick):

@@ -1093,3 +1093,28 @@ def test_a_hidden_car_stays_tracked_when_its_radar_detection_is_its_visible_part
         assert abs(float(mean[0]) - float(frame.truth.s[car])) < 0.5
     else:
         assert not tracked
+
+
+def test_stage_seconds_time_every_stage_of_a_step(curve):
+    """``Tracker.stage_seconds``: one entry per ``STAGES`` name from the start; a frame without lidar
+    points (predict only) times no clustering, update or births; frames with points time them all,
+    and the stages together take no longer than the steps they are part of."""
+    import time
+
+    from tracker.tracker import STAGES
+
+    tracker = Tracker(curve, TrackerConfig())
+    assert list(tracker.stage_seconds) == list(STAGES) and not any(tracker.stage_seconds.values())
+    ego = EgoState(*curve.position(0.0), float(curve.heading(0.0)), 15.0)
+    start = time.perf_counter()
+    tracker.step(Frame(0.0, ego))
+    assert tracker.stage_seconds["predict"] > 0.0 and tracker.stage_seconds["extract"] > 0.0
+    for name in ("road_births", "cluster", "update", "cluster_births"):
+        assert tracker.stage_seconds[name] == 0.0, name
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(20.0, 0.0, 15.0), Car(35.0, 3.5, 16.0)], radar=True)
+    rng = np.random.default_rng(0)
+    for k in range(1, 6):
+        tracker.step(scene.frame(0.1 * k, rng))
+    wall = time.perf_counter() - start
+    assert all(tracker.stage_seconds[name] > 0.0 for name in ("road_births", "cluster", "update", "cluster_births"))
+    assert sum(tracker.stage_seconds.values()) <= wall  # the stages lie inside the steps

@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections import Counter
 from collections.abc import Container
 
@@ -89,6 +90,15 @@ from tracker.update import state_wrapping, update_pairs
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
 
+#: The stages of ``Tracker.step`` timed in ``Tracker.stage_seconds``, in their order: the prediction
+#: (cluster births of the last frame joining first), the lidar preprocessing, the road births (with the
+#: last frame's tracks' rectangles they avoid), the clustering (radar association included), the GM-PHD
+#: update (in the first scanned frame also the first scan's births), the radar-only updates of coasting tracks,
+#: the cluster births for the next frame, the reduction (field of view, prune, merge, overlaps) and
+#: the extraction of the tracks (labels, re-identification, events).
+STAGES = ("predict", "preprocess", "road_births", "cluster", "update", "radar_update", "cluster_births", "reduce",
+          "extract")
+
 
 class Tracker:
     """GM-PHD extended-object tracker on ``road`` configured by ``config`` (module docstring).
@@ -115,6 +125,9 @@ class Tracker:
     ``tracks_kept_below_threshold`` (tracks reported under ``reduction.keep_threshold``'s hysteresis).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
+    ``stage_seconds`` sums the wall time (s, ``time.perf_counter``) of each stage of ``step`` over the
+    tracker's life, by ``STAGES`` name: where a frame's time goes (``eot bench`` reports it per frame).
+    Wall times are not deterministic: they are kept apart from ``stats``.
     """
 
     def __new__(cls, road: Road | None = None, config: TrackerConfig | None = None) -> Tracker:
@@ -140,6 +153,7 @@ class Tracker:
         self.mixture = Mixture(np.zeros(0), np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)), np.zeros(0, dtype=int))
         self.t: float | None = None
         self.stats: Counter[str] = Counter()
+        self.stage_seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         #: the 3-D pipeline's result for the last frame (``tracker.cloud.CloudResult``; None when its lidar was 2-D)
         self.last_cloud: CloudResult | None = None
         self._next_label = 1
@@ -188,6 +202,8 @@ class Tracker:
         self.t = frame.t
         self._frame_dt = dt
         self.stats["frames"] += 1
+        clock, spent = time.perf_counter, self.stage_seconds
+        t0 = clock()
         ego = frame.ego
         s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
@@ -196,7 +212,11 @@ class Tracker:
         self._strong_labels = set()
         self._radar_updated = set()
         self._predict(dt, updated_before)
+        t1 = clock()
+        spent["predict"] += t1 - t0
         points, scanned = self._preprocess(frame)
+        t0 = clock()
+        spent["preprocess"] += t0 - t1
         if not scanned:
             # no lidar points at all (a blackout): predict only; no road births, which no scan could
             # confirm or discount (their weight would stand unchanged until the lidar returns); the
@@ -206,6 +226,8 @@ class Tracker:
             self._free_radar = np.arange(len(frame.radar))
             if self.config.use_radar and self.config.measurement.radar_only_update:
                 self._update_by_radar(frame)
+            t1 = clock()
+            spent["radar_update"] += t1 - t0
         else:
             # last frame's tracks as predicted rectangles in E: births avoid them, clustering assigns to them
             track_rect = to_vehicle(self.mixture.means[self._reported], ego, self.road, self.config.coordinates)
@@ -213,19 +235,32 @@ class Tracker:
             self._scanned = True
             if not first:
                 self._add_births(ego, s_ego, track_rect, self.mixture.labels[self._reported])
+            t1 = clock()
+            spent["road_births"] += t1 - t0
             clusters, velocities = self._cluster(points, frame, track_rect)
+            t0 = clock()
+            spent["cluster"] += t0 - t1
             if first:  # the first scan's vehicles are born now; the road births avoid them as they avoid tracks
                 born = self._birth_from_first_scan(ego, clusters, velocities)
                 self._add_births(ego, s_ego, to_vehicle(self.mixture.means[born], ego, self.road, self.config.coordinates),
                                  self.mixture.labels[born])
                 self._component_group = np.full(len(self.mixture), -1)  # no reported track owns a component yet
             explained = self._update(ego, clusters, velocities)
+            t1 = clock()
+            spent["update"] += t1 - t0
             if self.config.use_radar and self.config.measurement.radar_only_update:
                 self._update_by_radar(frame)
+            t0 = clock()
+            spent["radar_update"] += t0 - t1
             self._plan_cluster_births(ego, clusters, velocities, explained)
+            t1 = clock()
+            spent["cluster_births"] += t1 - t0
         self._reduce(ego)
+        t0 = clock()
+        spent["reduce"] += t0 - t1
         tracks = self._extract(frame.t, ego)
         self._record_events(previous, tracks)
+        spent["extract"] += clock() - t0
         return tracks
 
     # -- steps ------------------------------------------------------------------------------------

@@ -37,6 +37,12 @@ def _tracker(t: dict[str, Any]) -> list[str]:
         cells = " ".join(f"{_num(t['results'][v][c]['ms_median']):>11} / {_num(t['results'][v][c]['ms_p95']):>10}"
                          for v in variants)
         lines.append(f"  {c:>7} {first['lanes']:>5} {first['in_view_mean']:>7.1f} {cells}")
+    for v in variants[:1]:  # where the frame goes (Tracker.stage_seconds), at the count nearest 10 targets
+        rows = {c: row for c, row in t["results"][v].items() if row.get("stage_ms")}
+        if rows:
+            c = min(rows, key=lambda k: abs(int(k) - 10))
+            stages = ", ".join(f"{name} {ms:.3f}" for name, ms in rows[c]["stage_ms"].items())
+            lines.append(f"  where a frame goes ({v}, {c} targets, mean {_num(rows[c]['ms_mean'], 3)} ms): {stages}")
     return lines
 
 

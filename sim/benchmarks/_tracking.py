@@ -59,16 +59,31 @@ def bench_config(variant: str) -> TrackerConfig:
     return dataclasses.replace(config, detection=detection)
 
 
-def time_steps(tracker: Any, frames: list[SensorFrame]) -> tuple[np.ndarray, np.ndarray]:
-    """Wall seconds of ``tracker.step`` per frame and the number of tracks it reported."""
+def time_steps(tracker: Any, frames: list[SensorFrame], *,
+               stages_at_warm_up: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Wall seconds of ``tracker.step`` per frame and the number of tracks it reported;
+    ``stages_at_warm_up`` (a dict, filled in): the tracker's ``stage_seconds`` when the warm-up frames
+    are done."""
     seconds = np.empty(len(frames))
     tracks = np.empty(len(frames), dtype=int)
     for k, sf in enumerate(frames):
+        if k == WARMUP_FRAMES and stages_at_warm_up is not None:
+            stages_at_warm_up.update(tracker.stage_seconds)
         t0 = time.perf_counter()
         out = tracker.step(sf.frame)
         seconds[k] = time.perf_counter() - t0
         tracks[k] = len(out)
     return seconds, tracks
+
+
+def stage_ms(total: dict[str, float], at_warm_up: dict[str, float], frames: int) -> dict[str, float]:
+    """Mean ms per frame of each stage of ``Tracker.step`` (``tracker.Tracker.stage_seconds``: ``total``
+    after a ``time_steps`` run of ``frames`` frames, ``at_warm_up`` after its warm-up) over the steady
+    frames (all of them when fewer than ``2 * WARMUP_FRAMES``, as ``steady``)."""
+    if frames >= 2 * WARMUP_FRAMES:
+        return {name: round(1e3 * (sec - at_warm_up.get(name, 0.0)) / (frames - WARMUP_FRAMES), 4)
+                for name, sec in total.items()}
+    return {name: round(1e3 * sec / max(frames, 1), 4) for name, sec in total.items()}
 
 
 def steady(values: np.ndarray) -> np.ndarray:
@@ -129,8 +144,15 @@ def kernels(mode: str) -> Iterator[None]:
             os.environ[compiled.ENV_SWITCH] = before
 
 
-def time_variant(variant: str, scene: Layout, frames: list[SensorFrame], visible: np.ndarray) -> dict[str, float | int]:
-    """``frame_stats`` of a fresh tracker of ``variant`` on ``frames`` of ``scene``."""
+def time_variant(variant: str, scene: Layout, frames: list[SensorFrame], visible: np.ndarray) -> dict[str, Any]:
+    """``frame_stats`` of a fresh tracker of ``variant`` on ``frames`` of ``scene``; for a tracker that
+    times its stages also ``ms_mean`` (the steady frames' mean) and ``stage_ms`` (``stage_ms``)."""
     tracker = make_tracker(variant, scene.road, bench_config(variant))
-    seconds, tracks = time_steps(tracker, frames)
-    return frame_stats(seconds, tracks, visible)
+    at_warm_up: dict[str, float] = {}
+    timed = hasattr(tracker, "stage_seconds")
+    seconds, tracks = time_steps(tracker, frames, stages_at_warm_up=at_warm_up if timed else None)
+    out: dict[str, Any] = dict(frame_stats(seconds, tracks, visible))
+    if timed:  # where the frame goes: mean ms per stage (their sum is about the mean frame, ms_mean)
+        out["ms_mean"] = round(float(np.mean(1e3 * steady(seconds))), 3)
+        out["stage_ms"] = stage_ms(tracker.stage_seconds, at_warm_up, len(frames))
+    return out

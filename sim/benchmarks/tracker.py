@@ -5,7 +5,9 @@ all of them stay in the lidar's view (the narrowest of 4, 6, 8, ... lanes on whi
 to 20 cars, 10 lanes for 50). Per target count one sensor stream of ``--frames`` frames (default
 100 = 10 s; 10 Hz lidar, 14 Hz radars, seed 0) is made once and fed to a fresh tracker of each
 ``--variants`` entry. Reported per variant and count: ``ms_median`` and ``ms_p95`` of ``Tracker.step``
-(after a 10-frame warm-up), ``in_view_mean`` (cars with lidar points), ``tracks_mean``, ``lanes``.
+(after a 10-frame warm-up), ``in_view_mean`` (cars with lidar points), ``tracks_mean``, ``lanes``, and
+``ms_mean`` with ``stage_ms``: the mean ms per frame of each stage of ``Tracker.step``
+(``Tracker.stage_seconds``, ``tracker.tracker.STAGES``), i.e. where the frame goes.
 
 ``--compare-stonesoup`` also runs Stone Soup's GM-PHD (UKF, 10 point targets, ``--stonesoup-frames``
 frames, default 200) in the same process on the same frames as ours and prints the ratio of its ms per
