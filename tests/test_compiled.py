@@ -758,8 +758,10 @@ def test_compiled_points_in_rectangles_and_overlap_groups_equal_numpy(seed, monk
 
 
 def test_warm_up_compiles_every_kernel_once_per_process():
-    """After warm_up() every kernel has exactly one compiled signature, and a tracked scene adds none
-    (no compilation inside a timed frame); a second warm_up() returns at once."""
+    """After warm_up() every kernel the tracker calls from Python has a compiled signature (those called
+    only inside other kernels compile with them), the staged update's too (where the fused one hands
+    back), and a tracked scene adds none (no compilation inside a timed frame); a second warm_up()
+    returns at once."""
     import tracker.compiled.centerline as kc
     import tracker.compiled.clustering as kl
     import tracker.compiled.motion as km
@@ -768,14 +770,15 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.structure as ks
     import tracker.compiled.detection as kd
     import tracker.compiled.kalman as kk
+    import tracker.compiled.extent as ke
     import tracker.compiled.pairs as kq
-    import tracker.compiled.ukf as ku
 
     assert compiled.warm_up()
-    kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.rk4_propagate,
+    kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
                kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
-               kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, ku.sigma_kernel, ku.moments_kernel,
-               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.kalman_kernel, kq.update_pairs_kernel]
+               kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, kc.sigma_rectangles_kernel,
+               kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
+               ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)

@@ -123,3 +123,50 @@ def test_degenerate_batches_equal_the_reference(batch) -> None:
         warnings.simplefilter("error")
         got = prepare_clusters(clusters)
     assert_same(got, [prepare_cluster(c) for c in clusters])
+
+
+BATCH_FIELDS = ("points", "valid", "part", "proj", "chord_start", "chord_end", "chord_dir", "chord_len", "end_margin",
+                "end_gap", "two_sided", "single", "fused", "velocity", "centroid")
+
+
+@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
+@pytest.mark.parametrize("seed", range(3))
+def test_scanned_batch_is_the_batch_with_its_shadow_flags(kernels: str, seed: int, monkeypatch) -> None:
+    """``prepare_scanned_batch`` (one compiled call when the kernels are on) gives bit for bit what
+    ``prepare_batch`` then ``occluded_ends`` and ``continued_ends`` of its ends give, with the flags
+    switched off as the settings say; some ends of the random clusters are in shadows, some continue."""
+    from tracker import compiled
+    from tracker.clustering import continued_ends, occluded_ends
+    from tracker.preparation import prepare_scanned_batch
+
+    if kernels == "compiled" and not compiled.available():
+        pytest.skip("numba is not installed (the fast extra)")
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1" if kernels == "compiled" else "0")
+    rng = np.random.default_rng(seed)
+    clusters = [c + np.array([30.0, 0.0]) for c in random_clusters(seed)]
+    velocities = [rng.normal(0.0, 10.0, 2) if rng.random() < 0.5 else None for _ in clusters]
+    scan = np.concatenate(clusters + [rng.uniform(-60.0, 60.0, (300, 2))])
+    resolution, max_range = np.radians(0.2), 60.0
+    flags = [0, 0]
+    settings = [MeasurementConfig(), MeasurementConfig(shadow_window=None),
+                MeasurementConfig(sharp_side_whole=False, sharp_parts_whole=False),
+                MeasurementConfig(shadow_window=3.0, continuation_rays=2.0, sharp_side_whole=True)]
+    for config in settings:
+        got = prepare_scanned_batch(clusters, config, velocities, scan, resolution, max_range)
+        ref = prepare_batch(clusters, config, velocities)
+        for name in BATCH_FIELDS:
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+        if config.shadow_window is None:
+            assert got.occluded_end is None and got.continued_end is None
+            continue
+        occluded = occluded_ends(ref.bearing_ends(), scan, config.shadow_window * resolution, config.shadow_margin,
+                                 max_range, config.shadow_range_margin)
+        np.testing.assert_array_equal(got.occluded_end, occluded)
+        flags[0] += int(occluded.sum())
+        if config.continuation_rays is None or not (config.sharp_side_whole or config.sharp_parts_whole):
+            assert got.continued_end is None
+            continue
+        continued = continued_ends(*ref.side_ends(), scan, config.continuation_rays, config.continuation_offset)
+        np.testing.assert_array_equal(got.continued_end, continued)
+        flags[1] += int(continued.sum())
+    assert flags[0] > 0 and flags[1] > 0

@@ -15,6 +15,7 @@ counts them).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracker import compiled as compiled_kernels
+from tracker.clustering import continued_ends, occluded_ends
 from tracker.config import MeasurementConfig
 from tracker.measurement import (
     CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, ClusterBatch, _lambda_min, prepare_cluster,
@@ -139,6 +141,63 @@ def prepare_batch(
     if flat is not None:
         return _prepare_finite(arrays, velocities, config, flat=flat).batch()
     return ClusterBatch.of(prepare_clusters(arrays, config, velocities))
+
+
+def prepare_scanned_batch(
+    clusters: Sequence[np.ndarray], config: MeasurementConfig, velocities: Sequence[np.ndarray | None] | None,
+    scan: np.ndarray, lidar_resolution: float, lidar_range: float,
+) -> ClusterBatch:
+    """``prepare_batch`` with the clusters' shadow flags in the frame's lidar returns ``scan (N, 2)`` (E):
+    ``occluded_end``, ``tracker.clustering.occluded_ends`` of the bearing ends (``shadow_window`` rays of
+    ``lidar_resolution`` rad, ``shadow_margin``, the lidar's range ``lidar_range`` m less
+    ``shadow_range_margin``; None without ``MeasurementConfig.shadow_window``), and ``continued_end``,
+    ``tracker.clustering.continued_ends`` of the side ends (``continuation_rays``, ``continuation_offset``;
+    None unless a sharp-end rule, ``sharp_side_whole`` or ``sharp_parts_whole``, asks for it): the batch
+    the tracker's update takes. One compiled call (``tracker.compiled.preparation.scanned_batch_kernel``:
+    the same kernels, the same numbers) when the kernels are on and every cluster is regular."""
+    shadows = config.shadow_window is not None
+    continuation = shadows and config.continuation_rays is not None and bool(config.sharp_side_whole
+                                                                              or config.sharp_parts_whole)
+    window = config.shadow_window * lidar_resolution if shadows else 0.0
+    arrays, velocities = _checked(clusters, velocities)
+    flat = _all_regular(arrays) if arrays else None
+    if flat is None or not compiled_kernels.enabled():
+        batch = prepare_batch(arrays, config, velocities)
+        if not shadows:
+            return batch
+        occluded = occluded_ends(batch.bearing_ends(), scan, window, config.shadow_margin, lidar_range,
+                                 config.shadow_range_margin)
+        continued = (continued_ends(*batch.side_ends(), scan, config.continuation_rays, config.continuation_offset)
+                     if continuation else None)
+        return dataclasses.replace(batch, occluded_end=occluded, continued_end=continued)
+    from tracker.compiled.preparation import scanned_batch_kernel
+
+    vel_out = _checked_velocities(velocities)
+    offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
+    np.cumsum([len(a) for a in arrays], out=offsets[1:])
+    (points, valid, part, proj, starts, ends, direction, length, margin, half_gap, two, single, kept_count, occluded,
+     continued) = scanned_batch_kernel(
+        flat, offsets, int(config.max_cluster_points), int(config.min_points_two_sided),
+        float(config.two_side_eigen_ratio), bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
+        CORNER_MAX_SHIFT, MAX_END_GAP, np.ascontiguousarray(scan, dtype=float).reshape(-1, 2), shadows, float(window),
+        float(config.shadow_margin), float(lidar_range), float(config.shadow_range_margin), continuation,
+        float(config.continuation_rays or 0.0), float(config.continuation_offset))
+    fused, velocity = _stacked_velocities(vel_out)
+    return ClusterBatch(
+        points=points, valid=valid, part=part, proj=proj, chord_start=starts, chord_end=ends, chord_dir=direction,
+        chord_len=length, end_margin=margin, end_gap=half_gap, two_sided=two, single=single, fused=fused,
+        velocity=velocity, centroid=points.sum(axis=1) / np.maximum(kept_count, 1)[:, None],
+        occluded_end=occluded if shadows else None, continued_end=continued if continuation else None,
+    )
+
+
+def _stacked_velocities(velocity: list[np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
+    """Which clusters have a radar velocity ``(K,)`` and the velocities ``(K, 2)`` (0 where none)."""
+    fused = np.array([v is not None for v in velocity], dtype=bool)
+    stacked = np.zeros((len(fused), 2))
+    if fused.any():
+        stacked[fused] = [v for v in velocity if v is not None]
+    return fused, stacked
 
 
 def _checked_velocities(velocities: list[np.ndarray | None]) -> list[np.ndarray | None]:
@@ -344,10 +403,7 @@ class _Prepared:
 
     def batch(self) -> ClusterBatch:
         """The rows as a ``ClusterBatch`` (what ``ClusterBatch.of(self.records())`` gives)."""
-        fused = np.array([v is not None for v in self.velocity], dtype=bool)
-        velocity = np.zeros((len(fused), 2))
-        if fused.any():
-            velocity[fused] = [v for v in self.velocity if v is not None]
+        fused, velocity = _stacked_velocities(self.velocity)
         count = np.maximum(self.kept_count, 1)[:, None]
         return ClusterBatch(
             points=self.points, valid=self.valid, part=self.part, proj=self.proj,

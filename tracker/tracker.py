@@ -56,7 +56,6 @@ The Cartesian variant (``coordinates="cartesian"``) runs the same machinery on
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections import Counter
@@ -68,7 +67,7 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (bearing_extremes, cluster_radar, continued_ends, dense_components, distance_partition,
+from tracker.clustering import (bearing_extremes, cluster_radar, dense_components, distance_partition,
                                 fragment_owners, occluded_ends, points_in_rectangles, split_across)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
@@ -78,7 +77,7 @@ from tracker.indices import unique_indices
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict
 from tracker.point import PointTracker
-from tracker.preparation import prepare_batch
+from tracker.preparation import prepare_scanned_batch
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, absorb_overlapping, reduce
 from tracker.road import Road
@@ -549,20 +548,13 @@ class Tracker:
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = unique_indices(clu, len(clusters))  # prepare only clusters in some pair
-                prepared = prepare_batch([clusters[k] for k in used], cfg.measurement,
-                                            [velocities[k] if cfg.use_radar else None for k in used])
-                mcfg = cfg.measurement
-                if mcfg.shadow_window is not None:
-                    occluded = occluded_ends(prepared.bearing_ends(), self._scan,
-                                             mcfg.shadow_window * cfg.detection.lidar_resolution, mcfg.shadow_margin,
-                                             cfg.detection.lidar_range, mcfg.shadow_range_margin)
-                    self.stats["cluster_ends_occluded"] += int(occluded.sum())
-                    continued = None
-                    if mcfg.continuation_rays is not None and (mcfg.sharp_side_whole or mcfg.sharp_parts_whole):
-                        continued = continued_ends(*prepared.side_ends(), self._scan, mcfg.continuation_rays,
-                                                   mcfg.continuation_offset)
-                        self.stats["cluster_ends_continued"] += int(continued.sum())
-                    prepared = dataclasses.replace(prepared, occluded_end=occluded, continued_end=continued)
+                prepared = prepare_scanned_batch([clusters[k] for k in used], cfg.measurement,
+                                                 [velocities[k] if cfg.use_radar else None for k in used], self._scan,
+                                                 cfg.detection.lidar_resolution, cfg.detection.lidar_range)
+                if prepared.occluded_end is not None:  # MeasurementConfig.shadow_window
+                    self.stats["cluster_ends_occluded"] += int(np.count_nonzero(prepared.occluded_end))
+                if prepared.continued_end is not None:
+                    self.stats["cluster_ends_continued"] += int(np.count_nonzero(prepared.continued_end))
                 res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
                 rejected = res.radar_rejected
                 self.stats["radar_velocities_rejected"] += len(np.unique(clu[rejected])) if rejected.any() else 0

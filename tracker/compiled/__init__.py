@@ -133,6 +133,20 @@ def warm_up() -> bool:
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
+    # component with a car's length prior (its prior is widened: tracker.update's staged path), and
+    # clusters prepared without their shadow flags (tracker.preparation.prepare_batch)
+    from tracker.preparation import prepare_batch
+    from tracker.update import update_pairs
+
+    truck = rectangle_scan(rectangle_corners(np.array([30.0, 1.75]), np.array(0.0), np.array(12.0), np.array(2.5)),
+                           bearings)[0]
+    batch = prepare_batch([truck], tracker.config.measurement)
+    mean = np.zeros((1, tracker.dim))
+    mean[0, :7] = [130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]
+    cov = np.diag(np.r_[1.0, 0.2, 1.0, 0.01, 0.01, 0.25, 0.04, np.ones(tracker.dim - 7)])[None]
+    update_pairs(mean, cov, batch, np.zeros(1, dtype=int), np.zeros(1, dtype=int), EgoState(100.0, 0.0, 0.0, 10.0, 0.0),
+                 road, tracker.config, tracker.ut)
     for function in _EXTRA_WARM_UPS:
         function()
     _WARM = True

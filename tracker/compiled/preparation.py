@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
+from tracker.compiled.clustering import continued_ends_kernel, occluded_ends_kernel
 
 
 @njit
@@ -262,3 +263,55 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
         kept_count[i] = m
     return (points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided,
             corner_out, eigen_ratio, order_out, kept_count)
+
+
+@njit
+def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle, max_shift,
+                         max_end_gap, scan, shadows, window, margin, max_range, range_margin, continuation, rays,
+                         offset):  # pragma: no cover - compiled
+    """``prepare_kernel``'s arrays cut to the most points kept (``tracker.preparation._prepare_compiled``),
+    whether each cluster's chord is a single point, and the shadow flags of the clusters' ends in
+    ``scan`` (``shadows``: ``occluded_ends`` of the bearing ends with ``window``, ``margin``,
+    ``max_range``, ``range_margin``; ``continuation``: ``continued_ends`` of the side ends with
+    ``rays`` ray gaps and ``offset``), all False where a flag is off (the caller leaves it out).
+    Returns ``(points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
+    end_gap, two_sided, single, kept_count, occluded, continued)``."""
+    (points, valid, part, proj, starts, ends, direction, length, margin_out, half_gap, two, _corner, _ratio, _order,
+     kept_count) = prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle,
+                                  max_shift, max_end_gap)
+    count = len(kept_count)
+    m = kept_count.max()
+    points = points[:, :m].copy()
+    valid = valid[:, :m].copy()
+    part = part[:, :m].copy()
+    proj = proj[:, :, :m].copy()
+    single = np.empty(count, dtype=np.bool_)
+    for k in range(count):
+        single[k] = length[k, 0] <= min_chord
+    occluded = np.zeros((count, 2), dtype=np.bool_)
+    continued = np.zeros((count, 2), dtype=np.bool_)
+    if shadows and len(scan) and count:
+        bearing_ends = np.empty((count, 2, 2))  # ClusterBatch.bearing_ends: first and last kept point
+        for k in range(count):
+            last = max(int(valid[k].sum()) - 1, 0)
+            bearing_ends[k, 0] = points[k, 0]
+            bearing_ends[k, 1] = points[k, last]
+        occluded = occluded_ends_kernel(bearing_ends, scan, window, margin, max_range, range_margin)
+        if continuation:
+            side = np.empty((count, 2, 2))  # ClusterBatch.side_ends
+            outward = np.empty((count, 2, 2))
+            start = np.empty((count, 2))
+            reach = np.empty((count, 2))
+            for k in range(count):
+                side[k, 0] = starts[k, 1]
+                side[k, 1] = ends[k, 2]
+                outward[k, 0, 0] = -direction[k, 1, 0]
+                outward[k, 0, 1] = -direction[k, 1, 1]
+                outward[k, 1] = direction[k, 2]
+                start[k, 0] = half_gap[k, 1, 0]
+                start[k, 1] = half_gap[k, 2, 1]
+                reach[k, 0] = 2.0 * rays * start[k, 0]
+                reach[k, 1] = 2.0 * rays * start[k, 1]
+            continued = continued_ends_kernel(side, outward, start, reach, scan, offset)
+    return (points, valid, part, proj, starts, ends, direction, length, margin_out, half_gap, two, single, kept_count,
+            occluded, continued)
