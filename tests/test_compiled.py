@@ -778,7 +778,8 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
-               ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel]
+               ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
+               kr.overlapping_pairs_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)
@@ -828,3 +829,35 @@ def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
             np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
     assert all(taken[: len(calls)])  # the scene's own calls: all by the fused kernel
     assert not all(taken[len(calls):])  # some shortened priors grew: handed back to the staged path
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_overlap_test_of_absorb_overlapping_equals_numpy(seed, monkeypatch):
+    """``tracker.reduction.absorb_overlapping`` with its overlap test compiled
+    (``tracker.compiled.reduction.overlapping_pairs_kernel``) and by numpy: random heavy components of
+    a few labels, apart and overlapping, curvilinear (across a closed road's seam too) and Cartesian;
+    the same mixtures and counts, and both outcomes (absorbed, none) reached."""
+    from tracker.reduction import Mixture, absorb_overlapping
+    from tracker.ukf import Wrapping
+
+    rng = np.random.default_rng(seed)
+    outcomes = set()
+    for _ in range(80):
+        n = int(rng.integers(2, 14))
+        means = np.column_stack([rng.choice([1.0, 150.0, 499.0], n) + rng.normal(0.0, 6.0, n), rng.normal(0.0, 2.0, n),
+                                 rng.uniform(5, 30, n), rng.normal(0.0, 0.3, n), np.zeros(n),
+                                 rng.uniform(3.0, 14.0, n), rng.uniform(1.6, 2.6, n)])
+        covs = np.broadcast_to(np.diag([1.0, 0.1, 1.0, 0.01, 0.01, rng.uniform(0.1, 2.0), 0.05]), (n, 7, 7)).copy()
+        mix = Mixture(rng.uniform(0.3, 1.0, n), np.mod(means, [500.0, *[1e9] * 6]), covs, rng.integers(1, 6, n))
+        for wrapping, cartesian in ((Wrapping(angles=(3,)), False), (Wrapping(angles=(3,), periods=((0, 500.0),)), False),
+                                    (Wrapping(angles=(3,)), True)):
+            args = (mix, 0.5, 0.3, wrapping, cartesian, {1, 2}, {2, 3})
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref, ref_count = absorb_overlapping(*args)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            got, count = absorb_overlapping(*args)
+            assert count == ref_count
+            for name in ("weights", "means", "covs", "labels"):
+                np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+            outcomes.add(count > 0)
+    assert outcomes == {True, False}

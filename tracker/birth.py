@@ -17,6 +17,8 @@ the Cartesian variant's state by the unscented transform.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from tracker.angles import wrap_angle
@@ -31,11 +33,17 @@ from tracker.ukf import UnscentedTransform, Wrapping
 
 def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
     """Diagonal prior covariances (count, 7, 7) of birth components (``BirthConfig`` spreads)."""
-    std = np.array([
-        config.position_std, config.lateral_std, config.speed_std,
-        config.heading_std, config.heading_rate_std, config.length_std, config.width_std,
-    ])
-    return np.broadcast_to(np.diag(std**2), (count, 7, 7)).copy()
+    std = (config.position_std, config.lateral_std, config.speed_std, config.heading_std, config.heading_rate_std,
+           config.length_std, config.width_std)
+    return np.broadcast_to(_diagonal_variances(std), (count, 7, 7)).copy()
+
+
+@lru_cache(maxsize=32)
+def _diagonal_variances(std: tuple[float, ...]) -> np.ndarray:
+    """``diag(std^2)`` (read-only; a tracker asks for the same spreads every frame)."""
+    out = np.diag(np.array(std) ** 2)
+    out.flags.writeable = False
+    return out
 
 
 def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, config: BirthConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -48,12 +56,14 @@ def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, 
     else:
         s = s[(s >= 0.0) & (s <= road.length)]
     lanes = road.lane_centers
-    ss, nn = np.repeat(s, len(lanes)), np.tile(lanes, len(s))
     speed = ego_speed if config.speed is None else config.speed
-    means = np.zeros((len(ss), 7))
-    means[:, 0], means[:, 1], means[:, 2] = ss, nn, speed
+    means = np.zeros((len(s) * len(lanes), 7))
+    grid = means.reshape(len(s), len(lanes), 7)  # row i * lanes + j: the i-th arc length, the j-th lane
+    grid[:, :, 0] = s[:, None]
+    grid[:, :, 1] = lanes[None, :]
+    means[:, 2] = speed
     means[:, 5], means[:, 6] = config.length, config.width
-    return means, birth_covariance(config, len(ss))
+    return means, birth_covariance(config, len(means))
 
 
 SPARSE_POINTS = 3

@@ -241,8 +241,17 @@ def absorb_overlapping(
     if len(cand) < 2:
         return mix, 0
     m = mix.means[cand]
-    d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
     position_periods = tuple(p for p in wrapping.periods if p[0] < 2)  # s on a closed road
+    s_period = position_periods[0][1] if len(position_periods) == 1 and position_periods[0][0] == 0 else None
+    if compiled_kernels.enabled() and (not position_periods or s_period is not None):
+        # the usual frame: no two labels overlap, which one compiled pass over the pairs tells
+        from tracker.compiled.reduction import overlapping_pairs_kernel
+
+        heading = m[:, 3] if cartesian else np.zeros(len(m))
+        if not overlapping_pairs_kernel(np.ascontiguousarray(m), np.cos(heading), np.sin(heading), bool(cartesian),
+                                        float(overlap), float(s_period or 0.0)).any():
+            return mix, 0
+    d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
     if position_periods:
         d = Wrapping(periods=position_periods).residual(d)
     if cartesian:

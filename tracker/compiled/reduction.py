@@ -111,3 +111,30 @@ def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
             for b in range(dim):
                 out_covs[g, a, b] = 0.5 * (cov[g, a, b] + cov[g, b, a])
     return w_sum, out_means, out_covs, anchors[:count].copy()
+
+
+@njit
+def overlapping_pairs_kernel(means, cos_h, sin_h, cartesian, overlap, period):  # pragma: no cover - compiled
+    """``tracker.reduction.absorb_overlapping``'s test of the candidates' means ``(N, D)``: ``over[i, j]``
+    when the rectangles of ``i`` and ``j`` overlap along the road (``s``; along ``i``'s heading, of cosine
+    ``cos_h[i]`` and sine ``sin_h[i]``, for ``cartesian`` states) by more than ``overlap`` m, each centre
+    within half the narrower width of the other's across it; ``period`` > 0: ``s`` wraps with it (a
+    closed road). The same arithmetic as the numpy test, element by element; the diagonal False."""
+    n = len(means)
+    over = np.zeros((n, n), dtype=np.bool_)
+    for i in range(n):
+        for j in range(n):
+            if i == j:
+                continue
+            d0 = means[j, 0] - means[i, 0]
+            d1 = means[j, 1] - means[i, 1]
+            if period > 0.0:
+                d0 -= period * math.floor(d0 / period + 0.5)
+            if cartesian:
+                along = d0 * cos_h[i] + d1 * sin_h[i]
+                across = -d0 * sin_h[i] + d1 * cos_h[i]
+            else:
+                along, across = d0, d1
+            over[i, j] = (abs(along) < 0.5 * (means[i, 5] + means[j, 5]) - overlap
+                          and abs(across) < 0.5 * min(means[i, 6], means[j, 6]))
+    return over
