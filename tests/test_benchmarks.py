@@ -157,6 +157,31 @@ def test_compare_stonesoup_prints_the_ratio(tmp_path, capsys):
         assert ratio == pytest.approx(ss["stonesoup"]["ms_median"] / ss["ours"][variant]["ms_median"], rel=0.01)
 
 
+@pytest.mark.skipif(not HAS_STONESOUP, reason="Stone Soup (extra 'baselines') is not installed")
+def test_repeated_timings_keep_each_rows_fastest_round(tmp_path):
+    """``--repeat 2``: every tracker row and the Stone Soup comparison's rows are the fastest of two
+    rounds (``best_of``), with both rounds' medians beside them, and the ratio is of the fastest ones."""
+    out = tmp_path / "tracker.json"
+    status = main(["bench", "tracker", "--targets", "1", "5", "--frames", "3", "--variants", "curvilinear-fused",
+                   "--kernels", "auto", "--repeat", "2", "--compare-stonesoup", "--stonesoup-frames", "4",
+                   "--json", str(out)])
+    assert status == 0
+    result = json.loads(out.read_text(encoding="utf-8"))
+    assert result["repeat"] == 2
+    for row in result["results"]["curvilinear-fused"].values():
+        assert row["rounds"] == 2 and len(row["ms_median_rounds"]) == 2
+        assert row["ms_median"] == min(row["ms_median_rounds"])
+    ss = result["stonesoup"]
+    for row in (ss["stonesoup"], *ss["ours"].values()):
+        assert row["rounds"] == 2 and row["ms_median"] == min(row["ms_median_rounds"])
+    for variant, ratio in ss["ratio_stonesoup_over_ours"].items():
+        assert ratio == pytest.approx(ss["stonesoup"]["ms_median"] / ss["ours"][variant]["ms_median"], rel=0.01)
+    with pytest.raises(ValueError, match="repeat"):
+        from sim.benchmarks.tracker import measure
+
+        measure([1], ["curvilinear-fused"], 2, modes=("numpy",), repeat=0)
+
+
 def test_compare_stonesoup_without_stonesoup_exits_2(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "stonesoup", None)  # `import stonesoup` raises ImportError
     status = main(["bench", "tracker", "--targets", "1", "--frames", "2", "--compare-stonesoup"])

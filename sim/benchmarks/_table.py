@@ -30,7 +30,8 @@ def _header(r: dict[str, Any]) -> list[str]:
 def _tracker(t: dict[str, Any]) -> list[str]:
     variants = list(t["results"])
     counts = list(t["results"][variants[0]]) if variants else []
-    lines = [f"tracker ms per frame, median / p95 ({t['frames']} frames per count):",
+    rounds = f", fastest of {t['repeat']} rounds" if t.get("repeat", 1) > 1 else ""
+    lines = [f"tracker ms per frame, median / p95 ({t['frames']} frames per count{rounds}):",
              f"  {'targets':>7} {'lanes':>5} {'in view':>7} " + " ".join(f"{v:>24}" for v in variants)]
     for c in counts:
         first = t["results"][variants[0]][c]

@@ -144,6 +144,15 @@ def kernels(mode: str) -> Iterator[None]:
             os.environ[compiled.ENV_SWITCH] = before
 
 
+def best_of(rounds: list[dict[str, Any]]) -> dict[str, Any]:
+    """Of the rows of repeated timings of one tracker on the same frames, the one with the lowest
+    ``ms_median`` (on a shared machine a round can fall into a minute of another job's load; the
+    fastest round is the machine's speed for the code), with ``rounds`` and every round's
+    ``ms_median_rounds`` beside it."""
+    best = min(rounds, key=lambda row: row["ms_median"])
+    return {**best, "rounds": len(rounds), "ms_median_rounds": [row["ms_median"] for row in rounds]}
+
+
 def time_variant(variant: str, scene: Layout, frames: list[SensorFrame], visible: np.ndarray) -> dict[str, Any]:
     """``frame_stats`` of a fresh tracker of ``variant`` on ``frames`` of ``scene``; for a tracker that
     times its stages also ``ms_mean`` (the steady frames' mean) and ``stage_ms`` (``stage_ms``)."""
