@@ -861,3 +861,71 @@ def test_compiled_overlap_test_of_absorb_overlapping_equals_numpy(seed, monkeypa
                 np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
             outcomes.add(count > 0)
     assert outcomes == {True, False}
+
+
+def test_overlapping_pairs_kernel_against_the_rule():
+    """``overlapping_pairs_kernel`` against the rule written out here: ``i`` and ``j`` overlap when the
+    centres are closer along the road (along ``i``'s heading, Cartesian) than half the lengths' sum
+    less ``overlap``, and across it than half the narrower width; ``s`` wraps on a closed road."""
+    from tracker.compiled.reduction import overlapping_pairs_kernel
+
+    rng = np.random.default_rng(7)
+    hits = 0
+    for cartesian, period in ((False, 0.0), (False, 300.0), (True, 0.0)):
+        for _ in range(30):
+            n = int(rng.integers(2, 12))
+            m = np.column_stack([rng.choice([2.0, 150.0, 298.0], n) + rng.normal(0.0, 5.0, n), rng.normal(0.0, 2.0, n),
+                                 np.zeros(n), rng.normal(0.0, 0.4, n), np.zeros(n), rng.uniform(3.0, 14.0, n),
+                                 rng.uniform(1.6, 2.6, n)])
+            heading = m[:, 3] if cartesian else np.zeros(n)
+            got = overlapping_pairs_kernel(m, np.cos(heading), np.sin(heading), cartesian, 0.3, period)
+            for i in range(n):
+                for j in range(n):
+                    d = m[j, :2] - m[i, :2]
+                    if period:
+                        d[0] -= period * np.floor(d[0] / period + 0.5)
+                    c, s = np.cos(heading[i]), np.sin(heading[i])
+                    along, across = (d[0] * c + d[1] * s, -d[0] * s + d[1] * c) if cartesian else (d[0], d[1])
+                    rule = (i != j and abs(along) < 0.5 * (m[i, 5] + m[j, 5]) - 0.3
+                            and abs(across) < 0.5 * min(m[i, 6], m[j, 6]))
+                    assert got[i, j] == rule, (cartesian, period, i, j)
+                    hits += rule
+    assert hits > 0
+
+
+def test_compiled_merge_at_the_gate_equals_numpy(monkeypatch):
+    """Pairs whose distance lies just inside and just outside the gate along one axis of a diagonal
+    covariance (where the position bound that lets the kernel skip a pair equals the distance itself):
+    the same groups as numpy's merge; a covariance with a zero variance is never skipped by the bound."""
+    from tracker.reduction import Mixture, merge
+
+    gate = 4.0
+    for axis in (0, 1):
+        for factor in (1.0 - 1e-7, 1.0 + 1e-7, 1.0 + 1e-5, 1.0 - 1e-5):
+            covs = np.broadcast_to(np.diag([2.0, 0.5, 1.0, 0.01, 0.01, 0.3, 0.05]), (2, 7, 7)).copy()
+            means = np.zeros((2, 7))
+            means[1, axis] = np.sqrt(gate * covs[0, axis, axis] * factor)
+            mix = Mixture(np.array([0.9, 0.6]), means, covs, np.array([1, 2]))
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref = merge(mix, gate)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            got = merge(mix, gate)
+            assert len(got) == len(ref) == (1 if factor < 1.0 else 2), (axis, factor)
+            np.testing.assert_array_equal(got.labels, ref.labels)
+
+
+def test_a_non_finite_prior_takes_the_staged_update_and_its_error(monkeypatch):
+    """A NaN in a prior: the fused update hands the pairs back and the staged path's error is raised,
+    as before the fusion."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+
+    calls = []
+    original = tt.update_pairs
+    monkeypatch.setattr(tt, "update_pairs", lambda *args: calls.append(args) or original(*args))
+    track_scene(4)
+    means, covs, *rest = calls[-1]
+    bad = means.copy()
+    bad[0, 2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        tu.update_pairs(bad, covs, *rest)

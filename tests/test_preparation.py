@@ -170,3 +170,10 @@ def test_scanned_batch_is_the_batch_with_its_shadow_flags(kernels: str, seed: in
         np.testing.assert_array_equal(got.continued_end, continued)
         flags[1] += int(continued.sum())
     assert flags[0] > 0 and flags[1] > 0
+
+
+def test_scanned_batch_needs_a_two_dimensional_scan() -> None:
+    from tracker.preparation import prepare_scanned_batch
+
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        prepare_scanned_batch(random_clusters(0), MeasurementConfig(), None, np.zeros((10, 3)), 0.0035, 100.0)

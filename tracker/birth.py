@@ -35,7 +35,7 @@ def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
     """Diagonal prior covariances (count, 7, 7) of birth components (``BirthConfig`` spreads)."""
     std = (config.position_std, config.lateral_std, config.speed_std, config.heading_std, config.heading_rate_std,
            config.length_std, config.width_std)
-    return np.broadcast_to(_diagonal_variances(std), (count, 7, 7)).copy()
+    return np.broadcast_to(_diagonal_variances(tuple(float(x) for x in std)), (count, 7, 7)).copy()
 
 
 @lru_cache(maxsize=32)

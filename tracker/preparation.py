@@ -155,6 +155,9 @@ def prepare_scanned_batch(
     None unless a sharp-end rule, ``sharp_side_whole`` or ``sharp_parts_whole``, asks for it): the batch
     the tracker's update takes. One compiled call (``tracker.compiled.preparation.scanned_batch_kernel``:
     the same kernels, the same numbers) when the kernels are on and every cluster is regular."""
+    scan = np.asarray(scan, dtype=float)
+    if scan.ndim != 2 or scan.shape[1] != 2:
+        raise ValueError(f"prepare_scanned_batch: scan must be lidar returns of shape (N, 2) in E; got {scan.shape}")
     shadows = config.shadow_window is not None
     continuation = shadows and config.continuation_rays is not None and bool(config.sharp_side_whole
                                                                               or config.sharp_parts_whole)
@@ -179,7 +182,7 @@ def prepare_scanned_batch(
      continued) = scanned_batch_kernel(
         flat, offsets, int(config.max_cluster_points), int(config.min_points_two_sided),
         float(config.two_side_eigen_ratio), bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
-        CORNER_MAX_SHIFT, MAX_END_GAP, np.ascontiguousarray(scan, dtype=float).reshape(-1, 2), shadows, float(window),
+        CORNER_MAX_SHIFT, MAX_END_GAP, np.ascontiguousarray(scan), shadows, float(window),
         float(config.shadow_margin), float(lidar_range), float(config.shadow_range_margin), continuation,
         float(config.continuation_rays or 0.0), float(config.continuation_offset))
     fused, velocity = _stacked_velocities(vel_out)

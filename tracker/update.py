@@ -16,10 +16,13 @@ the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` p
 ``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
 noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation). With the compiled
 kernels on (``tracker.compiled``), ``kalman_update`` is one numba call over the pairs
-(``tracker.compiled.kalman``, tested against this numpy code within 1e-9); in ``update_pairs`` the
-predicted measurements, the radar gate and the update are one call
-(``tracker.compiled.kalman.measurement_update_kernel``), the extent rules after it another
-(``tracker.compiled.extent``).
+(``tracker.compiled.kalman``, tested against this numpy code within 1e-9); ``update_pairs`` of
+curvilinear states is one call, from the sigma points' rectangles through the measurement structure,
+the extent growth, the predicted measurements, the radar gate and the update to the extent rules
+(``tracker.compiled.pairs``); where that call hands the pairs back (a widened prior, a non-finite or
+not positive definite input), and for Cartesian states, the staged kernels run
+(``tracker.compiled.kalman.measurement_update_kernel`` for the measurement step, ``tracker.compiled.extent``
+for the extent rules): the same numbers.
 """
 
 from __future__ import annotations
@@ -356,7 +359,9 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
 def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.ndarray | None:
     """The variances ``(P, D)`` of the pairs' likelihood and NIS: ``structure.r`` with every lidar row at
     ``lidar_sigma^2`` (``MeasurementConfig.shadowed_lidar_sigma`` softens the update of some pairs, not
-    their weight or their gate); None where no pair's update was softened."""
+    their weight or their gate); None where no pair's update was softened. A pair's lidar rows share
+    one variance and its first row is a point (a cluster's points come first in its row of the batch,
+    as ``tracker.preparation`` and ``ClusterBatch.of`` build it): the first row tells."""
     nominal = config.lidar_sigma**2
     if config.shadowed_lidar_sigma is None or not len(structure.r):
         return None

@@ -10,14 +10,19 @@ against it (the same discrete decisions, the numbers within 1e-9; sums run in an
 ``enabled()`` says whether the kernels are used; ``require()`` raises a clear error when they are asked
 for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. They compile on first
 use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
-project's machines), later processes load them (~0.3 s).
+project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
+after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
+``extent`` and ``kalman``; ``preparation`` calls ``clustering``; ``centerline`` calls ``ukf``), delete
+``tracker/compiled/__pycache__`` so that the callers compile again with it.
 
-Kernels: ``preparation`` (cluster preparation), ``structure`` (the measurement structure),
+Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
 points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
 (bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow), ``reduction`` (merging), ``kalman`` (the UKF update of the pairs; with the predicted
-measurements and the radar gate), ``extent`` (the extent rules before and after the update).
+next to a shadow), ``reduction`` (merging; the overlap test of labels), ``kalman`` (the UKF update of the
+pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
+the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
+the extent rules).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix
 products, the Kalman update): there they agree to rounding (``tests/test_compiled.py`` says which).

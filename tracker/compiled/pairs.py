@@ -9,8 +9,13 @@ variances (``tracker.update.likelihood_variances``), the measurement update with
 (``kalman.measurement_update_kernel``) and the extent rules (``extent.extent_rules_kernel``): the same
 numbers as the staged path. Where that path leaves the kernels or raises (a NaN or an infinity in a
 mean or covariance, a pair whose prior the growth widened, a measurement variance that is not
-positive), the kernel returns a status instead of a result and the caller takes the staged path, which
-handles it as before."""
+positive), the kernel returns a status instead of a result; where a prior or an innovation covariance
+is not positive definite a kernel it calls raises ``numpy.linalg.LinAlgError``. Either way the caller
+(``tracker.update._update_pairs_fused``) takes the staged path, which handles it as before.
+
+Numba's cache tracks a kernel's own file only: after editing a kernel this one calls (in
+``centerline``, ``structure``, ``extent`` or ``kalman``), clear ``tracker/compiled/__pycache__`` so that
+this one is compiled again with it."""
 
 from __future__ import annotations
 

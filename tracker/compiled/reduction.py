@@ -2,8 +2,10 @@
 
 The same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T P_i^-1 d_ij``
 (``d_ij = m_i - m_j``, wrapped coordinates wrapped; a pair whose ``d_k^2 / P_i[k, k]``, a lower
-bound of it, already exceeds the gate on ``s`` or ``n`` is rejected without it, and ``P_i^-1`` is
-computed only for the components some pair needs it of), the greedy grouping (the heaviest remaining
+bound of it when ``P_i`` is positive definite, already exceeds the gate on the first or second
+coordinate is rejected without it, and ``P_i^-1`` is computed only for the components some pair needs
+it of: so a singular covariance raises ``LinAlgError`` here only when a pair needs its inverse, where
+the numpy reference inverts them all), the greedy grouping (the heaviest remaining
 component takes every remaining one within the gate; ties of weight in index order), and the moment
 match of each group about its heaviest component (weighted mean, circular for angles; weighted
 covariances plus the weighted spread, symmetrised)."""
@@ -56,8 +58,8 @@ def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
             # d^T P^-1 d >= d_k^2 / P_kk for every coordinate k (Cauchy-Schwarz): a pair that the
             # position alone puts beyond the gate (with a margin far above rounding) is not merged,
             # without the inverse and the quadratic form (most pairs: other vehicles)
-            if (d[0] * d[0] > MERGE_BOUND_MARGIN * gate * covs[i, 0, 0]
-                    or d[1] * d[1] > MERGE_BOUND_MARGIN * gate * covs[i, 1, 1]):
+            if ((covs[i, 0, 0] > 0.0 and d[0] * d[0] > MERGE_BOUND_MARGIN * gate * covs[i, 0, 0])
+                    or (covs[i, 1, 1] > 0.0 and d[1] * d[1] > MERGE_BOUND_MARGIN * gate * covs[i, 1, 1])):
                 continue
             if not inverted[i]:
                 inv[i] = np.linalg.inv(covs[i])
