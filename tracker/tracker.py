@@ -450,7 +450,9 @@ class Tracker:
                 key, owner = self._split_across(key, owner, inside)
             order = np.argsort(key, kind="stable")
             bounds = np.flatnonzero(np.diff(key[order])) + 1
-            clusters = np.split(points[order], bounds)
+            ordered = points[order]
+            edges = [0, *bounds.tolist(), len(ordered)]  # numpy.split's views, without its per-piece overhead
+            clusters = [ordered[a:b] for a, b in zip(edges[:-1], edges[1:])]
             owned = owner[order][np.concatenate([[0], bounds])] if len(points) else np.zeros(0, dtype=int)
         big = np.array([len(c) >= cfg.min_points for c in clusters], dtype=bool)
         self.stats["clusters_too_small"] += int((~big).sum())

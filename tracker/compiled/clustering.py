@@ -129,20 +129,32 @@ def radar_association_kernel(points, offsets, radar, gate):
     """``tracker.clustering.associate_radar`` for clusters ``points[offsets[k]:offsets[k + 1]]``: the
     distance of a detection to a cluster is that to its nearest point; gated pairs are taken greedily in
     increasing distance (ties in row-major order, as a stable sort of the flattened matrix), each cluster
-    and each detection at most once. Returns the detection index per cluster, or -1."""
+    and each detection at most once. Returns the detection index per cluster, or -1. A pair whose
+    detection lies beyond the gate from the cluster's bounding box keeps an infinite distance (it can
+    never be taken, and the greedy pass stops at the first distance beyond the gate)."""
     count = len(offsets) - 1
     n_radar = len(radar)
     dist = np.full(count * n_radar, np.inf)
+    reach = gate * gate * (1.0 + 1e-9)  # beyond it a pair is never taken: its distance is not needed
     for k in range(count):
+        lo_x = hi_x = points[offsets[k], 0] if offsets[k + 1] > offsets[k] else 0.0
+        lo_y = hi_y = points[offsets[k], 1] if offsets[k + 1] > offsets[k] else 0.0
+        for i in range(offsets[k], offsets[k + 1]):
+            lo_x, hi_x = min(lo_x, points[i, 0]), max(hi_x, points[i, 0])
+            lo_y, hi_y = min(lo_y, points[i, 1]), max(hi_y, points[i, 1])
         for r in range(n_radar):
-            best = np.inf
+            bx = max(lo_x - radar[r, 0], 0.0, radar[r, 0] - hi_x)  # to the cluster's bounding box
+            by = max(lo_y - radar[r, 1], 0.0, radar[r, 1] - hi_y)
+            if bx * bx + by * by > reach:
+                continue  # every point is farther than the gate: the distance stays inf
+            best = np.inf  # the nearest point's squared distance, then its root (sqrt is monotonic)
             for i in range(offsets[k], offsets[k + 1]):
                 dx = points[i, 0] - radar[r, 0]
                 dy = points[i, 1] - radar[r, 1]
-                d = np.sqrt(dx * dx + dy * dy)
-                if d < best:
-                    best = d
-            dist[k * n_radar + r] = best
+                d2 = dx * dx + dy * dy
+                if d2 < best:
+                    best = d2
+            dist[k * n_radar + r] = np.sqrt(best)
     order = np.argsort(dist, kind="mergesort")
     out = np.full(count, -1, dtype=np.int64)
     used = np.zeros(n_radar, dtype=np.bool_)
