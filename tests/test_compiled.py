@@ -735,7 +735,7 @@ def test_compiled_merge_equals_numpy(seed, monkeypatch):
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_points_in_rectangles_and_overlap_groups_equal_numpy(seed, monkeypatch):
     """Overlapping and disjoint rectangles of every heading (duplicate hypotheses of one vehicle, trucks
-    beside cars), points inside, between and outside them."""
+    beside cars), points inside, between and outside them, and on the widened rectangles' corners."""
     from tracker.clustering import points_in_rectangles
     from tracker.measurement import Rectangles
     from tracker.tracker import _duplicate_groups
@@ -746,7 +746,12 @@ def test_compiled_points_in_rectangles_and_overlap_groups_equal_numpy(seed, monk
         centre = rng.uniform(-15.0, 15.0, (t, 2))
         rect = Rectangles(centre, rng.uniform(-np.pi, np.pi, t), np.zeros(t), rng.uniform(2.0, 14.0, t),
                           rng.uniform(0.8, 2.6, t))
-        pts = np.concatenate([rng.uniform(-20.0, 20.0, (300, 2)), centre + rng.normal(0.0, 1.0, (t, 2))])
+        # the widened rectangles' corners lie on their circumscribed circles, where the kernel's
+        # distance test (skip a rectangle beyond that circle) is at its boundary
+        from tracker.measurement import rectangle_corners
+
+        corners = rectangle_corners(centre, rect.psi, rect.length + 1.4, rect.width + 1.4).reshape(-1, 2)
+        pts = np.concatenate([rng.uniform(-20.0, 20.0, (300, 2)), centre + rng.normal(0.0, 1.0, (t, 2)), corners])
         results = {}
         for mode in ("0", "1"):
             monkeypatch.setenv(compiled.ENV_SWITCH, mode)

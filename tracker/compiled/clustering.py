@@ -176,12 +176,19 @@ def points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w):
     n = len(pts)
     m = len(ctr)
     out = np.full(n, -1, dtype=np.int64)
+    # beyond a widened rectangle's circumscribed circle (with a margin far above rounding) the score
+    # exceeds 1: that rectangle cannot be the point's, so its score is not needed
+    reach = np.empty(m)
+    for k in range(m):
+        reach[k] = (half_l[k] * half_l[k] + half_w[k] * half_w[k]) * (1.0 + 1e-9)
     for i in range(n):
         best = np.inf
         arg = 0
         for k in range(m):
             dx = pts[i, 0] - ctr[k, 0]
             dy = pts[i, 1] - ctr[k, 1]
+            if dx * dx + dy * dy > reach[k]:
+                continue
             u = abs((dx * c[k] + dy * s[k]) / half_l[k])
             v = abs((-dx * s[k] + dy * c[k]) / half_w[k])
             score = max(u, v)
