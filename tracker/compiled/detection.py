@@ -109,12 +109,28 @@ def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_lab
             centre = 0.5 * (lo[c] + hi[c])
             half = 0.5 * (hi[c] - lo[c])
             threshold = near[c] - scan_margin
+            # the returns sorted by ray whose ray can lie in the span: the rays of its bearings, two
+            # rays more on either side (rounding, and 2 pi / resolution not a whole number); as two
+            # ranges where the window crosses ray 0. The count of rays with a hiding return does not
+            # depend on the order the rays are visited in, so the window gives the whole scan's count.
+            first = np.int64(np.floor((centre - half) / resolution)) - 2
+            final = np.int64(np.ceil((centre + half) / resolution)) + 2
+            if final - first + 1 >= per_turn:
+                ranges = ((0, k), (0, 0))
+            else:
+                a = first % per_turn
+                b = final % per_turn
+                if a <= b:
+                    ranges = ((np.searchsorted(ray, a), np.searchsorted(ray, b, side="right")), (0, 0))
+                else:
+                    ranges = ((np.searchsorted(ray, a), k), (0, np.searchsorted(ray, b, side="right")))
             hides = 0  # rays with a hiding return (a 3-D lidar's beams share a ray)
-            last = -1
-            for i in range(k):
-                if ray[i] != last and r_scan[i] < threshold and abs(wrap_angle(b_scan[i] - centre)) <= half:
-                    hides += 1
-                    last = ray[i]
+            for start, stop in ranges:
+                last = -1
+                for i in range(start, stop):
+                    if ray[i] != last and r_scan[i] < threshold and abs(wrap_angle(b_scan[i] - centre)) <= half:
+                        hides += 1
+                        last = ray[i]
             frac = min(max(hides * resolution / max(hi[c] - lo[c], resolution), 0.0), 1.0)
             hidden[c] = max(hidden[c], frac)
     for c in range(count):
