@@ -934,3 +934,34 @@ def test_a_non_finite_prior_takes_the_staged_update_and_its_error(monkeypatch):
     bad[0, 2] = np.nan
     with pytest.raises(ValueError, match="finite"):
         tu.update_pairs(bad, covs, *rest)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_continued_ends_equal_numpy(seed, monkeypatch):
+    """``continued_ends`` compiled (the scan sorted by bearing, each end searching the bearing window of
+    the disc its test can reach) against numpy: ends all around the sensor (across the seam behind it,
+    and within a few metres of it, where the disc holds the lidar), returns scattered and returns placed
+    on the ends' continuations; the same flags, and some of each."""
+    from tracker.clustering import continued_ends
+
+    rng = np.random.default_rng(seed)
+    flags = []
+    for _ in range(40):
+        k = int(rng.integers(1, 12))
+        r = np.concatenate([rng.uniform(0.5, 4.0, 2), rng.uniform(4.0, 90.0, 2 * k - 2)])
+        b = rng.uniform(-np.pi, np.pi, 2 * k)
+        b[:2] = np.pi - rng.uniform(0.0, 0.01, 2)
+        ends = np.column_stack([r * np.cos(b), r * np.sin(b)]).reshape(k, 2, 2)
+        angle = rng.uniform(-np.pi, np.pi, (k, 2))
+        outward = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+        half_gap = rng.uniform(0.05, 1.0, (k, 2))
+        on_line = ends + outward * rng.uniform(0.0, 3.0, (k, 2, 1)) + rng.normal(0.0, 0.2, (k, 2, 2))
+        scan = np.concatenate([rng.uniform(-90.0, 90.0, (300, 2)), on_line.reshape(-1, 2)])
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = continued_ends(ends, outward, half_gap, scan, 2.0, 0.3)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = continued_ends(ends, outward, half_gap, scan, 2.0, 0.3)
+        np.testing.assert_array_equal(got, ref)
+        flags.append(ref)
+    flags = np.concatenate([f.ravel() for f in flags])
+    assert flags.any() and not flags.all()

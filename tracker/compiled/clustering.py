@@ -232,63 +232,131 @@ def overlap_groups_kernel(corners, psi):
 
 
 @njit
-def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):
+def bearing_sorted_scan(scan):  # pragma: no cover - compiled
+    """The returns of ``scan (R, 2)`` sorted by bearing from the E origin: their bearings (rad, (-pi, pi]),
+    ranges (m) and coordinates, for the ends' searches in a bearing window (``occluded_ends_kernel``,
+    ``continued_ends_kernel``)."""
+    count = len(scan)
+    bearing = np.empty(count)
+    for j in range(count):
+        bearing[j] = np.arctan2(scan[j, 1], scan[j, 0])
+    order = np.argsort(bearing)
+    b = bearing[order]
+    r = np.empty(count)
+    xy = np.empty((count, 2))
+    for i in range(count):
+        xy[i, 0] = scan[order[i], 0]
+        xy[i, 1] = scan[order[i], 1]
+        r[i] = np.hypot(xy[i, 0], xy[i, 1])
+    return b, r, xy
+
+
+@njit(inline="always")
+def _window(b, lo, hi):  # pragma: no cover - compiled
+    """Index ranges of the sorted bearings ``b`` in ``[lo, hi]`` read modulo 2 pi (``lo`` may be below
+    -pi, ``hi`` above pi): up to three ``(start, stop)`` pairs (empty ones ``(0, 0)``)."""
+    two_pi = 2.0 * np.pi
+    if hi - lo >= two_pi:
+        return (0, len(b)), (0, 0), (0, 0)
+    main = (np.searchsorted(b, lo), np.searchsorted(b, hi, side="right"))
+    below = (0, 0)
+    above = (0, 0)
+    if lo < -np.pi:
+        below = (np.searchsorted(b, lo + two_pi), len(b))
+    if hi > np.pi:
+        above = (0, np.searchsorted(b, hi - two_pi, side="right"))
+    return main, below, above
+
+
+#: Padding (rad) of the bearing windows the ends' searches look in (far above the rounding of a bearing).
+WINDOW_PAD = 1e-6
+
+
+@njit
+def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):  # pragma: no cover - compiled
     """``tracker.clustering.occluded_ends`` for ``ends (K, 2, 2)``: whether a nearer return of ``scan``
     lies within ``window`` beyond each end, or the end lies within ``range_margin`` of ``max_range``."""
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=np.bool_)
+    b, r, _ = bearing_sorted_scan(scan)
+    return occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin)
+
+
+@njit
+def occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin):  # pragma: no cover - compiled
+    """``occluded_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): per end only
+    the returns within ``window`` of its bearing (padded) are tested, with the same test; an end is
+    occluded when any return passes it, whatever the order they are visited in."""
     count = len(ends)
     out = np.zeros((count, 2), dtype=np.bool_)
-    if count == 0 or len(scan) == 0:
-        return out
     two_pi = 2.0 * np.pi
-    bearing = np.empty((count, 2))
-    reach = np.empty((count, 2))
     for k in range(count):
         for e in range(2):
-            bearing[k, e] = np.arctan2(ends[k, e, 1], ends[k, e, 0])
-            reach[k, e] = np.hypot(ends[k, e, 0], ends[k, e, 1])
-    far = reach.max() - margin
-    for j in range(len(scan)):
-        r = np.hypot(scan[j, 0], scan[j, 1])
-        if not r < far:
-            continue
-        b = np.arctan2(scan[j, 1], scan[j, 0])
-        for k in range(count):
-            for e in range(2):
-                if out[k, e] or not r < reach[k, e] - margin:
-                    continue
-                d = b - bearing[k, e]
-                d = d - two_pi * np.round(d / two_pi)
-                if e == 0:
-                    d = -d
-                if d > 0.0 and d <= window:
-                    out[k, e] = True
-    for k in range(count):
-        for e in range(2):
-            if reach[k, e] >= max_range - range_margin:
+            bearing = np.arctan2(ends[k, e, 1], ends[k, e, 0])
+            reach = np.hypot(ends[k, e, 0], ends[k, e, 1])
+            if reach >= max_range - range_margin:
                 out[k, e] = True
+                continue
+            lo = bearing - window - WINDOW_PAD if e == 0 else bearing - WINDOW_PAD
+            hi = bearing + WINDOW_PAD if e == 0 else bearing + window + WINDOW_PAD
+            for start, stop in _window(b, lo, hi):
+                for i in range(start, stop):
+                    if not r[i] < reach - margin:
+                        continue
+                    d = b[i] - bearing
+                    d = d - two_pi * np.round(d / two_pi)
+                    if e == 0:
+                        d = -d
+                    if d > 0.0 and d <= window:
+                        out[k, e] = True
+                        break
+                if out[k, e]:
+                    break
     return out
 
 
 @njit
-def continued_ends_kernel(ends, outward, start, reach, scan, offset):
+def continued_ends_kernel(ends, outward, start, reach, scan, offset):  # pragma: no cover - compiled
     """``tracker.clustering.continued_ends`` for ``ends``, ``outward (K, 2, 2)``, ``start``, ``reach (K, 2)``
     (m): whether a return of ``scan`` lies beyond each end along its line, past ``start`` and within
     ``reach``, and within ``offset`` of the line."""
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=np.bool_)
+    b, _, xy = bearing_sorted_scan(scan)
+    return continued_ends_sorted(ends, outward, start, reach, b, xy, offset)
+
+
+@njit
+def continued_ends_sorted(ends, outward, start, reach, b, xy, offset):  # pragma: no cover - compiled
+    """``continued_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): a return that
+    passes an end's test lies within ``sqrt(reach^2 + offset^2)`` of the end, so within that disc's
+    bearing window seen from the lidar (padded; the whole scan where the disc holds the lidar); only
+    those are tested, with the same test."""
     count = len(ends)
     out = np.zeros((count, 2), dtype=np.bool_)
-    for j in range(len(scan)):
-        qx = scan[j, 0]
-        qy = scan[j, 1]
-        for k in range(count):
-            for e in range(2):
+    for k in range(count):
+        for e in range(2):
+            ex = ends[k, e, 0]
+            ey = ends[k, e, 1]
+            radius = np.sqrt(reach[k, e] * reach[k, e] + offset * offset) * (1.0 + 1e-9)
+            distance = np.hypot(ex, ey)
+            bearing = np.arctan2(ey, ex)
+            if distance > radius:
+                spread = np.arcsin(min(radius / distance, 1.0)) + WINDOW_PAD
+                ranges = _window(b, bearing - spread, bearing + spread)
+            else:
+                ranges = ((0, len(b)), (0, 0), (0, 0))
+            for first, stop in ranges:
+                for i in range(first, stop):
+                    dx = xy[i, 0] - ex
+                    dy = xy[i, 1] - ey
+                    along = dx * outward[k, e, 0] + dy * outward[k, e, 1]
+                    if along > start[k, e] and along <= reach[k, e]:
+                        if abs(dx * outward[k, e, 1] - dy * outward[k, e, 0]) <= offset:
+                            out[k, e] = True
+                            break
                 if out[k, e]:
-                    continue
-                dx = qx - ends[k, e, 0]
-                dy = qy - ends[k, e, 1]
-                along = dx * outward[k, e, 0] + dy * outward[k, e, 1]
-                if along > start[k, e] and along <= reach[k, e]:
-                    if abs(dx * outward[k, e, 1] - dy * outward[k, e, 0]) <= offset:
-                        out[k, e] = True
+                    break
     return out
 
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
-from tracker.compiled.clustering import continued_ends_kernel, occluded_ends_kernel
+from tracker.compiled.clustering import bearing_sorted_scan, continued_ends_sorted, occluded_ends_sorted
 
 
 @njit
@@ -296,7 +296,8 @@ def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correctio
             last = max(int(valid[k].sum()) - 1, 0)
             bearing_ends[k, 0] = points[k, 0]
             bearing_ends[k, 1] = points[k, last]
-        occluded = occluded_ends_kernel(bearing_ends, scan, window, margin, max_range, range_margin)
+        scan_b, scan_r, scan_xy = bearing_sorted_scan(scan)  # one sort for both searches
+        occluded = occluded_ends_sorted(bearing_ends, scan_b, scan_r, window, margin, max_range, range_margin)
         if continuation:
             side = np.empty((count, 2, 2))  # ClusterBatch.side_ends
             outward = np.empty((count, 2, 2))
@@ -312,6 +313,6 @@ def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correctio
                 start[k, 1] = half_gap[k, 2, 1]
                 reach[k, 0] = 2.0 * rays * start[k, 0]
                 reach[k, 1] = 2.0 * rays * start[k, 1]
-            continued = continued_ends_kernel(side, outward, start, reach, scan, offset)
+            continued = continued_ends_sorted(side, outward, start, reach, scan_b, scan_xy, offset)
     return (points, valid, part, proj, starts, ends, direction, length, margin_out, half_gap, two, single, kept_count,
             occluded, continued)
