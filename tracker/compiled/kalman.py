@@ -229,12 +229,14 @@ def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, m
     ``kalman_kernel``'s outputs and, per pair, whether its radar rows were set aside."""
     pairs, num_sigma, n = sigma.shape
     rows = matrix.shape[2]
-    z_sigma = np.empty((pairs, num_sigma, rows))
+    z_sigma = np.empty((pairs, num_sigma, rows))  # only the rows a pair uses are read, so only those are made
     feats = np.empty(10)
     for p in range(pairs):
         for i in range(num_sigma):
             _features(center, psi, v, length, width, p, i, feats)
             for d in range(rows):
+                if not mask[p, d]:
+                    continue
                 acc = 0.0
                 for k in range(10):
                     acc += feats[k] * matrix[p, k, d]
