@@ -898,6 +898,27 @@ def test_overlapping_pairs_kernel_against_the_rule():
     assert hits > 0
 
 
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_compiled_merge_of_low_dimensional_mixtures_equals_numpy(dim, monkeypatch):
+    """Merging states of one to three coordinates (the position bound reads the first two only where
+    they exist): the same groups and moments as numpy."""
+    from tracker.reduction import Mixture, merge
+
+    rng = np.random.default_rng(dim)
+    for _ in range(50):
+        n = int(rng.integers(2, 12))
+        root = rng.normal(0.0, 1.0, (n, dim, dim)) * rng.uniform(0.2, 1.5, (n, 1, 1))
+        mix = Mixture(rng.uniform(0.05, 1.0, n), rng.choice([0.0, 3.0, 40.0], (n, 1)) + rng.normal(0.0, 1.0, (n, dim)),
+                      root @ np.swapaxes(root, 1, 2) + 0.05 * np.eye(dim), rng.integers(0, 9, n))
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = merge(mix, 4.0)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = merge(mix, 4.0)
+        np.testing.assert_array_equal(got.labels, ref.labels)
+        for name in ("weights", "means", "covs"):
+            np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=1e-9, atol=1e-9)
+
+
 def test_compiled_merge_at_the_gate_equals_numpy(monkeypatch):
     """Pairs whose distance lies just inside and just outside the gate along one axis of a diagonal
     covariance (where the position bound that lets the kernel skip a pair equals the distance itself):

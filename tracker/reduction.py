@@ -243,7 +243,7 @@ def absorb_overlapping(
     m = mix.means[cand]
     position_periods = tuple(p for p in wrapping.periods if p[0] < 2)  # s on a closed road
     s_period = position_periods[0][1] if len(position_periods) == 1 and position_periods[0][0] == 0 else None
-    if compiled_kernels.enabled() and (not position_periods or s_period is not None):
+    if compiled_kernels.enabled() and m.shape[1] >= 7 and (not position_periods or s_period is not None):
         # the usual frame: no two labels overlap, which one compiled pass over the pairs tells
         from tracker.compiled.reduction import overlapping_pairs_kernel
 

@@ -59,7 +59,7 @@ def merge_kernel(weights, means, covs, gate, angles, period_index, periods):
             # position alone puts beyond the gate (with a margin far above rounding) is not merged,
             # without the inverse and the quadratic form (most pairs: other vehicles)
             if ((covs[i, 0, 0] > 0.0 and d[0] * d[0] > MERGE_BOUND_MARGIN * gate * covs[i, 0, 0])
-                    or (covs[i, 1, 1] > 0.0 and d[1] * d[1] > MERGE_BOUND_MARGIN * gate * covs[i, 1, 1])):
+                    or (dim > 1 and covs[i, 1, 1] > 0.0 and d[1] * d[1] > MERGE_BOUND_MARGIN * gate * covs[i, 1, 1])):
                 continue
             if not inverted[i]:
                 inv[i] = np.linalg.inv(covs[i])
