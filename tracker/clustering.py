@@ -325,7 +325,7 @@ def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
     if len(radar) == 0 or not clusters:
         return velocities, np.full(len(clusters), -1, dtype=int)
     index = np.asarray(associate_radar(clusters, radar.positions_at(t), gate), dtype=int)
-    velocity = np.column_stack([radar.vx, radar.vy]).astype(float)  # one (vx, vy) row per detection
+    velocity = np.column_stack([radar.vx, radar.vy]).astype(float, copy=False)  # one (vx, vy) row per detection
     velocity.flags.writeable = False  # the clusters' velocities are rows of it: read-only, not aliased edits
     for k, r in enumerate(index.tolist()):
         if r >= 0:

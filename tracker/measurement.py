@@ -610,17 +610,17 @@ def _sharp_side_whole(config: MeasurementConfig, batch: ClusterBatch) -> bool:
     return bool(config.sharp_side_whole and batch.occluded_end is not None)
 
 
-def _sharp_parts_whole(config: MeasurementConfig, batch: ClusterBatch, extent_sd: np.ndarray | None) -> bool:
+def _sharp_parts_whole(config: MeasurementConfig, batch: ClusterBatch, has_extent_sd: bool) -> bool:
     """Whether ``MeasurementConfig.sharp_parts_whole`` applies: it needs the shadow flags and the
     predicted extent's standard deviations (its consistency gate)."""
-    return bool(config.sharp_parts_whole and batch.occluded_end is not None and extent_sd is not None)
+    return bool(config.sharp_parts_whole and batch.occluded_end is not None and has_extent_sd)
 
 
-def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, extent_sd: np.ndarray | None) -> bool:
+def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, has_extent_sd: bool) -> bool:
     """Whether ``MeasurementConfig.shadowed_longer_whole`` applies: it needs the shadow flags, the
     predicted extent's standard deviations and the extent growth it goes with (``grow_extent``)."""
     return bool(config.shadowed_longer_whole and config.grow_extent and batch.occluded_end is not None
-                and extent_sd is not None)
+                and has_extent_sd)
 
 
 def _shadowed_parts_partial(config: MeasurementConfig, batch: ClusterBatch) -> bool:
@@ -749,7 +749,7 @@ def build_structure(
         # not the visible part of a car's 1.8 m
         whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & free[:, 0] & free[:, 1]
         partial &= ~whole[:, None]
-    if _sharp_parts_whole(config, batch, extent_sd):
+    if _sharp_parts_whole(config, batch, extent_sd is not None):
         # each part of a two-sided cluster runs from the fitted corner to a far end, the cluster's first
         # (part 0, slot 1's start) or last point (part 1, slot 2's end): whole if that end is sharp and
         # free, both parts have enough points (the corner is where two well-fitted lines meet: with two
@@ -772,7 +772,7 @@ def build_structure(
         # whose front roadside objects hid frame by frame shrank with its visible side
         partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
-    if _shadowed_longer_whole(config, batch, extent_sd):
+    if _shadowed_longer_whole(config, batch, extent_sd is not None):
         # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
         # bound the prediction falls short of, so the part is measured whole (a far truck's rear half
         # hidden by a car kept a car's width, and length, for seconds: mixed-traffic seed 16)
@@ -884,13 +884,12 @@ def structure_config_args(config: MeasurementConfig, batch: ClusterBatch, use_ra
     """The settings' arguments of the compiled structure kernel, those before its ``extent_sd`` and
     those after it (``has_extent_sd``: the pairs' predicted extent sd are known, so the rules that need
     them apply)."""
-    extent_sd = np.zeros((0, 2)) if has_extent_sd else None  # the helpers ask only whether it is known
     head = (float(config.single_point_min_apparent), float(config.partial_visibility), float(config.shadow_free_gap),
             float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2, bool(use_radar),
             config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
-            _sharp_parts_whole(config, batch, extent_sd))
+            _sharp_parts_whole(config, batch, has_extent_sd))
     tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, has_extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
             WIDEST_VEHICLE, LONGEST_VEHICLE, -1.0 if config.settled_width_std is None else float(config.settled_width_std),
             _shadowed_parts_partial(config, batch), bool(config.two_sided_data_partial),
             -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)

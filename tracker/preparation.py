@@ -176,13 +176,9 @@ def prepare_scanned_batch(
     from tracker.compiled.preparation import scanned_batch_kernel
 
     vel_out = _checked_velocities(velocities)
-    offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
-    np.cumsum([len(a) for a in arrays], out=offsets[1:])
     (points, valid, part, proj, starts, ends, direction, length, margin, half_gap, two, single, kept_count, occluded,
      continued) = scanned_batch_kernel(
-        flat, offsets, int(config.max_cluster_points), int(config.min_points_two_sided),
-        float(config.two_side_eigen_ratio), bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
-        CORNER_MAX_SHIFT, MAX_END_GAP, np.ascontiguousarray(scan), shadows, float(window),
+        flat, _offsets(arrays), *_kernel_settings(config), np.ascontiguousarray(scan), shadows, float(window),
         float(config.shadow_margin), float(lidar_range), float(config.shadow_range_margin), continuation,
         float(config.continuation_rays or 0.0), float(config.continuation_offset))
     fused, velocity = _stacked_velocities(vel_out)
@@ -234,18 +230,27 @@ def _prepare_finite(arrays: list[np.ndarray], velocities: list[np.ndarray | None
     return _prepare_numpy(arrays, vel_out, config)
 
 
+def _offsets(arrays: list[np.ndarray]) -> np.ndarray:
+    """Where each cluster starts in the concatenated points, and the end: ``(K + 1,)``."""
+    offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
+    np.cumsum([len(a) for a in arrays], out=offsets[1:])
+    return offsets
+
+
+def _kernel_settings(config: MeasurementConfig) -> tuple:
+    """``prepare_kernel``'s settings after its points and offsets."""
+    return (int(config.max_cluster_points), int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
+            bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
+
+
 def _prepare_compiled(arrays: list[np.ndarray], vel_out: list[np.ndarray | None], config: MeasurementConfig,
                       flat: np.ndarray | None = None) -> _Prepared:
     from tracker.compiled.preparation import prepare_kernel
 
-    n = np.array([len(a) for a in arrays])
-    offsets = np.zeros(len(arrays) + 1, dtype=np.intp)
-    np.cumsum(n, out=offsets[1:])
+    offsets = _offsets(arrays)
+    n = np.diff(offsets)
     (points, valid, part, proj, starts, ends, direction, length, margin, half_gap, two, corner, ratio, order,
-     kept_count) = prepare_kernel(np.concatenate(arrays) if flat is None else flat, offsets, int(config.max_cluster_points),
-                                  int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
-                                  bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE),
-                                  CORNER_MAX_SHIFT, MAX_END_GAP)
+     kept_count) = prepare_kernel(np.concatenate(arrays) if flat is None else flat, offsets, *_kernel_settings(config))
     m = int(kept_count.max())
     c = np.ascontiguousarray  # the kernels downstream take C-contiguous arrays (one compiled signature)
     return _Prepared(

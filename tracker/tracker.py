@@ -356,10 +356,7 @@ class Tracker:
         np.not_equal(ordered[1:], ordered[:-1], out=head[1:])
         first = order[head]
         chosen = labels[first].tolist()
-        d = post_means[first, 0] - prior_means[first, 0]
-        for index, period in self.wrapping.periods:  # Wrapping.residual of s alone (s on a closed road)
-            if index == 0:
-                d -= period * np.floor(d / period + 0.5)
+        d = self.wrapping.residual(post_means[first] - prior_means[first])[:, 0]
         z = d / np.sqrt(np.maximum(prior_covs[first, 0, 0] - post_covs[first, 0, 0], 1e-12))
         jump = np.abs(z) > motion.manoeuvre_sigmas
         moved = jump.copy()
