@@ -85,3 +85,55 @@ def test_bearing_filter_keeps_every_ray_of_the_lidar_grid():
     assert sorted(bearing_filter(behind, np.radians(0.2)).tolist()) == list(range(1800))
     wrap = np.array([[-10.0, 1e-9], [-20.0, -1e-9]])  # just either side of +-180 deg
     assert bearing_filter(wrap).tolist() == [0]
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
+    """``filter_points``' one compiled call (``tracker.compiled.preprocess.road_filter_kernel``) gives
+    bit for bit what its steps give one by one (``to_global``, ``Road.to_frenet``, ``within_bounds``,
+    ``bearing_filter``): returns on and off the road, beyond an open road's ends, a wall behind a car in
+    the same bearings; and returns off the seed grid (seeded from the k-d tree, then a second call)."""
+    pytest.importorskip("numba")
+    import tracker.preprocess as pre
+    from tracker import compiled
+    from tracker.frame import EgoState
+
+    if closed:
+        road = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True,
+                                   lanes=3, lane_width=3.5)
+        ego = EgoState(100.0, 5.0, 1.6, 10.0, 0.0)
+    else:
+        road = Road.from_curvature([(80.0, 0.0, 0.0), (120.0, 0.0, 0.02)], lanes=3, lane_width=3.5)
+        ego = EgoState(5.0, 1.0, 0.05, 10.0, 0.0)
+    config = TrackerConfig().clustering
+    rng = np.random.default_rng(3)
+    car = np.column_stack([np.full(40, 12.0), np.linspace(-1.0, 1.0, 40)])
+    # within the seed grid (the road's neighbourhood); some beyond an open road's start (s < 0)
+    box = rng.uniform([-40.0, -15.0], [40.0, 15.0], size=(600, 2)) if closed else rng.uniform([-15.0, -15.0], [70.0, 15.0], size=(600, 2))
+    scan = np.concatenate([box, car, 1.6 * car,
+                           np.array([[-10.0, 0.0], [0.5, 0.0], [0.0, 0.5]])])
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    assert pre._filter_compiled(scan, ego, road, config) is not None  # the fused call applies
+    got = pre.filter_points(scan, ego, road, config)
+    staged = pre._filter_compiled
+    monkeypatch.setattr(pre, "_filter_compiled", lambda *a: None)
+    ref = pre.filter_points(scan, ego, road, config)
+    for a, b in zip(got, ref):
+        if isinstance(a, dict):
+            assert a == b
+        else:
+            np.testing.assert_array_equal(a, b)
+            assert a.dtype == b.dtype
+    assert 0 < len(got[0]) < len(scan) and got[1]["points_off_road"] > 0 and got[1]["points_bearing_filtered"] > 0
+    # returns far off the seed grid: seeded from the k-d tree and a second call, the same answer
+    far = np.concatenate([scan, [[300.0, 300.0], [-200.0, 250.0]]])
+    assert staged(far, ego, road, config) is not None
+    monkeypatch.setattr(pre, "_filter_compiled", staged)
+    got_far = pre.filter_points(far, ego, road, config)
+    monkeypatch.setattr(pre, "_filter_compiled", lambda *a: None)
+    ref_far = pre.filter_points(far, ego, road, config)
+    for a, b in zip(got_far, ref_far):
+        if isinstance(a, dict):
+            assert a == b
+        else:
+            np.testing.assert_array_equal(a, b)

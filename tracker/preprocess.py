@@ -110,6 +110,12 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
     counts = {"points_off_road": 0, "points_bearing_filtered": 0}
     if len(scan) == 0:
         return scan, counts, np.zeros(0)
+    fused = _filter_compiled(scan, ego, road, config) if len(scan) > 1 and compiled_kernels.enabled() else None
+    if fused is not None:
+        kept, n, on_road = fused
+        counts["points_off_road"] = len(scan) - on_road
+        counts["points_bearing_filtered"] = on_road - len(kept)
+        return scan[kept], counts, n[kept]
     s, n = road.to_frenet(to_global(scan, (ego.x, ego.y), ego.yaw))
     on_road = road.within_bounds(s, n, config.road_margin)
     counts["points_off_road"] = int((~on_road).sum())
@@ -117,3 +123,29 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
     keep = bearing_filter(pts, config.bearing_bin)
     counts["points_bearing_filtered"] = len(pts) - len(keep)
     return pts[keep], counts, n[on_road][keep]
+
+
+def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
+                     config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """``filter_points``' steps in one compiled call (``tracker.compiled.preprocess.road_filter_kernel``:
+    the same formulas, the same numbers): the kept returns' indices into ``scan`` (bearing order), every
+    return's lateral offset ``n`` (m) and how many lie on the road; None where the kernel does not apply
+    (no seed grid, a bearing bin <= 0, a projection that did not converge): the staged path then runs.
+    Returns off the seed grid take their starts from the k-d tree (``Road.seed_missing``) and a second call."""
+    args = road.projection_kernel_args()
+    if args is None or not config.bearing_bin > 0:
+        return None
+    from tracker.compiled.preprocess import DONE, SEED, road_filter_kernel
+
+    count = round(2.0 * np.pi / config.bearing_bin)
+    tiles = abs(count * config.bearing_bin - 2.0 * np.pi) <= 1e-9
+    margin = config.road_margin
+    head = (np.ascontiguousarray(scan, dtype=float), float(np.cos(ego.yaw)), float(np.sin(ego.yaw)), float(ego.x),
+            float(ego.y))
+    tail = (*args, not road.closed, road.right_edge - margin, road.left_edge + margin, float(config.bearing_bin),
+            int(max(count, 1)), bool(tiles))
+    status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
+    if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
+        road.seed_missing(pts, s, missing)
+        status, kept, n, on_road, *_ = road_filter_kernel(*head, s, True, *tail)
+    return (kept, n, int(on_road)) if status == DONE else None

@@ -459,6 +459,28 @@ class Road:
         denom = np.maximum(1.0 - kappa * (dy * tx - dx * ty), PROJECTION_MIN_DENOMINATOR)
         return self._nodes[node] + (dx * tx + dy * ty) / denom
 
+    def projection_kernel_args(self) -> tuple | None:
+        """The arguments of ``tracker.compiled.preprocess.road_filter_kernel`` that describe this road's
+        projection without a hint (``_project``'s compiled path: the seed grid, the stored curve
+        samples, the curve kernels' arrays, Newton's constants), from the seed grid's origin to
+        ``min_denominator``; None when the road has no seed grid (the k-d tree seeds every point)."""
+        if self._grid is None:
+            return None
+        args = self.__dict__.get("_projection_kernel_args")
+        if args is None:
+            kind, *curve = self._curve.kernel_args()
+            args = self.__dict__["_projection_kernel_args"] = (
+                self._grid_origin, 1.0 / SEED_GRID_RESOLUTION, self._grid, self._node_frame, self._nodes, kind,
+                self.closed, self.length, self._ends_array, *curve, PROJECTION_MAX_ITERATIONS, PROJECTION_TOLERANCE,
+                PROJECTION_MAX_STEP, PROJECTION_MIN_DENOMINATOR)
+        return args
+
+    def seed_missing(self, pts: np.ndarray, s: np.ndarray, missing: np.ndarray) -> None:
+        """Newton's starts ``s`` (in place) of the points ``pts (N, 2)`` in G that the seed grid does not
+        cover (``missing``): the first step from the k-d tree's nearest curve sample."""
+        if missing.any():
+            s[missing] = self._seed(pts[missing], self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1])
+
     def _project(self, pts: np.ndarray, s_start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         if s_start is None and self._grid is not None and compiled_kernels.enabled():
             from tracker.compiled.centerline import seed_kernel  # _nearest_node and _seed in one call
@@ -466,8 +488,7 @@ class Road:
             pts = np.ascontiguousarray(pts, dtype=float)
             s, missing = seed_kernel(pts, self._grid_origin, 1.0 / SEED_GRID_RESOLUTION, self._grid, self._node_frame,
                                      self._nodes, PROJECTION_MIN_DENOMINATOR)
-            if missing.any():
-                s[missing] = self._seed(pts[missing], self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1])
+            self.seed_missing(pts, s, missing)
         elif s_start is None:
             s = self._seed(pts, self._nearest_node(pts))
         else:

@@ -126,6 +126,7 @@ def warm_up() -> bool:
     ring = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True)
     ring.frame(np.array([1.0, 2.0]))
     road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    road.to_frenet(np.array([[10.0, 1.0], [20.0, -1.0]]))  # Road._project's kernels (filter_points' fused call holds them)
     tracker = Tracker(road, TrackerConfig())
     bearings = np.arange(-np.pi, np.pi, np.radians(0.2))
     for k in range(4):
