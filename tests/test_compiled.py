@@ -190,7 +190,8 @@ def test_compiled_projection_equals_numpy(name, monkeypatch):
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
     """``to_vehicle`` of curvilinear states, compiled against numpy: any leading shape, 7 and 8 state
-    columns, states beyond an open road's ends and across a closed road's seam."""
+    columns, states beyond an open road's ends and across a closed road's seam, extents below
+    ``MIN_EXTENT`` and a NaN extent."""
     from tracker.measurement import to_vehicle
 
     road = _roads()[name]
@@ -204,6 +205,8 @@ def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
         x[..., 5:7] = rng.uniform(-1.0, 15.0, shape + (2,))  # below MIN_EXTENT too
         if road.closed:
             x[..., 0] %= road.length
+        if x.size:
+            x.reshape(-1, dim)[0, 5] = np.nan  # a NaN extent stays NaN (numpy.maximum's rule)
         monkeypatch.setenv(compiled.ENV_SWITCH, "0")
         ref = to_vehicle(x, ego, road)
         monkeypatch.setenv(compiled.ENV_SWITCH, "1")
@@ -212,6 +215,8 @@ def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
             a, b = getattr(ref, field), getattr(got, field)
             assert a.shape == b.shape
             np.testing.assert_allclose(b, a, rtol=0.0, atol=1e-9)
+            if field in ("v", "length", "width"):
+                np.testing.assert_array_equal(b, a)  # copied or floored: exact
         assert got.corners().shape == ref.corners().shape  # the kernel's corners, then numpy's
         np.testing.assert_allclose(got.corners(), ref.corners(), rtol=0.0, atol=1e-9)
         if len(x):
@@ -782,7 +787,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
                kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
-               kl.overlap_groups_kernel, kr.merge_kernel, kc.to_vehicle_kernel, kc.sigma_rectangles_kernel,
+               kl.overlap_groups_kernel, kr.merge_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel]

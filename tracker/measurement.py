@@ -168,6 +168,17 @@ class Rectangles:
                    np.maximum(states[..., 6], MIN_EXTENT))
         return rect.with_corners(corners)
 
+    @classmethod
+    def computed(cls, center: np.ndarray, psi: np.ndarray, v: np.ndarray, length: np.ndarray, width: np.ndarray,
+                 corners: np.ndarray) -> Rectangles:
+        """Rectangles whose fields and corners a compiled kernel computed (``to_vehicle``'s compiled
+        path: the extent already floored), built without the dataclass's per-field checks of a frozen
+        ``__init__`` (the tracker builds several per frame). The corners are returned read-only."""
+        rect = object.__new__(cls)
+        corners.flags.writeable = False
+        rect.__dict__.update(center=center, psi=psi, v=v, length=length, width=width, _corners=corners)
+        return rect
+
     def with_corners(self, corners: np.ndarray) -> Rectangles:
         """These rectangles with their corners already computed (``corners()`` then returns them,
         read-only): for a producer that computes them anyway (the compiled ``to_vehicle``)."""
@@ -181,9 +192,11 @@ class Rectangles:
 
     def take(self, index: np.ndarray) -> Rectangles:
         """The rectangles at ``index`` along the first axis (their corners too, when computed)."""
-        taken = Rectangles(self.center[index], self.psi[index], self.v[index], self.length[index], self.width[index])
         cached = self.__dict__.get("_corners")
-        return taken if cached is None else taken.with_corners(cached[index])
+        if cached is None:
+            return Rectangles(self.center[index], self.psi[index], self.v[index], self.length[index], self.width[index])
+        return Rectangles.computed(self.center[index], self.psi[index], self.v[index], self.length[index],
+                                   self.width[index], cached[index])
 
 
 def rectangle_corners(center: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray) -> np.ndarray:
@@ -231,16 +244,20 @@ def to_vehicle(
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")
         if euler_s0 is None and compiled_kernels.enabled() and x.size:
-            from tracker.compiled.centerline import to_vehicle_kernel
+            from tracker.compiled.centerline import rectangles_kernel
 
-            flat = np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
-            if not np.isfinite(flat[:, 0]).all():
-                raise ValueError(f"s must be finite; got {flat[np.argmin(np.isfinite(flat[:, 0])), 0]!r}")
+            flat = x if x.ndim == 2 and x.flags.c_contiguous else np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
             kind, *curve = road._curve.kernel_args()
-            center, psi, corners = to_vehicle_kernel(kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
-                                                     road.length, road._ends_array, *curve, MIN_EXTENT)
-            return Rectangles.of_states(x, center.reshape(x.shape[:-1] + (2,)), psi.reshape(x.shape[:-1]),
-                                        corners.reshape(x.shape[:-1] + (4, 2)))
+            center, psi, corners, length, width, finite = rectangles_kernel(
+                kind, flat, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length, road._ends_array,
+                *curve, MIN_EXTENT)
+            if not finite:
+                raise ValueError(f"s must be finite; got {flat[np.argmin(np.isfinite(flat[:, 0])), 0]!r}")
+            if x.ndim != 2:
+                lead = x.shape[:-1]
+                center, psi, corners = center.reshape(lead + (2,)), psi.reshape(lead), corners.reshape(lead + (4, 2))
+                length, width = length.reshape(lead), width.reshape(lead)
+            return Rectangles.computed(center, psi, x[..., 2], length, width, corners)
         if euler_s0 is None:
             xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
         else:

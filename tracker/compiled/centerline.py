@@ -174,6 +174,28 @@ def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends,
 
 
 @njit
+def rectangles_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell, starts_next,
+                      inv_bucket, hops, nodes, weights, min_extent):  # pragma: no cover - compiled
+    """``to_vehicle_kernel`` with the rest of ``tracker.measurement.to_vehicle``'s compiled path: the
+    extent floored at ``min_extent`` (``numpy.maximum``: a NaN stays NaN) and whether every ``s`` is
+    finite (checked first; nothing else computed when one is not). Returns ``(center, psi, corners,
+    length, width, finite)``."""
+    count = states.shape[0]
+    for i in range(count):
+        if not np.isfinite(states[i, 0]):
+            return np.empty((0, 2)), np.empty(0), np.empty((0, 4, 2)), np.empty(0), np.empty(0), False
+    center, psi, corners = to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends, table,
+                                             bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent)
+    floored_length = np.empty(count)
+    floored_width = np.empty(count)
+    for i in range(count):
+        a, b = states[i, 5], states[i, 6]
+        floored_length[i] = a if (a >= min_extent or a != a) else min_extent
+        floored_width[i] = b if (b >= min_extent or b != b) else min_extent
+    return center, psi, corners, floored_length, floored_width, True
+
+
+@njit
 def sigma_rectangles_kernel(means, covs, scale, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed,
                             length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
                             min_extent):  # pragma: no cover - compiled
