@@ -1118,3 +1118,36 @@ def test_stage_seconds_time_every_stage_of_a_step(curve):
     wall = time.perf_counter() - start
     assert all(tracker.stage_seconds[name] > 0.0 for name in ("road_births", "cluster", "update", "cluster_births"))
     assert sum(tracker.stage_seconds.values()) <= wall  # the stages lie inside the steps
+
+
+def test_candidate_pairs_compiled_equal_numpy(monkeypatch):
+    """The update's pre-gating (``tracker.tracker._candidate_pairs``): the compiled kernel gives the
+    numpy pairs exactly, in the same order, with clusters owned by tracks, components of no group,
+    ``p_d`` of 0 and NaN, and centres on the reach's boundary."""
+    pytest.importorskip("numba")
+    from tracker import compiled
+    from tracker.tracker import _candidate_pairs
+
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        k = int(rng.integers(1, 9))
+        clusters = [rng.normal(rng.uniform(-40, 40, 2), 1.0, size=(int(rng.integers(1, 30)), 2)) for _ in range(k)]
+        size = np.array([len(c) for c in clusters])
+        count = int(rng.integers(1, 15))
+        center = rng.uniform(-40, 40, size=(count, 2))
+        center[: min(count, k)] = [c.mean(axis=0) + 0.3 for c in clusters[: min(count, k)]]
+        reach = rng.uniform(1.0, 30.0, count)
+        if trial % 4 == 0:  # a centre exactly on its reach: the numpy distance itself as the reach
+            centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
+            reach[0] = np.linalg.norm(center[0] - centroid[0])
+        p_d = rng.choice([0.0, 0.5, 0.9, np.nan], size=count, p=[0.2, 0.3, 0.4, 0.1])
+        owned = rng.choice([-1, 0, 1, 2], size=k)
+        group = rng.choice([-1, 0, 1, 2], size=count)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = _candidate_pairs(center, reach, clusters, size, p_d, owned, group)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = _candidate_pairs(center, reach, clusters, size, p_d, owned, group)
+        for a, b in zip(got, ref):
+            np.testing.assert_array_equal(a, b)
+        if trial % 4 == 0 and p_d[0] > 0 and (owned[0] < 0 or owned[0] == group[0]):
+            assert (0, 0) in set(zip(got[0].tolist(), got[1].tolist()))

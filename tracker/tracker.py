@@ -535,15 +535,11 @@ class Tracker:
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
             size = cluster_size = np.array([len(c) for c in clusters])
-            centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
-            dist = np.linalg.norm(rect.center[:, None, :] - centroid[None, :, :], axis=2)
             # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
             # only the components of the track's group compete for it, so a newborn or another
             # track's hypothesis cannot take it over when the track's own fit is poor for a frame
-            owner = self._owned[None, :]
-            allowed = (owner < 0) | (owner == self._component_group[:, None])
-            comp, clu = np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
+            comp, clu = _candidate_pairs(rect.center, reach, clusters, size, p_d, self._owned, self._component_group)
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = unique_indices(clu, len(clusters))  # prepare only clusters in some pair
@@ -864,7 +860,27 @@ class Tracker:
 def _labels_in(labels: np.ndarray, chosen: Container[int]) -> np.ndarray:
     """Whether each of ``labels`` is in ``chosen`` (a set or dict that grows with the run: one lookup
     per label, not an ``isin`` over it)."""
-    return np.fromiter((lab in chosen for lab in labels.tolist()), dtype=bool, count=len(labels))
+    return np.fromiter(map(chosen.__contains__, labels.tolist()), dtype=bool, count=len(labels))
+
+
+def _candidate_pairs(center: np.ndarray, reach: np.ndarray, clusters: list[np.ndarray], size: np.ndarray,
+                     p_d: np.ndarray, owned: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (component, cluster) pairs the update tries, row-major: the component's rectangle centre
+    ``center`` within ``reach`` (m) of the cluster's centroid, ``p_d > 0``, and the cluster either
+    owned by no track (``owned < 0``) or by the component's track group ``group`` (by
+    ``tracker.compiled.gating`` when the kernels are on: the same pairs)."""
+    if compiled_kernels.enabled():
+        from tracker.compiled.gating import candidate_pairs_kernel
+
+        offsets = np.zeros(len(size) + 1, dtype=np.int64)
+        np.cumsum(size, out=offsets[1:])
+        return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
+                                      np.concatenate(clusters), offsets, np.ascontiguousarray(p_d, dtype=float),
+                                      np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
+    centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
+    dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)
+    allowed = (owned[None, :] < 0) | (owned[None, :] == group[:, None])
+    return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
 
 
 def _adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
