@@ -71,7 +71,8 @@ def _scene_pairs(monkeypatch):
         return build_structure(batch, ci, corners, *args, **kwargs)
 
     monkeypatch.setattr(tracker.update, "build_structure", record)
-    monkeypatch.setattr(tracker.update, "_update_pairs_fused", lambda *args: None)  # the staged path builds it
+    monkeypatch.setattr(tracker.update, "_update_clusters_fused", lambda *args: None)  # the staged path builds it
+    monkeypatch.setattr(tracker.update, "_update_pairs_fused", lambda *args: None)
     tr = Tracker(road, TrackerConfig())
     rng = np.random.default_rng(3)
     for k in range(30):
@@ -422,6 +423,26 @@ def track_scene(frames: int) -> Tracker:
     return tracker
 
 
+def tracked_update_calls(frames: int, monkeypatch) -> list[tuple]:
+    """``track_scene(frames)``'s calls of the update (``tracker.update.update_clusters``) as the
+    ``update_pairs`` calls they stand for: ``(means, covs, batch, comp, clu, ego, road, config, ut)``,
+    the batch prepared by ``prepare_scanned_batch`` as the two-step path prepares it."""
+    import tracker.tracker as tt
+    from tracker.preparation import prepare_scanned_batch
+
+    raw = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: raw.append(args) or original(*args))
+    track_scene(frames)
+    monkeypatch.setattr(tt, "update_clusters", original)
+    calls = []
+    for means, covs, clusters, velocities, comp, clu, scan, ego, road, config, ut in raw:
+        batch = prepare_scanned_batch(clusters, config.measurement, velocities, scan, config.detection.lidar_resolution,
+                                      config.detection.lidar_range)
+        calls.append((means, covs, batch, comp, clu, ego, road, config, ut))
+    return calls
+
+
 def _kalman_inputs(rng, pairs, n, rows, extra, wrapping):
     """Random UKF update inputs of a realistic scale: states of road traffic, measurement sigma points
     a smooth nonlinear function of the state, innovations of a few standard deviations."""
@@ -478,24 +499,18 @@ def test_compiled_kalman_update_of_a_tracked_scene_equals_numpy(monkeypatch):
     updated by the kernel and by numpy, both ``kalman_update`` alone (its inputs from a numpy run) and
     ``update_pairs`` whole (whose compiled path predicts the measurements, gates the radar rows and
     updates in one call, ``tracker.compiled.kalman.measurement_update_kernel``)."""
-    import tracker.tracker as tt
     import tracker.update as tu
 
-    kalman_batches, pair_batches = [], []
+    kalman_batches = []
     original, original_pairs = tu.kalman_update, tu.update_pairs
 
     def keep(*args, **kwargs):
         kalman_batches.append((args, kwargs))
         return original(*args, **kwargs)
 
-    def keep_pairs(*args, **kwargs):
-        pair_batches.append((args, kwargs))
-        return original_pairs(*args, **kwargs)
-
     monkeypatch.setattr(tu, "kalman_update", keep)
-    monkeypatch.setattr(tt, "update_pairs", keep_pairs)
     monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-    track_scene(12)
+    pair_batches = [(args, {}) for args in tracked_update_calls(12, monkeypatch)]
     monkeypatch.setenv(compiled.ENV_SWITCH, "1")
     assert sum(b[0][4].shape[0] for b in kalman_batches) >= 20
     for args, kwargs in kalman_batches:
@@ -791,7 +806,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kl.overlap_groups_kernel, kr.merge_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
-               kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel]
+               kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)
@@ -804,20 +819,10 @@ def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
     kernels' numbers bit for bit: every call of a tracked scene (a bus, radar, shadows) replayed both
     ways, and the same calls with the priors' lengths cut to 2 m (sides longer than predicted: the
     kernel hands the pairs back for the widened prior, and the staged path runs)."""
-    import tracker.tracker as tt
     import tracker.update as tu
     from tracker.motion import LENGTH
 
-    calls = []
-    original = tt.update_pairs
-
-    def keep(*args):
-        calls.append(args)
-        return original(*args)
-
-    monkeypatch.setattr(tt, "update_pairs", keep)
-    track_scene(15)
-    monkeypatch.setattr(tt, "update_pairs", original)
+    calls = tracked_update_calls(15, monkeypatch)
     assert len(calls) >= 14
     fused = tu._update_pairs_fused
     taken = []
@@ -842,6 +847,55 @@ def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
     assert all(taken[: len(calls)])  # the scene's own calls: all by the fused kernel
     assert not all(taken[len(calls):])  # some shortened priors grew: handed back to the staged path
 
+
+def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
+    """``tracker.update.update_clusters`` by one compiled call (``tracker.compiled.pairs.prepared_pairs_kernel``:
+    the clusters prepared with their shadow flags, then the fused update) gives bit for bit what
+    ``prepare_scanned_batch`` then ``update_pairs`` give, and the same counts of shadowed and continued
+    ends: every call of a tracked scene (a bus, radar, ends in shadows), and the same calls with the priors'
+    lengths cut to 2 m (the kernel hands back; the two steps run)."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+    from tracker.motion import LENGTH
+
+    raw = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: raw.append(args) or original(*args))
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0),
+                  [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5), Car(50.0, 3.5, 18.0),
+                   Car(95.0, 0.0, 12.0)], radar=True)  # the structure test's scene: shadows, a bus, radar
+    tracker, rng = Tracker(road, TrackerConfig()), np.random.default_rng(3)
+    for k in range(30):
+        tracker.step(scene.frame(0.1 * k, rng))
+    monkeypatch.setattr(tt, "update_clusters", original)
+    assert len(raw) >= 28
+    fused = tu._update_clusters_fused
+    taken = []
+
+    def counting(*args):
+        out = fused(*args)
+        taken.append(out is not None)
+        return out
+
+    shortened = []
+    for means, covs, *rest in raw:
+        short = means.copy()
+        short[:, LENGTH] = 2.0
+        shortened.append((short, covs, *rest))
+    counts = []
+    for case in raw + shortened:
+        monkeypatch.setattr(tu, "_update_clusters_fused", counting)
+        got, occluded, continued = tu.update_clusters(*case)
+        monkeypatch.setattr(tu, "_update_clusters_fused", lambda *args: None)
+        ref, ref_occluded, ref_continued = tu.update_clusters(*case)
+        assert (occluded, continued) == (ref_occluded, ref_continued)
+        counts.append(occluded)
+        for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation", "radar_rejected"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    assert sum(taken[: len(raw)]) >= 0.8 * len(raw)  # the scene's own calls: by the one kernel (a bus's side may grow)
+    assert not all(taken[len(raw):])  # some shortened priors grew: handed back to the two steps
+    assert any(c for c in counts), counts  # some ends in a shadow
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_overlap_test_of_absorb_overlapping_equals_numpy(seed, monkeypatch):
@@ -950,13 +1004,9 @@ def test_compiled_merge_at_the_gate_equals_numpy(monkeypatch):
 def test_a_non_finite_prior_takes_the_staged_update_and_its_error(monkeypatch):
     """A NaN in a prior: the fused update hands the pairs back and the staged path's error is raised,
     as before the fusion."""
-    import tracker.tracker as tt
     import tracker.update as tu
 
-    calls = []
-    original = tt.update_pairs
-    monkeypatch.setattr(tt, "update_pairs", lambda *args: calls.append(args) or original(*args))
-    track_scene(4)
+    calls = tracked_update_calls(4, monkeypatch)
     means, covs, *rest = calls[-1]
     bad = means.copy()
     bad[0, 2] = np.nan

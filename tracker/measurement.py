@@ -621,28 +621,27 @@ class Structure:
     excess: np.ndarray
 
 
-def _sharp_side_whole(config: MeasurementConfig, batch: ClusterBatch) -> bool:
+def _sharp_side_whole(config: MeasurementConfig, shadows: bool) -> bool:
     """Whether ``MeasurementConfig.sharp_side_whole`` applies: it needs the shadow flags (without them
     nothing says an end is free)."""
-    return bool(config.sharp_side_whole and batch.occluded_end is not None)
+    return bool(config.sharp_side_whole and shadows)
 
 
-def _sharp_parts_whole(config: MeasurementConfig, batch: ClusterBatch, has_extent_sd: bool) -> bool:
+def _sharp_parts_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
     """Whether ``MeasurementConfig.sharp_parts_whole`` applies: it needs the shadow flags and the
     predicted extent's standard deviations (its consistency gate)."""
-    return bool(config.sharp_parts_whole and batch.occluded_end is not None and has_extent_sd)
+    return bool(config.sharp_parts_whole and shadows and has_extent_sd)
 
 
-def _shadowed_longer_whole(config: MeasurementConfig, batch: ClusterBatch, has_extent_sd: bool) -> bool:
+def _shadowed_longer_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
     """Whether ``MeasurementConfig.shadowed_longer_whole`` applies: it needs the shadow flags, the
     predicted extent's standard deviations and the extent growth it goes with (``grow_extent``)."""
-    return bool(config.shadowed_longer_whole and config.grow_extent and batch.occluded_end is not None
-                and has_extent_sd)
+    return bool(config.shadowed_longer_whole and config.grow_extent and shadows and has_extent_sd)
 
 
-def _shadowed_parts_partial(config: MeasurementConfig, batch: ClusterBatch) -> bool:
+def _shadowed_parts_partial(config: MeasurementConfig, shadows: bool) -> bool:
     """Whether ``MeasurementConfig.shadowed_parts_partial`` applies: it needs the shadow flags."""
-    return bool(config.shadowed_parts_partial and batch.occluded_end is not None)
+    return bool(config.shadowed_parts_partial and shadows)
 
 
 def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,
@@ -744,7 +743,7 @@ def build_structure(
     chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
     margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
     occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
-    shadowed_parts = _shadowed_parts_partial(config, batch)
+    shadowed_parts = _shadowed_parts_partial(config, batch.occluded_end is not None)
     if shadowed_parts:
         # a two-sided part's far end (part 0: the first point, part 1: the last) in a shadow is no end of
         # the side: no end-gap margin there, the chord reaches at least to the last return
@@ -760,13 +759,13 @@ def build_structure(
     sharp_end = batch.end_gap[ci] <= config.shadow_free_gap  # (P, 3 slots, 2 ends): half a ray gap at most
     sharp = sharp_end[:, 0]  # (P, 2 ends) of the one-sided chord
     free = _free_ends(batch, ci)  # (P, 2) the bearing ends: in no shadow, not continued
-    if _sharp_side_whole(config, batch):
+    if _sharp_side_whole(config, batch.occluded_end is not None):
         # a one-sided part with both ends sharp and free is the whole side, however much shorter than
         # predicted (a convex rectangle shows each visible side whole): a motorcycle's rear is 0.8 m,
         # not the visible part of a car's 1.8 m
         whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & free[:, 0] & free[:, 1]
         partial &= ~whole[:, None]
-    if _sharp_parts_whole(config, batch, extent_sd is not None):
+    if _sharp_parts_whole(config, batch.occluded_end is not None, extent_sd is not None):
         # each part of a two-sided cluster runs from the fitted corner to a far end, the cluster's first
         # (part 0, slot 1's start) or last point (part 1, slot 2's end): whole if that end is sharp and
         # free, both parts have enough points (the corner is where two well-fitted lines meet: with two
@@ -789,7 +788,7 @@ def build_structure(
         # whose front roadside objects hid frame by frame shrank with its visible side
         partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
-    if _shadowed_longer_whole(config, batch, extent_sd is not None):
+    if _shadowed_longer_whole(config, batch.occluded_end is not None, extent_sd is not None):
         # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
         # bound the prediction falls short of, so the part is measured whole (a far truck's rear half
         # hidden by a car kept a car's width, and length, for seconds: mixed-traffic seed 16)
@@ -896,19 +895,19 @@ def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
             c(~_free_ends(batch, np.arange(len(batch.points)))))
 
 
-def structure_config_args(config: MeasurementConfig, batch: ClusterBatch, use_radar: bool,
+def structure_config_args(config: MeasurementConfig, shadows: bool, use_radar: bool,
                           has_extent_sd: bool) -> tuple[tuple, tuple]:
     """The settings' arguments of the compiled structure kernel, those before its ``extent_sd`` and
-    those after it (``has_extent_sd``: the pairs' predicted extent sd are known, so the rules that need
-    them apply)."""
+    those after it (``shadows``: the clusters have their shadow flags, ``ClusterBatch.occluded_end``;
+    ``has_extent_sd``: the pairs' predicted extent sd are known, so the rules that need them apply)."""
     head = (float(config.single_point_min_apparent), float(config.partial_visibility), float(config.shadow_free_gap),
             float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2, bool(use_radar),
-            config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, batch),
-            _sharp_parts_whole(config, batch, has_extent_sd))
+            config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, shadows),
+            _sharp_parts_whole(config, shadows, has_extent_sd))
     tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, batch, has_extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, shadows, has_extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
             WIDEST_VEHICLE, LONGEST_VEHICLE, -1.0 if config.settled_width_std is None else float(config.settled_width_std),
-            _shadowed_parts_partial(config, batch), bool(config.two_sided_data_partial),
+            _shadowed_parts_partial(config, shadows), bool(config.two_sided_data_partial),
             -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
     return head, tail
 
@@ -917,7 +916,7 @@ def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners:
                               use_radar: bool, extent_sd: np.ndarray | None) -> Structure:
     from tracker.compiled.structure import structure_kernel
 
-    head, tail = structure_config_args(config, batch, use_radar, extent_sd is not None)
+    head, tail = structure_config_args(config, batch.occluded_end is not None, use_radar, extent_sd is not None)
     sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
     fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
                               sd, *tail)

@@ -77,14 +77,13 @@ from tracker.indices import unique_indices
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict
 from tracker.point import PointTracker
-from tracker.preparation import prepare_scanned_batch
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, absorb_overlapping, reduce
 from tracker.road import Road
 from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
-from tracker.update import state_wrapping, update_pairs
+from tracker.update import state_wrapping, update_clusters
 
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
@@ -543,14 +542,13 @@ class Tracker:
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 used, slot = unique_indices(clu, len(clusters))  # prepare only clusters in some pair
-                prepared = prepare_scanned_batch([clusters[k] for k in used], cfg.measurement,
-                                                 [velocities[k] if cfg.use_radar else None for k in used], self._scan,
-                                                 cfg.detection.lidar_resolution, cfg.detection.lidar_range)
-                if prepared.occluded_end is not None:  # MeasurementConfig.shadow_window
-                    self.stats["cluster_ends_occluded"] += int(np.count_nonzero(prepared.occluded_end))
-                if prepared.continued_end is not None:
-                    self.stats["cluster_ends_continued"] += int(np.count_nonzero(prepared.continued_end))
-                res = update_pairs(mix.means, mix.covs, prepared, comp, slot, ego, self.road, cfg, self.ut)
+                res, occluded, continued = update_clusters(
+                    mix.means, mix.covs, [clusters[k] for k in used], [velocities[k] if cfg.use_radar else None for k in used],
+                    comp, slot, self._scan, ego, self.road, cfg, self.ut)
+                if occluded is not None:  # MeasurementConfig.shadow_window
+                    self.stats["cluster_ends_occluded"] += occluded
+                if continued is not None:
+                    self.stats["cluster_ends_continued"] += continued
                 rejected = res.radar_rejected
                 self.stats["radar_velocities_rejected"] += len(np.unique(clu[rejected])) if rejected.any() else 0
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +42,8 @@ from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXT
                                  Structure, build_structure, predict_measurements, shows_longer_side,
                                  structure_batch_args, structure_config_args, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
+from tracker.preparation import (_all_regular, _checked, _checked_velocities, _kernel_settings, _offsets,
+                                 _stacked_velocities, prepare_scanned_batch)
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
@@ -266,6 +269,81 @@ def _extent_rule_args(config: TrackerConfig) -> tuple:
             math.inf if b.max_width is None else float(b.max_width))
 
 
+def update_clusters(
+    means: np.ndarray, covs: np.ndarray, clusters: Sequence[np.ndarray], velocities: Sequence[np.ndarray | None],
+    component_index: np.ndarray, cluster_index: np.ndarray, scan: np.ndarray, ego: EgoState | tuple, road: Road | None,
+    config: TrackerConfig, ut: UnscentedTransform,
+) -> tuple[UpdateResult, int | None, int | None]:
+    """``update_pairs`` of the clusters ``clusters`` (points ``(n_k, 2)`` in E) as
+    ``tracker.preparation.prepare_scanned_batch`` prepares them in the frame's lidar returns ``scan``
+    (with their radar ``velocities``, ``config.detection``'s resolution and range), for the pairs
+    ``(component_index[p], cluster_index[p])``. Returns the result and the numbers of the clusters'
+    ends in a shadow and continued (``ClusterBatch.occluded_end``, ``continued_end``; None where that
+    flag is off). One compiled call (``tracker.compiled.pairs.prepared_pairs_kernel``: the same kernels in
+    the same order, the same numbers) where the fused update applies (``_update_pairs_fused``) and every
+    cluster is regular; else the two steps."""
+    det, mcfg = config.detection, config.measurement
+    fused = _update_clusters_fused(means, covs, clusters, velocities, component_index, cluster_index, scan, ego, road,
+                                   config, ut)
+    if fused is not None:
+        return fused
+    batch = prepare_scanned_batch(clusters, mcfg, velocities, scan, det.lidar_resolution, det.lidar_range)
+    res = update_pairs(means, covs, batch, component_index, cluster_index, ego, road, config, ut)
+    occluded = None if batch.occluded_end is None else int(np.count_nonzero(batch.occluded_end))
+    continued = None if batch.continued_end is None else int(np.count_nonzero(batch.continued_end))
+    return res, occluded, continued
+
+
+def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, clusters: Sequence[np.ndarray],
+                           velocities: Sequence[np.ndarray | None], comp: np.ndarray, clu: np.ndarray, scan: np.ndarray,
+                           ego: EgoState | tuple, road: Road | None, config: TrackerConfig,
+                           ut: UnscentedTransform) -> tuple[UpdateResult, int | None, int | None] | None:
+    """``update_clusters`` in one compiled call; None where it does not apply or hands back (the
+    conditions of ``_update_pairs_fused``, an irregular cluster, or a scan that is not ``(N, 2)``)."""
+    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None or not len(clusters)
+            or not len(comp)):
+        return None
+    wrapping = state_wrapping(road, config.coordinates)
+    if len(wrapping.periods) > 1:
+        return None
+    comp = np.asarray(comp, dtype=np.intp)
+    clu = np.asarray(clu, dtype=np.intp)
+    scan = np.asarray(scan, dtype=float)
+    if (comp.shape != clu.shape or comp.ndim != 1 or scan.ndim != 2 or scan.shape[1] != 2 or comp.min() < 0
+            or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(clusters)):
+        return None  # the two steps raise their clear errors
+    arrays, velocities = _checked(clusters, velocities)
+    flat = _all_regular(arrays)
+    if flat is None:
+        return None
+    from tracker.compiled.pairs import DONE, prepared_pairs_kernel
+
+    mcfg, det = config.measurement, config.detection
+    shadows = mcfg.shadow_window is not None
+    continuation = shadows and mcfg.continuation_rays is not None and bool(mcfg.sharp_side_whole or mcfg.sharp_parts_whole)
+    window = mcfg.shadow_window * det.lidar_resolution if shadows else 0.0
+    has_velocity, velocity = _stacked_velocities(_checked_velocities(velocities))
+    used, inverse = unique_indices(comp, len(means))
+    ego = EgoState.coerce(ego)
+    kind, *curve = road._curve.kernel_args()
+    head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
+    c = np.ascontiguousarray
+    try:
+        status, *out, occluded, continued = prepared_pairs_kernel(
+            flat, _offsets(arrays), *_kernel_settings(mcfg), c(scan), shadows, float(window), float(mcfg.shadow_margin),
+            float(det.lidar_range), float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
+            float(mcfg.continuation_offset), has_velocity, velocity, c(means[used], dtype=float),
+            c(covs[used], dtype=float), c(inverse, dtype=np.intp), clu, ut.scale, ut.wm, ut.wc, *wrapping.kernel_args(),
+            kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length, road._ends_array, *curve,
+            MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent), -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate),
+            *_extent_rule_args(config))
+    except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the two steps
+        return None
+    if status != DONE:
+        return None
+    return UpdateResult(*out), int(occluded) if shadows else None, int(continued) if continuation else None
+
+
 def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray, clu: np.ndarray, batch: ClusterBatch,
                         ego: EgoState | tuple, road: Road | None, config: TrackerConfig, ut: UnscentedTransform,
                         wrapping: Wrapping) -> UpdateResult | None:
@@ -283,7 +361,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     mcfg = config.measurement
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
-    head, tail = structure_config_args(mcfg, batch, config.use_radar, True)
+    head, tail = structure_config_args(mcfg, batch.occluded_end is not None, config.use_radar, True)
     c = np.ascontiguousarray
     try:
         status, *out = update_pairs_kernel(

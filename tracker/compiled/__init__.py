@@ -141,13 +141,14 @@ def warm_up() -> bool:
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
     # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
     # component with a car's length prior (its prior is widened: tracker.update's staged path), and
-    # clusters prepared without their shadow flags (tracker.preparation.prepare_batch)
-    from tracker.preparation import prepare_batch
+    # clusters prepared alone, with and without their shadow flags (tracker.preparation)
+    from tracker.preparation import prepare_batch, prepare_scanned_batch
     from tracker.update import update_pairs
 
     truck = rectangle_scan(rectangle_corners(np.array([30.0, 1.75]), np.array(0.0), np.array(12.0), np.array(2.5)),
                            bearings)[0]
     batch = prepare_batch([truck], tracker.config.measurement)
+    prepare_scanned_batch([truck], tracker.config.measurement, None, truck, 0.01, 100.0)  # the two steps' first
     mean = np.zeros((1, tracker.dim))
     mean[0, :7] = [130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]
     cov = np.diag(np.r_[1.0, 0.2, 1.0, 0.01, 0.01, 0.25, 0.04, np.ones(tracker.dim - 7)])[None]

@@ -25,6 +25,7 @@ from tracker.compiled import njit
 from tracker.compiled.centerline import sigma_rectangles_kernel
 from tracker.compiled.extent import extent_rules_kernel, grow_extent_kernel
 from tracker.compiled.kalman import measurement_update_kernel
+from tracker.compiled.preparation import scanned_batch_kernel
 from tracker.compiled.structure import structure_kernel
 from tracker.motion import LENGTH, WIDTH
 
@@ -123,3 +124,55 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                         long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
                         narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length, max_width)
     return DONE, mean, cov, log_likelihood, nis, dims, predicted, innovation, rejected
+
+
+@njit
+def prepared_pairs_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord_prep, sin_min_angle,
+                          max_shift, max_end_gap, scan, shadows, window, shadow_margin, max_range, range_margin,
+                          continuation, rays, offset, fused, velocity, means, covs, inverse, ci, scale, wm, wc, angles,
+                          period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell,
+                          starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent, partial_visibility,
+                          free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord, sharp_whole, parts_whole,
+                          min_points, gate_sigmas, gate_slack, missed_rays, longer_whole, growth_min, growth_sigmas,
+                          widest, longest, settled_sd, parts_shadowed, data_partial, shadowed_var, grow, gate, hold,
+                          long_on, long_width, long_below, long_variance, long_length, narrow_on, narrow_width,
+                          narrow_width_var, narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
+                          max_width):  # pragma: no cover - compiled
+    """``tracker.preparation.prepare_scanned_batch``'s compiled call (``scanned_batch_kernel`` of the
+    clusters' points ``flat`` cut at ``offsets``, with the radar velocities ``velocity (K, 2)`` of the
+    clusters ``fused``) and ``update_pairs_kernel`` of its batch in one call: the clusters' centroids
+    (``points.sum(axis=1) / max(kept, 1)``, summed point by point) and free ends (neither in a shadow nor
+    continued: ``tracker.measurement._free_ends``) as the batch and ``structure_batch_args`` give them.
+    Returns ``update_pairs_kernel``'s outputs, then the numbers of occluded and of continued ends."""
+    (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
+     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction,
+                                                 min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
+                                                 window, shadow_margin, max_range, range_margin, continuation, rays,
+                                                 offset)
+    count, width = points.shape[0], points.shape[1]
+    centroid = np.empty((count, 2))
+    not_free = np.zeros((count, 2), dtype=np.bool_)
+    n_occluded = 0
+    n_continued = 0
+    for k in range(count):
+        for d in range(2):
+            acc = points[k, 0, d]
+            for i in range(1, width):
+                acc += points[k, i, d]
+            centroid[k, d] = acc / max(kept_count[k], 1)
+            if shadows:
+                not_free[k, d] = occluded[k, d]
+                n_occluded += occluded[k, d]
+            if continuation:
+                not_free[k, d] = not_free[k, d] or continued[k, d]
+                n_continued += continued[k, d]
+    result = update_pairs_kernel(
+        means, covs, inverse, ci, scale, wm, wc, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed,
+        length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, points, valid,
+        part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, fused, velocity,
+        centroid, occluded, not_free, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar,
+        speed_row, min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, longer_whole,
+        growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed, data_partial, shadowed_var, grow, gate,
+        hold, long_on, long_width, long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
+        narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length, max_width)
+    return result + (n_occluded, n_continued)
