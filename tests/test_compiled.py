@@ -436,10 +436,13 @@ def tracked_update_calls(frames: int, monkeypatch) -> list[tuple]:
     track_scene(frames)
     monkeypatch.setattr(tt, "update_clusters", original)
     calls = []
-    for means, covs, clusters, velocities, comp, clu, scan, ego, road, config, ut in raw:
+    for means, covs, points, offsets, velocity, has_velocity, comp, clu, scan, ego, road, config, ut in raw:
+        used, slot = np.unique(clu, return_inverse=True)
+        clusters = [points[offsets[k]:offsets[k + 1]] for k in used]
+        velocities = [velocity[k] if has_velocity[k] else None for k in used]
         batch = prepare_scanned_batch(clusters, config.measurement, velocities, scan, config.detection.lidar_resolution,
                                       config.detection.lidar_range)
-        calls.append((means, covs, batch, comp, clu, ego, road, config, ut))
+        calls.append((means, covs, batch, comp, slot, ego, road, config, ut))
     return calls
 
 
@@ -896,6 +899,21 @@ def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
     assert sum(taken[: len(raw)]) >= 0.8 * len(raw)  # the scene's own calls: by the one kernel (a bus's side may grow)
     assert not all(taken[len(raw):])  # some shortened priors grew: handed back to the two steps
     assert any(c for c in counts), counts  # some ends in a shadow
+    # a non-finite point in a cluster of some pair: the kernel hands back, the two steps take it
+    means, covs, points, offsets, velocity, has_velocity, comp, clu, *rest = raw[-1]
+    bad = points.copy()
+    bad[offsets[clu[0]]] = np.nan
+    assert tu._update_clusters_fused(means, covs, bad, offsets, velocity, has_velocity, comp, clu, *rest) is None
+    # ... and in a cluster of no pair: the kernel still runs (only the pairs' clusters are prepared)
+    idle = np.setdiff1d(np.arange(len(offsets) - 1), clu)
+    if len(idle) and offsets[idle[0] + 1] > offsets[idle[0]]:
+        bad = points.copy()
+        bad[offsets[idle[0]]] = np.nan
+        got = tu._update_clusters_fused(means, covs, bad, offsets, velocity, has_velocity, comp, clu, *rest)
+        ref = tu._update_clusters_fused(means, covs, points, offsets, velocity, has_velocity, comp, clu, *rest)
+        np.testing.assert_array_equal(got[0].mean, ref[0].mean)
+    with pytest.raises(ValueError, match="does not exist"):
+        tu.update_clusters(means, covs, points, offsets, velocity, has_velocity, comp, clu + len(offsets), *rest)
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_overlap_test_of_absorb_overlapping_equals_numpy(seed, monkeypatch):

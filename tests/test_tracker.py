@@ -1143,10 +1143,11 @@ def test_candidate_pairs_compiled_equal_numpy(monkeypatch):
         p_d = rng.choice([0.0, 0.5, 0.9, np.nan], size=count, p=[0.2, 0.3, 0.4, 0.1])
         owned = rng.choice([-1, 0, 1, 2], size=k)
         group = rng.choice([-1, 0, 1, 2], size=count)
+        offsets = np.concatenate([[0], np.cumsum(size)])
         monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-        ref = _candidate_pairs(center, reach, clusters, size, p_d, owned, group)
+        ref = _candidate_pairs(center, reach, np.concatenate(clusters), offsets, p_d, owned, group)
         monkeypatch.setenv(compiled.ENV_SWITCH, "1")
-        got = _candidate_pairs(center, reach, clusters, size, p_d, owned, group)
+        got = _candidate_pairs(center, reach, np.concatenate(clusters), offsets, p_d, owned, group)
         for a, b in zip(got, ref):
             np.testing.assert_array_equal(a, b)
         if trial % 4 == 0 and p_d[0] > 0 and (owned[0] < 0 or owned[0] == group[0]):

@@ -73,7 +73,6 @@ from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
-from tracker.indices import unique_indices
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict
 from tracker.point import PointTracker
@@ -534,17 +533,24 @@ class Tracker:
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
             size = cluster_size = np.array([len(c) for c in clusters])
+            offsets = np.zeros(len(size) + 1, dtype=np.intp)
+            np.cumsum(size, out=offsets[1:])
+            points = np.concatenate(clusters)
             reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
             # only the components of the track's group compete for it, so a newborn or another
             # track's hypothesis cannot take it over when the track's own fit is poor for a frame
-            comp, clu = _candidate_pairs(rect.center, reach, clusters, size, p_d, self._owned, self._component_group)
+            comp, clu = _candidate_pairs(rect.center, reach, points, offsets, p_d, self._owned, self._component_group)
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
-                used, slot = unique_indices(clu, len(clusters))  # prepare only clusters in some pair
-                res, occluded, continued = update_clusters(
-                    mix.means, mix.covs, [clusters[k] for k in used], [velocities[k] if cfg.use_radar else None for k in used],
-                    comp, slot, self._scan, ego, self.road, cfg, self.ut)
+                has_velocity = np.zeros(len(clusters), dtype=bool)
+                velocity = np.zeros((len(clusters), 2))
+                if cfg.use_radar:
+                    for k, v in enumerate(velocities):
+                        if v is not None:
+                            has_velocity[k], velocity[k] = True, v
+                res, occluded, continued = update_clusters(mix.means, mix.covs, points, offsets, velocity, has_velocity,
+                                                           comp, clu, self._scan, ego, self.road, cfg, self.ut)
                 if occluded is not None:  # MeasurementConfig.shadow_window
                     self.stats["cluster_ends_occluded"] += occluded
                 if continued is not None:
@@ -861,21 +867,21 @@ def _labels_in(labels: np.ndarray, chosen: Container[int]) -> np.ndarray:
     return np.fromiter(map(chosen.__contains__, labels.tolist()), dtype=bool, count=len(labels))
 
 
-def _candidate_pairs(center: np.ndarray, reach: np.ndarray, clusters: list[np.ndarray], size: np.ndarray,
+def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, offsets: np.ndarray,
                      p_d: np.ndarray, owned: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The (component, cluster) pairs the update tries, row-major: the component's rectangle centre
-    ``center`` within ``reach`` (m) of the cluster's centroid, ``p_d > 0``, and the cluster either
-    owned by no track (``owned < 0``) or by the component's track group ``group`` (by
-    ``tracker.compiled.gating`` when the kernels are on: the same pairs)."""
+    ``center`` within ``reach`` (m) of the centroid of cluster ``k`` (``points[offsets[k]:offsets[k + 1]]``,
+    non-empty), ``p_d > 0``, and the cluster either owned by no track (``owned < 0``) or by the
+    component's track group ``group`` (by ``tracker.compiled.gating`` when the kernels are on: the same
+    pairs)."""
     if compiled_kernels.enabled():
         from tracker.compiled.gating import candidate_pairs_kernel
 
-        offsets = np.zeros(len(size) + 1, dtype=np.int64)
-        np.cumsum(size, out=offsets[1:])
         return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
-                                      np.concatenate(clusters), offsets, np.ascontiguousarray(p_d, dtype=float),
-                                      np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
-    centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
+                                      np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(offsets, dtype=np.int64),
+                                      np.ascontiguousarray(p_d, dtype=float), np.ascontiguousarray(owned, dtype=np.int64),
+                                      np.ascontiguousarray(group, dtype=np.int64))
+    centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
     dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)
     allowed = (owned[None, :] < 0) | (owned[None, :] == group[:, None])
     return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,8 +41,7 @@ from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXT
                                  Structure, build_structure, predict_measurements, shows_longer_side,
                                  structure_batch_args, structure_config_args, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
-from tracker.preparation import (_all_regular, _checked, _checked_velocities, _kernel_settings, _offsets,
-                                 _stacked_velocities, prepare_scanned_batch)
+from tracker.preparation import _kernel_settings, prepare_scanned_batch
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
 
@@ -270,73 +268,91 @@ def _extent_rule_args(config: TrackerConfig) -> tuple:
 
 
 def update_clusters(
-    means: np.ndarray, covs: np.ndarray, clusters: Sequence[np.ndarray], velocities: Sequence[np.ndarray | None],
-    component_index: np.ndarray, cluster_index: np.ndarray, scan: np.ndarray, ego: EgoState | tuple, road: Road | None,
-    config: TrackerConfig, ut: UnscentedTransform,
+    means: np.ndarray, covs: np.ndarray, points: np.ndarray, offsets: np.ndarray, velocity: np.ndarray,
+    has_velocity: np.ndarray, component_index: np.ndarray, cluster_index: np.ndarray, scan: np.ndarray,
+    ego: EgoState | tuple, road: Road | None, config: TrackerConfig, ut: UnscentedTransform,
 ) -> tuple[UpdateResult, int | None, int | None]:
-    """``update_pairs`` of the clusters ``clusters`` (points ``(n_k, 2)`` in E) as
-    ``tracker.preparation.prepare_scanned_batch`` prepares them in the frame's lidar returns ``scan``
-    (with their radar ``velocities``, ``config.detection``'s resolution and range), for the pairs
-    ``(component_index[p], cluster_index[p])``. Returns the result and the numbers of the clusters'
-    ends in a shadow and continued (``ClusterBatch.occluded_end``, ``continued_end``; None where that
-    flag is off). One compiled call (``tracker.compiled.pairs.prepared_pairs_kernel``: the same kernels in
-    the same order, the same numbers) where the fused update applies (``_update_pairs_fused``) and every
-    cluster is regular; else the two steps."""
-    det, mcfg = config.detection, config.measurement
-    fused = _update_clusters_fused(means, covs, clusters, velocities, component_index, cluster_index, scan, ego, road,
+    """The GM-PHD update of the pairs ``(component_index[p], cluster_index[p])``: the clusters in some
+    pair, ``points[offsets[k]:offsets[k + 1]]`` (E, m) with their radar velocities ``velocity[k]`` (m/s)
+    where ``has_velocity[k]``, prepared by ``tracker.preparation.prepare_scanned_batch`` in the frame's
+    lidar returns ``scan`` (``config.detection``'s resolution and range), then ``update_pairs`` of the
+    components in some pair. Returns the result and the numbers of the prepared clusters' ends in a
+    shadow and continued (``ClusterBatch.occluded_end``, ``continued_end``; None where that flag is
+    off). One compiled call (``tracker.compiled.pairs.prepared_pairs_kernel``: the same kernels in the
+    same order, the same numbers) where the fused update applies (``_update_pairs_fused``) and every
+    cluster in some pair is non-empty and finite; else the two steps."""
+    comp = np.asarray(component_index, dtype=np.intp).reshape(-1)
+    clu = np.asarray(cluster_index, dtype=np.intp).reshape(-1)
+    offsets = np.asarray(offsets, dtype=np.intp).reshape(-1)
+    if comp.shape != clu.shape:
+        raise ValueError(f"component_index and cluster_index must pair up; got {comp.shape} and {clu.shape}")
+    if len(comp) and (comp.min() < 0 or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(offsets) - 1):
+        raise ValueError("update_clusters: a pair refers to a component or cluster that does not exist")
+    fused = _update_clusters_fused(means, covs, points, offsets, velocity, has_velocity, comp, clu, scan, ego, road,
                                    config, ut)
     if fused is not None:
         return fused
+    det, mcfg = config.detection, config.measurement
+    used, slot = unique_indices(clu, len(offsets) - 1)
+    clusters = [points[offsets[k]:offsets[k + 1]] for k in used.tolist()]
+    velocities = [velocity[k] if has_velocity[k] else None for k in used.tolist()]
     batch = prepare_scanned_batch(clusters, mcfg, velocities, scan, det.lidar_resolution, det.lidar_range)
-    res = update_pairs(means, covs, batch, component_index, cluster_index, ego, road, config, ut)
+    res = update_pairs(means, covs, batch, comp, slot, ego, road, config, ut)
     occluded = None if batch.occluded_end is None else int(np.count_nonzero(batch.occluded_end))
     continued = None if batch.continued_end is None else int(np.count_nonzero(batch.continued_end))
     return res, occluded, continued
 
 
-def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, clusters: Sequence[np.ndarray],
-                           velocities: Sequence[np.ndarray | None], comp: np.ndarray, clu: np.ndarray, scan: np.ndarray,
-                           ego: EgoState | tuple, road: Road | None, config: TrackerConfig,
+def _fused_settings(config: TrackerConfig) -> tuple[tuple, tuple, tuple, bool, bool]:
+    """The settings' arguments of ``prepared_pairs_kernel`` (the preparation's, the shadow flags', the
+    update's from ``min_apparent`` on) and whether the shadow and continuation flags are on; built once
+    per configuration (a frozen dataclass: kept in its instance dictionary, outside its fields)."""
+    cached = config.__dict__.get("_fused_update_settings")
+    if cached is None:
+        mcfg, det = config.measurement, config.detection
+        shadows = mcfg.shadow_window is not None
+        continuation = shadows and mcfg.continuation_rays is not None and bool(mcfg.sharp_side_whole
+                                                                                or mcfg.sharp_parts_whole)
+        window = mcfg.shadow_window * det.lidar_resolution if shadows else 0.0
+        scanned = (shadows, float(window), float(mcfg.shadow_margin), float(det.lidar_range),
+                   float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
+                   float(mcfg.continuation_offset))
+        head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
+        update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent),
+                  -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
+        cached = (_kernel_settings(mcfg), scanned, update, shadows, continuation)
+        config.__dict__["_fused_update_settings"] = cached
+    return cached
+
+
+def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarray, offsets: np.ndarray,
+                           velocity: np.ndarray, has_velocity: np.ndarray, comp: np.ndarray, clu: np.ndarray,
+                           scan: np.ndarray, ego: EgoState | tuple, road: Road | None, config: TrackerConfig,
                            ut: UnscentedTransform) -> tuple[UpdateResult, int | None, int | None] | None:
     """``update_clusters`` in one compiled call; None where it does not apply or hands back (the
-    conditions of ``_update_pairs_fused``, an irregular cluster, or a scan that is not ``(N, 2)``)."""
-    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None or not len(clusters)
-            or not len(comp)):
+    conditions of ``_update_pairs_fused``, a cluster in some pair empty or not finite, a scan that is not
+    ``(N, 2)``, or points and velocities of other shapes)."""
+    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None or not len(comp)):
         return None
     wrapping = state_wrapping(road, config.coordinates)
-    if len(wrapping.periods) > 1:
-        return None
-    comp = np.asarray(comp, dtype=np.intp)
-    clu = np.asarray(clu, dtype=np.intp)
     scan = np.asarray(scan, dtype=float)
-    if (comp.shape != clu.shape or comp.ndim != 1 or scan.ndim != 2 or scan.shape[1] != 2 or comp.min() < 0
-            or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(clusters)):
-        return None  # the two steps raise their clear errors
-    arrays, velocities = _checked(clusters, velocities)
-    flat = _all_regular(arrays)
-    if flat is None:
+    points = np.asarray(points, dtype=float)
+    if (len(wrapping.periods) > 1 or scan.ndim != 2 or scan.shape[1] != 2 or points.ndim != 2 or points.shape[1] != 2
+            or offsets[-1] != len(points) or np.shape(velocity) != (len(offsets) - 1, 2)
+            or np.shape(has_velocity) != (len(offsets) - 1,)):
         return None
     from tracker.compiled.pairs import DONE, prepared_pairs_kernel
 
-    mcfg, det = config.measurement, config.detection
-    shadows = mcfg.shadow_window is not None
-    continuation = shadows and mcfg.continuation_rays is not None and bool(mcfg.sharp_side_whole or mcfg.sharp_parts_whole)
-    window = mcfg.shadow_window * det.lidar_resolution if shadows else 0.0
-    has_velocity, velocity = _stacked_velocities(_checked_velocities(velocities))
-    used, inverse = unique_indices(comp, len(means))
+    prepare, scanned, update, shadows, continuation = _fused_settings(config)
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
-    head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
     c = np.ascontiguousarray
     try:
         status, *out, occluded, continued = prepared_pairs_kernel(
-            flat, _offsets(arrays), *_kernel_settings(mcfg), c(scan), shadows, float(window), float(mcfg.shadow_margin),
-            float(det.lidar_range), float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
-            float(mcfg.continuation_offset), has_velocity, velocity, c(means[used], dtype=float),
-            c(covs[used], dtype=float), c(inverse, dtype=np.intp), clu, ut.scale, ut.wm, ut.wc, *wrapping.kernel_args(),
-            kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length, road._ends_array, *curve,
-            MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent), -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate),
-            *_extent_rule_args(config))
+            c(points), offsets, c(has_velocity, dtype=np.bool_), c(velocity, dtype=float), c(means, dtype=float),
+            c(covs, dtype=float), comp, clu, *prepare, c(scan), *scanned, ut.scale, ut.wm, ut.wc,
+            *wrapping.kernel_args(), kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length,
+            road._ends_array, *curve, *update)
     except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the two steps
         return None
     if status != DONE:

@@ -126,24 +126,106 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
     return DONE, mean, cov, log_likelihood, nis, dims, predicted, innovation, rejected
 
 
+#: ``prepared_pairs_kernel``'s status where a cluster in some pair is empty or holds a non-finite point
+#: (the two steps' preparation drops and counts such points): the caller takes the two steps.
+IRREGULAR = 4
+
+
 @njit
-def prepared_pairs_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord_prep, sin_min_angle,
-                          max_shift, max_end_gap, scan, shadows, window, shadow_margin, max_range, range_margin,
-                          continuation, rays, offset, fused, velocity, means, covs, inverse, ci, scale, wm, wc, angles,
-                          period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell,
-                          starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent, partial_visibility,
-                          free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord, sharp_whole, parts_whole,
-                          min_points, gate_sigmas, gate_slack, missed_rays, longer_whole, growth_min, growth_sigmas,
-                          widest, longest, settled_sd, parts_shadowed, data_partial, shadowed_var, grow, gate, hold,
-                          long_on, long_width, long_below, long_variance, long_length, narrow_on, narrow_width,
-                          narrow_width_var, narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
+def _selected(points, offsets, has_velocity, velocity, means, covs, comp, clu):  # pragma: no cover - compiled
+    """The pairs' clusters and components, as ``tracker.indices.unique_indices`` and fancy indexing select
+    them: the distinct clusters of ``clu`` (ascending) concatenated, their offsets, radar flags and
+    velocities, each pair's position among them; the distinct components of ``comp`` (ascending), their
+    means and covariances, each pair's position among them. ``regular`` False where a selected cluster
+    is empty or holds a non-finite point."""
+    pairs = len(comp)
+    clusters = len(offsets) - 1
+    cluster_slot = np.full(clusters, -1, dtype=np.intp)
+    for p in range(pairs):
+        cluster_slot[clu[p]] = 0
+    used = 0
+    size = 0
+    for k in range(clusters):
+        if cluster_slot[k] >= 0:
+            cluster_slot[k] = used
+            used += 1
+            size += offsets[k + 1] - offsets[k]
+    flat = np.empty((size, 2))
+    sub_offsets = np.zeros(used + 1, dtype=np.intp)
+    sub_has = np.zeros(used, dtype=np.bool_)
+    sub_velocity = np.zeros((used, 2))
+    regular = True
+    for k in range(clusters):
+        j = cluster_slot[k]
+        if j < 0:
+            continue
+        a, b = offsets[k], offsets[k + 1]
+        start = sub_offsets[j]
+        if b <= a:
+            regular = False
+        for i in range(a, b):
+            x, y = points[i, 0], points[i, 1]
+            if not (np.isfinite(x) and np.isfinite(y)):
+                regular = False
+            flat[start + i - a, 0] = x
+            flat[start + i - a, 1] = y
+        sub_offsets[j + 1] = start + b - a
+        sub_has[j] = has_velocity[k]
+        if has_velocity[k]:
+            sub_velocity[j, 0] = velocity[k, 0]
+            sub_velocity[j, 1] = velocity[k, 1]
+    ci = np.empty(pairs, dtype=np.intp)
+    for p in range(pairs):
+        ci[p] = cluster_slot[clu[p]]
+    count, dim = means.shape
+    comp_slot = np.full(count, -1, dtype=np.intp)
+    for p in range(pairs):
+        comp_slot[comp[p]] = 0
+    taken = 0
+    for c in range(count):
+        if comp_slot[c] >= 0:
+            comp_slot[c] = taken
+            taken += 1
+    sub_means = np.empty((taken, dim))
+    sub_covs = np.empty((taken, dim, dim))
+    for c in range(count):
+        j = comp_slot[c]
+        if j >= 0:
+            sub_means[j] = means[c]
+            sub_covs[j] = covs[c]
+    inverse = np.empty(pairs, dtype=np.intp)
+    for p in range(pairs):
+        inverse[p] = comp_slot[comp[p]]
+    return flat, sub_offsets, sub_has, sub_velocity, ci, sub_means, sub_covs, inverse, regular
+
+
+@njit
+def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu, bound,
+                          min_two, ratio_max, gap_correction, min_chord_prep, sin_min_angle, max_shift, max_end_gap,
+                          scan, shadows, window, shadow_margin, max_range, range_margin, continuation, rays, offset,
+                          scale, wm, wc, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length,
+                          ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent,
+                          min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
+                          min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays,
+                          longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed,
+                          data_partial, shadowed_var, grow, gate, hold, long_on, long_width, long_below,
+                          long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above,
+                          narrow_variance, narrow_length, unmeasured_var, max_length,
                           max_width):  # pragma: no cover - compiled
-    """``tracker.preparation.prepare_scanned_batch``'s compiled call (``scanned_batch_kernel`` of the
-    clusters' points ``flat`` cut at ``offsets``, with the radar velocities ``velocity (K, 2)`` of the
-    clusters ``fused``) and ``update_pairs_kernel`` of its batch in one call: the clusters' centroids
-    (``points.sum(axis=1) / max(kept, 1)``, summed point by point) and free ends (neither in a shadow nor
-    continued: ``tracker.measurement._free_ends``) as the batch and ``structure_batch_args`` give them.
-    Returns ``update_pairs_kernel``'s outputs, then the numbers of occluded and of continued ends."""
+    """The pairs ``(component comp[p], cluster clu[p])`` of the components ``means_all``, ``covs_all``
+    and the clusters ``points_all[offsets_all[k]:offsets_all[k + 1]]`` (E; radar velocity
+    ``velocity_all[k]`` where ``has_velocity_all[k]``), updated as the two steps do it: the clusters in
+    some pair (``_selected``) prepared by ``tracker.preparation.prepare_scanned_batch``'s compiled call
+    (``scanned_batch_kernel``), the batch's centroids (``points.sum(axis=1) / max(kept, 1)``, summed
+    point by point) and free ends (neither in a shadow nor continued: ``tracker.measurement._free_ends``)
+    as ``ClusterBatch`` and ``structure_batch_args`` give them, then ``update_pairs_kernel`` of the
+    components in some pair. Returns ``update_pairs_kernel``'s outputs (status ``IRREGULAR`` where a
+    selected cluster is empty or not finite), then the numbers of occluded and of continued ends."""
+    (flat, offsets, fused, velocity, ci, means, covs, inverse, regular) = _selected(
+        points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu)
+    dim = means_all.shape[1]
+    if not regular:
+        return (IRREGULAR,) + _empty_result(len(comp), dim, 2) + (0, 0)
     (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
      occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction,
                                                  min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
