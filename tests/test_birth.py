@@ -273,3 +273,55 @@ def test_a_rear_whose_near_end_borders_a_shadow_is_born_as_before():
     plain_means, plain_covs = cluster_births([points], [None], ego, road, BirthConfig())
     np.testing.assert_allclose(means, plain_means)
     np.testing.assert_allclose(covs, plain_covs)
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch):
+    """``visible_road_births``' one compiled call (``tracker.compiled.birth.road_births_kernel``) gives
+    bit for bit what its steps give with the compiled kernels (``road_births``, the acceleration state,
+    ``to_vehicle``, ``entering_view``): no tracks, tracks hiding some births, tracks beside some births,
+    7 and 8 state coordinates, an open road's ends (births beyond them left out); and the numpy path
+    keeps the same components."""
+    pytest.importorskip("numba")
+    from tracker import compiled
+    from tracker.birth import entering_view, visible_road_births
+    from tracker.measurement import to_vehicle
+
+    if closed:
+        road = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True,
+                                   lanes=3, lane_width=3.5)
+    else:
+        road = Road.from_curvature([(120.0, 0.0, 0.0), (200.0, 0.0, 0.01)], lanes=3, lane_width=3.5)
+    config = BirthConfig()
+    rng = np.random.default_rng(1)
+    kept = []
+    for trial in range(12):
+        s_ego = float(rng.uniform(0.0, road.length)) if trial % 3 else 10.0  # near an open road's start
+        x, y, c, sn, _ = road.frame1(s_ego)
+        ego = EgoState(x, y, float(np.arctan2(sn, c)), float(rng.uniform(5, 30)), 0.0)
+        count = int(rng.integers(0, 6))
+        track_s = s_ego + rng.choice([-1.0, 1.0], count) * rng.uniform(5.0, 60.0, count)
+        tracks_state = np.zeros((count, 7))
+        tracks_state[:, 0] = np.mod(track_s, road.length) if closed else np.clip(track_s, 0.0, road.length)
+        tracks_state[:, 1] = rng.choice(road.lane_centers, count)
+        tracks_state[:, 5:7] = [4.5, 1.9]
+        tracks = to_vehicle(tracks_state, ego, road)
+        labels = np.arange(count)
+        for accel in (None, 0.25):
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            got = visible_road_births(road, s_ego, ego, 60.0, config, accel, tracks, labels, 3.0)
+            means, covs = road_births(road, s_ego, ego.v, 60.0, config)
+            if accel is not None:
+                means = np.concatenate([means, np.zeros((len(means), 1))], axis=1)
+                covs = np.pad(covs, ((0, 0), (0, 1), (0, 1)))
+                covs[:, 7, 7] = accel
+            if len(means) and count:
+                keep = entering_view(to_vehicle(means, ego, road), tracks, labels, 3.0)
+                means, covs = means[keep], covs[keep]
+            np.testing.assert_array_equal(got[0], means)
+            np.testing.assert_array_equal(got[1], covs)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref = visible_road_births(road, s_ego, ego, 60.0, config, accel, tracks, labels, 3.0)
+            np.testing.assert_array_equal(ref[0], got[0])
+            kept.append(len(got[0]) / max(len(road_births(road, s_ego, ego.v, 60.0, config)[0]), 1))
+    assert min(kept) < 1.0 and max(kept) == 1.0  # some births dropped, and frames with all of them

@@ -802,6 +802,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.pairs as kq
     import tracker.compiled.preprocess as kf
     import tracker.compiled.gating as kg
+    import tracker.compiled.birth as kb
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
@@ -809,7 +810,8 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kl.overlap_groups_kernel, kr.merge_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
-               kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel]
+               kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
+               kb.road_births_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)

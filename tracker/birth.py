@@ -21,9 +21,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import BirthConfig
+from tracker.detection import occluded_fraction
 from tracker.frame import EgoState
+from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
 from tracker.road import Road
 from tracker.shape_fit import fit_rectangle
 from tracker.track import curvilinear_to_cartesian
@@ -33,9 +36,13 @@ from tracker.ukf import UnscentedTransform, Wrapping
 
 def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
     """Diagonal prior covariances (count, 7, 7) of birth components (``BirthConfig`` spreads)."""
-    std = (config.position_std, config.lateral_std, config.speed_std, config.heading_std, config.heading_rate_std,
-           config.length_std, config.width_std)
-    return np.broadcast_to(_diagonal_variances(tuple(float(x) for x in std)), (count, 7, 7)).copy()
+    return np.broadcast_to(_diagonal_variances(_birth_spreads(config)), (count, 7, 7)).copy()
+
+
+def _birth_spreads(config: BirthConfig) -> tuple[float, ...]:
+    """The seven standard deviations of a birth component's state (``BirthConfig``)."""
+    return tuple(float(x) for x in (config.position_std, config.lateral_std, config.speed_std, config.heading_std,
+                                    config.heading_rate_std, config.length_std, config.width_std))
 
 
 @lru_cache(maxsize=32)
@@ -46,15 +53,19 @@ def _diagonal_variances(std: tuple[float, ...]) -> np.ndarray:
     return out
 
 
-def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, config: BirthConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Components per lane at ``s_ego +- (lidar_range - range_margin)`` (m); on an open road only those
-    on the road. Speed: ``config.speed`` or the ego's."""
+def _birth_arc_lengths(road: Road, s_ego: float, lidar_range: float, config: BirthConfig) -> np.ndarray:
+    """``s_ego +- (lidar_range - range_margin)`` (m): wrapped on a closed road, only those on an open one."""
     reach = max(lidar_range - config.range_margin, 0.0)
     s = np.array([s_ego + reach, s_ego - reach])
     if road.closed:
-        s = np.mod(s, road.length)
-    else:
-        s = s[(s >= 0.0) & (s <= road.length)]
+        return np.mod(s, road.length)
+    return s[(s >= 0.0) & (s <= road.length)]
+
+
+def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, config: BirthConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Components per lane at ``s_ego +- (lidar_range - range_margin)`` (m); on an open road only those
+    on the road. Speed: ``config.speed`` or the ego's."""
+    s = _birth_arc_lengths(road, s_ego, lidar_range, config)
     lanes = road.lane_centers
     speed = ego_speed if config.speed is None else config.speed
     means = np.zeros((len(s) * len(lanes), 7))
@@ -64,6 +75,46 @@ def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, 
     means[:, 2] = speed
     means[:, 5], means[:, 6] = config.length, config.width
     return means, birth_covariance(config, len(means))
+
+
+def entering_view(rect: Rectangles, tracks: Rectangles, track_labels: np.ndarray, gate_distance: float) -> np.ndarray:
+    """Which birth rectangles ``rect`` (E) a vehicle can enter the view in: less than half of each hidden
+    by the tracks' rectangles ``tracks`` (``occluded_fraction``) and its centre farther than
+    ``gate_distance`` (m) from every track's."""
+    hidden = occluded_fraction(rect, np.full(len(rect.center), -1), tracks, track_labels)
+    gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
+    return (hidden < 0.5) & (gap > gate_distance)
+
+
+def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: float, config: BirthConfig,
+                        acceleration_var: float | None, tracks: Rectangles, track_labels: np.ndarray,
+                        gate_distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """``road_births`` (curvilinear) with the acceleration state appended (``a = 0``, variance
+    ``acceleration_var``; None: no acceleration state) and, where there are tracks (``track_labels``
+    not empty; their rectangles ``tracks`` in E), only the components ``entering_view`` keeps. One
+    compiled call (``tracker.compiled.birth.road_births_kernel``: the same numbers) when the kernels are
+    on."""
+    if not compiled_kernels.enabled():
+        means, covs = road_births(road, s_ego, ego.v, lidar_range, config)
+        if acceleration_var is not None:
+            means = np.concatenate([means, np.zeros((len(means), 1))], axis=1)
+            covs = np.pad(covs, ((0, 0), (0, 1), (0, 1)))
+            covs[:, 7, 7] = acceleration_var
+        if len(means) and len(track_labels):
+            keep = entering_view(to_vehicle(means, ego, road), tracks, track_labels, gate_distance)
+            means, covs = means[keep], covs[keep]
+        return means, covs
+    from tracker.compiled.birth import road_births_kernel
+
+    kind, *curve = road._curve.kernel_args()
+    return road_births_kernel(
+        _birth_arc_lengths(road, s_ego, lidar_range, config), road.lane_centers,
+        float(ego.v if config.speed is None else config.speed), float(config.length), float(config.width),
+        _diagonal_variances(_birth_spreads(config)), 0.0 if acceleration_var is None else float(acceleration_var),
+        7 if acceleration_var is None else 8, kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length,
+        road._ends_array, *curve, MIN_EXTENT, np.ascontiguousarray(tracks.corners()),
+        np.ascontiguousarray(tracks.center, dtype=float), np.ascontiguousarray(track_labels, dtype=np.int64),
+        float(gate_distance))
 
 
 SPARSE_POINTS = 3

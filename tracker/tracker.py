@@ -64,13 +64,13 @@ from collections.abc import Container
 import numpy as np
 from scipy.stats import chi2
 
-from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
+from tracker.birth import cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
 from tracker.clustering import (bearing_extremes, cluster_radar, dense_components, distance_partition,
                                 fragment_owners, occluded_ends, points_in_rectangles, split_across)
 from tracker.config import TrackerConfig
-from tracker.detection import cap_missed_weights, detection_model, nearest_range, occluded_fraction
+from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
@@ -377,18 +377,17 @@ class Tracker:
         cfg = self.config
         if not cfg.birth.road:
             return
-        means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
-        if self.cartesian:
-            means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
-        means, covs = self._with_acceleration(means, covs)
-        if len(means) and len(track_labels):
-            # a vehicle can enter the view only where the view is not blocked and no track already is
-            rect = to_vehicle(means, ego, self.road, cfg.coordinates)
-            labels = np.full(len(means), -1)
-            hidden = occluded_fraction(rect, labels, tracks, track_labels)
-            gap = np.linalg.norm(rect.center[:, None, :] - tracks.center[None, :, :], axis=2).min(axis=1)
-            keep = (hidden < 0.5) & (gap > cfg.gating.distance)
-            means, covs = means[keep], covs[keep]
+        if not self.cartesian:  # a vehicle can enter the view only where it is not blocked and no track is
+            means, covs = visible_road_births(self.road, s_ego, ego, cfg.detection.lidar_range, cfg.birth,
+                                              cfg.motion.acceleration_std**2 if self.dim == 8 else None, tracks,
+                                              track_labels, cfg.gating.distance)
+        else:
+            means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
+            means, covs = self._with_acceleration(*to_cartesian_gaussians(self.road, means, covs, self.ut))
+            if len(means) and len(track_labels):
+                keep = entering_view(to_vehicle(means, ego, self.road, cfg.coordinates), tracks, track_labels,
+                                     cfg.gating.distance)
+                means, covs = means[keep], covs[keep]
         self.mixture = self._with_births(self.mixture, means, covs)
         self.stats["births_road"] += len(means)
 

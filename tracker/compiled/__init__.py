@@ -118,6 +118,7 @@ def warm_up() -> bool:
 
     from tracker.clustering import points_in_rectangles
     from tracker.config import TrackerConfig
+    from tracker.detection import occluded_fraction
     from tracker.frame import EgoState, Frame, RadarDetections
     from tracker.measurement import Rectangles, rectangle_corners, rectangle_scan
     from tracker.road import Road
@@ -138,6 +139,7 @@ def warm_up() -> bool:
         tracker.step(Frame(t, EgoState(100.0, 0.0, 0.0, 10.0, 0.0), np.concatenate(scan), radar))
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
+    occluded_fraction(rect, np.array([1, 2]), rect, np.array([3, 4]))  # the Cartesian births' occlusion test
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
     # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
     # component with a car's length prior (its prior is widened: tracker.update's staged path), and
