@@ -803,6 +803,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.preprocess as kf
     import tracker.compiled.gating as kg
     import tracker.compiled.birth as kb
+    import tracker.compiled.ukf as ku
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
@@ -811,7 +812,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
-               kb.road_births_kernel]
+               kb.road_births_kernel, ku.clearly_positive_definite]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)
