@@ -362,10 +362,12 @@ def test_compiled_curvature_interpolation_equals_numpy_interp():
 def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
     """``tracker.motion.predict`` with the compiled kernels (one fused call) against numpy: headings
     near +-pi (wrapped sigma points), ``s`` near a closed road's seam, wide and narrow covariances,
-    per-state jerks; the fused call gives exactly the numbers of the compiled steps one by one; a NaN
+    per-state jerks, the acceleration relaxed and floored first (``relax``, ``floor``: the same as
+    predicting the relaxed Gaussians); the fused call gives exactly the numbers of the compiled steps
+    one by one; a NaN
     is refused; a covariance that is not positive definite takes the numpy path, which repairs and
     counts it."""
-    from tracker.motion import predict
+    from tracker.motion import predict, relax_acceleration
     from tracker.ukf import UnscentedTransform
 
     road = _roads()[name]
@@ -399,6 +401,17 @@ def test_compiled_ukf_prediction_equals_numpy(name, motion, monkeypatch):
                 m.setattr(FrenetMotion, "predict_compiled", None)
                 steps = predict(ut, model, mean, cov, dt, jerk)
             assert all(np.array_equal(a, b) for a, b in zip(steps, got))
+            if model.dim == 8:  # the tracker's coasting relaxation and a manoeuvre onset's floor, first
+                relax = np.where(rng.random(count) < 0.5, rng.uniform(0.5, 1.0, count), 1.0)
+                floor = np.where(rng.random(count) < 0.3, rng.uniform(0.0, 3.0, count), -np.inf)
+                got = predict(ut, model, mean, cov, dt, jerk, relax, floor)
+                with monkeypatch.context() as m:
+                    m.setattr(FrenetMotion, "predict_compiled", None)
+                    steps = predict(ut, model, mean, cov, dt, jerk, relax, floor)
+                assert all(np.array_equal(a, b) for a, b in zip(steps, got))
+                m2, p2 = relax_acceleration(mean, cov, relax, floor)
+                assert not np.array_equal(m2, mean) and np.array_equal(m2[relax == 1.0], mean[relax == 1.0])
+                assert all(np.array_equal(a, b) for a, b in zip(predict(ut, model, m2, p2, dt, jerk), got))
     nan = mean.copy()
     nan[2, 1] = np.nan
     with pytest.raises(ValueError, match="must be finite"):

@@ -157,3 +157,16 @@ def test_clearly_positive_definite_never_disagrees_with_lapack(monkeypatch):
     close = 1.0 - 1e-10  # pivot 2e-10 of its diagonal entry: below the margin, though positive definite
     assert not clearly_positive_definite(np.array([[[1.0, close], [close, 1.0]]]), CLEAR_PIVOT)
     assert clearly_positive_definite(np.diag([1.0, 1e-12])[None], CLEAR_PIVOT)  # scale alone is no doubt
+
+
+def test_coordinate_residual_is_residuals_column():
+    """``Wrapping.coordinate_residual`` of one coordinate's differences equals that column of
+    ``residual`` bit for bit: an angle, a periodic coordinate, and a plain one."""
+    wrapping = Wrapping(angles=(3,), periods=((0, 500.0),))
+    rng = np.random.default_rng(2)
+    x = rng.uniform(-1200.0, 1200.0, (50, 8))
+    x[:, 3] = rng.uniform(-20.0, 20.0, 50)
+    full = wrapping.residual(x)
+    for index in (0, 1, 3):
+        np.testing.assert_array_equal(wrapping.coordinate_residual(x[:, index], index), full[:, index])
+    assert wrapping.coordinate_residual(x[:, 1], 1) is not x[:, 1]

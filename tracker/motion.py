@@ -58,6 +58,9 @@ S, N, V, XI, XI_DOT, LENGTH, WIDTH, ACCEL = range(8)
 #: Largest ``rate * h`` of an RK4 sub-step ``h`` on the road-following prior's decay (``FrenetMotion.step_limit``).
 MAX_DECAY_STEP = 0.5
 
+#: ``ukf_predict_kernel``'s ``relax`` and ``floor`` where the acceleration is left as it is.
+_NO_RELAX = np.zeros(0)
+
 #: Spacing (m) of the curvature table ``FrenetMotion`` interpolates.
 CURVATURE_TABLE_STEP = 0.25
 
@@ -284,7 +287,8 @@ class FrenetMotion:
         return q
 
     def predict_compiled(self, ut: UnscentedTransform, mean: np.ndarray, cov: np.ndarray, dt: float,
-                         jerk: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+                         jerk: np.ndarray | None = None, relax: np.ndarray | None = None,
+                         floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """``predict`` of a batch ``mean (C, D)``, ``cov (C, D, D)`` in one compiled call
         (``tracker.compiled.motion.ukf_predict_kernel``: the same steps as ``predict``'s compiled path,
         the same numbers); ``None`` where that path does not apply (``dt = 0``, another shape, or a
@@ -297,6 +301,12 @@ class FrenetMotion:
             return None
         from tracker.compiled.motion import ukf_predict_kernel
 
+        if relax is None and floor is None:
+            relax = floor = _NO_RELAX
+        else:
+            relax = np.ones(len(mean)) if relax is None else np.ascontiguousarray(relax, dtype=float)
+            floor = np.full(len(mean), -np.inf) if floor is None else np.ascontiguousarray(floor, dtype=float)
+
         q_const, k_u, k_p, a2d2, singer = self._noise_parts(dt)
         if self.dim == 8:
             scale = (np.full(len(mean), self.config.jerk**2) if jerk is None
@@ -307,7 +317,8 @@ class FrenetMotion:
         cfg = self.config
         try:
             m, p, finite = ukf_predict_kernel(
-                np.ascontiguousarray(mean, dtype=float), np.ascontiguousarray(cov, dtype=float), ut.scale, ut.wm, ut.wc,
+                np.ascontiguousarray(mean, dtype=float), np.ascontiguousarray(cov, dtype=float), relax, floor,
+                ut.scale, ut.wm, ut.wc,
                 *self.wrapping.kernel_args(), steps, dt / steps, self._table_s, self._table_k, bool(self.road.closed),
                 float(self.road.length), float(cfg.min_denominator), float(cfg.slip_lever), float(cfg.heading_decay),
                 float(cfg.yaw_rate_decay), float(cfg.acceleration_time), MAX_SIN_SLIP, SLIP_MIN_SPEED,
@@ -431,19 +442,39 @@ def make_motion(config: TrackerConfig, road: Road) -> FrenetMotion | PaperMotion
     return FrenetMotion(road, config.motion, config.process_noise)
 
 
+def relax_acceleration(mean: np.ndarray, cov: np.ndarray, relax: np.ndarray | None,
+                       floor: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Gaussians ``mean (C, 8)``, ``cov (C, 8, 8)`` with each one's acceleration (state 7) scaled by
+    ``relax[c]`` (the linear map ``a -> f a``: the mean, the covariance's row and column) and then its
+    variance raised to at least ``floor[c]``; None: not. New arrays where changed."""
+    if relax is not None:
+        mean, cov = mean.copy(), cov.copy()
+        mean[:, ACCEL] *= relax
+        cov[:, ACCEL, :] *= relax[:, None]
+        cov[:, :, ACCEL] *= relax[:, None]
+    if floor is not None:
+        cov = cov.copy()
+        cov[:, ACCEL, ACCEL] = np.maximum(cov[:, ACCEL, ACCEL], floor)
+    return mean, cov
+
+
 def predict(
     ut: UnscentedTransform, model: MotionModel, mean: np.ndarray, cov: np.ndarray, dt: float,
-    jerk: np.ndarray | None = None,
+    jerk: np.ndarray | None = None, relax: np.ndarray | None = None, floor: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """UKF prediction of Gaussians ``mean (..., 7)``, ``cov (..., 7, 7)`` over ``dt`` seconds:
     ``m' = sum Wm f(X_i)``, ``P' = sum Wc (f(X_i) - m')(f(X_i) - m')^T + Q(m', dt)`` (wrapped residuals).
     ``jerk`` (one per Gaussian; ``FrenetMotion`` with the acceleration state only) replaces
-    ``MotionConfig.jerk`` in ``Q``."""
+    ``MotionConfig.jerk`` in ``Q``. ``relax`` and ``floor`` (one per Gaussian, ``(C, 8)`` states only:
+    ``relax_acceleration``) change the acceleration first (the tracker's coasting relaxation and a
+    manoeuvre's onset)."""
     fused = getattr(model, "predict_compiled", None)
     if fused is not None and compiled_kernels.enabled() and np.ndim(mean) == 2:
-        out = fused(ut, np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), dt, jerk)
+        out = fused(ut, np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), dt, jerk, relax, floor)
         if out is not None:
             return out
+    if relax is not None or floor is not None:
+        mean, cov = relax_acceleration(np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), relax, floor)
     pts = ut.sigma_points(mean, cov, model.wrapping)
     moved = model.propagate(pts, dt)
     noise = (lambda m: model.process_noise(m, dt)) if jerk is None else (lambda m: model.process_noise(m, dt, jerk))

@@ -74,7 +74,7 @@ from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import Rectangles, to_vehicle
-from tracker.motion import LENGTH, make_motion, predict
+from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, absorb_overlapping, reduce
@@ -271,6 +271,7 @@ class Tracker:
         component (``_manoeuvre_jerk``)."""
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
+        relax = None  # the acceleration's factor per component (applied in the prediction's first step)
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
             idle = ~_labels_in(mix.labels, updated)
             if idle.any():
@@ -281,25 +282,26 @@ class Tracker:
                     a, var = mix.means[idle, 7], mix.covs[idle, 7, 7]
                     established = np.abs(a) >= motion.coast_established_sigmas * np.sqrt(np.maximum(var, 0.0))
                     f[established] = math.exp(-dt / motion.coast_established_time)
-                means, covs = mix.means.copy(), mix.covs.copy()
-                means[idle, 7] *= f
-                covs[idle, 7, :] *= f[:, None]
-                covs[idle, :, 7] *= f[:, None]
-                mix = Mixture(mix.weights, means, covs, mix.labels)
+                relax = np.ones(len(mix))
+                relax[idle] = f
         pending_m, pending_p = self._pending
         if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
             mix = self._with_births(mix, pending_m, pending_p)
             self.stats["births_cluster"] += len(pending_m)
             self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
-        jerk = None
+            if relax is not None:
+                relax = np.concatenate([relax, np.ones(len(pending_m))])
+        jerk = floor = None
         if self.dim == 8 and self.config.motion.quiet_jerk is not None:
-            mix, jerk = self._manoeuvre_jerk(mix, updated)
+            jerk, floor = self._manoeuvre_jerk(mix, updated)
         if dt > 0.0 and len(mix):
-            means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk)
+            means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk, relax, floor)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
+        elif floor is not None:  # no time passed: only a manoeuvre's onset changes the acceleration
+            mix = Mixture(mix.weights, *relax_acceleration(mix.means, mix.covs, None, floor), mix.labels)
         self.mixture = mix
 
-    def _manoeuvre_jerk(self, mix: Mixture, updated: set[int] | None) -> tuple[Mixture, np.ndarray]:
+    def _manoeuvre_jerk(self, mix: Mixture, updated: set[int] | None) -> tuple[np.ndarray, np.ndarray | None]:
         """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
         label manoeuvres (an update moved it by more than ``manoeuvre_sigmas`` of the correction's
         expected spread within the last ``manoeuvre_hold`` s: ``_detect_manoeuvres``), else
@@ -309,15 +311,15 @@ class Tracker:
         acceleration's variance raised to at least the Singer model's stationary one, ``jerk^2
         acceleration_time / 2`` (only the diagonal entry: the covariance stays positive definite), so
         the filter takes a braking's onset at once instead of over the seconds the quiet jerk would need
-        to build that spread. Returns the mixture and the jerk per component."""
+        to build that spread. Returns the jerk per component and that variance floor per component
+        (``-inf`` where none; None: no onset), which the prediction applies (``tracker.motion.predict``)."""
         motion = self.config.motion
+        floor = None
         if self._manoeuvre_onset and len(mix):
             onset = _labels_in(mix.labels, self._manoeuvre_onset)
             if onset.any():
-                covs = mix.covs.copy()
-                floor = motion.jerk**2 * motion.acceleration_time / 2.0
-                covs[onset, 7, 7] = np.maximum(covs[onset, 7, 7], floor)
-                mix = Mixture(mix.weights, mix.means, covs, mix.labels)
+                floor = np.full(len(mix), -np.inf)
+                floor[onset] = motion.jerk**2 * motion.acceleration_time / 2.0
         self._manoeuvre_onset = set()
         now = -math.inf if self.t is None else self.t - self._frame_dt  # the last frame's time
         self._manoeuvre_until = {lab: t for lab, t in self._manoeuvre_until.items() if t >= now}
@@ -329,7 +331,7 @@ class Tracker:
             jerk[_labels_in(mix.labels, self._manoeuvre_until)] = motion.jerk
         if motion.manoeuvre_coasting and updated is not None and len(mix):
             jerk[~_labels_in(mix.labels, updated) & _labels_in(mix.labels, self._ever_reported)] = motion.jerk
-        return mix, jerk
+        return jerk, floor
 
     def _detect_manoeuvres(self, prior_means: np.ndarray, prior_covs: np.ndarray, post_means: np.ndarray,
                            post_covs: np.ndarray, labels: np.ndarray, weights: np.ndarray) -> None:
@@ -354,7 +356,7 @@ class Tracker:
         np.not_equal(ordered[1:], ordered[:-1], out=head[1:])
         first = order[head]
         chosen = labels[first].tolist()
-        d = self.wrapping.residual(post_means[first] - prior_means[first])[:, 0]
+        d = self.wrapping.coordinate_residual(post_means[first, 0] - prior_means[first, 0], 0)
         z = d / np.sqrt(np.maximum(prior_covs[first, 0, 0] - post_covs[first, 0, 0], 1e-12))
         jump = np.abs(z) > motion.manoeuvre_sigmas
         moved = jump.copy()

@@ -59,6 +59,17 @@ class Wrapping:
             out[..., i] -= period * np.floor(out[..., i] / period + 0.5)
         return out
 
+    def coordinate_residual(self, d: np.ndarray, index: int) -> np.ndarray:
+        """Differences ``d`` (any shape) of state coordinate ``index`` alone, brought to their shortest
+        representative as ``residual`` brings that coordinate. Returns a new array."""
+        out = np.array(d, dtype=float, copy=True)
+        if index in self.angles:
+            out = wrap_angle(out)
+        for i, period in self.periods:
+            if i == index:
+                out -= period * np.floor(out / period + 0.5)
+        return out
+
     def wrap(self, x: np.ndarray) -> np.ndarray:
         """Values ``x`` with wrapped coordinates brought into their range. Returns a new array."""
         out = np.array(x, dtype=float, copy=True)

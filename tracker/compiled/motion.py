@@ -99,18 +99,44 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
 
 
 @njit
-def ukf_predict_kernel(means, covs, scale, wm, wc, angles, period_index, period, steps, h, table_s, table_k, closed,
-                       length, min_denominator, slip_lever, heading_decay, yaw_rate_decay, acceleration_time,
-                       max_sin_slip, slip_min_speed, q_const, k_u, k_p, a2d2, jerk_scale, singer):  # pragma: no cover - compiled
+def _relaxed(means, covs, relax, floor):  # pragma: no cover - compiled
+    """Copies of ``means (C, 8)``, ``covs (C, 8, 8)`` with each acceleration (state 7) scaled by
+    ``relax[c]`` (the mean, then the covariance's row, then its column: ``tracker.motion.predict``'s
+    numpy order) and its variance then raised to at least ``floor[c]`` (``numpy.maximum``'s rule: a NaN
+    stays)."""
+    means = means.copy()
+    covs = covs.copy()
+    dim = means.shape[1]
+    for c in range(means.shape[0]):
+        f = relax[c]
+        means[c, 7] *= f
+        for j in range(dim):
+            covs[c, 7, j] *= f
+        for j in range(dim):
+            covs[c, j, 7] *= f
+        if floor[c] > covs[c, 7, 7]:
+            covs[c, 7, 7] = floor[c]
+    return means, covs
+
+
+@njit
+def ukf_predict_kernel(means, covs, relax, floor, scale, wm, wc, angles, period_index, period, steps, h, table_s,
+                       table_k, closed, length, min_denominator, slip_lever, heading_decay, yaw_rate_decay,
+                       acceleration_time, max_sin_slip, slip_min_speed, q_const, k_u, k_p, a2d2, jerk_scale,
+                       singer):  # pragma: no cover - compiled
     """``tracker.motion.predict`` with ``FrenetMotion`` in one call: the sigma points of ``N(means,
     covs)`` (``sigma_kernel``), ``steps`` RK4 steps of ``h`` s (``rk4_propagate``), wrapped, their
     weighted moments (``moments_kernel``), plus ``FrenetMotion.process_noise`` about the predicted
     mean, symmetrised. The noise's direction-free entries come as ``q_const (D, D)``; per state the
     position block ``k_u u u^T + k_p u_perp u_perp^T`` and ``Q[pos, v] = a2d2 u`` (``u`` the heading's
     direction), and with the acceleration state (``D = 8``) ``jerk_scale[c]`` times the unit jerk's
-    Singer block ``singer (2, 2)`` on ``(v, a)``. Returns ``(mean, cov, finite)``; ``finite`` False
-    (and nothing computed) when a mean or covariance holds a NaN or an infinity."""
+    Singer block ``singer (2, 2)`` on ``(v, a)``. With the acceleration state the Gaussians are first
+    ``_relaxed`` by ``relax`` and ``floor`` (one each per Gaussian; empty: not). Returns ``(mean, cov,
+    finite)``; ``finite`` False (and nothing computed) when a mean or covariance holds a NaN or an
+    infinity."""
     count, dim = means.shape
+    if len(relax):
+        means, covs = _relaxed(means, covs, relax, floor)
     if not all_finite(means, covs):
         return means.copy(), covs.copy(), False
     pts = sigma_kernel(means, covs, scale, angles, period_index, period)
