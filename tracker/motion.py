@@ -193,6 +193,7 @@ class FrenetMotion:
         self._noise7 = (dataclasses.replace(self.noise, accel=self.config.residual_accel) if self.dim == 8
                         else self.noise)
         self._noise_cache: dict[float, tuple] = {}  # _noise_parts by dt
+        self._step_cache: dict[float, tuple] = {}  # _step_args by dt
 
     def curvature(self, s: np.ndarray) -> np.ndarray:
         """The road's curvature (1/m) at ``s`` from the table: wrapped on a closed road, 0 beyond the
@@ -307,27 +308,42 @@ class FrenetMotion:
             relax = np.ones(len(mean)) if relax is None else np.ascontiguousarray(relax, dtype=float)
             floor = np.full(len(mean), -np.inf) if floor is None else np.ascontiguousarray(floor, dtype=float)
 
-        q_const, k_u, k_p, a2d2, singer = self._noise_parts(dt)
         if self.dim == 8:
-            scale = (np.full(len(mean), self.config.jerk**2) if jerk is None
-                     else np.ascontiguousarray(np.broadcast_to(np.asarray(jerk, dtype=float) ** 2, mean.shape[:-1])))
+            if jerk is None:
+                scale = np.full(len(mean), self.config.jerk**2)
+            elif type(jerk) is np.ndarray and jerk.dtype == np.float64 and jerk.shape == (len(mean),):
+                scale = jerk**2
+            else:
+                scale = np.ascontiguousarray(np.broadcast_to(np.asarray(jerk, dtype=float) ** 2, mean.shape[:-1]))
         else:
             scale = np.zeros(len(mean))
-        steps = max(1, int(math.ceil(dt / self.step_limit - 1e-9)))
-        cfg = self.config
+        (steps, h, motion_args), (q_const, k_u, k_p, a2d2, singer) = self._step_args(dt), self._noise_parts(dt)
         try:
             m, p, finite = ukf_predict_kernel(
                 np.ascontiguousarray(mean, dtype=float), np.ascontiguousarray(cov, dtype=float), relax, floor,
-                ut.scale, ut.wm, ut.wc,
-                *self.wrapping.kernel_args(), steps, dt / steps, self._table_s, self._table_k, bool(self.road.closed),
-                float(self.road.length), float(cfg.min_denominator), float(cfg.slip_lever), float(cfg.heading_decay),
-                float(cfg.yaw_rate_decay), float(cfg.acceleration_time), MAX_SIN_SLIP, SLIP_MIN_SPEED,
-                q_const, k_u, k_p, a2d2, scale, singer)
+                ut.scale, ut.wm, ut.wc, *self.wrapping.kernel_args(), steps, h, *motion_args, q_const, k_u, k_p, a2d2,
+                scale, singer)
         except np.linalg.LinAlgError:
             return None
         if not finite:
             raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
         return m, p
+
+    def _step_args(self, dt: float) -> tuple[int, float, tuple]:
+        """The RK4 sub-steps over ``dt`` (their count and length, s) and the model's arguments of
+        ``ukf_predict_kernel`` after them (the curvature table, the road, ``MotionConfig``'s numbers);
+        cached by ``dt`` with ``_noise_parts``."""
+        hit = self._step_cache.get(dt)
+        if hit is None:
+            steps = max(1, int(math.ceil(dt / self.step_limit - 1e-9)))
+            cfg = self.config
+            if len(self._step_cache) >= 64:
+                self._step_cache.clear()
+            self._step_cache[dt] = hit = (steps, dt / steps, (
+                self._table_s, self._table_k, bool(self.road.closed), float(self.road.length), float(cfg.min_denominator),
+                float(cfg.slip_lever), float(cfg.heading_decay), float(cfg.yaw_rate_decay), float(cfg.acceleration_time),
+                MAX_SIN_SLIP, SLIP_MIN_SPEED))
+        return hit
 
     def _noise_parts(self, dt: float) -> tuple[np.ndarray, float, float, float, np.ndarray]:
         """``process_noise``'s parts for the compiled prediction over ``dt`` (cached: a tracker's frames
