@@ -87,9 +87,9 @@ class LostTracks:
         and those lost longer than ``window``, leave the store."""
         updated = np.ones(len(labels), dtype=bool) if updated is None else np.asarray(updated, dtype=bool)
         now = {}
-        for lab, m, p, up in zip(labels, means, covs, updated):
-            before = self._last.get(int(lab))
-            now[int(lab)] = _Lost(t, m, p, t if up or before is None else before.updated)
+        for lab, m, p, up in zip(np.asarray(labels).tolist(), means, covs, updated.tolist()):
+            before = self._last.get(lab)
+            now[lab] = _Lost(t, m, p, t if up or before is None else before.updated)
         for lab, last in self._last.items():
             if lab not in now:
                 self.lost[lab] = last

@@ -777,9 +777,8 @@ class Tracker:
             above = position[above[keep[above]]]
             self.mixture = mix = mix.take(keep)
         seen: set[int] = set()
-        for i in above:  # one label per frame: a second component with a label is a split target
-            if int(mix.labels[i]) in seen:
-                old = int(mix.labels[i])
+        for i, old in zip(above.tolist(), mix.labels[above].tolist()):  # one label per frame: a second is a split target
+            if old in seen:
                 mix.labels[i] = self._new_labels(1)[0]
                 self._support[int(mix.labels[i])] = self._support.get(old, 0)
                 self.stats["label_splits"] += 1
@@ -846,7 +845,7 @@ class Tracker:
         updated), ``dropped`` (last frame's tracks with no component left: left the view or the road,
         pruned, or merged into another component), ``merged`` (not separated from ``dropped``: empty)."""
         reported = [tr.label for tr in tracks]
-        alive = set(int(lab) for lab in self.mixture.labels)
+        alive = set(self.mixture.labels.tolist())
         self.last_events = {
             "born": [lab for lab in reported if lab not in self._ever_reported],
             "updated": [lab for lab in reported if lab in self._updated_labels],
