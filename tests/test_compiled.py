@@ -821,11 +821,12 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
                kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
-               kl.overlap_groups_kernel, kr.merge_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
+               kl.overlap_groups_kernel, kr.reduce_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
-               kb.road_births_kernel, ku.clearly_positive_definite]
+               kb.road_births_kernel, ku.clearly_positive_definite, kr.inside_updated_kernel,
+               kr.absorb_candidates_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)
@@ -1077,3 +1078,169 @@ def test_compiled_continued_ends_equal_numpy(seed, monkeypatch):
         flags.append(ref)
     flags = np.concatenate([f.ravel() for f in flags])
     assert flags.any() and not flags.all()
+
+
+def _random_mixture(rng, n: int, dim: int, road_length: float):
+    """``n`` random components of ``dim`` (7 or 8) state entries in a few groups of near-duplicates
+    (merged by a gate of 4), some across a closed road's start (``s`` below 0 and at or beyond
+    ``road_length``), weights partly at 1e-4 (the prune threshold) and 0.5, labels of a few values."""
+    centre = rng.choice([-0.4, 0.0, 30.0, road_length - 0.3, road_length, 0.5 * road_length], n)
+    means = np.column_stack([centre + rng.choice([0.0, 1.0], n) * rng.normal(0.0, 0.8, n), rng.normal(0.0, 1.5, n),
+                             rng.uniform(5, 30, n), rng.normal(0.0, 0.2, n) + rng.choice([0.0, np.pi], n),
+                             rng.normal(0.0, 0.05, n), rng.uniform(3.0, 14.0, n), rng.uniform(1.6, 2.6, n),
+                             rng.normal(0.0, 0.5, n)])[:, :dim]
+    root = rng.normal(0.0, 0.3, (n, dim, dim))
+    covs = root @ np.swapaxes(root, 1, 2) + np.diag(rng.uniform(0.05, 2.0, dim))
+    weights = np.where(rng.random(n) < 0.2, rng.choice([1e-4, np.nextafter(1e-4, 0.0), 0.5], n), rng.uniform(0.0, 1.0, n))
+    return weights, means, covs, rng.integers(1, 5, n)
+
+
+def _staged_reduce_in_view(mix, near, limit, lateral, bounds, period, **settings):
+    """The reduce stage as ``Tracker._reduce`` ran it before ``reduce_in_view``: the mask of the
+    components in view and on the road, ``Mixture.take``, ``reduce`` (its compiled merge when the
+    kernels are on) and ``numpy.mod`` of ``s``."""
+    from tracker.reduction import reduce
+
+    inside = near <= limit
+    on_road = (lateral >= bounds[0]) & (lateral <= bounds[1])
+    counts = int((~inside).sum()), int((inside & ~on_road).sum())
+    mix = reduce(mix.take(inside & on_road), **settings)
+    if period is not None and len(mix):
+        mix.means[:, 0] = np.mod(mix.means[:, 0], period)
+    return mix, counts
+
+
+@pytest.mark.parametrize("dim", [7, 8])
+@pytest.mark.parametrize("seed", range(2))
+def test_compiled_reduce_in_view_equals_the_staged_reduction(seed, dim, monkeypatch):
+    """``tracker.reduction.reduce_in_view`` by one compiled call (``reduce_kernel``) against the staged
+    compiled path it replaces, bit for bit (weights, means, covariances, labels, both counts): random
+    mixtures of 0 to 25 components, 7 and 8 state entries, closed (``s`` wraps, before and after the
+    merge) and open roads, ranges and lateral offsets at their limits, weights at the prune threshold,
+    heavy components of one label left apart (``merge_same_label``'s frames), caps of 3 and 100; and the
+    numpy path against it (the same labels and counts, numbers to rounding)."""
+    from tracker.reduction import Mixture, reduce_in_view
+    from tracker.ukf import Wrapping
+
+    rng = np.random.default_rng(seed)
+    length, limit, bounds = 400.0, 60.0, (-3.0, 2.5)
+    seen = {"pending": 0, "capped": 0, "merged": 0, "empty": 0}
+    for trial in range(120):
+        n = int(rng.integers(0, 26)) if trial % 10 else int(trial % 3)  # some empty and single mixtures
+        mix = Mixture(*_random_mixture(rng, n, dim, length))
+        near = np.where(rng.random(n) < 0.15, limit, rng.uniform(0.0, 1.3 * limit, n))
+        lateral = np.where(rng.random(n) < 0.15, rng.choice(bounds, n), mix.means[:, 1] if n else np.zeros(0))
+        closed = bool(trial % 2)
+        wrapping = Wrapping(angles=(3,), periods=((0, length),) if closed else ())
+        settings = dict(prune_threshold=1e-4, merge_gate=4.0, max_components=3 if trial % 4 == 0 else 100,
+                        wrapping=wrapping, same_label_distance=None if trial % 5 == 0 else 3.0,
+                        same_label_min_weight=0.5, same_label_along_length=bool(trial % 3))
+        period = length if closed else None
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        ref, ref_counts = _staged_reduce_in_view(mix, near, limit, lateral, bounds, period, **settings)
+        got, *counts = reduce_in_view(mix, near, limit, lateral, bounds, s_period=period, **settings)
+        assert tuple(counts) == ref_counts
+        for name in ("weights", "means", "covs", "labels"):
+            a, b = getattr(got, name), getattr(ref, name)
+            assert a.shape == b.shape and a.dtype == b.dtype, name
+            np.testing.assert_array_equal(a, b, err_msg=name)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        slow, *slow_counts = reduce_in_view(mix, near, limit, lateral, bounds, s_period=period, **settings)
+        assert tuple(slow_counts) == ref_counts
+        np.testing.assert_array_equal(slow.labels, ref.labels)
+        for name in ("weights", "means", "covs"):
+            np.testing.assert_allclose(getattr(slow, name), getattr(ref, name), rtol=1e-9, atol=1e-9)
+        kept = int(((near <= limit) & (lateral >= bounds[0]) & (lateral <= bounds[1]) & (mix.weights >= 1e-4)).sum())
+        heavy = ref.labels[ref.weights >= 0.5]
+        seen["pending"] += settings["same_label_distance"] is not None and len(set(heavy.tolist())) < len(heavy)
+        seen["capped"] += len(ref) == 3 and settings["max_components"] == 3 and kept > 3
+        seen["merged"] += len(ref) < kept
+        seen["empty"] += n == 0
+    assert all(seen.values()), seen
+
+
+def test_compiled_reduce_in_view_at_the_limits(monkeypatch):
+    """Exact limits: a range equal to the limit is in view, a lateral offset equal to a bound on the
+    road, a weight equal to the prune threshold kept (one below it dropped), a pair at the merge gate's
+    boundary (distance^2 = gate along one axis, times 1 -+ 1e-7) merged only inside it, and ``s`` of
+    a lone component beyond the road's length (or below 0) taken modulo it; compiled and numpy alike."""
+    from tracker.reduction import Mixture, reduce_in_view
+    from tracker.ukf import Wrapping
+
+    wrapping = Wrapping(angles=(3,), periods=((0, 300.0),))
+    settings = dict(prune_threshold=1e-4, merge_gate=4.0, max_components=100, wrapping=wrapping,
+                    same_label_distance=3.0, s_period=300.0)
+    for factor in (1.0 - 1e-7, 1.0 + 1e-7):
+        covs = np.broadcast_to(np.diag([2.0, 0.5, 1.0, 0.01, 0.01, 0.3, 0.05]), (6, 7, 7)).copy()
+        means = np.zeros((6, 7))
+        means[:, 5:] = 4.5, 1.9
+        means[1, 0] = np.sqrt(4.0 * 2.0 * factor)  # at the gate from component 0
+        means[2, 0], means[3, 0], means[4, 0], means[5, 0] = 450.0, -150.0, -200.0, 200.0
+        weights = np.array([0.9, 0.6, 1e-4, np.nextafter(1e-4, 0.0), 0.3, 0.3])
+        mix = Mixture(weights, means, covs, np.arange(6))
+        near = np.array([50.0, 50.0, 50.0, 50.0, 60.0, np.nextafter(60.0, 61.0)])
+        lateral = np.array([2.5, -3.0, 0.0, 0.0, 0.0, 0.0])
+        results = {}
+        for switch in ("0", "1"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, switch)
+            results[switch] = reduce_in_view(mix, near, 60.0, lateral, (-3.0, 2.5), **settings)
+        for got, left_view, off_road in results.values():
+            assert (left_view, off_road) == (1, 0)
+            assert sorted(got.labels.tolist()) == ([0, 2, 4] if factor < 1.0 else [0, 1, 2, 4])
+            assert got.means[got.labels == 2, 0] == 150.0 and got.means[got.labels == 4, 0] == 100.0
+        np.testing.assert_array_equal(results["0"][0].means, results["1"][0].means)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_drop_inside_updated_equals_numpy(seed, monkeypatch):
+    """``Tracker._drop_inside_updated`` by one compiled call (``inside_updated_kernel``) and by numpy
+    (``points_in_rectangles`` with margin 0): random components of updated and idle labels around a
+    few cars on a curved road, centres on the rectangles' edges too; the same mixture and counter (none
+    dropped, some dropped)."""
+    from tracker.reduction import Mixture
+
+    rng = np.random.default_rng(seed)
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    ego = EgoState(*road.frame(np.array(40.0))[0], float(road.frame(np.array(40.0))[1]), 15.0, 0.0)
+    outcomes = set()
+    for _ in range(40):
+        n = int(rng.integers(1, 14))
+        means = np.column_stack([rng.choice([60.0, 80.0, 170.0], n) + rng.normal(0.0, 2.0, n), rng.normal(0.0, 2.0, n),
+                                 rng.uniform(5, 20, n), rng.normal(0.0, 0.1, n), np.zeros(n), rng.uniform(3.0, 12.0, n),
+                                 rng.uniform(1.6, 2.6, n), np.zeros(n)])
+        edge = rng.random(n) < 0.3  # some centres on the heaviest one's front edge
+        means[edge, :2] = means[0, :2] + [0.5 * means[0, 5], 0.0]
+        labels = rng.integers(1, 7, n)
+        mix = Mixture(rng.uniform(0.2, 1.0, n), means, np.broadcast_to(np.eye(8) * 0.1, (n, 8, 8)).copy(), labels)
+        strong = set(rng.choice(np.arange(1, 7), 3, replace=False).tolist())
+        results = []
+        for switch in ("0", "1"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, switch)
+            tracker = Tracker(road, TrackerConfig())
+            tracker.mixture, tracker._strong_labels = mix, strong
+            tracker._drop_inside_updated(ego)
+            results.append((tracker.mixture, dict(tracker.stats)))
+        (ref, ref_stats), (got, stats) = results
+        assert stats == ref_stats
+        for name in ("weights", "means", "covs", "labels"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+        outcomes.add(len(got) < n)
+    assert outcomes == {True, False}
+
+
+def test_absorb_candidates_kernel_equals_numpy():
+    """``absorb_candidates_kernel`` against numpy's candidates of ``absorb_overlapping``: the heaviest
+    component of each label among those of weight >= the threshold (weights at it, and ties of weight,
+    which go in index order), heaviest first; none and one too."""
+    from tracker.compiled.reduction import absorb_candidates_kernel
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        n = int(rng.integers(0, 16))
+        weights = rng.choice([0.2, 0.5, np.nextafter(0.5, 0.0), 0.7, 0.9], n)
+        labels = rng.integers(1, 6, n)
+        heavy = np.flatnonzero(weights >= 0.5)
+        order = heavy[np.argsort(-weights[heavy], kind="stable")]
+        _, first = np.unique(labels[order], return_index=True)
+        np.testing.assert_array_equal(absorb_candidates_kernel(weights, labels.astype(np.int64), 0.5),
+                                      order[np.sort(first)])

@@ -14,6 +14,7 @@ weighted means, so components on either side of ``s = 0`` merge.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -130,9 +131,7 @@ def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
 
         weights, means, covs, anchor = merge_kernel(
             np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
-            np.ascontiguousarray(mix.covs, dtype=float), float(gate), np.array(wrapping.angles, dtype=np.int64),
-            np.array([i for i, _ in wrapping.periods], dtype=np.int64),
-            np.array([p for _, p in wrapping.periods], dtype=float))
+            np.ascontiguousarray(mix.covs, dtype=float), float(gate), *_wrapping_args(wrapping))
         return Mixture(weights, means, covs, mix.labels[anchor])
     inv = np.linalg.inv(mix.covs)
     d = wrapping.residual(mix.means[:, None, :] - mix.means[None, :, :])  # (i, j, D): m_i - m_j
@@ -152,6 +151,14 @@ def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
     anchor = np.array(anchors)
     weights, means, covs = _moment_match_groups(mix, group, anchor, wrapping)
     return Mixture(weights, means, covs, mix.labels[anchor])
+
+
+@functools.lru_cache(maxsize=64)
+def _wrapping_args(wrapping: Wrapping) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(angles, period_index, periods)`` of ``wrapping`` as the compiled merge takes them (int64,
+    int64, float arrays; kept per wrapping: the kernels only read them)."""
+    return (np.array(wrapping.angles, dtype=np.int64), np.array([i for i, _ in wrapping.periods], dtype=np.int64),
+            np.array([p for _, p in wrapping.periods], dtype=float))
 
 
 def _moment_match_groups(mix: Mixture, group: np.ndarray, anchor: np.ndarray,
@@ -194,6 +201,70 @@ def reduce(
     return cap(mix, max_components)
 
 
+def reduce_in_view(
+    mix: Mixture,
+    near_range: np.ndarray,
+    max_range: float,
+    lateral: np.ndarray,
+    lateral_bounds: tuple[float, float],
+    *,
+    prune_threshold: float,
+    merge_gate: float,
+    max_components: int,
+    wrapping: Wrapping = NO_WRAP,
+    same_label_distance: float | None = None,
+    same_label_min_weight: float = 0.5,
+    same_label_along_length: bool = False,
+    s_period: float | None = None,
+) -> tuple[Mixture, int, int]:
+    """The components in view (``near_range <= max_range``: the range of each one's nearest corner) and
+    on the road (``lo <= lateral <= hi``, ``lateral_bounds = (lo, hi)``), ``reduce``d; with ``s_period``
+    coordinate 0 then taken modulo it (``numpy.mod``: a closed road's ``s``). Returns the mixture, the
+    number of components out of view and the number in view but off the road. (In one call of
+    ``tracker.compiled.reduction.reduce_kernel`` when the compiled kernels are on; ``merge_same_label``,
+    and then the cap and the modulo, stay here in the frames where two heavy merged components share
+    a label.)"""
+    if len(near_range) != len(mix) or len(lateral) != len(mix):
+        raise ValueError(f"need one range and one lateral offset per component ({len(mix)}); "
+                         f"got {len(near_range)} and {len(lateral)}")
+    lo, hi = lateral_bounds
+    if compiled_kernels.enabled() and len(mix):
+        from tracker.compiled.reduction import reduce_kernel
+
+        weights, means, covs, source, left_view, off_road, pending = reduce_kernel(
+            np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
+            np.ascontiguousarray(mix.covs, dtype=float), np.ascontiguousarray(mix.labels, dtype=np.int64),
+            np.ascontiguousarray(near_range, dtype=float), float(max_range), np.ascontiguousarray(lateral, dtype=float),
+            float(lo), float(hi), float(prune_threshold), float(merge_gate), *_wrapping_args(wrapping),
+            -1.0 if same_label_distance is None else float(same_label_min_weight), int(max_components),
+            0.0 if s_period is None else float(s_period))
+        mix = Mixture(weights, means, covs, mix.labels[source])
+        if pending:
+            mix = cap(merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping,
+                                       along_length=same_label_along_length), max_components)
+            if s_period is not None and len(mix):
+                mix.means[:, 0] = np.mod(mix.means[:, 0], s_period)
+        return mix, left_view, off_road
+    inside = near_range <= max_range
+    on_road = (lateral >= lo) & (lateral <= hi)
+    left_view, off_road = int((~inside).sum()), int((inside & ~on_road).sum())
+    mix = reduce(mix.take(inside & on_road), prune_threshold=prune_threshold, merge_gate=merge_gate,
+                 max_components=max_components, wrapping=wrapping, same_label_distance=same_label_distance,
+                 same_label_min_weight=same_label_min_weight, same_label_along_length=same_label_along_length)
+    if s_period is not None and len(mix):
+        mix.means[:, 0] = np.mod(mix.means[:, 0], s_period)
+    return mix, left_view, off_road
+
+
+@functools.lru_cache(maxsize=64)
+def _position_periods(wrapping: Wrapping) -> tuple[tuple[tuple[int, float], ...], float | None]:
+    """The periodic position coordinates of ``wrapping`` (index 0 or 1: ``s`` on a closed road), and
+    the period when that is coordinate 0 alone (else None)."""
+    position_periods = tuple(p for p in wrapping.periods if p[0] < 2)
+    s_period = position_periods[0][1] if len(position_periods) == 1 and position_periods[0][0] == 0 else None
+    return position_periods, s_period
+
+
 #: Standard deviation (m) of a length known well enough to widen a keeper's rectangle to the union with
 #: an absorbed one's (``absorb_overlapping``): a side seen; a prior's (a car's 1 m, a truck's 3.5 m) is not.
 UNION_LENGTH_STD = 0.5
@@ -231,25 +302,32 @@ def absorb_overlapping(
     newcomer on it made one 9.5-9.9 m long track, session 20).
     Every component of the absorbed label is dropped. Returns the mixture and the number of labels
     absorbed."""
-    heavy = np.flatnonzero(mix.weights >= min_weight)
-    if len(heavy) < 2:
-        return mix, 0
-    order = heavy[np.argsort(-mix.weights[heavy], kind="stable")]
-    seen: set[int] = set()  # a few heavy components: a set beats numpy.unique's sort
-    first = [k for k, lab in enumerate(mix.labels[order].tolist()) if not (lab in seen or seen.add(lab))]
-    cand = order[first]  # the heaviest component of each label, heaviest first
+    if compiled_kernels.enabled():
+        from tracker.compiled.reduction import absorb_candidates_kernel
+
+        cand = absorb_candidates_kernel(np.ascontiguousarray(mix.weights, dtype=float),
+                                        np.ascontiguousarray(mix.labels, dtype=np.int64), float(min_weight))
+    else:
+        heavy = np.flatnonzero(mix.weights >= min_weight)
+        if len(heavy) < 2:
+            return mix, 0
+        order = heavy[np.argsort(-mix.weights[heavy], kind="stable")]
+        seen: set[int] = set()  # a few heavy components: a set beats numpy.unique's sort
+        first = [k for k, lab in enumerate(mix.labels[order].tolist()) if not (lab in seen or seen.add(lab))]
+        cand = order[first]  # the heaviest component of each label, heaviest first
     if len(cand) < 2:
         return mix, 0
     m = mix.means[cand]
-    position_periods = tuple(p for p in wrapping.periods if p[0] < 2)  # s on a closed road
-    s_period = position_periods[0][1] if len(position_periods) == 1 and position_periods[0][0] == 0 else None
+    position_periods, s_period = _position_periods(wrapping)
     if compiled_kernels.enabled() and m.shape[1] >= 7 and (not position_periods or s_period is not None):
         # the usual frame: no two labels overlap, which one compiled pass over the pairs tells
         from tracker.compiled.reduction import overlapping_pairs_kernel
 
-        heading = m[:, 3] if cartesian else np.zeros(len(m))
-        if not overlapping_pairs_kernel(np.ascontiguousarray(m), np.cos(heading), np.sin(heading), bool(cartesian),
-                                        float(overlap), float(s_period or 0.0)).any():
+        if cartesian:
+            cos_h, sin_h = np.cos(m[:, 3]), np.sin(m[:, 3])
+        else:  # along the road: heading 0
+            cos_h, sin_h = np.ones(len(m)), np.zeros(len(m))
+        if not overlapping_pairs_kernel(m, cos_h, sin_h, bool(cartesian), float(overlap), float(s_period or 0.0)).any():
             return mix, 0
     d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
     if position_periods:

@@ -77,7 +77,7 @@ from tracker.measurement import Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points
-from tracker.reduction import Mixture, absorb_overlapping, reduce
+from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
 from tracker.road import Road
 from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
@@ -697,24 +697,32 @@ class Tracker:
         return m, p
 
     def _reduce(self, ego: EgoState) -> None:
+        """Targets that left the field of view (the range of the rectangle's nearest corner beyond the
+        lidar's range and ``fov_margin``) or the road (the centre's lateral offset beyond an edge by
+        ``road_margin``: only objects on the road are tracked, the paper) are no longer tracked; the
+        rest is pruned, merged and capped (``reduction.reduce_in_view``), ``s`` taken modulo a closed
+        road's length; then ``_drop_inside_updated`` and ``absorb_overlapping``."""
         red = self.config.reduction
-        if len(self.mixture):  # targets that left the field of view are no longer tracked
-            rect = to_vehicle(self.mixture.means, ego, self.road, self.config.coordinates)
-            inside = nearest_range(rect) <= self.config.detection.lidar_range + red.fov_margin
-            self.stats["components_left_view"] += int((~inside).sum())
-            # only objects on the road are tracked (the paper): drop components whose centre left it
-            n = self._lateral(self.mixture.means)
-            on_road = (n >= self.road.right_edge - red.road_margin) & (n <= self.road.left_edge + red.road_margin)
-            self.stats["components_off_road"] += int((inside & ~on_road).sum())
-            self.mixture = self.mixture.take(inside & on_road)
-        self.mixture = reduce(
-            self.mixture, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
-            max_components=red.max_components, wrapping=self.wrapping,
-            same_label_distance=red.same_label_distance, same_label_min_weight=red.extraction_threshold,
-            same_label_along_length=red.same_label_along_length,
-        )
-        if self.road.closed and not self.cartesian and len(self.mixture):
-            self.mixture.means[:, 0] = np.mod(self.mixture.means[:, 0], self.road.length)
+        mix = self.mixture
+        s_period = self.road.length if self.road.closed and not self.cartesian else None
+        if len(mix):
+            rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
+            self.mixture, left_view, off_road = reduce_in_view(
+                mix, nearest_range(rect), self.config.detection.lidar_range + red.fov_margin, self._lateral(mix.means),
+                (self.road.right_edge - red.road_margin, self.road.left_edge + red.road_margin),
+                prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold, max_components=red.max_components,
+                wrapping=self.wrapping, same_label_distance=red.same_label_distance,
+                same_label_min_weight=red.extraction_threshold, same_label_along_length=red.same_label_along_length,
+                s_period=s_period)
+            self.stats["components_left_view"] += left_view
+            self.stats["components_off_road"] += off_road
+        else:
+            self.mixture = reduce(
+                mix, prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold,
+                max_components=red.max_components, wrapping=self.wrapping,
+                same_label_distance=red.same_label_distance, same_label_min_weight=red.extraction_threshold,
+                same_label_along_length=red.same_label_along_length,
+            )
         if red.drop_inside_updated and self._strong_labels and len(self.mixture):
             self._drop_inside_updated(ego)
         if red.absorb_overlap is not None and len(self.mixture) > 1:
@@ -730,6 +738,21 @@ class Tracker:
         cluster updated it or its vehicle's cluster did, weakly, beside the track that took it."""
         mix = self.mixture
         updated = _labels_in(mix.labels, self._strong_labels)
+        if compiled_kernels.enabled():  # the same test in one compiled call
+            seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
+            if not seen.any() or updated.all():
+                return
+            from tracker.compiled.reduction import inside_updated_kernel
+
+            rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
+            seen = np.flatnonzero(seen)
+            psi = rect.psi[seen]
+            keep, dropped = inside_updated_kernel(rect.center, np.cos(psi), np.sin(psi), rect.length, rect.width, seen,
+                                                  np.flatnonzero(~updated))
+            if dropped:
+                self.stats["components_inside_updated_dropped"] += dropped
+                self.mixture = mix.take(keep)
+            return
         seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
         idle = np.flatnonzero(~updated)
         if not len(seen) or not len(idle):

@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
+from tracker.compiled.clustering import points_in_rectangles_kernel
 
 
 @njit(inline="always")
@@ -140,3 +141,125 @@ def overlapping_pairs_kernel(means, cos_h, sin_h, cartesian, overlap, period):  
             over[i, j] = (abs(along) < 0.5 * (means[i, 5] + means[j, 5]) - overlap
                           and abs(across) < 0.5 * min(means[i, 6], means[j, 6]))
     return over
+
+
+@njit
+def reduce_kernel(weights, means, covs, labels, near, near_limit, lateral, lateral_lo, lateral_hi, prune_threshold, gate,
+                  angles, period_index, periods, same_label_weight, max_components, s_period):  # pragma: no cover - compiled
+    """``tracker.reduction.reduce_in_view`` in one call: the components in view (``near <= near_limit``)
+    and on the road (``lateral_lo <= lateral <= lateral_hi``) of weight ``>= prune_threshold``, merged
+    (``merge_kernel``, when more than one), capped at the ``max_components`` heaviest (a stable sort of
+    ``-w``) and, with ``s_period > 0``, coordinate 0 taken modulo it (a closed road's ``s``).
+
+    ``same_label_weight >= 0``: when two merged components of weight ``>= same_label_weight`` share a
+    label (``labels`` int64), the cap and the modulo are left to the caller (``merge_same_label`` comes
+    first) and ``pending`` is True. Returns weights ``(G,)``, means ``(G, D)``, covariances
+    ``(G, D, D)``, the index in the input of each component's label ``(G,)``, the number of components
+    out of view, the number in view but off the road, and ``pending``."""
+    n, dim = means.shape
+    left_view = 0
+    off_road = 0
+    kept = np.empty(n, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        inside = near[i] <= near_limit
+        on_road = lateral[i] >= lateral_lo and lateral[i] <= lateral_hi
+        if not inside:
+            left_view += 1
+        elif not on_road:
+            off_road += 1
+        elif weights[i] >= prune_threshold:
+            kept[k] = i
+            k += 1
+    w = np.empty(k)
+    m = np.empty((k, dim))
+    p = np.empty((k, dim, dim))
+    for r in range(k):
+        i = kept[r]
+        w[r] = weights[i]
+        m[r] = means[i]
+        p[r] = covs[i]
+    source = kept[:k].copy()
+    if k > 1:
+        w, m, p, anchor = merge_kernel(w, m, p, gate, angles, period_index, periods)
+        source = source[anchor]
+    count = len(w)
+    if same_label_weight >= 0.0:
+        for a in range(count):
+            if not w[a] >= same_label_weight:
+                continue
+            for b in range(a + 1, count):
+                if w[b] >= same_label_weight and labels[source[b]] == labels[source[a]]:
+                    return w, m, p, source, left_view, off_road, True
+    if count > max_components:
+        order = np.argsort(-w, kind="mergesort")[:max_components]
+        w, m, p, source = w[order], m[order], p[order], source[order]
+        count = max_components
+    if s_period > 0.0:
+        for r in range(count):
+            m[r, 0] = m[r, 0] % s_period
+    return w, m, p, source, left_view, off_road, False
+
+
+@njit
+def inside_updated_kernel(center, cos_seen, sin_seen, length, width, seen, idle):  # pragma: no cover - compiled
+    """``tracker.tracker.Tracker._drop_inside_updated``'s test: which components ``idle`` (indices) have
+    their rectangle's centre ``center (N, 2)`` inside the rectangle of one of the components ``seen``
+    (indices; ``cos_seen``, ``sin_seen`` their headings' cosine and sine, ``length``, ``width`` ``(N,)``
+    everyone's extent), as ``tracker.clustering.points_in_rectangles`` (margin 0) finds them
+    (``points_in_rectangles_kernel``). Returns the mask ``(N,)`` of the components kept (those not
+    inside) and the number dropped."""
+    n_seen = len(seen)
+    ctr = np.empty((n_seen, 2))
+    half_l = np.empty(n_seen)
+    half_w = np.empty(n_seen)
+    for r in range(n_seen):
+        k = seen[r]
+        ctr[r, 0] = center[k, 0]
+        ctr[r, 1] = center[k, 1]
+        half_l[r] = 0.5 * length[k] + 0.0
+        half_w[r] = 0.5 * width[k] + 0.0
+    pts = np.empty((len(idle), 2))
+    for r in range(len(idle)):
+        pts[r, 0] = center[idle[r], 0]
+        pts[r, 1] = center[idle[r], 1]
+    owner = points_in_rectangles_kernel(pts, ctr, cos_seen, sin_seen, half_l, half_w)
+    keep = np.ones(len(center), dtype=np.bool_)
+    dropped = 0
+    for r in range(len(idle)):
+        if owner[r] >= 0:
+            keep[idle[r]] = False
+            dropped += 1
+    return keep, dropped
+
+
+@njit
+def absorb_candidates_kernel(weights, labels, min_weight):  # pragma: no cover - compiled
+    """``tracker.reduction.absorb_overlapping``'s candidates: the heaviest component of each label among
+    those of weight ``>= min_weight`` (``labels`` int64), heaviest first (ties in index order). Returns
+    their indices."""
+    n = len(weights)
+    heavy = np.empty(n, dtype=np.int64)
+    h = 0
+    for i in range(n):
+        if weights[i] >= min_weight:
+            heavy[h] = i
+            h += 1
+    heavy = heavy[:h]
+    neg = np.empty(h)
+    for r in range(h):
+        neg[r] = -weights[heavy[r]]
+    order = heavy[np.argsort(neg, kind="mergesort")]
+    cand = np.empty(h, dtype=np.int64)
+    c = 0
+    for r in range(h):
+        label = labels[order[r]]
+        first = True
+        for q in range(c):
+            if labels[cand[q]] == label:
+                first = False
+                break
+        if first:
+            cand[c] = order[r]
+            c += 1
+    return cand[:c].copy()
