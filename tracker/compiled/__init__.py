@@ -155,9 +155,9 @@ def warm_up() -> bool:
     update_pairs(mean, cov, batch, np.zeros(1, dtype=int), np.zeros(1, dtype=int), EgoState(100.0, 0.0, 0.0, 10.0, 0.0),
                  road, tracker.config, tracker.ut)
     # the reduce stage's kernels, whatever the scene reached: the reduction in view, the test of the
-    # components inside an updated one's rectangle, the candidates of absorb_overlapping
-    from tracker.compiled.reduction import absorb_candidates_kernel, inside_updated_kernel
-    from tracker.reduction import Mixture, reduce_in_view
+    # components inside an updated one's rectangle, absorb_overlapping's screen (road and Cartesian axes)
+    from tracker.compiled.reduction import inside_updated_kernel
+    from tracker.reduction import Mixture, absorb_overlapping, reduce_in_view
 
     means = np.array([[130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9], [130.5, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]])
     mix = Mixture(np.array([0.9, 0.6]), means, np.broadcast_to(np.eye(7), (2, 7, 7)).copy(), np.array([1, 1]))
@@ -165,7 +165,9 @@ def warm_up() -> bool:
                    max_components=100, wrapping=tracker.wrapping, same_label_distance=3.0, s_period=500.0)
     inside_updated_kernel(rect.center, np.ones(1), np.zeros(1), rect.length, rect.width, np.zeros(1, dtype=np.int64),
                           np.ones(1, dtype=np.int64))
-    absorb_candidates_kernel(mix.weights, mix.labels.astype(np.int64), 0.5)
+    two = Mixture(mix.weights, mix.means, mix.covs, np.array([1, 2]))
+    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping)
+    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping, cartesian=True)
     for function in _EXTRA_WARM_UPS:
         function()
     _WARM = True

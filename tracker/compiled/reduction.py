@@ -263,3 +263,18 @@ def absorb_candidates_kernel(weights, labels, min_weight):  # pragma: no cover -
             cand[c] = order[r]
             c += 1
     return cand[:c].copy()
+
+
+@njit
+def overlapping_candidates_kernel(weights, means, labels, min_weight, overlap, period):  # pragma: no cover - compiled
+    """``absorb_candidates_kernel``'s candidates of states in road axes and whether two of them overlap
+    (``overlapping_pairs_kernel`` along the road, the heading not used; ``period`` > 0: ``s`` wraps)."""
+    cand = absorb_candidates_kernel(weights, labels, min_weight)
+    c = len(cand)
+    if c < 2:
+        return cand, False
+    m = np.empty((c, means.shape[1]))
+    for r in range(c):
+        m[r] = means[cand[r]]
+    over = overlapping_pairs_kernel(m, np.ones(c), np.zeros(c), False, overlap, period)
+    return cand, over.any()
