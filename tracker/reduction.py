@@ -10,6 +10,9 @@ weighted means, so components on either side of ``s = 0`` merge.
   with ``(m_i - m_j)^T P_i^-1 (m_i - m_j) <= gate`` into one moment-matched Gaussian; the merged
   component keeps the label of the heaviest (DESIGN.md);
 - cap: keep the ``max_components`` heaviest.
+
+``reduce_in_view`` is the tracker's reduce stage before its overlap rules: the components out of view or
+off the road dropped, then ``reduce`` (one compiled call when the kernels are on).
 """
 
 from __future__ import annotations
@@ -273,14 +276,16 @@ def _screened_candidates(mix: Mixture, min_weight: float, overlap: float, cartes
     the road in one call with the candidates, ``overlapping_candidates_kernel``; along the heading,
     whose cosine and sine numpy takes, in a second); True where that test does not apply (fewer than 7
     state entries, a periodic position other than ``s`` alone), for the numpy test to decide."""
-    from tracker.compiled.reduction import absorb_candidates_kernel, overlapping_candidates_kernel, overlapping_pairs_kernel
+    from tracker.compiled.reduction import (absorb_candidates_kernel, overlapping_candidates_kernel,
+                                            overlapping_pairs_kernel)
 
     weights = np.ascontiguousarray(mix.weights, dtype=float)
     labels = np.ascontiguousarray(mix.labels, dtype=np.int64)
     if mix.means.shape[1] >= 7 and (not position_periodic or s_period is not None):
         if not cartesian:
-            cand, overlapping = overlapping_candidates_kernel(weights, np.ascontiguousarray(mix.means, dtype=float), labels,
-                                                              float(min_weight), float(overlap), float(s_period or 0.0))
+            cand, overlapping = overlapping_candidates_kernel(
+                weights, np.ascontiguousarray(mix.means, dtype=float), labels, float(min_weight), float(overlap),
+                float(s_period or 0.0))
             return cand, bool(overlapping)
         cand = absorb_candidates_kernel(weights, labels, float(min_weight))
         if len(cand) < 2:

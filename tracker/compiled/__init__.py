@@ -12,14 +12,16 @@ for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. Th
 use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
 project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
 after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
-``extent`` and ``kalman``; ``preparation`` calls ``clustering``; ``centerline`` calls ``ukf``), delete
+``extent`` and ``kalman``; ``preparation`` and ``reduction`` call ``clustering``; ``centerline`` calls ``ukf``), delete
 ``tracker/compiled/__pycache__`` so that the callers compile again with it.
 
 Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
 points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
 (bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow), ``reduction`` (merging; the overlap test of labels), ``kalman`` (the UKF update of the
+next to a shadow), ``reduction`` (the reduce stage: the field-of-view and road test, prune, merge, cap
+and the closed road's ``s`` in one call; the test of components inside an updated one's rectangle; the
+candidates of overlapping labels and their overlap test), ``kalman`` (the UKF update of the
 pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
 the extent rules).
