@@ -826,7 +826,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
                kb.road_births_kernel, ku.clearly_positive_definite, kr.inside_updated_kernel,
-               kr.absorb_candidates_kernel]
+               kr.absorb_candidates_kernel, kr.overlapping_candidates_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)

@@ -10,6 +10,9 @@ weighted means, so components on either side of ``s = 0`` merge.
   with ``(m_i - m_j)^T P_i^-1 (m_i - m_j) <= gate`` into one moment-matched Gaussian; the merged
   component keeps the label of the heaviest (DESIGN.md);
 - cap: keep the ``max_components`` heaviest.
+
+``reduce_in_view`` is the tracker's reduce stage before its overlap rules: the components out of view or
+off the road dropped, then ``reduce`` (one compiled call when the kernels are on).
 """
 
 from __future__ import annotations
@@ -265,6 +268,35 @@ def _position_periods(wrapping: Wrapping) -> tuple[tuple[tuple[int, float], ...]
     return position_periods, s_period
 
 
+def _screened_candidates(mix: Mixture, min_weight: float, overlap: float, cartesian: bool, position_periodic: bool,
+                         s_period: float | None) -> tuple[np.ndarray, bool]:
+    """``absorb_overlapping``'s candidates by the compiled kernels (``absorb_candidates_kernel``: the
+    heaviest component of each label of weight >= ``min_weight``, heaviest first) and whether they may
+    overlap: False when there are fewer than two or ``overlapping_pairs_kernel`` finds no pair (along
+    the road in one call with the candidates, ``overlapping_candidates_kernel``; along the heading,
+    whose cosine and sine numpy takes, in a second); True where that test does not apply (fewer than 7
+    state entries, a periodic position other than ``s`` alone), for the numpy test to decide."""
+    from tracker.compiled.reduction import (absorb_candidates_kernel, overlapping_candidates_kernel,
+                                            overlapping_pairs_kernel)
+
+    weights = np.ascontiguousarray(mix.weights, dtype=float)
+    labels = np.ascontiguousarray(mix.labels, dtype=np.int64)
+    if mix.means.shape[1] >= 7 and (not position_periodic or s_period is not None):
+        if not cartesian:
+            cand, overlapping = overlapping_candidates_kernel(
+                weights, np.ascontiguousarray(mix.means, dtype=float), labels, float(min_weight), float(overlap),
+                float(s_period or 0.0))
+            return cand, bool(overlapping)
+        cand = absorb_candidates_kernel(weights, labels, float(min_weight))
+        if len(cand) < 2:
+            return cand, False
+        m = mix.means[cand]
+        return cand, bool(overlapping_pairs_kernel(np.ascontiguousarray(m), np.cos(m[:, 3]), np.sin(m[:, 3]), True,
+                                                   float(overlap), float(s_period or 0.0)).any())
+    cand = absorb_candidates_kernel(weights, labels, float(min_weight))
+    return cand, len(cand) >= 2
+
+
 #: Standard deviation (m) of a length known well enough to widen a keeper's rectangle to the union with
 #: an absorbed one's (``absorb_overlapping``): a side seen; a prior's (a car's 1 m, a truck's 3.5 m) is not.
 UNION_LENGTH_STD = 0.5
@@ -302,11 +334,12 @@ def absorb_overlapping(
     newcomer on it made one 9.5-9.9 m long track, session 20).
     Every component of the absorbed label is dropped. Returns the mixture and the number of labels
     absorbed."""
+    position_periods, s_period = _position_periods(wrapping)
     if compiled_kernels.enabled():
-        from tracker.compiled.reduction import absorb_candidates_kernel
-
-        cand = absorb_candidates_kernel(np.ascontiguousarray(mix.weights, dtype=float),
-                                        np.ascontiguousarray(mix.labels, dtype=np.int64), float(min_weight))
+        # the usual frame: no two labels overlap, which compiled passes over the pairs tell
+        cand, overlapping = _screened_candidates(mix, min_weight, overlap, cartesian, bool(position_periods), s_period)
+        if not overlapping:
+            return mix, 0
     else:
         heavy = np.flatnonzero(mix.weights >= min_weight)
         if len(heavy) < 2:
@@ -315,20 +348,9 @@ def absorb_overlapping(
         seen: set[int] = set()  # a few heavy components: a set beats numpy.unique's sort
         first = [k for k, lab in enumerate(mix.labels[order].tolist()) if not (lab in seen or seen.add(lab))]
         cand = order[first]  # the heaviest component of each label, heaviest first
-    if len(cand) < 2:
-        return mix, 0
-    m = mix.means[cand]
-    position_periods, s_period = _position_periods(wrapping)
-    if compiled_kernels.enabled() and m.shape[1] >= 7 and (not position_periods or s_period is not None):
-        # the usual frame: no two labels overlap, which one compiled pass over the pairs tells
-        from tracker.compiled.reduction import overlapping_pairs_kernel
-
-        if cartesian:
-            cos_h, sin_h = np.cos(m[:, 3]), np.sin(m[:, 3])
-        else:  # along the road: heading 0
-            cos_h, sin_h = np.ones(len(m)), np.zeros(len(m))
-        if not overlapping_pairs_kernel(m, cos_h, sin_h, bool(cartesian), float(overlap), float(s_period or 0.0)).any():
+        if len(cand) < 2:
             return mix, 0
+    m = mix.means[cand]
     d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
     if position_periods:
         d = Wrapping(periods=position_periods).residual(d)

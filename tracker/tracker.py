@@ -735,7 +735,9 @@ class Tracker:
         """``ReductionConfig.drop_inside_updated``: drop the components of labels without a reportable
         posterior in this frame (none above the extraction threshold) whose centre lies inside the
         rectangle of another label's reportable posterior: a duplicate of the seen vehicle, whether no
-        cluster updated it or its vehicle's cluster did, weakly, beside the track that took it."""
+        cluster updated it or its vehicle's cluster did, weakly, beside the track that took it. (The
+        centres inside the rectangles as ``points_in_rectangles`` finds them, margin 0; by
+        ``tracker.compiled.reduction.inside_updated_kernel`` in one call when the kernels are on.)"""
         mix = self.mixture
         updated = _labels_in(mix.labels, self._strong_labels)
         if compiled_kernels.enabled():  # the same test in one compiled call

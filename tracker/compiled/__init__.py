@@ -12,14 +12,16 @@ for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. Th
 use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
 project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
 after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
-``extent`` and ``kalman``; ``preparation`` calls ``clustering``; ``centerline`` calls ``ukf``), delete
+``extent`` and ``kalman``; ``preparation`` and ``reduction`` call ``clustering``; ``centerline`` calls ``ukf``), delete
 ``tracker/compiled/__pycache__`` so that the callers compile again with it.
 
 Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
 points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
 (bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow), ``reduction`` (merging; the overlap test of labels), ``kalman`` (the UKF update of the
+next to a shadow), ``reduction`` (the reduce stage: the field-of-view and road test, prune, merge, cap
+and the closed road's ``s`` in one call; the test of components inside an updated one's rectangle; the
+candidates of overlapping labels and their overlap test), ``kalman`` (the UKF update of the
 pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
 the extent rules).
@@ -157,9 +159,9 @@ def warm_up() -> bool:
     update_pairs(mean, cov, batch, np.zeros(1, dtype=int), np.zeros(1, dtype=int), EgoState(100.0, 0.0, 0.0, 10.0, 0.0),
                  road, tracker.config, tracker.ut)
     # the reduce stage's kernels, whatever the scene reached: the reduction in view, the test of the
-    # components inside an updated one's rectangle, the candidates of absorb_overlapping
-    from tracker.compiled.reduction import absorb_candidates_kernel, inside_updated_kernel
-    from tracker.reduction import Mixture, reduce_in_view
+    # components inside an updated one's rectangle, absorb_overlapping's screen (road and Cartesian axes)
+    from tracker.compiled.reduction import inside_updated_kernel
+    from tracker.reduction import Mixture, absorb_overlapping, reduce_in_view
 
     means = np.array([[130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9], [130.5, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]])
     mix = Mixture(np.array([0.9, 0.6]), means, np.broadcast_to(np.eye(7), (2, 7, 7)).copy(), np.array([1, 1]))
@@ -167,7 +169,9 @@ def warm_up() -> bool:
                    max_components=100, wrapping=tracker.wrapping, same_label_distance=3.0, s_period=500.0)
     inside_updated_kernel(rect.center, np.ones(1), np.zeros(1), rect.length, rect.width, np.zeros(1, dtype=np.int64),
                           np.ones(1, dtype=np.int64))
-    absorb_candidates_kernel(mix.weights, mix.labels.astype(np.int64), 0.5)
+    two = Mixture(mix.weights, mix.means, mix.covs, np.array([1, 2]))
+    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping)
+    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping, cartesian=True)
     for function in _EXTRA_WARM_UPS:
         function()
     _WARM = True

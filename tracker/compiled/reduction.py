@@ -1,14 +1,18 @@
-"""Compiled mixture merging: ``tracker.reduction.merge`` in one numba call.
+"""Compiled mixture reduction: ``tracker.reduction.merge`` in one numba call (``merge_kernel``), the
+whole reduce stage's first part (``reduce_kernel``: the field-of-view and road test, prune, merge, cap,
+the closed road's ``s``), ``Tracker._drop_inside_updated``'s test (``inside_updated_kernel``) and
+``absorb_overlapping``'s screen (``absorb_candidates_kernel``, ``overlapping_pairs_kernel``,
+``overlapping_candidates_kernel``).
 
-The same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T P_i^-1 d_ij``
-(``d_ij = m_i - m_j``, wrapped coordinates wrapped; a pair whose ``d_k^2 / P_i[k, k]``, a lower
-bound of it when ``P_i`` is positive definite, already exceeds the gate on the first or second
-coordinate is rejected without it, and ``P_i^-1`` is computed only for the components some pair needs
-it of: so a singular covariance raises ``LinAlgError`` here only when a pair needs its inverse, where
-the numpy reference inverts them all), the greedy grouping (the heaviest remaining
-component takes every remaining one within the gate; ties of weight in index order), and the moment
-match of each group about its heaviest component (weighted mean, circular for angles; weighted
-covariances plus the weighted spread, symmetrised)."""
+The merge takes the same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T
+P_i^-1 d_ij`` (``d_ij = m_i - m_j``, wrapped coordinates wrapped; a pair whose ``d_k^2 / P_i[k, k]``, a
+lower bound of it when ``P_i`` is positive definite, already exceeds the gate on the first or second
+coordinate is rejected without it, and ``P_i^-1`` is computed only for the components some pair needs it
+of: so a singular covariance raises ``LinAlgError`` here only when a pair needs its inverse, where the
+numpy reference inverts them all), the greedy grouping (the heaviest remaining component takes every
+remaining one within the gate; ties of weight in index order), and the moment match of each group about
+its heaviest component (weighted mean, circular for angles; weighted covariances plus the weighted
+spread, symmetrised)."""
 
 from __future__ import annotations
 
@@ -144,8 +148,8 @@ def overlapping_pairs_kernel(means, cos_h, sin_h, cartesian, overlap, period):  
 
 
 @njit
-def reduce_kernel(weights, means, covs, labels, near, near_limit, lateral, lateral_lo, lateral_hi, prune_threshold, gate,
-                  angles, period_index, periods, same_label_weight, max_components, s_period):  # pragma: no cover - compiled
+def reduce_kernel(weights, means, covs, labels, near, near_limit, lateral, lateral_lo, lateral_hi,  # pragma: no cover
+                  prune_threshold, gate, angles, period_index, periods, same_label_weight, max_components, s_period):
     """``tracker.reduction.reduce_in_view`` in one call: the components in view (``near <= near_limit``)
     and on the road (``lateral_lo <= lateral <= lateral_hi``) of weight ``>= prune_threshold``, merged
     (``merge_kernel``, when more than one), capped at the ``max_components`` heaviest (a stable sort of
@@ -263,3 +267,18 @@ def absorb_candidates_kernel(weights, labels, min_weight):  # pragma: no cover -
             cand[c] = order[r]
             c += 1
     return cand[:c].copy()
+
+
+@njit
+def overlapping_candidates_kernel(weights, means, labels, min_weight, overlap, period):  # pragma: no cover - compiled
+    """``absorb_candidates_kernel``'s candidates of states in road axes and whether two of them overlap
+    (``overlapping_pairs_kernel`` along the road, the heading not used; ``period`` > 0: ``s`` wraps)."""
+    cand = absorb_candidates_kernel(weights, labels, min_weight)
+    c = len(cand)
+    if c < 2:
+        return cand, False
+    m = np.empty((c, means.shape[1]))
+    for r in range(c):
+        m[r] = means[cand[r]]
+    over = overlapping_pairs_kernel(m, np.ones(c), np.zeros(c), False, overlap, period)
+    return cand, over.any()
