@@ -567,10 +567,12 @@ class Tracker:
                 inside |= own
                 comp, clu = comp[inside], clu[inside]
                 self.stats["pairs_updated"] += len(comp)
-                self._updated_labels.update(mix.labels[comp].tolist())
+                pair_labels = mix.labels[comp]
+                labels_list = pair_labels.tolist()
+                self._updated_labels.update(labels_list)
                 if len(comp):
                     size = size[clu]
-                    for lab, n_pts in zip(mix.labels[comp].tolist(), size.tolist()):
+                    for lab, n_pts in zip(labels_list, size.tolist()):
                         if n_pts > self._support.get(lab, 0):
                             self._support[lab] = n_pts
                     lam_c = cfg.detection.clutter_rate * cfg.detection.clutter_density
@@ -595,16 +597,17 @@ class Tracker:
                     # lift such matrices to positive definite and count them
                     post_cov, repaired = ensure_spd(res.cov[inside], cfg.ukf.min_eigenvalue)
                     self.stats["covariances_repaired"] += repaired
+                    post_mean = res.mean[inside]
                     if cfg.detection.missed_weight_cap:
-                        new_w[0] = cap_missed_weights(missed_w, mix.labels, weights, mix.labels[comp])
+                        new_w[0] = cap_missed_weights(missed_w, mix.labels, weights, pair_labels)
                     if self.dim == 8 and cfg.motion.quiet_jerk is not None:
-                        self._detect_manoeuvres(mix.means[comp], mix.covs[comp], res.mean[inside], post_cov,
-                                                mix.labels[comp], weights)
-                    self._strong_labels.update(mix.labels[comp][weights > cfg.reduction.extraction_threshold].tolist())
+                        self._detect_manoeuvres(mix.means[comp], mix.covs[comp], post_mean, post_cov, pair_labels,
+                                                weights)
+                    self._strong_labels.update(pair_labels[weights > cfg.reduction.extraction_threshold].tolist())
                     new_w.append(weights)
-                    new_m.append(res.mean[inside])
+                    new_m.append(post_mean)
                     new_p.append(post_cov)
-                    new_l.append(mix.labels[comp])
+                    new_l.append(pair_labels)
         self.mixture = Mixture(np.concatenate(new_w), np.concatenate(new_m), np.concatenate(new_p), np.concatenate(new_l))
         return explained
 
