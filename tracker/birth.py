@@ -32,6 +32,7 @@ from tracker.shape_fit import fit_rectangle
 from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import rotate, to_global
 from tracker.ukf import UnscentedTransform, Wrapping
+from tracker.compiled.birth import road_births_kernel
 
 
 def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
@@ -104,8 +105,6 @@ def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: fl
             keep = entering_view(to_vehicle(means, ego, road), tracks, track_labels, gate_distance)
             means, covs = means[keep], covs[keep]
         return means, covs
-    from tracker.compiled.birth import road_births_kernel
-
     kind, *curve = road._curve.kernel_args()
     return road_births_kernel(
         _birth_arc_lengths(road, s_ego, lidar_range, config), road.lane_centers,

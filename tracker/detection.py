@@ -35,6 +35,7 @@ from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import DetectionConfig
 from tracker.measurement import Rectangles
+from tracker.compiled.detection import detection_kernel
 
 #: Visible fraction of a target's bearing span above which occlusion no longer lowers ``P_D``.
 VISIBLE_FOR_DETECTION = 0.25
@@ -139,8 +140,6 @@ def detection_model(
     ``scan`` (N, 2): the frame's lidar returns in E (all finite ones, on and off the road) for the
     scan-based occlusion; by ``tracker.compiled.detection`` when the compiled kernels are on)."""
     if compiled_kernels.enabled() and rect.center.ndim == 2:
-        from tracker.compiled.detection import detection_kernel
-
         with_occ = occluders is not None and occluder_labels is not None
         occ = occluders if with_occ else rect
         return detection_kernel(

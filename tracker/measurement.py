@@ -94,6 +94,7 @@ from tracker import compiled as compiled_kernels
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
 from tracker.road import Road
+from tracker.compiled.centerline import rectangles_kernel
 
 Coordinates = Literal["curvilinear", "cartesian"]
 
@@ -244,8 +245,6 @@ def to_vehicle(
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")
         if euler_s0 is None and compiled_kernels.enabled() and x.size:
-            from tracker.compiled.centerline import rectangles_kernel
-
             flat = x if x.ndim == 2 and x.flags.c_contiguous else np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
             kind, *curve = road._curve.kernel_args()
             center, psi, corners, length, width, finite = rectangles_kernel(

@@ -49,6 +49,7 @@ from tracker import compiled as compiled_kernels
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
+from tracker.compiled.motion import ukf_predict_kernel
 
 # state indices (curvilinear names; the Cartesian state uses the same slots for x, y, psi, psi_dot);
 # ACCEL: the internal acceleration state of ``FrenetMotion`` with ``MotionConfig.acceleration``
@@ -300,8 +301,6 @@ class FrenetMotion:
         dt = _check_dt(dt)
         if dt == 0.0:
             return None
-        from tracker.compiled.motion import ukf_predict_kernel
-
         if relax is None and floor is None:
             relax = floor = _NO_RELAX
         else:

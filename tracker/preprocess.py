@@ -21,6 +21,7 @@ from tracker.config import ClusteringConfig
 from tracker.frame import EgoState, Frame
 from tracker.road import Road
 from tracker.transforms import to_global
+from tracker.compiled.preprocess import DONE as FILTER_DONE, SEED as FILTER_SEED, road_filter_kernel
 
 
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -135,8 +136,6 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     args = road.projection_kernel_args()
     if args is None or not config.bearing_bin > 0:
         return None
-    from tracker.compiled.preprocess import DONE, SEED, road_filter_kernel
-
     count = round(2.0 * np.pi / config.bearing_bin)
     tiles = abs(count * config.bearing_bin - 2.0 * np.pi) <= 1e-9
     margin = config.road_margin
@@ -145,7 +144,7 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     tail = (*args, not road.closed, road.right_edge - margin, road.left_edge + margin, float(config.bearing_bin),
             int(max(count, 1)), bool(tiles))
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
-    if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
+    if status == FILTER_SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
         road.seed_missing(pts, s, missing)
         status, kept, n, on_road, *_ = road_filter_kernel(*head, s, True, *tail)
-    return (kept, n, int(on_road)) if status == DONE else None
+    return (kept, n, int(on_road)) if status == FILTER_DONE else None

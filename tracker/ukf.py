@@ -26,6 +26,7 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import STATE_DIM, UKFParams
+from tracker.compiled.ukf import clearly_positive_definite
 
 
 @dataclass(frozen=True)
@@ -118,8 +119,6 @@ def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     if cov.size == 0:
         return cov, 0
     if compiled_kernels.enabled() and cov.ndim == 3:  # the usual batch: clearly positive definite, no LAPACK call
-        from tracker.compiled.ukf import clearly_positive_definite
-
         if clearly_positive_definite(np.ascontiguousarray(cov), CLEAR_PIVOT):
             return cov, 0
     try:

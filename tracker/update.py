@@ -44,6 +44,7 @@ from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wr
 from tracker.preparation import _kernel_settings, prepare_scanned_batch
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
+from tracker.compiled.pairs import DONE as FUSED_DONE, prepared_pairs_kernel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -341,8 +342,6 @@ def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarr
             or offsets[-1] != len(points) or np.shape(velocity) != (len(offsets) - 1, 2)
             or np.shape(has_velocity) != (len(offsets) - 1,)):
         return None
-    from tracker.compiled.pairs import DONE, prepared_pairs_kernel
-
     prepare, scanned, update, shadows, continuation = _fused_settings(config)
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
@@ -355,7 +354,7 @@ def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarr
             road._ends_array, *curve, *update)
     except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the two steps
         return None
-    if status != DONE:
+    if status != FUSED_DONE:
         return None
     return UpdateResult(*out), int(occluded) if shadows else None, int(continued) if continuation else None
 
