@@ -19,7 +19,7 @@ Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``s
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
 points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
 (bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow), ``reduction`` (merging; the overlap test of labels), ``kalman`` (the UKF update of the
+next to a shadow; the tracker's whole grouping of the points into clusters, its radar association), ``reduction`` (merging; the overlap test of labels), ``kalman`` (the UKF update of the
 pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
 the extent rules).
@@ -139,6 +139,14 @@ def warm_up() -> bool:
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    # the grouping's second call (after a fragment's numpy step) and its hand-back's partition
+    from tracker.clustering import SPLIT_MAX_CUTS, distance_partition
+    from tracker.compiled.clustering import ordered_clusters_kernel
+
+    pts = np.array([[10.0, 0.0], [10.5, 0.0]])
+    distance_partition(pts, 1.0)
+    ordered_clusters_kernel(pts, np.array([0, -1]), np.array([True, False]), np.zeros(2, dtype=np.int64), 1, np.zeros(2),
+                            True, 3.0, 0.5, SPLIT_MAX_CUTS)
     # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
     # component with a car's length prior (its prior is widened: tracker.update's staged path), and
     # clusters prepared alone, with and without their shadow flags (tracker.preparation)
