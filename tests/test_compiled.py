@@ -660,12 +660,15 @@ def test_compiled_projection_seed_equals_numpy(name, monkeypatch):
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points), points exactly on the
-    grid's cell boundaries and points too far apart for the grid's keys; thresholds from 0.2 to 3 m."""
+    grid's cell boundaries, a few points spread over kilometres (more grid columns than the counting
+    sort takes: the cells sorted by argsort) and points too far apart for the grid's keys; thresholds
+    from 0.2 to 3 m."""
     from tracker.clustering import distance_partition
 
     rng = np.random.default_rng(seed)
     clouds = [rng.uniform(-80.0, 80.0, (600, 2)), np.cumsum(rng.normal(0.0, 0.4, (700, 2)), axis=0),
               np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2)),
+              np.concatenate([rng.uniform(-2000.0, 2000.0, (40, 2)), rng.uniform(0.0, 3.0, (20, 2))]),
               np.array([[0.0, 0.0], [1e18, -1e18], [0.5, 0.0]])]  # keys that would overflow: the numpy path
     for pts in clouds:
         for threshold in (0.2, 0.5 * np.sqrt(2.0), 1.0, 3.0):

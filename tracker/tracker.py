@@ -418,17 +418,14 @@ class Tracker:
         same numbers as its numpy reference ``_grouped_points_numpy``), the radar association
         ``tracker.clustering.cluster_radar_ranges``."""
         cfg = self.config.clustering
-        clusters: list[np.ndarray] = []
-        owned = np.zeros(0, dtype=int)
-        edges = np.zeros(1, dtype=np.int64)
-        ordered = np.zeros((0, 2))
         if len(points):
             grouped = self._grouped_points(points, rect) if compiled_kernels.enabled() else None
             ordered, edges, owned = self._grouped_points_numpy(points, rect) if grouped is None else grouped
-            bounds = edges.tolist()
-            clusters = [ordered[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
         else:
             self._component_group = np.full(len(self.mixture), -1)
+            ordered, edges, owned = np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=int)
+        bounds = edges.tolist()
+        clusters = [ordered[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
         lo, hi = edges[:-1], edges[1:]
         if cfg.min_points > 1 and clusters:
             big = (hi - lo) >= cfg.min_points
@@ -438,10 +435,11 @@ class Tracker:
         else:
             self.stats["clusters_too_small"] += 0
         self._owned = owned
-        velocities: list[np.ndarray | None] = [None] * len(clusters)
-        self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
-        if self.config.use_radar and len(frame.radar) and clusters:
+        if self.config.use_radar and clusters and len(frame.radar):
             velocities, self._free_radar = cluster_radar_ranges(ordered, lo, hi, frame.radar, frame.t, cfg.radar_gate)
+        else:
+            velocities = [None] * len(clusters)
+            self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities

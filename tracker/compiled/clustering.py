@@ -73,13 +73,44 @@ def partition_points_kernel(pts, threshold):
 
 
 @njit
+def _cell_order(cx, cy):  # pragma: no cover - compiled
+    """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
+    of one cell is any). A counting sort over the columns ``cx``, then an insertion sort by ``cy``
+    within each column (a scan's points spread over many columns, a few per column); with more columns
+    than ``4 n + 1024``, ``numpy.argsort`` of the keys."""
+    n = len(cx)
+    columns = cx.max() + 1 if n else 0
+    if columns > 4 * n + 1024:
+        return np.argsort(cx * (cy.max() + 1) + cy)
+    start = np.zeros(columns + 1, dtype=np.int64)
+    for i in range(n):
+        start[cx[i] + 1] += 1
+    for k in range(columns):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[cx[i]]] = i
+        fill[cx[i]] += 1
+    for k in range(columns):
+        for j in range(start[k] + 1, start[k + 1]):
+            i = order[j]
+            h = j
+            while h > start[k] and cy[order[h - 1]] > cy[i]:
+                order[h] = order[h - 1]
+                h -= 1
+            order[h] = i
+    return order
+
+
+@njit
 def partition_kernel(pts, threshold, cx, cy, span_y):
     """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
     shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
     every cell and of its neighbours two cells away are then distinct and non-negative)."""
     n = len(pts)
     key = cx * span_y + cy
-    order = np.argsort(key)
+    order = _cell_order(cx, cy)
     sorted_key = key[order]
     parent = np.arange(n)
     # the cells: unique keys with the range of their points in ``order``
