@@ -73,34 +73,34 @@ def partition_points_kernel(pts, threshold):
 
 
 @njit
+def _counting_order(value, within):  # pragma: no cover - compiled
+    """``within`` (indices) stably reordered by ``value[within]`` (non-negative integers): a counting sort."""
+    size = 0
+    for i in within:
+        size = max(size, value[i] + 1)
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in within:
+        start[value[i] + 1] += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    order = np.empty(len(within), dtype=np.int64)
+    for i in within:
+        order[start[value[i]]] = i
+        start[value[i]] += 1
+    return order
+
+
+@njit
 def _cell_order(cx, cy):  # pragma: no cover - compiled
     """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
-    of one cell is any). A counting sort over the columns ``cx``, then an insertion sort by ``cy``
-    within each column (a scan's points spread over many columns, a few per column); with more columns
-    than ``4 n + 1024``, ``numpy.argsort`` of the keys."""
+    of one cell is any). Two counting sorts (by ``cy``, then stably by ``cx``); with more rows and
+    columns than ``4 n + 1024``, ``numpy.argsort`` of the keys."""
     n = len(cx)
-    columns = cx.max() + 1 if n else 0
-    if columns > 4 * n + 1024:
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    if cx.max() + cy.max() + 2 > 4 * n + 1024:
         return np.argsort(cx * (cy.max() + 1) + cy)
-    start = np.zeros(columns + 1, dtype=np.int64)
-    for i in range(n):
-        start[cx[i] + 1] += 1
-    for k in range(columns):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        order[fill[cx[i]]] = i
-        fill[cx[i]] += 1
-    for k in range(columns):
-        for j in range(start[k] + 1, start[k + 1]):
-            i = order[j]
-            h = j
-            while h > start[k] and cy[order[h - 1]] > cy[i]:
-                order[h] = order[h - 1]
-                h -= 1
-            order[h] = i
-    return order
+    return _counting_order(cx, _counting_order(cy, np.arange(n)))
 
 
 @njit
