@@ -5,7 +5,13 @@ connected components, found on a grid of square cells of side ``threshold / sqrt
 one cell are all within ``threshold`` of each other (one component), and two cells at most two apart
 along each axis are joined as soon as one pair of their points is close enough (union-find; a pair of
 cells already in one component is skipped). Components are labelled in order of their first point (so
-any order of the unions gives the same labels)."""
+any order of the unions gives the same labels).
+
+Also the clustering's other kernels: the tracker's whole grouping of a frame's points into clusters
+(``cluster_points_kernel``: track rectangles' overlap groups, points in rectangles, the partition, strays
+adopted, clusters cut across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for
+its second half), the radar association (``associate_ranges``, ``cluster_radar_kernel``), and the
+scan's bearing searches (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``)."""
 
 from __future__ import annotations
 
