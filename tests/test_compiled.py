@@ -676,12 +676,15 @@ def test_compiled_projection_seed_equals_numpy(name, monkeypatch):
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_distance_partition_equals_numpy(seed, monkeypatch):
     """Scattered points, a dense random walk (cells holding many points), points exactly on the
-    grid's cell boundaries and points too far apart for the grid's keys; thresholds from 0.2 to 3 m."""
+    grid's cell boundaries, a few points spread over kilometres (more grid columns than the counting
+    sort takes: the cells sorted by argsort) and points too far apart for the grid's keys; thresholds
+    from 0.2 to 3 m."""
     from tracker.clustering import distance_partition
 
     rng = np.random.default_rng(seed)
     clouds = [rng.uniform(-80.0, 80.0, (600, 2)), np.cumsum(rng.normal(0.0, 0.4, (700, 2)), axis=0),
               np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2)),
+              np.concatenate([rng.uniform(-2000.0, 2000.0, (40, 2)), rng.uniform(0.0, 3.0, (20, 2))]),
               np.array([[0.0, 0.0], [1e18, -1e18], [0.5, 0.0]])]  # keys that would overflow: the numpy path
     for pts in clouds:
         for threshold in (0.2, 0.5 * np.sqrt(2.0), 1.0, 3.0):
@@ -820,7 +823,8 @@ def test_warm_up_compiles_every_kernel_once_per_process():
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
-               kl.partition_points_kernel, kl.radar_association_kernel, kl.points_in_rectangles_kernel,
+               kl.partition_points_kernel, kl.cluster_points_kernel, kl.ordered_clusters_kernel,
+               kl.cluster_radar_kernel, kl.points_in_rectangles_kernel,
                kl.overlap_groups_kernel, kr.reduce_kernel, kc.rectangles_kernel, kc.sigma_rectangles_kernel,
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
@@ -1244,3 +1248,165 @@ def test_absorb_candidates_kernel_equals_numpy():
         _, first = np.unique(labels[order], return_index=True)
         np.testing.assert_array_equal(absorb_candidates_kernel(weights, labels.astype(np.int64), 0.5),
                                       order[np.sort(first)])
+
+
+def _cluster_scene(seed: int, config: TrackerConfig, tracks: int | None = None):
+    """A tracker with a random mixture and reported tracks, and the points, frame and predicted track
+    rectangles its ``_cluster`` sees: overlapping track rectangles (duplicates of one vehicle), points in
+    several rectangles, strays just outside them, blobs wide across the road (their lateral offsets are
+    their y, with gaps to cut at), lone points (fragments) and radar detections older than the frame."""
+    from tracker.frame import Frame, RadarDetections
+    from tracker.measurement import Rectangles
+    from tracker.motion import LENGTH
+    from tracker.reduction import Mixture
+
+    rng = np.random.default_rng(seed)
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tracker = Tracker(road, config)
+    count = int(rng.integers(0, 7)) if tracks is None else tracks
+    center = np.column_stack([rng.uniform(0.0, 60.0, count), rng.uniform(-5.0, 5.0, count)])
+    if count > 2:
+        center[1] = center[0] + rng.normal(0.0, 0.8, 2)  # a duplicate hypothesis of one vehicle
+    psi = rng.normal(0.0, 0.2, count)
+    length, width = rng.uniform(3.0, 12.0, count), rng.uniform(1.5, 2.6, count)
+    rect = Rectangles(center, psi, np.zeros(count), length, width)
+    parts = [rng.uniform([-5.0, -12.0], [70.0, 12.0], (int(rng.integers(1, 25)), 2))]  # clutter, lone points
+    for k in range(count):  # each track's points, some a little outside (strays) or past its front
+        u = rng.uniform(-0.5, 0.5 + rng.uniform(0.0, 0.6), int(rng.integers(1, 30))) * (length[k] + 2.0)
+        v = rng.choice([-0.5, 0.5]) * width[k] + rng.normal(0.0, 0.3, len(u))
+        parts.append(center[k] + np.column_stack([u * np.cos(psi[k]) - v * np.sin(psi[k]),
+                                                  u * np.sin(psi[k]) + v * np.cos(psi[k])]))
+    for _ in range(int(rng.integers(0, 5))):  # blobs up to 9 m across the road, their points 0.3-0.9 m apart
+        across = np.cumsum(rng.uniform(0.3, 0.95, int(rng.integers(2, 14))))
+        parts.append(np.column_stack([rng.uniform(0.0, 60.0) + rng.normal(0.0, 0.2, len(across)),
+                                      rng.uniform(-8.0, 0.0) + across]))
+    points = np.concatenate(parts)
+    points = points[rng.permutation(len(points))]
+    tracker._point_n = points[:, 1] + rng.normal(0.0, 0.05, len(points))
+    extra = int(rng.integers(0, 6))
+    labels = np.concatenate([rng.permutation(np.arange(1, count + 1)), rng.integers(1, count + 4, extra)])
+    covs = np.tile(np.eye(tracker.dim), (count + extra, 1, 1))
+    covs[:, LENGTH, LENGTH] = rng.uniform(0.0, 4.0, count + extra)
+    tracker.mixture = Mixture(np.full(count + extra, 0.9), np.zeros((count + extra, tracker.dim)), covs, labels)
+    tracker._reported = rng.permutation(count).astype(int)
+    radar_count = int(rng.integers(0, 15))
+    hits = points[rng.integers(0, len(points), radar_count)] + rng.normal(0.0, 1.0, (radar_count, 2))
+    radar = RadarDetections(t=rng.uniform(0.9, 1.0, radar_count), x=hits[:, 0], y=hits[:, 1],
+                            vx=rng.normal(10.0, 3.0, radar_count), vy=rng.normal(0.0, 1.0, radar_count))
+    return tracker, points, Frame(1.0, EgoState(0.0, 0.0, 0.0, 10.0, 0.0), np.zeros((0, 2)), radar), rect
+
+
+def _clustered(tracker, points, frame, rect) -> tuple:
+    """``tracker._cluster``'s result and everything it sets, on a copy of the tracker's state."""
+    import copy
+    from collections import Counter
+
+    tracker = copy.copy(tracker)
+    tracker.stats = Counter()
+    with compiled.pinned():
+        clusters, velocities = tracker._cluster(points, frame, rect)
+    return clusters, velocities, tracker._owned, tracker._component_group, tracker._free_radar, tracker.stats
+
+
+def _assert_same_clusters(ref: tuple, got: tuple) -> None:
+    """Two ``_clustered`` results bit for bit: the clusters' points and order, the velocities (the
+    same rows or None), owners, component groups, free detections (values and dtypes) and stats."""
+    assert len(ref[0]) == len(got[0])
+    for a, b in zip(ref[0], got[0]):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    assert [v is None for v in ref[1]] == [v is None for v in got[1]]
+    for a, b in zip(ref[1], got[1]):
+        assert a is None or (np.array_equal(a, b) and not b.flags.writeable)
+    for a, b in zip(ref[2:5], got[2:5]):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    assert ref[5] == got[5]
+
+
+_CLUSTER_CONFIGS = {
+    "default": {},
+    "lenient-fragments": {"fragment_points": 3, "fragment_side_tolerance": None, "fragment_sigmas": 20.0},
+    "min-points": {"min_points": 3, "split_gap": 0.2},
+    "no-split-no-fragments": {"split_width": None, "fragment_points": None},
+}
+
+
+@pytest.mark.parametrize("settings", list(_CLUSTER_CONFIGS), ids=list(_CLUSTER_CONFIGS))
+def test_compiled_clustering_equals_numpy(settings, monkeypatch):
+    """``Tracker._cluster`` by ``cluster_points_kernel`` (and ``ordered_clusters_kernel`` after the
+    fragments), ``cluster_radar_kernel``: the numpy path's clusters, velocities, owners, component
+    groups, free detections and stats bit for bit, on random scenes (no tracks, overlapping track
+    rectangles, strays, fragments, clusters cut across the road, more detections than clusters, none)."""
+    from tracker.config import ClusteringConfig
+
+    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**_CLUSTER_CONFIGS[settings]))
+    seen = dict.fromkeys(("clusters_split", "fragment_points_adopted", "clusters_too_small", "clusters_fused"), 0)
+    for seed in range(40):
+        scene = _cluster_scene(seed, config, tracks=0 if seed < 3 else None)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+        ref = _clustered(*scene)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        got = _clustered(*scene)
+        _assert_same_clusters(ref, got)
+        for name in seen:
+            seen[name] += ref[5][name]
+    assert seen["clusters_fused"] > 0
+    assert (seen["clusters_split"] > 0) == (config.clustering.split_width is not None)
+    if settings == "lenient-fragments":
+        assert seen["fragment_points_adopted"] > 0
+    if settings == "min-points":
+        assert seen["clusters_too_small"] > 0
+
+
+@pytest.mark.parametrize("case", ["one-point", "no-radar", "no-tracks", "nan-offset", "all-inside"])
+def test_compiled_clustering_equals_numpy_at_the_edges(case, monkeypatch):
+    """The same on the edges: one point, no radar detections, no tracks, a non-finite lateral offset
+    (the kernel hands back: the numpy path runs), every point inside one rectangle."""
+    from tracker.frame import Frame
+    from tracker.measurement import Rectangles
+
+    tracker, points, frame, rect = _cluster_scene(7, TrackerConfig(), tracks=0 if case == "no-tracks" else 3)
+    if case == "one-point":
+        points, tracker._point_n = points[:1], tracker._point_n[:1]
+    if case == "no-radar":
+        frame = Frame(frame.t, frame.ego, frame.lidar)
+    if case == "nan-offset":
+        tracker._point_n = tracker._point_n.copy()
+        tracker._point_n[0] = np.nan
+    if case == "all-inside":
+        rect = Rectangles(np.array([[0.0, 0.0], [0.5, 0.0], [80.0, 0.0]]), np.zeros(3), np.zeros(3),
+                          np.array([200.0, 3.0, 4.0]), np.array([40.0, 2.0, 2.0]))
+    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+    ref = _clustered(tracker, points, frame, rect)
+    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+    _assert_same_clusters(ref, _clustered(tracker, points, frame, rect))
+    assert len(ref[0]) >= 1
+
+
+def test_cluster_radar_ranges_equals_cluster_radar(monkeypatch):
+    """``cluster_radar_ranges`` (one compiled call) against ``cluster_radar`` on the clusters' views: the
+    same detection per cluster (its velocity row) and free detections, with and without kernels, for
+    clusters of one point, more detections than clusters, detections exactly at the gate and none."""
+    from tracker.clustering import cluster_radar, cluster_radar_ranges
+    from tracker.frame import RadarDetections
+
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        sizes = rng.integers(1, 6, int(rng.integers(1, 8)))
+        edges = np.concatenate([[0], np.cumsum(sizes)])
+        points = rng.uniform(0.0, 20.0, (int(edges[-1]), 2))
+        count = int(rng.integers(0, 12))
+        hits = points[rng.integers(0, len(points), count)] + rng.normal(0.0, 2.0, (count, 2))
+        if count and trial % 3 == 0:
+            hits[0] = points[0] + [3.0, 0.0]  # exactly at the gate
+        radar = RadarDetections(t=np.full(count, 1.0), x=hits[:, 0], y=hits[:, 1], vx=rng.normal(size=count),
+                                vy=rng.normal(size=count))
+        keep = rng.random(len(sizes)) < 0.8
+        lo, hi = edges[:-1][keep], edges[1:][keep]
+        velocities, index = cluster_radar([points[a:b] for a, b in zip(lo, hi)], radar, 1.0, 3.0)
+        free = np.setdiff1d(np.arange(count), index)
+        for kernels in ("0", "1"):
+            monkeypatch.setenv(compiled.ENV_SWITCH, kernels)
+            got, got_free = cluster_radar_ranges(points, lo, hi, radar, 1.0, 3.0)
+            assert [v is None for v in got] == [v is None for v in velocities]
+            assert all(a is None or (np.array_equal(a, b) and not b.flags.writeable) for a, b in zip(velocities, got))
+            assert got_free.dtype == np.int64 and np.array_equal(got_free, free)

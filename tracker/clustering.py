@@ -206,7 +206,11 @@ def segment_crosses_box(start: np.ndarray, end: np.ndarray, half_length: np.ndar
     return ok & (lo < hi)
 
 
-def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = 8) -> np.ndarray:
+#: Rounds of cuts ``split_across`` makes at most (a part still too wide after them stays whole).
+SPLIT_MAX_CUTS = 8
+
+
+def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = SPLIT_MAX_CUTS) -> np.ndarray:
     """Part index (0..P-1) of each point: the points of each ``group`` (integer labels, any values)
     whose extent in ``n`` (the lateral road offset, m) exceeds ``width`` are cut at their largest gap
     between consecutive ``n`` values, if that gap is at least ``gap``; parts still wider are cut again
@@ -331,6 +335,34 @@ def cluster_radar(clusters: list[np.ndarray], radar: RadarDetections, t: float,
         if r >= 0:
             velocities[k] = velocity[r]
     return velocities, index
+
+
+def cluster_radar_ranges(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, radar: RadarDetections, t: float,
+                         gate: float) -> tuple[list[np.ndarray | None], np.ndarray]:
+    """``cluster_radar`` for the clusters ``points[lo[k]:hi[k]]`` (``points (N, 2)`` in E ordered by
+    cluster, as the tracker groups them): per cluster the velocity ``(vx, vy)`` of its detection (a
+    row of one read-only ``(R, 2)`` array) or None, and the indices of the detections that joined no
+    cluster. One compiled call (``tracker.compiled.clustering.cluster_radar_kernel``: the detections
+    moved to ``t`` as ``RadarDetections.positions_at``, then the association) when the kernels are on."""
+    lo = np.asarray(lo, dtype=np.int64).reshape(-1)
+    hi = np.asarray(hi, dtype=np.int64).reshape(-1)
+    if len(lo) != len(hi):
+        raise ValueError(f"cluster_radar_ranges needs one end per start; got {len(lo)} starts and {len(hi)} ends")
+    if len(radar) == 0 or len(lo) == 0 or not compiled_kernels.enabled():
+        velocities, index = cluster_radar([points[a:b] for a, b in zip(lo.tolist(), hi.tolist())], radar, t, gate)
+        free = np.ones(len(radar), dtype=bool)
+        free[index[index >= 0]] = False
+        return velocities, np.flatnonzero(free)
+    from tracker.compiled.clustering import cluster_radar_kernel
+
+    index, velocity, free = cluster_radar_kernel(np.ascontiguousarray(points, dtype=float), lo, hi, radar.t, radar.x,
+                                                 radar.y, radar.vx, radar.vy, float(t), float(gate))
+    velocity.flags.writeable = False  # the clusters' velocities are rows of it: read-only, not aliased edits
+    velocities: list[np.ndarray | None] = [None] * len(lo)
+    for k, r in enumerate(index.tolist()):
+        if r >= 0:
+            velocities[k] = velocity[r]
+    return velocities, free
 
 
 def bearing_extremes(clusters: list[np.ndarray]) -> np.ndarray:

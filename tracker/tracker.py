@@ -67,8 +67,9 @@ from scipy.stats import chi2
 from tracker.birth import cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
-from tracker.clustering import (bearing_extremes, cluster_radar, dense_components, distance_partition,
-                                fragment_owners, occluded_ends, points_in_rectangles, split_across)
+from tracker.clustering import (bearing_extremes, cluster_radar_ranges, dense_components, distance_partition,
+                                fragment_owners, occluded_ends, points_in_rectangles, split_across,
+                                SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
@@ -410,60 +411,123 @@ class Tracker:
         return points, len(self._scan) > 0
 
     def _cluster(self, points: np.ndarray, frame: Frame, rect: Rectangles) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
+        """The frame's clusters (views of the points ordered by cluster) and their radar velocities (or
+        None); sets ``_owned`` (each cluster's track group, or -1), ``_component_group`` (each
+        component's track group, or -1) and ``_free_radar`` (the detections that joined no cluster).
+        The grouping is ``_grouped_points`` (one or two compiled calls when the kernels are on, the
+        same numbers as its numpy reference ``_grouped_points_numpy``), the radar association
+        ``tracker.clustering.cluster_radar_ranges``."""
         cfg = self.config.clustering
-        clusters: list[np.ndarray] = []
-        owned = np.zeros(0, dtype=int)
-        self._component_group = np.full(len(self.mixture), -1)
         if len(points):
-            owner = np.full(len(points), -1)
-            tracks = self._reported
-            if len(tracks):
-                owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
-                groups = _duplicate_groups(rect)
-                # every component carrying a reported track's label belongs to that track's group
-                # (its unreported hypotheses: a missed-detection copy, a fragment's update)
-                same = self.mixture.labels[:, None] == self.mixture.labels[tracks][None, :]  # (C, T)
-                self._component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
-                owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
-            component = distance_partition(points, cfg.distance)
-            inside = owner >= 0  # inside a rectangle (plus margin), before strays are adopted
-            owner = _adopt_strays(component, owner)
-            if cfg.fragment_points is not None and len(tracks):  # a far truck's side past its track's front
-                sd = np.sqrt(np.maximum(self.mixture.covs[tracks, LENGTH, LENGTH], 0.0))
-                held = np.zeros(int(groups.max()) + 1, dtype=bool)
-                held[owner[owner >= 0]] = True  # the groups holding points this frame
-                adopted = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length,
-                                          rect.width, sd, cfg.track_margin, cfg.fragment_points, cfg.fragment_sigmas,
-                                          held[groups], cfg.fragment_side_tolerance)
-                taken = adopted >= 0
-                if taken.any():
-                    self.stats["fragment_points_adopted"] += int(taken.sum())
-                    owner = np.where(taken, groups[np.maximum(adopted, 0)], owner)
-            # all points a track (group) owns form one cluster, even in fragments (a partly hidden car);
-            # the other points form one cluster per connected component
-            key = np.where(owner >= 0, owner, len(tracks) + component)
-            if cfg.split_width is not None:
-                key, owner = self._split_across(key, owner, inside)
-            order = np.argsort(key, kind="stable")
-            bounds = np.flatnonzero(np.diff(key[order])) + 1
-            ordered = points[order]
-            edges = [0, *bounds.tolist(), len(ordered)]  # numpy.split's views, without its per-piece overhead
-            clusters = [ordered[a:b] for a, b in zip(edges[:-1], edges[1:])]
-            owned = owner[order][np.concatenate([[0], bounds])] if len(points) else np.zeros(0, dtype=int)
-        big = np.array([len(c) >= cfg.min_points for c in clusters], dtype=bool)
-        self.stats["clusters_too_small"] += int((~big).sum())
-        clusters = [c for c, keep in zip(clusters, big) if keep]
-        self._owned = owned[big] if len(big) else np.zeros(0, dtype=int)
-        velocities: list[np.ndarray | None] = [None] * len(clusters)
-        self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
-        if self.config.use_radar:
-            velocities, joined = cluster_radar(clusters, frame.radar, frame.t, cfg.radar_gate)
-            free = np.ones(len(frame.radar), dtype=bool)
-            free[joined[joined >= 0]] = False  # joined: per cluster, its detection or -1
-            self._free_radar = np.flatnonzero(free)
+            grouped = self._grouped_points(points, rect) if compiled_kernels.enabled() else None
+            ordered, edges, owned = self._grouped_points_numpy(points, rect) if grouped is None else grouped
+        else:
+            self._component_group = np.full(len(self.mixture), -1)
+            ordered, edges, owned = np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=int)
+        bounds = edges.tolist()
+        clusters = [ordered[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        lo, hi = edges[:-1], edges[1:]
+        if cfg.min_points > 1 and clusters:
+            big = (hi - lo) >= cfg.min_points
+            self.stats["clusters_too_small"] += int((~big).sum())
+            clusters = [c for c, keep in zip(clusters, big.tolist()) if keep]
+            owned, lo, hi = owned[big], lo[big], hi[big]
+        else:
+            self.stats["clusters_too_small"] += 0
+        self._owned = owned
+        if self.config.use_radar and clusters and len(frame.radar):
+            velocities, self._free_radar = cluster_radar_ranges(ordered, lo, hi, frame.radar, frame.t, cfg.radar_gate)
+        else:
+            velocities = [None] * len(clusters)
+            self._free_radar = np.arange(len(frame.radar))  # detections that joined no cluster
         self.stats["clusters"] += len(clusters)
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities
+
+    def _grouped_points(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``_grouped_points_numpy`` in one compiled call (``tracker.compiled.clustering.cluster_points_kernel``),
+        or two with ``fragment_owners`` (numpy) between them where a fragment may join a track
+        (``ordered_clusters_kernel`` then finishes); None (nothing set) where the kernel hands back (a
+        non-finite lateral offset, a partition the compiled path does not take)."""
+        from tracker.compiled.clustering import cluster_points_kernel, ordered_clusters_kernel
+
+        cfg = self.config.clustering
+        tracks = self._reported
+        labels = self.mixture.labels
+        fragment = cfg.fragment_points is not None and len(tracks)
+        split = cfg.split_width is not None
+        ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(
+            points, rect.center, np.cos(rect.psi), np.sin(rect.psi), rect.length, rect.width, float(cfg.track_margin),
+            rect.corners(), labels, labels[tracks], float(cfg.distance), self._point_n,
+            int(cfg.fragment_points) if fragment else -1, split, float(cfg.split_width) if split else 0.0,
+            float(cfg.split_gap), SPLIT_MAX_CUTS)
+        if not ok:
+            return None
+        self._component_group = component_group
+        if not done:
+            owner = self._fragments_adopted(points, rect, groups, component, owner)
+            ordered, edges, owned, added = ordered_clusters_kernel(points, owner, inside, component, len(tracks),
+                                                                   self._point_n, split,
+                                                                   float(cfg.split_width) if split else 0.0,
+                                                                   float(cfg.split_gap), SPLIT_MAX_CUTS)
+        if added:
+            self.stats["clusters_split"] += int(added)
+        return ordered, edges, owned
+
+    def _grouped_points_numpy(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points grouped into clusters: points inside a reported track's predicted rectangle (plus
+        ``clustering.track_margin``) go to its group (overlapping rectangles, ``_duplicate_groups``, are
+        one); a connected component (``distance_partition``) that a group owns in part joins it entirely
+        (``_adopt_strays``); lone fragments may continue a track (``_fragments_adopted``); all points a
+        group owns form one cluster, even in fragments (a partly hidden car), the other points one
+        cluster per connected component; clusters too wide across the road are cut (``_split_across``).
+        Returns the points ordered by cluster (groups first, then components, then the cut parts; ties
+        by index), the clusters' edges ``(K + 1,)`` in them and each cluster's group (or -1); sets
+        ``_component_group``."""
+        cfg = self.config.clustering
+        self._component_group = np.full(len(self.mixture), -1)
+        owner = np.full(len(points), -1)
+        tracks = self._reported
+        groups = np.zeros(0, dtype=int)
+        if len(tracks):
+            owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
+            groups = _duplicate_groups(rect)
+            # every component carrying a reported track's label belongs to that track's group
+            # (its unreported hypotheses: a missed-detection copy, a fragment's update)
+            same = self.mixture.labels[:, None] == self.mixture.labels[tracks][None, :]  # (C, T)
+            self._component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
+            owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
+        component = distance_partition(points, cfg.distance)
+        inside = owner >= 0  # inside a rectangle (plus margin), before strays are adopted
+        owner = _adopt_strays(component, owner)
+        if cfg.fragment_points is not None and len(tracks):  # a far truck's side past its track's front
+            owner = self._fragments_adopted(points, rect, groups, component, owner)
+        key = np.where(owner >= 0, owner, len(tracks) + component)
+        if cfg.split_width is not None:
+            key, owner = self._split_across(key, owner, inside)
+        order = np.argsort(key, kind="stable")
+        bounds = np.flatnonzero(np.diff(key[order])) + 1
+        edges = np.concatenate([[0], bounds, [len(points)]])
+        return points[order], edges, owner[order][edges[:-1]]
+
+    def _fragments_adopted(self, points: np.ndarray, rect: Rectangles, groups: np.ndarray, component: np.ndarray,
+                           owner: np.ndarray) -> np.ndarray:
+        """``owner`` with the lone fragments that continue a track's side past its predicted front
+        (``clustering.fragment_points``; ``tracker.clustering.fragment_owners``) given to its group;
+        counted in ``fragment_points_adopted``."""
+        cfg = self.config.clustering
+        tracks = self._reported
+        sd = np.sqrt(np.maximum(self.mixture.covs[tracks, LENGTH, LENGTH], 0.0))
+        held = np.zeros(int(groups.max()) + 1, dtype=bool)
+        held[owner[owner >= 0]] = True  # the groups holding points this frame
+        adopted = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length,
+                                  rect.width, sd, cfg.track_margin, cfg.fragment_points, cfg.fragment_sigmas,
+                                  held[groups], cfg.fragment_side_tolerance)
+        taken = adopted >= 0
+        if taken.any():
+            self.stats["fragment_points_adopted"] += int(taken.sum())
+            owner = np.where(taken, groups[np.maximum(adopted, 0)], owner)
+        return owner
 
     def _split_across(self, key: np.ndarray, owner: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cut clusters wider across the road than one vehicle (``clustering.split_width``) at their
@@ -940,7 +1004,7 @@ def _duplicate_groups(rect: Rectangles) -> np.ndarray:
     if compiled_kernels.enabled():
         from tracker.compiled.clustering import overlap_groups_kernel
 
-        return overlap_groups_kernel(np.ascontiguousarray(corners), np.ascontiguousarray(rect.psi, dtype=float))
+        return overlap_groups_kernel(np.ascontiguousarray(corners), np.cos(rect.psi), np.sin(rect.psi))
     axes = np.concatenate([np.stack([np.cos(rect.psi), np.sin(rect.psi)], -1),
                            np.stack([-np.sin(rect.psi), np.cos(rect.psi)], -1)], axis=0)  # (2T, 2)
     proj = np.einsum("tkd,ad->tak", corners, axes)  # (T, 2T, 4): every rectangle on every axis

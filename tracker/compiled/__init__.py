@@ -19,12 +19,16 @@ Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``s
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
 points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
 (bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow), ``reduction`` (the reduce stage: the field-of-view and road test, prune, merge, cap
-and the closed road's ``s`` in one call; the test of components inside an updated one's rectangle; the
-candidates of overlapping labels and their overlap test), ``kalman`` (the UKF update of the
+next to a shadow; the tracker's whole grouping of the points into clusters, its radar association),
+``reduction`` (the reduce stage: the field-of-view and road test, prune, merge, cap and the closed
+road's ``s`` in one call; the test of components inside an updated one's rectangle; the candidates of
+overlapping labels and their overlap test), ``kalman`` (the UKF update of the
 pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
-the extent rules).
+the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the lidar's road filter:
+projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of the pairs), ``birth``
+(the road births and where a vehicle can enter the view), ``ukf`` (sigma points, their moments, a quick
+test of positive definiteness).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix
 products, the Kalman update): there they agree to rounding (``tests/test_compiled.py`` says which).
@@ -143,6 +147,14 @@ def warm_up() -> bool:
     _duplicate_groups(rect)
     occluded_fraction(rect, np.array([1, 2]), rect, np.array([3, 4]))  # the Cartesian births' occlusion test
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
+    # the grouping's second call (after a fragment's numpy step) and its hand-back's partition
+    from tracker.clustering import SPLIT_MAX_CUTS, distance_partition
+    from tracker.compiled.clustering import ordered_clusters_kernel
+
+    pts = np.array([[10.0, 0.0], [10.5, 0.0]])
+    distance_partition(pts, 1.0)
+    ordered_clusters_kernel(pts, np.array([0, -1]), np.array([True, False]), np.zeros(2, dtype=np.int64), 1, np.zeros(2),
+                            True, 3.0, 0.5, SPLIT_MAX_CUTS)
     # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
     # component with a car's length prior (its prior is widened: tracker.update's staged path), and
     # clusters prepared alone, with and without their shadow flags (tracker.preparation)

@@ -4,7 +4,14 @@ The same graph (points joined when at most ``threshold`` apart, as ``cKDTree.que
 connected components, found on a grid of square cells of side ``threshold / sqrt(2)``: the points of
 one cell are all within ``threshold`` of each other (one component), and two cells at most two apart
 along each axis are joined as soon as one pair of their points is close enough (union-find; a pair of
-cells already in one component is skipped). Components are labelled in order of their first point."""
+cells already in one component is skipped). Components are labelled in order of their first point (so
+any order of the unions gives the same labels).
+
+Also the clustering's other kernels: the tracker's whole grouping of a frame's points into clusters
+(``cluster_points_kernel``: track rectangles' overlap groups, points in rectangles, the partition, strays
+adopted, clusters cut across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for
+its second half), the radar association (``associate_ranges``, ``cluster_radar_kernel``), and the
+scan's bearing searches (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``)."""
 
 from __future__ import annotations
 
@@ -72,13 +79,44 @@ def partition_points_kernel(pts, threshold):
 
 
 @njit
+def _counting_order(value, within):  # pragma: no cover - compiled
+    """``within`` (indices) stably reordered by ``value[within]`` (non-negative integers): a counting sort."""
+    size = 0
+    for i in within:
+        size = max(size, value[i] + 1)
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in within:
+        start[value[i] + 1] += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    order = np.empty(len(within), dtype=np.int64)
+    for i in within:
+        order[start[value[i]]] = i
+        start[value[i]] += 1
+    return order
+
+
+@njit
+def _cell_order(cx, cy):  # pragma: no cover - compiled
+    """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
+    of one cell is any). Two counting sorts (by ``cy``, then stably by ``cx``); with more rows and
+    columns than ``4 n + 1024``, ``numpy.argsort`` of the keys."""
+    n = len(cx)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    if cx.max() + cy.max() + 2 > 4 * n + 1024:
+        return np.argsort(cx * (cy.max() + 1) + cy)
+    return _counting_order(cx, _counting_order(cy, np.arange(n)))
+
+
+@njit
 def partition_kernel(pts, threshold, cx, cy, span_y):
     """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
     shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
     every cell and of its neighbours two cells away are then distinct and non-negative)."""
     n = len(pts)
     key = cx * span_y + cy
-    order = np.argsort(key)
+    order = _cell_order(cx, cy)
     sorted_key = key[order]
     parent = np.arange(n)
     # the cells: unique keys with the range of their points in ``order``
@@ -95,51 +133,70 @@ def partition_kernel(pts, threshold, cx, cy, span_y):
     cell_start[cells] = n
     cell_key = cell_key[:cells]
     r2 = threshold * threshold
+    # the 12 neighbours' key offsets (each pair of cells once), all positive; the cells are sorted by key,
+    # so the neighbour at each offset is found by a pointer that only moves forward
+    offsets = np.empty(12, dtype=np.int64)
+    m = 0
+    for dx in range(0, 3):
+        for dy in range(-2, 3):
+            if dx == 0 and dy <= 0:
+                continue
+            offsets[m] = dx * span_y + dy
+            m += 1
+    pointer = np.zeros(12, dtype=np.int64)
     for a in range(cells):
         pa = order[cell_start[a]]
         ka = cell_key[a]
-        for dx in range(0, 3):
-            for dy in range(-2, 3):
-                if dx == 0 and dy <= 0:
-                    continue  # each pair of cells once
-                b = np.searchsorted(cell_key, ka + dx * span_y + dy)
-                if b >= cells or cell_key[b] != ka + dx * span_y + dy:
-                    continue
-                pb = order[cell_start[b]]
-                if _root(parent, pa) == _root(parent, pb):
-                    continue
-                joined = False
-                for u in range(cell_start[a], cell_start[a + 1]):
-                    i = order[u]
-                    for w in range(cell_start[b], cell_start[b + 1]):
-                        q = order[w]
-                        ddx = pts[q, 0] - pts[i, 0]
-                        ddy = pts[q, 1] - pts[i, 1]
-                        if ddx * ddx + ddy * ddy <= r2:
-                            _union(parent, pa, pb)
-                            joined = True
-                            break
-                    if joined:
+        for m in range(12):
+            target = ka + offsets[m]
+            b = pointer[m]
+            while b < cells and cell_key[b] < target:
+                b += 1
+            pointer[m] = b
+            if b >= cells or cell_key[b] != target:
+                continue
+            pb = order[cell_start[b]]
+            if _root(parent, pa) == _root(parent, pb):
+                continue
+            joined = False
+            for u in range(cell_start[a], cell_start[a + 1]):
+                i = order[u]
+                for w in range(cell_start[b], cell_start[b + 1]):
+                    q = order[w]
+                    ddx = pts[q, 0] - pts[i, 0]
+                    ddy = pts[q, 1] - pts[i, 1]
+                    if ddx * ddx + ddy * ddy <= r2:
+                        _union(parent, pa, pb)
+                        joined = True
                         break
+                if joined:
+                    break
     return _labels_in_order(parent)
 
 
 @njit
 def radar_association_kernel(points, offsets, radar, gate):
-    """``tracker.clustering.associate_radar`` for clusters ``points[offsets[k]:offsets[k + 1]]``: the
-    distance of a detection to a cluster is that to its nearest point; gated pairs are taken greedily in
-    increasing distance (ties in row-major order, as a stable sort of the flattened matrix), each cluster
-    and each detection at most once. Returns the detection index per cluster, or -1. A pair whose
-    detection lies beyond the gate from the cluster's bounding box keeps an infinite distance (it can
-    never be taken, and the greedy pass stops at the first distance beyond the gate)."""
-    count = len(offsets) - 1
+    """``tracker.clustering.associate_radar`` for clusters ``points[offsets[k]:offsets[k + 1]]``
+    (``associate_ranges``)."""
+    return associate_ranges(points, offsets[:-1], offsets[1:], radar, gate)
+
+
+@njit
+def associate_ranges(points, lo, hi, radar, gate):
+    """``tracker.clustering.associate_radar`` for clusters ``points[lo[k]:hi[k]]``: the distance of a
+    detection to a cluster is that to its nearest point; gated pairs are taken greedily in increasing
+    distance (ties in row-major order, as a stable sort of the flattened matrix), each cluster and each
+    detection at most once. Returns the detection index per cluster, or -1. A pair whose detection lies
+    beyond the gate from the cluster's bounding box keeps an infinite distance (it can never be taken);
+    only the pairs within the gate are sorted."""
+    count = len(lo)
     n_radar = len(radar)
     dist = np.full(count * n_radar, np.inf)
     reach = gate * gate * (1.0 + 1e-9)  # beyond it a pair is never taken: its distance is not needed
     for k in range(count):
-        lo_x = hi_x = points[offsets[k], 0] if offsets[k + 1] > offsets[k] else 0.0
-        lo_y = hi_y = points[offsets[k], 1] if offsets[k + 1] > offsets[k] else 0.0
-        for i in range(offsets[k], offsets[k + 1]):
+        lo_x = hi_x = points[lo[k], 0] if hi[k] > lo[k] else 0.0
+        lo_y = hi_y = points[lo[k], 1] if hi[k] > lo[k] else 0.0
+        for i in range(lo[k], hi[k]):
             lo_x, hi_x = min(lo_x, points[i, 0]), max(hi_x, points[i, 0])
             lo_y, hi_y = min(lo_y, points[i, 1]), max(hi_y, points[i, 1])
         for r in range(n_radar):
@@ -148,25 +205,64 @@ def radar_association_kernel(points, offsets, radar, gate):
             if bx * bx + by * by > reach:
                 continue  # every point is farther than the gate: the distance stays inf
             best = np.inf  # the nearest point's squared distance, then its root (sqrt is monotonic)
-            for i in range(offsets[k], offsets[k + 1]):
+            for i in range(lo[k], hi[k]):
                 dx = points[i, 0] - radar[r, 0]
                 dy = points[i, 1] - radar[r, 1]
                 d2 = dx * dx + dy * dy
                 if d2 < best:
                     best = d2
             dist[k * n_radar + r] = np.sqrt(best)
-    order = np.argsort(dist, kind="mergesort")
+    # the gated pairs in row-major order, then stably by distance: the prefix of a stable sort of all
+    # pairs that the greedy pass reads (it stops at the first distance beyond the gate)
+    gated = 0
+    for f in range(count * n_radar):
+        if dist[f] <= gate:
+            gated += 1
+    flat = np.empty(gated, dtype=np.int64)
+    gated = 0
+    for f in range(count * n_radar):
+        if dist[f] <= gate:
+            flat[gated] = f
+            gated += 1
+    order = flat[np.argsort(dist[flat], kind="mergesort")]
     out = np.full(count, -1, dtype=np.int64)
     used = np.zeros(n_radar, dtype=np.bool_)
     for f in order:
-        if not dist[f] <= gate:
-            break
         k = f // n_radar
         r = f % n_radar
         if out[k] < 0 and not used[r]:
             out[k] = r
             used[r] = True
     return out
+
+
+@njit
+def cluster_radar_kernel(points, lo, hi, t_radar, x, y, vx, vy, t, gate):  # pragma: no cover - compiled
+    """``tracker.clustering.cluster_radar`` for clusters ``points[lo[k]:hi[k]]`` and the detections'
+    fields (``RadarDetections``): each detection moved to ``t`` (``x + vx (t - t_radar)``, as
+    ``RadarDetections.positions_at``), then ``associate_ranges``. Returns the detection per cluster (or
+    -1), the detections' velocities ``(R, 2)`` and the indices of the detections that joined no cluster."""
+    n_radar = len(t_radar)
+    radar = np.empty((n_radar, 2))
+    velocity = np.empty((n_radar, 2))
+    for r in range(n_radar):
+        lag = t - t_radar[r]
+        radar[r, 0] = x[r] + vx[r] * lag
+        radar[r, 1] = y[r] + vy[r] * lag
+        velocity[r, 0] = vx[r]
+        velocity[r, 1] = vy[r]
+    index = associate_ranges(points, lo, hi, radar, gate)
+    used = np.zeros(n_radar, dtype=np.bool_)
+    for k in range(len(index)):
+        if index[k] >= 0:
+            used[index[k]] = True
+    free = np.empty(n_radar - used.sum(), dtype=np.int64)
+    m = 0
+    for r in range(n_radar):
+        if not used[r]:
+            free[m] = r
+            m += 1
+    return index, velocity, free
 
 
 @njit
@@ -201,9 +297,10 @@ def points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w):
 
 
 @njit
-def overlap_groups_kernel(corners, psi):
-    """Group per rectangle: overlapping rectangles (no separating axis among their own four) are
-    one group; groups numbered in order of their first rectangle (``tracker.tracker._duplicate_groups``)."""
+def overlap_groups_kernel(corners, c, s):
+    """Group per rectangle: overlapping rectangles (no separating axis among their own four; the axes
+    ``(c, s)`` and ``(-s, c)`` of each, ``c``, ``s`` the cosine and sine of its heading) are one group;
+    groups numbered in order of their first rectangle (``tracker.tracker._duplicate_groups``)."""
     t = len(corners)
     parent = np.arange(t)
     for i in range(t):
@@ -211,8 +308,8 @@ def overlap_groups_kernel(corners, psi):
             separated = False
             for owner in (i, j):
                 for turn in range(2):
-                    ax = np.cos(psi[owner]) if turn == 0 else -np.sin(psi[owner])
-                    ay = np.sin(psi[owner]) if turn == 0 else np.cos(psi[owner])
+                    ax = c[owner] if turn == 0 else -s[owner]
+                    ay = s[owner] if turn == 0 else c[owner]
                     lo_i = np.inf
                     hi_i = -np.inf
                     lo_j = np.inf
@@ -229,6 +326,261 @@ def overlap_groups_kernel(corners, psi):
             if not separated:
                 _union(parent, i, j)
     return _labels_in_order(parent)
+
+
+@njit
+def _grouped(key):  # pragma: no cover - compiled
+    """A stable counting sort of the non-negative integer ``key``: the point indices ordered by key
+    (ties by index, as ``numpy.argsort(key, kind="stable")``) and the edges ``(G + 1,)`` of the runs of
+    equal keys in that order."""
+    count = len(key)
+    size = key.max() + 1 if count else 0
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(count):
+        start[key[i] + 1] += 1
+    groups = 0
+    for k in range(size):
+        if start[k + 1] > 0:
+            groups += 1
+        start[k + 1] += start[k]
+    edges = np.empty(groups + 1, dtype=np.int64)
+    g = 0
+    for k in range(size):
+        if start[k + 1] > start[k]:
+            edges[g] = start[k]
+            g += 1
+    edges[groups] = count
+    order = np.empty(count, dtype=np.int64)
+    for i in range(count):
+        order[start[key[i]]] = i
+        start[key[i]] += 1
+    return order, edges
+
+
+@njit
+def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
+                        max_points):  # pragma: no cover - compiled
+    """The first half of ``tracker.tracker.Tracker._cluster``'s grouping: per point the track group
+    owning it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine
+    and sine of their headings, widened by ``margin``: half extents ``0.5 length + margin``; mapped to
+    the rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every
+    rectangle then joins the group owning most points of its connected
+    component, ``tracker.tracker._adopt_strays``, the first such group on a tie), whether it lay inside
+    a rectangle, its connected component (``partition_points_kernel``), per mixture component the group
+    of the first track carrying its label (``labels`` against ``track_labels``; -1), and whether some
+    component of at most ``max_points`` points is wholly free (``tracker.clustering.fragment_owners``
+    has work; -1: never). Returns ``(ok, owner, inside, component, component_group, fragments)``; ``ok``
+    False when the partition hands back or a lateral offset ``n`` is not finite (the caller then takes
+    the numpy path)."""
+    count = len(pts)
+    owner = np.full(count, -1, dtype=np.int64)
+    inside = np.zeros(count, dtype=np.bool_)
+    component_group = np.full(len(labels), -1, dtype=np.int64)
+    groups = overlap_groups_kernel(corners, c, s) if len(ctr) > 1 else np.zeros(len(ctr), dtype=np.int64)
+    for i in range(len(n)):
+        if not np.isfinite(n[i]):
+            return False, groups, owner, inside, owner, component_group, False
+    component, ok = partition_points_kernel(pts, threshold)
+    if not ok:
+        return False, groups, owner, inside, owner, component_group, False
+    for c_ in range(len(labels)):
+        for t in range(len(track_labels)):
+            if labels[c_] == track_labels[t]:
+                component_group[c_] = groups[t]
+                break
+    if len(ctr):
+        half_l = np.empty(len(ctr))
+        half_w = np.empty(len(ctr))
+        for k in range(len(ctr)):
+            half_l[k] = 0.5 * length[k] + margin
+            half_w[k] = 0.5 * width[k] + margin
+        box = points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w)
+        for i in range(count):
+            if box[i] >= 0:
+                owner[i] = groups[box[i]]
+                inside[i] = True
+    n_comp = component.max() + 1 if count else 0
+    owned = 0
+    n_own = 0
+    for i in range(count):
+        if owner[i] >= 0:
+            owned += 1
+            n_own = max(n_own, owner[i] + 1)
+    if owned > 0 and owned < count:  # strays join their component's majority group
+        votes = np.zeros((n_comp, n_own), dtype=np.int64)
+        for i in range(count):
+            if owner[i] >= 0:
+                votes[component[i], owner[i]] += 1
+        majority = np.full(n_comp, -1, dtype=np.int64)
+        for k in range(n_comp):
+            best = 0
+            for g in range(n_own):
+                if votes[k, g] > best:
+                    best = votes[k, g]
+                    majority[k] = g
+        for i in range(count):
+            if owner[i] < 0:
+                owner[i] = majority[component[i]]
+    fragments = False
+    if max_points >= 0 and owned < count:
+        size = np.zeros(n_comp, dtype=np.int64)
+        taken = np.zeros(n_comp, dtype=np.bool_)
+        for i in range(count):
+            size[component[i]] += 1
+            if owner[i] >= 0:
+                taken[component[i]] = True
+        for k in range(n_comp):
+            if size[k] <= max_points and not taken[k]:
+                fragments = True
+                break
+    return True, groups, owner, inside, component, component_group, fragments
+
+
+@njit
+def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cover - compiled
+    """``tracker.tracker.Tracker._split_across`` on ``key`` and ``owner`` in place (with
+    ``tracker.clustering.split_across``'s rounds): a cluster (run of equal keys) spanning more than
+    ``width`` in ``n`` is cut at its largest gap (the first point after it, in ``n`` order; ties by
+    index) if at least ``gap``, again for up to ``max_cuts`` rounds; the parts of a cut cluster take
+    the keys ``max(key) + 1 + part`` (parts numbered by cluster, then ``n``), and of a track's cluster
+    only the parts with most points ``inside`` (plus 1e-6 per point: ties to the larger part) stay
+    owned. Returns the number of parts added."""
+    order, edges = _grouped(key)
+    clusters = len(edges) - 1
+    wide = np.zeros(clusters, dtype=np.bool_)
+    total = 0
+    for g in range(clusters):
+        lo = hi = n[order[edges[g]]]
+        for j in range(edges[g], edges[g + 1]):
+            lo = min(lo, n[order[j]])
+            hi = max(hi, n[order[j]])
+        wide[g] = hi - lo > width
+        if wide[g]:
+            total += edges[g + 1] - edges[g]
+    if total == 0:
+        return 0
+    # the candidates, by cluster then n (ties by index): src (point index), ns (offset), ps (part)
+    src = np.empty(total, dtype=np.int64)
+    ns = np.empty(total)
+    ps = np.empty(total, dtype=np.int64)
+    cluster_of = np.empty(total, dtype=np.int64)  # the original cluster (run index) of each candidate
+    m = 0
+    rank = 0
+    for g in range(clusters):
+        if not wide[g]:
+            continue
+        idx = order[edges[g]:edges[g + 1]]
+        sub = n[idx]
+        within = np.argsort(sub, kind="mergesort")
+        for j in range(len(idx)):
+            src[m] = idx[within[j]]
+            ns[m] = sub[within[j]]
+            ps[m] = rank
+            cluster_of[m] = g
+            m += 1
+        rank += 1
+    first = np.empty(total, dtype=np.bool_)
+    cut = np.empty(total, dtype=np.bool_)
+    for _ in range(max_cuts):
+        for j in range(total):
+            first[j] = j == 0 or ps[j] != ps[j - 1]
+            cut[j] = False
+        any_cut = False
+        a = 0
+        while a < total:
+            b = a + 1
+            while b < total and not first[b]:
+                b += 1
+            if ns[b - 1] - ns[a] > width:
+                largest = -np.inf
+                for j in range(a + 1, b):
+                    largest = max(largest, ns[j] - ns[j - 1])
+                for j in range(a + 1, b):
+                    step = ns[j] - ns[j - 1]
+                    if step == largest and step >= gap:
+                        cut[j] = True
+                        any_cut = True
+                        break
+            a = b
+        if not any_cut:
+            break
+        part = -1
+        for j in range(total):
+            if first[j] or cut[j]:
+                part += 1
+            ps[j] = part
+    # clusters in more than one part are cut; the others keep their key and owner
+    top = key.max()
+    added = 0
+    a = 0
+    while a < total:
+        b = a + 1
+        while b < total and cluster_of[b] == cluster_of[a]:
+            b += 1
+        pieces = ps[b - 1] - ps[a] + 1
+        if pieces > 1:
+            added += pieces - 1
+            g_owner = owner[src[a]]
+            if g_owner >= 0:  # the part(s) with most points inside the rectangle stay owned
+                votes = np.zeros(pieces)
+                points = np.zeros(pieces, dtype=np.int64)
+                for j in range(a, b):
+                    if inside[src[j]]:
+                        votes[ps[j] - ps[a]] += 1.0
+                    points[ps[j] - ps[a]] += 1
+                best = -1.0
+                for p in range(pieces):
+                    votes[p] = votes[p] + 1e-6 * points[p]
+                    best = max(best, votes[p])
+                for j in range(a, b):
+                    if not votes[ps[j] - ps[a]] >= best:
+                        owner[src[j]] = -1
+            for j in range(a, b):
+                key[src[j]] = top + 1 + ps[j]
+        a = b
+    return added
+
+
+@njit
+def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, width, gap,
+                            max_cuts):  # pragma: no cover - compiled
+    """The second half of ``tracker.tracker.Tracker._cluster``'s grouping: the key of each point (its
+    owner group, else ``n_tracks`` plus its connected component), with ``split`` the clusters cut
+    across the road (``_split_keys``), then the points ordered by key (ties by index): returns the
+    ordered points, the clusters' edges ``(K + 1,)`` in them, each cluster's owner group (or -1) and
+    the number of parts the cuts added."""
+    count = len(pts)
+    key = np.empty(count, dtype=np.int64)
+    owner = owner.copy()
+    for i in range(count):
+        key[i] = owner[i] if owner[i] >= 0 else n_tracks + component[i]
+    added = _split_keys(key, owner, inside, n, width, gap, max_cuts) if split else 0
+    order, edges = _grouped(key)
+    ordered = np.empty((count, 2))
+    for j in range(count):
+        ordered[j, 0] = pts[order[j], 0]
+        ordered[j, 1] = pts[order[j], 1]
+    owned = np.empty(len(edges) - 1, dtype=np.int64)
+    for g in range(len(owned)):
+        owned[g] = owner[order[edges[g]]]
+    return ordered, edges, owned, added
+
+
+@njit
+def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
+                          max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
+    """``track_owners_kernel`` then, unless a fragment needs ``tracker.clustering.fragment_owners``
+    (numpy, in between) or the kernel handed back, ``ordered_clusters_kernel``: returns ``(ok, done,
+    groups, owner, inside, component, component_group, ordered, edges, owned, added)`` (``done`` False:
+    the last four are empty and the caller finishes the grouping)."""
+    ok, groups, owner, inside, component, component_group, fragments = track_owners_kernel(
+        pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n, max_points)
+    if not ok or fragments:
+        return (ok, False, groups, owner, inside, component, component_group, np.empty((0, 2)),
+                np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int64), 0)
+    ordered, edges, owned, added = ordered_clusters_kernel(pts, owner, inside, component, len(track_labels), n, split,
+                                                           split_width, gap, max_cuts)
+    return ok, True, groups, owner, inside, component, component_group, ordered, edges, owned, added
 
 
 @njit
