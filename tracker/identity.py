@@ -99,16 +99,20 @@ class LostTracks:
             updated = [True] * len(labels)
         elif not isinstance(updated, list):
             updated = np.asarray(updated, dtype=bool).tolist()
-        before = self._last_updated
-        rows: dict[int, int] = {}
-        now: dict[int, float] = {}
-        for row, (lab, up) in enumerate(zip(labels, updated)):
-            rows[lab] = row
-            now[lab] = t if up or lab not in before else before[lab]
+        if not len(means) == len(covs) == len(updated) == len(labels):
+            raise ValueError(f"LostTracks.observe needs as many means, covariances and updated flags as labels; got "
+                             f"{len(means)}, {len(covs)}, {len(updated)} for {len(labels)} labels")
+        rows = dict(zip(labels, range(len(labels))))  # a label given twice: its last row, as in now
+        if all(updated):
+            now = dict.fromkeys(labels, t)
+        else:
+            before = self._last_updated
+            now = {lab: t if up or lab not in before else before[lab] for lab, up in zip(labels, updated)}
         lost = self.lost
-        for lab in self._last_rows:
-            if lab not in rows:
-                lost[lab] = self._last_entry(lab)
+        if not self._last_rows.keys() <= rows.keys():  # some of last frame's tracks are lost
+            for lab in self._last_rows:
+                if lab not in rows:
+                    lost[lab] = self._last_entry(lab)
         if lost:
             self.lost = {lab: e for lab, e in lost.items() if lab not in rows and t - e.t <= self.window}
         self._last_t, self._last_rows, self._last_means, self._last_covs = t, rows, means, covs
