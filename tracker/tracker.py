@@ -73,7 +73,7 @@ from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
-from tracker.measurement import Rectangles, to_vehicle
+from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points
@@ -790,7 +790,7 @@ class Tracker:
         if red.keep_threshold is not None and self._reported_labels:
             above += self._kept_below_threshold(above, weights, labels)
         if above and red.report_range is not None:  # the field of view tracks are reported in
-            centre = to_vehicle(mix.means[above], ego, self.road, self.config.coordinates).center
+            centre = _centres(mix.means, np.array(above, dtype=np.intp), ego, self.road, self.config.coordinates)
             inside = (np.hypot(centre[:, 0], centre[:, 1])
                       <= self.config.detection.lidar_range + red.report_range).tolist()
             self.stats["tracks_beyond_report_range"] += inside.count(False)
@@ -805,8 +805,9 @@ class Tracker:
             self.stats["births_awaiting_support"] += len(above) - len(confirmed)
             above = confirmed
             alive = set(labels)
-            for lab in [lab for lab in support if lab not in alive]:
-                del support[lab]
+            if not support.keys() <= alive:  # forget the support of labels no component carries
+                for lab in [lab for lab in support if lab not in alive]:
+                    del support[lab]
         keep = self._reidentify(t, above, labels)
         if keep is not None:  # labels changed
             if not keep.all():  # a newcomer took over a coasting track: the track's components go
@@ -817,19 +818,21 @@ class Tracker:
                 self.mixture = mix = mix.take(keep)
                 weights = mix.weights.tolist()
             labels = mix.labels.tolist()
-        seen: set[int] = set()
-        for i in above:  # one label per frame: a second is a split target
-            old = labels[i]
-            if old in seen:
-                mix.labels[i] = self._new_labels(1)[0]
-                labels[i] = int(mix.labels[i])
-                self._support[labels[i]] = self._support.get(old, 0)
-                self.stats["label_splits"] += 1
-            seen.add(labels[i])
-        index = np.array(above, dtype=np.intp)
         reported = [labels[i] for i in above]
+        seen = set(reported)
+        if len(seen) < len(reported):  # one label per frame: a second component is a split target
+            seen = set()
+            for k, i in enumerate(above):
+                old = labels[i]
+                if old in seen:
+                    mix.labels[i] = self._new_labels(1)[0]
+                    labels[i] = reported[k] = int(mix.labels[i])
+                    self._support[labels[i]] = self._support.get(old, 0)
+                    self.stats["label_splits"] += 1
+                seen.add(labels[i])
+        index = np.array(above, dtype=np.intp)
         self._reported = index
-        self._reported_labels = set(reported)
+        self._reported_labels = seen
         means, covs = mix.means[index], mix.covs[index]
         updated = self._updated_labels
         self._lost.observe(t, reported, means, covs, [lab in updated for lab in reported])
@@ -912,6 +915,22 @@ class Tracker:
         labels = np.arange(self._next_label, self._next_label + count)
         self._next_label += count
         return labels
+
+
+def _centres(means: np.ndarray, index: np.ndarray, ego: EgoState, road: Road, coordinates: str) -> np.ndarray:
+    """The rectangle centres ``(K, 2)`` in E of the states ``means[index]``: ``to_vehicle(...).center``,
+    by one compiled call for curvilinear states when the kernels are on
+    (``tracker.compiled.extraction.report_centres_kernel``: the same numbers)."""
+    if coordinates == "curvilinear" and compiled_kernels.enabled() and len(index):
+        from tracker.compiled.extraction import report_centres_kernel
+
+        kind, *curve = road._curve.kernel_args()
+        means = means if means.flags.c_contiguous else np.ascontiguousarray(means)
+        centre, finite = report_centres_kernel(kind, means, index, float(ego.x), float(ego.y), float(ego.yaw),
+                                               road.closed, road.length, road._ends_array, *curve, MIN_EXTENT)
+        if finite:
+            return centre
+    return to_vehicle(means[index], ego, road, coordinates).center  # (with a non-finite s: its error)
 
 
 def _labels_in(labels: np.ndarray, chosen: Container[int]) -> np.ndarray:
