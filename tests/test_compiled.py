@@ -227,6 +227,40 @@ def test_compiled_to_vehicle_equals_numpy(name, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_the_report_centres_equal_to_vehicle_compiled_exactly(name, monkeypatch):
+    """``Tracker._extract``'s report-range centres (``tracker.tracker._centres``: one compiled call,
+    ``report_centres_kernel``) are ``to_vehicle(means[index]).center``'s compiled numbers bit for bit,
+    and numpy's with the kernels off: 7 and 8 columns, beyond an open road's ends, a repeated index, one
+    row, none, a non-C-contiguous mixture; a non-finite ``s`` among the rows raises to_vehicle's error."""
+    from tracker.measurement import to_vehicle
+    from tracker.tracker import _centres
+
+    road = _roads()[name]
+    rng = np.random.default_rng(7)
+    ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
+    for dim in (7, 8):
+        means = rng.normal(0.0, 1.0, (30, dim))
+        means[:, 0] = rng.uniform(-30.0, road.length + 30.0, 30) % (road.length if road.closed else np.inf)
+        means[:, 1] = rng.uniform(-8.0, 8.0, 30)
+        means[3, 0] = np.nan  # not among the rows asked for: no error
+        for index in (np.array([0, 5, 5, 29, 2]), np.array([11]), np.arange(4, 30), np.zeros(0, dtype=np.intp)):
+            index = index.astype(np.intp)
+            for switch in ("1", "0"):
+                monkeypatch.setenv(compiled.ENV_SWITCH, switch)
+                with compiled.pinned():
+                    got = _centres(means, index, ego, road, "curvilinear")
+                    ref = to_vehicle(means[index], ego, road).center
+                assert got.shape == ref.shape == (len(index), 2)
+                assert np.array_equal(got, ref)
+        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        strided = np.asfortranarray(means)
+        assert np.array_equal(_centres(strided, np.array([1, 2], dtype=np.intp), ego, road, "curvilinear"),
+                              to_vehicle(means[[1, 2]], ego, road).center)
+        with pytest.raises(ValueError, match="s must be finite"):
+            _centres(means, np.array([1, 3], dtype=np.intp), ego, road, "curvilinear")
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 def test_compiled_sigma_rectangles_equal_the_two_steps(name, monkeypatch):
     """``tracker.update.sigma_rectangles`` (sigma points and their rectangles in one compiled call)
     gives exactly the compiled ``sigma_points`` then ``to_vehicle``, and numpy's within 1e-9; 8-state
@@ -820,6 +854,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.gating as kg
     import tracker.compiled.birth as kb
     import tracker.compiled.ukf as ku
+    import tracker.compiled.extraction as kx
 
     assert compiled.warm_up()
     kernels = [kp.prepare_kernel, ks.structure_kernel, kc.curve_frame, kc.project_kernel, km.ukf_predict_kernel,
@@ -830,7 +865,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
                kb.road_births_kernel, ku.clearly_positive_definite, kr.inside_updated_kernel,
-               kr.absorb_candidates_kernel, kr.overlapping_candidates_kernel]
+               kr.absorb_candidates_kernel, kr.overlapping_candidates_kernel, kx.report_centres_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
     track_scene(15)

@@ -183,3 +183,41 @@ def test_a_track_that_stops_being_reported_in_the_newcomers_frame_is_a_candidate
     lt = store()  # a label still reported this frame is not a candidate
     lt.observe(0.0, np.array([6]), state(10.0)[None], cov()[None])
     assert lt.match(0.1, np.stack([state(11.0)]), cov()[None], reported=np.array([6, 9])).tolist() == [-1]
+
+
+def test_observe_keeps_the_records_the_per_track_store_kept():
+    """``observe`` keeps the frame's arrays and makes a lost track's record only when it is lost: over
+    random frames (labels coming, going, coming back, repeated in a frame; some not updated; the
+    window expiring) the store holds what a record per reported track gave: the same lost labels in
+    the same order, each with the state it was last reported with and when it was last updated, and
+    the same ``last_updated``; a length mismatch is refused."""
+    rng = np.random.default_rng(3)
+    lt = store(window=0.35)
+    last: dict[int, tuple] = {}  # the reference: label -> (t, mean, cov, updated) of last frame's tracks
+    lost: dict[int, tuple] = {}
+    for k in range(60):
+        t = 0.1 * k
+        labels = rng.choice(8, rng.integers(0, 6)).tolist()  # repeats possible: the last row counts
+        means = rng.normal(size=(len(labels), 7))
+        covs = rng.normal(size=(len(labels), 7, 7))
+        updated = (rng.random(len(labels)) < 0.6).tolist()
+        lt.observe(t, np.array(labels, dtype=int) if k % 2 else labels, means, covs,
+                   None if k % 7 == 0 else (updated if k % 3 else np.array(updated)))
+        if k % 7 == 0:
+            updated = [True] * len(labels)
+        now = {}
+        for lab, m, p, up in zip(labels, means, covs, updated):
+            now[lab] = (t, m, p, t if up or lab not in last else last[lab][3])
+        for lab, entry in last.items():
+            if lab not in now:
+                lost[lab] = entry
+        lost = {lab: e for lab, e in lost.items() if lab not in now and t - e[0] <= lt.window}
+        last = now
+        assert list(lt.lost) == list(lost)
+        for lab, (t0, m, p, up) in lost.items():
+            e = lt.lost[lab]
+            assert e.t == t0 and e.updated == up and np.array_equal(e.mean, m) and np.array_equal(e.cov, p)
+        for lab in range(9):
+            assert lt.last_updated(lab, -1.0) == (last[lab][3] if lab in last else -1.0)
+    with pytest.raises(ValueError, match="as many"):
+        lt.observe(9.0, [1, 2], np.zeros((1, 7)), np.zeros((2, 7, 7)))

@@ -1152,3 +1152,31 @@ def test_candidate_pairs_compiled_equal_numpy(monkeypatch):
             np.testing.assert_array_equal(a, b)
         if trial % 4 == 0 and p_d[0] > 0 and (owned[0] < 0 or owned[0] == group[0]):
             assert (0, 0) in set(zip(got[0].tolist(), got[1].tolist()))
+
+
+def test_extract_orders_by_weight_splits_a_second_component_and_holds_back_the_unsupported():
+    """``_extract`` on a hand-made mixture: tracks in decreasing weight, equal weights in index order; a
+    label's second component reported is a split target (a new label that inherits the support); a
+    label never reported without a large enough cluster's support waits; a component beyond the report
+    range is held back; ``_reported`` and the lost-track store follow the report."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tr = Tracker(road, TrackerConfig())
+    state = np.array([40.0, 1.75, 15.0, 0.0, 0.0, 4.8, 2.0, 0.0])
+    along = [0.0, 10.0, 30.0, 45.0, 20.0, 400.0]  # the last beyond the lidar's range
+    means = np.stack([state + [d, 0, 0, 0, 0, 0, 0, 0] for d in along])
+    weights = np.array([0.7, 0.9, 0.7, 0.8, 0.6, 0.95])
+    labels = np.array([4, 5, 4, 6, 9, 7])
+    tr.mixture = Mixture(weights, means, np.repeat(np.eye(8)[None] * 0.1, 6, axis=0), labels)
+    tr._ever_reported = {4, 5, 7}
+    tr._support = {6: 1, 9: 5, 4: 3, 12: 8}  # 6 lacks the points, 9 has them; 12 has no component left
+    tr._next_label = 20
+    ego = EgoState(0.0, 1.75, 0.0, 15.0, 0.0)
+    tracks = tr._extract(1.0, ego)
+    assert [t.label for t in tracks] == [5, 4, 20, 9]  # 0.9, then 0.7 twice in index order (4's second: 20)
+    assert [t.weight for t in tracks] == [0.9, 0.7, 0.7, 0.6]
+    assert tr._reported.tolist() == [1, 0, 2, 4] and tr.mixture.labels.tolist() == [4, 5, 20, 6, 9, 7]
+    assert tr._support == {6: 1, 9: 5, 4: 3, 20: 3} and tr._reported_labels == {4, 5, 20, 9}
+    assert tr.stats["label_splits"] == 1 and tr.stats["births_awaiting_support"] == 1
+    assert tr.stats["tracks_beyond_report_range"] == 1
+    assert np.array_equal(tracks[2].mean, means[2, :7]) and not tracks[2].mean.flags.writeable
+    assert tr._lost.last_updated(20, -1.0) == 1.0 and tr._lost.lost == {}

@@ -78,28 +78,54 @@ class LostTracks:
         self.brake = None if brake is None else float(brake)
         self.cartesian = cartesian
         self.lost: dict[int, _Lost] = {}
-        self._last: dict[int, _Lost] = {}  # last frame's reported tracks
+        # last frame's reported tracks, kept as observe's arrays (a _Lost record made only for a track
+        # that is lost): when they were reported, label -> row, the rows' means and covariances, and
+        # label -> when a cluster last updated the track
+        self._last_t = 0.0
+        self._last_rows: dict[int, int] = {}
+        self._last_means: np.ndarray = np.zeros((0, 0))
+        self._last_covs: np.ndarray = np.zeros((0, 0, 0))
+        self._last_updated: dict[int, float] = {}
 
-    def observe(self, t: float, labels: np.ndarray, means: np.ndarray, covs: np.ndarray,
-                updated: np.ndarray | None = None) -> None:
-        """Record this frame's reported tracks (``updated (N,)``: which a cluster updated this frame;
-        default all): labels reported last frame and not now become lost; lost labels reported again,
-        and those lost longer than ``window``, leave the store."""
-        updated = np.ones(len(labels), dtype=bool) if updated is None else np.asarray(updated, dtype=bool)
-        now = {}
-        for lab, m, p, up in zip(np.asarray(labels).tolist(), means, covs, updated.tolist()):
-            before = self._last.get(lab)
-            now[lab] = _Lost(t, m, p, t if up or before is None else before.updated)
-        for lab, last in self._last.items():
-            if lab not in now:
-                self.lost[lab] = last
-        self.lost = {lab: e for lab, e in self.lost.items() if lab not in now and t - e.t <= self.window}
-        self._last = now
+    def observe(self, t: float, labels: np.ndarray | list[int], means: np.ndarray, covs: np.ndarray,
+                updated: np.ndarray | list[bool] | None = None) -> None:
+        """Record this frame's reported tracks ``labels (N,)``, ``means (N, D)``, ``covs (N, D, D)``
+        (``updated (N,)``: which a cluster updated this frame; default all): labels reported last frame
+        and not now become lost; lost labels reported again, and those lost longer than ``window``,
+        leave the store. The arrays are kept, not copied (the store only reads them): rows of the
+        last frame become ``_Lost`` records only when their track is lost."""
+        labels = labels if isinstance(labels, list) else np.asarray(labels).tolist()
+        if updated is None:
+            updated = [True] * len(labels)
+        elif not isinstance(updated, list):
+            updated = np.asarray(updated, dtype=bool).tolist()
+        if not len(means) == len(covs) == len(updated) == len(labels):
+            raise ValueError(f"LostTracks.observe needs as many means, covariances and updated flags as labels; got "
+                             f"{len(means)}, {len(covs)}, {len(updated)} for {len(labels)} labels")
+        rows = dict(zip(labels, range(len(labels))))  # a label given twice: its last row, as in now
+        if all(updated):
+            now = dict.fromkeys(labels, t)
+        else:
+            before = self._last_updated
+            now = {lab: t if up or lab not in before else before[lab] for lab, up in zip(labels, updated)}
+        lost = self.lost
+        if not self._last_rows.keys() <= rows.keys():  # some of last frame's tracks are lost
+            for lab in self._last_rows:
+                if lab not in rows:
+                    lost[lab] = self._last_entry(lab)
+        if lost:
+            self.lost = {lab: e for lab, e in lost.items() if lab not in rows and t - e.t <= self.window}
+        self._last_t, self._last_rows, self._last_means, self._last_covs = t, rows, means, covs
+        self._last_updated = now
+
+    def _last_entry(self, label: int) -> _Lost:
+        """The record of last frame's reported track ``label`` (its state then, when last updated)."""
+        row = self._last_rows[label]
+        return _Lost(self._last_t, self._last_means[row], self._last_covs[row], self._last_updated[label])
 
     def last_updated(self, label: int, default: float) -> float:
         """When a cluster last updated the reported track ``label`` (s; ``default`` if unknown)."""
-        entry = self._last.get(int(label))
-        return default if entry is None else entry.updated
+        return self._last_updated.get(int(label), default)
 
     def match(self, t: float, means: np.ndarray, covs: np.ndarray,
               coasting: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
@@ -113,9 +139,9 @@ class LostTracks:
         out = np.full(len(means), -1, dtype=int)
         if reported is not None and self.window > 0.0:  # lost this frame: candidates like the stored ones
             now = set(int(x) for x in np.asarray(reported).reshape(-1))
-            for lab, last in self._last.items():
+            for lab in self._last_rows:
                 if lab not in now and lab not in self.lost:
-                    self.lost[lab] = last
+                    self.lost[lab] = self._last_entry(lab)
         lost = list(self.lost) if self.window > 0.0 else []
         extra = 0 if coasting is None else len(coasting[0])
         if not len(means) or not (lost or extra):

@@ -107,10 +107,13 @@ class Track:
             raise ValueError("Track.mean and Track.cov must be finite")
         means.flags.writeable = False
         covs.flags.writeable = False
-        out = []
+        labels = labels if isinstance(labels, list) else np.asarray(labels).tolist()
+        weights = weights if isinstance(weights, list) else np.asarray(weights, dtype=float).tolist()
         t = float(t)
-        for lab, m, p, w in zip(np.asarray(labels).tolist(), means, covs, np.asarray(weights, dtype=float).tolist()):
-            track = object.__new__(cls)
+        new = object.__new__
+        out = []
+        for lab, m, p, w in zip(labels, means, covs, weights):
+            track = new(cls)
             track.__dict__.update(label=int(lab), t=t, mean=m, cov=p, weight=float(w), extent=True)  # frozen: no __setattr__
             out.append(track)
         return out

@@ -74,7 +74,7 @@ from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
-from tracker.measurement import Rectangles, to_vehicle
+from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points
@@ -842,85 +842,116 @@ class Tracker:
         return np.asarray(self.road.to_frenet(means[:, :2])[1]).reshape(-1)
 
     def _extract(self, t: float, ego: EgoState) -> list[Track]:
+        """This frame's tracks (in decreasing weight; ``_reported`` their mixture indices): the components
+        above ``extraction_threshold`` (and those ``_kept_below_threshold``) whose centre lies within
+        ``detection.lidar_range + report_range`` of the ego, of labels reported before or confirmed by a
+        cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
+        component relabelled (a split target); the lost-track store observes them. The few components'
+        weights and labels are handled as Python lists (one numpy call per array, not per test)."""
         mix = self.mixture
         red = self.config.reduction
-        above = np.flatnonzero(mix.weights > red.extraction_threshold)
-        if red.keep_threshold is not None and len(self._reported_labels):
-            above = np.concatenate([above, self._kept_below_threshold(above)])
-        if len(above) and red.report_range is not None:  # the field of view tracks are reported in
-            centre = to_vehicle(mix.means[above], ego, self.road, self.config.coordinates).center
-            inside = np.hypot(centre[:, 0], centre[:, 1]) <= self.config.detection.lidar_range + red.report_range
-            self.stats["tracks_beyond_report_range"] += int((~inside).sum())
-            above = above[inside]
-        above = above[np.argsort(-mix.weights[above], kind="stable")]
+        weights = mix.weights.tolist()
+        labels = mix.labels.tolist()
+        threshold = red.extraction_threshold
+        above = [i for i, w in enumerate(weights) if w > threshold]
+        if red.keep_threshold is not None and self._reported_labels:
+            above += self._kept_below_threshold(above, weights, labels)
+        if above and red.report_range is not None:  # the field of view tracks are reported in
+            centre = _centres(mix.means, np.array(above, dtype=np.intp), ego, self.road, self.config.coordinates)
+            inside = (np.hypot(centre[:, 0], centre[:, 1])
+                      <= self.config.detection.lidar_range + red.report_range).tolist()
+            self.stats["tracks_beyond_report_range"] += inside.count(False)
+            above = [i for i, ok in zip(above, inside) if ok]
+        # decreasing weight, ties in index order (a stable sort's reverse keeps equal keys in order)
+        above.sort(key=weights.__getitem__, reverse=True)
         # a label not reported before needs the support of a large enough cluster (confirm_min_points)
-        need = self.config.reduction.confirm_min_points
+        need = red.confirm_min_points
         if need > 1:
-            confirmed = np.array([int(lab) in self._ever_reported or self._support.get(int(lab), 0) >= need
-                                  for lab in mix.labels[above]], dtype=bool)
-            self.stats["births_awaiting_support"] += int((~confirmed).sum())
-            above = above[confirmed]
-            alive = set(mix.labels.tolist())
-            self._support = {lab: n for lab, n in self._support.items() if lab in alive}
-        keep = self._reidentify(t, above)
-        if not keep.all():  # a newcomer took over a coasting track: the track's components go
-            self.stats["coasting_tracks_taken_over"] += int(len(np.unique(mix.labels[above][~keep[above]])))
-            position = np.cumsum(keep) - 1
-            above = position[above[keep[above]]]
-            self.mixture = mix = mix.take(keep)
-        seen: set[int] = set()
-        for i, old in zip(above.tolist(), mix.labels[above].tolist()):  # one label per frame: a second is a split target
-            if old in seen:
-                mix.labels[i] = self._new_labels(1)[0]
-                self._support[int(mix.labels[i])] = self._support.get(old, 0)
-                self.stats["label_splits"] += 1
-            seen.add(int(mix.labels[i]))
-        self._reported = above
-        self._reported_labels = set(mix.labels[above].tolist())
-        self._lost.observe(t, mix.labels[above], mix.means[above], mix.covs[above],
-                           _labels_in(mix.labels[above], self._updated_labels))
+            ever, support = self._ever_reported, self._support
+            confirmed = [i for i in above if labels[i] in ever or support.get(labels[i], 0) >= need]
+            self.stats["births_awaiting_support"] += len(above) - len(confirmed)
+            above = confirmed
+            alive = set(labels)
+            if not support.keys() <= alive:  # forget the support of labels no component carries
+                for lab in [lab for lab in support if lab not in alive]:
+                    del support[lab]
+        keep = self._reidentify(t, above, labels)
+        if keep is not None:  # labels changed
+            if not keep.all():  # a newcomer took over a coasting track: the track's components go
+                chosen = np.array(above, dtype=np.intp)
+                self.stats["coasting_tracks_taken_over"] += int(len(np.unique(mix.labels[chosen][~keep[chosen]])))
+                position = np.cumsum(keep) - 1
+                above = position[chosen[keep[chosen]]].tolist()
+                self.mixture = mix = mix.take(keep)
+                weights = mix.weights.tolist()
+            labels = mix.labels.tolist()
+        reported = [labels[i] for i in above]
+        seen = set(reported)
+        if len(seen) < len(reported):  # one label per frame: a second component is a split target
+            seen = set()
+            for k, i in enumerate(above):
+                old = labels[i]
+                if old in seen:
+                    mix.labels[i] = self._new_labels(1)[0]
+                    labels[i] = reported[k] = int(mix.labels[i])
+                    self._support[labels[i]] = self._support.get(old, 0)
+                    self.stats["label_splits"] += 1
+                seen.add(labels[i])
+        index = np.array(above, dtype=np.intp)
+        self._reported = index
+        self._reported_labels = seen
+        means, covs = mix.means[index], mix.covs[index]
+        updated = self._updated_labels
+        self._lost.observe(t, reported, means, covs, [lab in updated for lab in reported])
         if not self.cartesian:
-            return Track.checked_batch(mix.labels[above], t, mix.means[above, :7], mix.covs[above, :7, :7],
-                                       mix.weights[above])
+            if means.shape[1] != 7:
+                means, covs = means[:, :7], covs[:, :7, :7]
+            return Track.checked_batch(reported, t, means, covs, [weights[i] for i in above])
         return [Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road, float(mix.weights[i]),
                                      self.ut) for i in above]
 
-    def _kept_below_threshold(self, above: np.ndarray) -> np.ndarray:
+    def _kept_below_threshold(self, above: list[int], weights: list[float], labels: list[int]) -> list[int]:
         """Components below ``extraction_threshold`` still reported (``ReductionConfig.keep_threshold``):
-        per label reported last frame without a component above the threshold now, its heaviest
-        component if it weighs more than ``keep_threshold``."""
-        mix = self.mixture
-        low = np.flatnonzero((mix.weights > self.config.reduction.keep_threshold)
-                             & (mix.weights <= self.config.reduction.extraction_threshold))
-        if not len(low):
+        per label reported last frame without a component among ``above`` (the indices above the
+        threshold) now, its heaviest component (the first in index order among equal weights) if it
+        weighs more than ``keep_threshold``. ``weights`` and ``labels`` are the mixture's, as lists;
+        returns the chosen indices in increasing order."""
+        red = self.config.reduction
+        keep, threshold = red.keep_threshold, red.extraction_threshold
+        low = [i for i, w in enumerate(weights) if keep < w <= threshold]
+        if not low:
             return low
-        taken = set(mix.labels[above].tolist())
+        low.sort(key=weights.__getitem__, reverse=True)  # decreasing weight, ties in index order
+        taken = {labels[i] for i in above}
+        reported = self._reported_labels
         best: dict[int, int] = {}
-        for i in low[np.argsort(-mix.weights[low], kind="stable")].tolist():
-            lab = int(mix.labels[i])
-            if lab in self._reported_labels and lab not in taken and lab not in best:
+        for i in low:
+            lab = labels[i]
+            if lab in reported and lab not in taken and lab not in best:
                 best[lab] = i
         self.stats["tracks_kept_below_threshold"] += len(best)
-        return np.array(sorted(best.values()), dtype=np.intp)
+        return sorted(best.values())
 
-    def _reidentify(self, t: float, above: np.ndarray) -> np.ndarray:
-        """Components about to be reported under a label never reported before take the label of a
-        recently lost track, or of a reported track that coasts this frame, that they match
-        (``tracker.identity.LostTracks``), with all their label's components; the old track's own
-        components (a coasting track's, or a lost track's remaining low-weight hypotheses) are dropped.
-        Returns the mask of components kept."""
+    def _reidentify(self, t: float, above: list[int], labels: list[int]) -> np.ndarray | None:
+        """Components about to be reported (``above``; ``labels`` the mixture's labels as a list) under
+        a label never reported before take the label of a recently lost track, or of a reported track
+        that coasts this frame, that they match (``tracker.identity.LostTracks``), with all their label's
+        components; the old track's own components (a coasting track's, or a lost track's remaining
+        low-weight hypotheses) are dropped. Returns the mask of components kept, or None when no
+        component is about to be reported under a new label (nothing changes)."""
+        ever = self._ever_reported
+        new = [i for i in above if labels[i] not in ever]
+        if not new:
+            return None
         mix = self.mixture
         keep = np.ones(len(mix), dtype=bool)
-        fresh = ~_labels_in(mix.labels[above], self._ever_reported)
-        new = above[fresh]
-        if not len(new):
-            return keep
-        coasting = above[~fresh]
-        coasting = coasting[[int(mix.labels[i]) not in self._updated_labels for i in coasting]] if len(coasting) else coasting
+        coasting = [i for i in above if labels[i] in ever and labels[i] not in self._updated_labels]
         if self.config.reduction.reidentify_window <= 0.0:
-            coasting = coasting[:0]
+            coasting = []
+        coasting_index = np.array(coasting, dtype=np.intp)
         old = self._lost.match(t, mix.means[new], mix.covs[new],
-                               (mix.labels[coasting], mix.means[coasting], mix.covs[coasting]), mix.labels[above])
+                               (mix.labels[coasting_index], mix.means[coasting_index], mix.covs[coasting_index]),
+                               mix.labels[above])
         for i, lab in zip(new, old):
             if lab < 0:
                 continue
@@ -951,6 +982,22 @@ class Tracker:
         labels = np.arange(self._next_label, self._next_label + count)
         self._next_label += count
         return labels
+
+
+def _centres(means: np.ndarray, index: np.ndarray, ego: EgoState, road: Road, coordinates: str) -> np.ndarray:
+    """The rectangle centres ``(K, 2)`` in E of the states ``means[index]``: ``to_vehicle(...).center``,
+    by one compiled call for curvilinear states when the kernels are on
+    (``tracker.compiled.extraction.report_centres_kernel``: the same numbers)."""
+    if coordinates == "curvilinear" and compiled_kernels.enabled() and len(index):
+        from tracker.compiled.extraction import report_centres_kernel
+
+        kind, *curve = road._curve.kernel_args()
+        means = means if means.flags.c_contiguous else np.ascontiguousarray(means)
+        centre, finite = report_centres_kernel(kind, means, index, float(ego.x), float(ego.y), float(ego.yaw),
+                                               road.closed, road.length, road._ends_array, *curve, MIN_EXTENT)
+        if finite:
+            return centre
+    return to_vehicle(means[index], ego, road, coordinates).center  # (with a non-finite s: its error)
 
 
 def _labels_in(labels: np.ndarray, chosen: Container[int]) -> np.ndarray:

@@ -12,7 +12,8 @@ for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. Th
 use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
 project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
 after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
-``extent`` and ``kalman``; ``preparation`` and ``reduction`` call ``clustering``; ``centerline`` calls ``ukf``), delete
+``extent`` and ``kalman``; ``preparation`` and ``reduction`` call ``clustering``; ``centerline`` calls ``ukf``;
+``extraction`` calls ``centerline``), delete
 ``tracker/compiled/__pycache__`` so that the callers compile again with it.
 
 Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
@@ -28,7 +29,8 @@ the update), ``pairs`` (the whole update of the pairs in one call: the sigma poi
 the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the lidar's road filter:
 projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of the pairs), ``birth``
 (the road births and where a vehicle can enter the view), ``ukf`` (sigma points, their moments, a quick
-test of positive definiteness).
+test of positive definiteness), ``extraction`` (the report-range test's rectangle centres of the
+components to report).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix
 products, the Kalman update): there they agree to rounding (``tests/test_compiled.py`` says which).
@@ -184,6 +186,10 @@ def warm_up() -> bool:
     two = Mixture(mix.weights, mix.means, mix.covs, np.array([1, 2]))
     absorb_overlapping(two, 0.5, 0.5, tracker.wrapping)
     absorb_overlapping(two, 0.5, 0.5, tracker.wrapping, cartesian=True)
+    # the extraction's report-range centres (tracker.compiled.extraction), whether or not the scene reported
+    from tracker.tracker import _centres
+
+    _centres(means, np.array([0, 1], dtype=np.intp), EgoState(100.0, 0.0, 0.0, 10.0, 0.0), road, "curvilinear")
     for function in _EXTRA_WARM_UPS:
         function()
     _WARM = True
