@@ -493,6 +493,28 @@ def tracked_update_calls(frames: int, monkeypatch) -> list[tuple]:
     return calls
 
 
+def _counting(function, taken: list):
+    """``function`` that also records in ``taken`` whether each call gave a result (not None)."""
+    def counting(*args):
+        out = function(*args)
+        taken.append(out is not None)
+        return out
+    return counting
+
+
+def _lengths_cut(calls: list[tuple]) -> list[tuple]:
+    """The update calls ``(means, covs, ...)`` with every prior's length cut to 2 m (sides longer than
+    predicted: the fused kernels hand back for the widened prior)."""
+    from tracker.motion import LENGTH
+
+    out = []
+    for means, covs, *rest in calls:
+        short = means.copy()
+        short[:, LENGTH] = 2.0
+        out.append((short, covs, *rest))
+    return out
+
+
 def _kalman_inputs(rng, pairs, n, rows, extra, wrapping):
     """Random UKF update inputs of a realistic scale: states of road traffic, measurement sigma points
     a smooth nonlinear function of the state, innovations of a few standard deviations."""
@@ -879,24 +901,12 @@ def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
     ways, and the same calls with the priors' lengths cut to 2 m (sides longer than predicted: the
     kernel hands the pairs back for the widened prior, and the staged path runs)."""
     import tracker.update as tu
-    from tracker.motion import LENGTH
 
     calls = tracked_update_calls(15, monkeypatch)
     assert len(calls) >= 14
-    fused = tu._update_pairs_fused
     taken = []
-
-    def counting(*args):
-        out = fused(*args)
-        taken.append(out is not None)
-        return out
-
-    shortened = []
-    for means, covs, *rest in calls:
-        short = means.copy()
-        short[:, LENGTH] = 2.0
-        shortened.append((short, covs, *rest))
-    for case in calls + shortened:
+    counting = _counting(tu._update_pairs_fused, taken)
+    for case in calls + _lengths_cut(calls):
         monkeypatch.setattr(tu, "_update_pairs_fused", counting)
         got = tu.update_pairs(*case)
         monkeypatch.setattr(tu, "_update_pairs_fused", lambda *args: None)
@@ -915,7 +925,6 @@ def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
     lengths cut to 2 m (the kernel hands back; the two steps run)."""
     import tracker.tracker as tt
     import tracker.update as tu
-    from tracker.motion import LENGTH
 
     raw = []
     original = tt.update_clusters
@@ -929,21 +938,10 @@ def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
         tracker.step(scene.frame(0.1 * k, rng))
     monkeypatch.setattr(tt, "update_clusters", original)
     assert len(raw) >= 28
-    fused = tu._update_clusters_fused
     taken = []
-
-    def counting(*args):
-        out = fused(*args)
-        taken.append(out is not None)
-        return out
-
-    shortened = []
-    for means, covs, *rest in raw:
-        short = means.copy()
-        short[:, LENGTH] = 2.0
-        shortened.append((short, covs, *rest))
+    counting = _counting(tu._update_clusters_fused, taken)
     counts = []
-    for case in raw + shortened:
+    for case in raw + _lengths_cut(raw):
         monkeypatch.setattr(tu, "_update_clusters_fused", counting)
         got, occluded, continued = tu.update_clusters(*case)
         monkeypatch.setattr(tu, "_update_clusters_fused", lambda *args: None)
