@@ -325,3 +325,14 @@ def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch
             np.testing.assert_array_equal(ref[0], got[0])
             kept.append(len(got[0]) / max(len(road_births(road, s_ego, ego.v, 60.0, config)[0]), 1))
     assert min(kept) < 1.0 and max(kept) == 1.0  # some births dropped, and frames with all of them
+
+
+def test_visible_road_births_needs_one_label_per_track():
+    from tracker.birth import visible_road_births
+    from tracker.measurement import to_vehicle
+
+    road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    ego = EgoState(50.0, 0.0, 0.0, 10.0, 0.0)
+    tracks = to_vehicle(np.array([[60.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]] * 2), ego, road)
+    with pytest.raises(ValueError, match="one label per track"):
+        visible_road_births(road, 50.0, ego, 60.0, BirthConfig(), None, tracks, np.array([1]), 3.0)

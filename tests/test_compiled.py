@@ -875,7 +875,6 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.preprocess as kf
     import tracker.compiled.gating as kg
     import tracker.compiled.birth as kb
-    import tracker.compiled.ukf as ku
     import tracker.compiled.extraction as kx
 
     assert compiled.warm_up()
@@ -886,7 +885,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
-               kb.road_births_kernel, ku.clearly_positive_definite, kr.inside_updated_kernel,
+               kb.road_births_kernel, kr.inside_updated_kernel,
                kr.absorb_candidates_kernel, kr.overlapping_candidates_kernel, kx.report_centres_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)
@@ -968,6 +967,15 @@ def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
         np.testing.assert_array_equal(got[0].mean, ref[0].mean)
     with pytest.raises(ValueError, match="does not exist"):
         tu.update_clusters(means, covs, points, offsets, velocity, has_velocity, comp, clu + len(offsets), *rest)
+    with pytest.raises(ValueError, match="offsets must rise"):
+        tu.update_clusters(means, covs, points, offsets[::-1], velocity, has_velocity, comp, clu, *rest)
+    # a non-finite radar velocity: the fused call declines, the two steps raise their error
+    bad_velocity = velocity.copy()
+    bad_velocity[clu[0]] = np.nan
+    has = has_velocity.copy()
+    has[clu[0]] = True
+    with pytest.raises(ValueError, match="finite"):
+        tu.update_clusters(means, covs, points, offsets, bad_velocity, has, comp, clu, *rest)
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_overlap_test_of_absorb_overlapping_equals_numpy(seed, monkeypatch):
@@ -1443,3 +1451,35 @@ def test_cluster_radar_ranges_equals_cluster_radar(monkeypatch):
             assert [v is None for v in got] == [v is None for v in velocities]
             assert all(a is None or (np.array_equal(a, b) and not b.flags.writeable) for a, b in zip(velocities, got))
             assert got_free.dtype == np.int64 and np.array_equal(got_free, free)
+
+
+def test_the_papers_euler_conversion_never_takes_the_fused_update(monkeypatch):
+    """The ``paper`` variant converts states to E by the paper's Euler integration
+    (``MeasurementConfig.conversion = "euler"``), which the fused kernels do not do: its tracker gives the
+    same numbers with the fused calls as with the two steps, and the fused calls decline its updates."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+    from sim.variants import variant_config
+
+    config = variant_config("paper")
+    assert config.measurement.conversion == "euler"
+    road = Road.from_curvature([(80.0, 0.0, 0.0), (200.0, 0.0, 1 / 90.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(40.0, -3.5, 14.0), [Car(60.0, -3.5, 14.0), Car(55.0, 0.0, 17.0), Car(70.0, 3.5, 12.0)])
+
+    def run() -> list:
+        tracker, rng = Tracker(road, config), np.random.default_rng(2)
+        return [(t.label, t.mean.copy()) for k in range(12) for t in tracker.step(scene.frame(0.1 * k, rng))]
+
+    calls = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: calls.append(args) or original(*args))
+    fused = run()
+    monkeypatch.setattr(tt, "update_clusters", original)
+    assert calls and all(tu._update_clusters_fused(*args) is None for args in calls)
+    monkeypatch.setattr(tu, "_update_clusters_fused", lambda *args: None)
+    monkeypatch.setattr(tu, "_update_pairs_fused", lambda *args: None)
+    staged = run()
+    assert len(fused) == len(staged) > 0
+    for (label, mean), (ref_label, ref_mean) in zip(fused, staged):
+        assert label == ref_label
+        np.testing.assert_array_equal(mean, ref_mean)

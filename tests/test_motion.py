@@ -287,3 +287,19 @@ def test_a_jerk_per_state_gives_each_state_the_noise_of_a_model_with_that_jerk()
     q_quiet = FrenetMotion(road, MotionConfig(jerk=0.3)).process_noise(x[0], 0.1)
     np.testing.assert_allclose(p_full[0] - p_gated[0], model.process_noise(x[0], 0.1) - q_quiet, atol=1e-12)
     np.testing.assert_allclose(p_gated[1], p_full[1], atol=1e-12)
+
+
+def test_predict_refuses_relax_and_floor_of_the_wrong_shape():
+    """``predict``'s ``relax`` and ``floor`` (the tracker's coasting relaxation and a manoeuvre's onset)
+    act on the acceleration state: other states, or one value too few, are refused by name."""
+    from tracker.config import MotionConfig
+    from tracker.motion import FrenetMotion, predict
+    from tracker.ukf import UnscentedTransform
+
+    road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    for motion, dim, relax in ((MotionConfig(), 7, np.ones(2)), (MotionConfig(acceleration=True), 8, np.ones(1))):
+        model = FrenetMotion(road, motion)
+        mean = np.tile(np.r_[50.0, 0.0, 10.0, 0.0, 0.0, 4.5, 1.9, 0.0][:dim], (2, 1))
+        cov = np.tile(np.eye(dim) * 0.1, (2, 1, 1))
+        with pytest.raises(ValueError, match="relax and floor"):
+            predict(UnscentedTransform(n=dim), model, mean, cov, 0.1, relax=relax)

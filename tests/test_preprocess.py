@@ -133,3 +133,18 @@ def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     far = np.concatenate([scan, [[300.0, 300.0], [-200.0, 250.0]]])
     assert staged(far, ego, road, config) is not None
     fused_and_staged(far)
+
+
+def test_filter_points_names_a_non_finite_return_with_the_kernels_on_and_off(monkeypatch):
+    """A NaN return reaches ``filter_points`` only from a caller that skipped ``drop_nonfinite``: the
+    same clear error either way (the fused call hands it to the staged path)."""
+    from tracker import compiled
+    from tracker.frame import EgoState
+    from tracker.preprocess import filter_points
+
+    road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    scan = np.array([[10.0, 0.0], [np.nan, 1.0], [20.0, 1.0]])
+    for switch in ("0", "1"):
+        monkeypatch.setenv(compiled.ENV_SWITCH, switch)
+        with pytest.raises(ValueError, match="finite"):
+            filter_points(scan, EgoState(5.0, 0.0, 0.0, 10.0, 0.0), road, TrackerConfig().clustering)

@@ -115,50 +115,6 @@ def test_ensure_spd_repairs_only_indefinite_matrices_whatever_the_batch():
     assert ensure_spd(np.zeros((0, 7, 7)), 1e-9)[1] == 0
 
 
-def test_clearly_positive_definite_never_disagrees_with_lapack(monkeypatch):
-    """``ensure_spd``'s compiled quick test (``tracker.compiled.ukf.clearly_positive_definite``): True only
-    for matrices LAPACK's Cholesky factorises (random, badly scaled, nearly singular, indefinite, NaN),
-    False for every matrix with a pivot at or below ``CLEAR_PIVOT`` of its diagonal; ``ensure_spd`` gives
-    the same matrices and counts with and without it."""
-    pytest.importorskip("numba")
-    from tracker import compiled
-    from tracker.compiled.ukf import clearly_positive_definite
-    from tracker.ukf import CLEAR_PIVOT, ensure_spd
-
-    rng = np.random.default_rng(4)
-    answers = set()
-    for trial in range(400):
-        n = int(rng.integers(1, 9))
-        root = rng.normal(size=(n, n)) * rng.uniform(1e-3, 1e3, n)[:, None]
-        cov = root @ root.T
-        kind = trial % 5
-        if kind == 1:  # nearly singular: one direction squeezed to 1e-6 .. 1e-14 of the rest
-            u, _ = np.linalg.qr(rng.normal(size=(n, n)))
-            vals = rng.uniform(0.5, 2.0, n)
-            vals[0] *= 10.0 ** -rng.uniform(6, 14)
-            cov = (u * vals) @ u.T
-        elif kind == 2:  # indefinite
-            cov[0, 0] -= 2.0 * abs(cov[0, 0]) + 1.0
-        elif kind == 3 and n > 1:  # rank deficient
-            cov[:, -1] = cov[:, 0]
-            cov[-1, :] = cov[0, :]
-        clear = clearly_positive_definite(cov[None], CLEAR_PIVOT)
-        answers.add(bool(clear))
-        if clear:
-            np.linalg.cholesky(cov)  # never raises where the quick test said yes
-        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
-        got = ensure_spd(cov[None], 1e-9)
-        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-        ref = ensure_spd(cov[None], 1e-9)
-        np.testing.assert_array_equal(got[0], ref[0])
-        assert got[1] == ref[1]
-    assert answers == {True, False}
-    assert not clearly_positive_definite(np.full((1, 2, 2), np.nan), CLEAR_PIVOT)
-    close = 1.0 - 1e-10  # pivot 2e-10 of its diagonal entry: below the margin, though positive definite
-    assert not clearly_positive_definite(np.array([[[1.0, close], [close, 1.0]]]), CLEAR_PIVOT)
-    assert clearly_positive_definite(np.diag([1.0, 1e-12])[None], CLEAR_PIVOT)  # scale alone is no doubt
-
-
 def test_coordinate_residual_is_residuals_column():
     """``Wrapping.coordinate_residual`` of one coordinate's differences equals that column of
     ``residual`` bit for bit: an angle, a periodic coordinate, and a plain one."""

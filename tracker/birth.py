@@ -95,6 +95,9 @@ def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: fl
     not empty; their rectangles ``tracks`` in E), only the components ``entering_view`` keeps. One
     compiled call (``tracker.compiled.birth.road_births_kernel``: the same numbers) when the kernels are
     on."""
+    if len(track_labels) != len(tracks.center):
+        raise ValueError(f"visible_road_births needs one label per track; got {len(track_labels)} labels and "
+                         f"{len(tracks.center)} tracks")
     if not compiled_kernels.enabled():
         means, covs = road_births(road, s_ego, ego.v, lidar_range, config)
         if acceleration_var is not None:

@@ -348,6 +348,8 @@ def cluster_radar_ranges(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, rad
     hi = np.asarray(hi, dtype=np.int64).reshape(-1)
     if len(lo) != len(hi):
         raise ValueError(f"cluster_radar_ranges needs one end per start; got {len(lo)} starts and {len(hi)} ends")
+    if len(lo) and (lo.min() < 0 or (hi < lo).any() or hi.max() > len(points)):
+        raise ValueError(f"cluster_radar_ranges: every range must lie within the {len(points)} points, 0 <= lo <= hi")
     if len(radar) == 0 or len(lo) == 0 or not compiled_kernels.enabled():
         velocities, index = cluster_radar([points[a:b] for a, b in zip(lo.tolist(), hi.tolist())], radar, t, gate)
         free = np.ones(len(radar), dtype=bool)

@@ -483,6 +483,10 @@ def predict(
     ``MotionConfig.jerk`` in ``Q``. ``relax`` and ``floor`` (one per Gaussian, ``(C, 8)`` states only:
     ``relax_acceleration``) change the acceleration first (the tracker's coasting relaxation and a
     manoeuvre's onset)."""
+    if (relax is not None or floor is not None) and (np.ndim(mean) != 2 or np.shape(mean)[1] != 8 or any(
+            x is not None and np.shape(x) != (len(mean),) for x in (relax, floor))):
+        raise ValueError(f"predict: relax and floor need Gaussians of the acceleration state (C, 8), one value per "
+                         f"Gaussian; got means {np.shape(mean)}, relax {np.shape(relax)}, floor {np.shape(floor)}")
     fused = getattr(model, "predict_compiled", None)
     if fused is not None and compiled_kernels.enabled() and np.ndim(mean) == 2:
         out = fused(ut, np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), dt, jerk, relax, floor)

@@ -111,6 +111,7 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
     counts = {"points_off_road": 0, "points_bearing_filtered": 0}
     if len(scan) == 0:
         return scan, counts, np.zeros(0)
+    # (one return takes the staged path: Road.to_frenet's pure-Python path for one point gives other numbers)
     fused = _filter_compiled(scan, ego, road, config) if len(scan) > 1 and compiled_kernels.enabled() else None
     if fused is not None:
         kept, n, on_road = fused
@@ -145,6 +146,8 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
             int(max(count, 1)), bool(tiles))
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
     if status == FILTER_SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
+        if not np.isfinite(pts[missing]).all():
+            return None  # a non-finite return: the staged path's error names it
         road.seed_missing(pts, s, missing)
         status, kept, n, on_road, *_ = road_filter_kernel(*head, s, True, *tail)
     return (kept, n, int(on_road)) if status == FILTER_DONE else None

@@ -160,8 +160,11 @@ def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
 def _wrapping_args(wrapping: Wrapping) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(angles, period_index, periods)`` of ``wrapping`` as the compiled merge takes them (int64,
     int64, float arrays; kept per wrapping: the kernels only read them)."""
-    return (np.array(wrapping.angles, dtype=np.int64), np.array([i for i, _ in wrapping.periods], dtype=np.int64),
-            np.array([p for _, p in wrapping.periods], dtype=float))
+    out = (np.array(wrapping.angles, dtype=np.int64), np.array([i for i, _ in wrapping.periods], dtype=np.int64),
+           np.array([p for _, p in wrapping.periods], dtype=float))
+    for array in out:
+        array.flags.writeable = False  # shared by every call
+    return out
 
 
 def _moment_match_groups(mix: Mixture, group: np.ndarray, anchor: np.ndarray,

@@ -95,8 +95,8 @@ class Track:
         object.__setattr__(self, "cov", _readonly(cov))
 
     @classmethod
-    def checked_batch(cls, labels: np.ndarray, t: float, means: np.ndarray, covs: np.ndarray,
-                      weights: np.ndarray) -> list[Track]:
+    def checked_batch(cls, labels: np.ndarray | list[int], t: float, means: np.ndarray, covs: np.ndarray,
+                      weights: np.ndarray | list[float]) -> list[Track]:
         """Tracks of ``means (K, 7)``, ``covs (K, 7, 7)`` checked at once (shapes, finiteness) instead of
         one by one: what ``Track(...)`` gives for each row, for the tracker's per-frame report."""
         means = np.array(means, dtype=float)

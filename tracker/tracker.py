@@ -1013,14 +1013,13 @@ def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, 
     non-empty), ``p_d > 0``, and the cluster either owned by no track (``owned < 0``) or by the
     component's track group ``group`` (by ``tracker.compiled.gating`` when the kernels are on: the same
     pairs)."""
+    centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
     if compiled_kernels.enabled():
         from tracker.compiled.gating import candidate_pairs_kernel
 
         return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
-                                      np.ascontiguousarray(points, dtype=float), np.ascontiguousarray(offsets, dtype=np.int64),
-                                      np.ascontiguousarray(p_d, dtype=float), np.ascontiguousarray(owned, dtype=np.int64),
-                                      np.ascontiguousarray(group, dtype=np.int64))
-    centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
+                                      centroid, np.ascontiguousarray(p_d, dtype=float),
+                                      np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
     dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)
     allowed = (owned[None, :] < 0) | (owned[None, :] == group[:, None])
     return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)

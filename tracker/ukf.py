@@ -26,7 +26,6 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import STATE_DIM, UKFParams
-from tracker.compiled.ukf import clearly_positive_definite
 
 
 @dataclass(frozen=True)
@@ -100,27 +99,16 @@ def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     return flat.reshape(sym.shape), count
 
 
-#: Relative pivot (of its diagonal entry) above which ``ensure_spd``'s compiled test takes a matrix as
-#: positive definite without LAPACK (``tracker.compiled.ukf.clearly_positive_definite``): rounding moves a
-#: pivot by ~1e-15 of it, so every Cholesky implementation agrees on such a matrix.
-CLEAR_PIVOT = 1e-8
-
-
 def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     """``cov`` (..., n, n) with the matrices that are not positive semi-definite (smallest eigenvalue
     below 0) repaired: symmetrised, eigenvalues lifted to ``floor``. Whether a matrix is repaired does
     not depend on the others in the batch. One batched Cholesky factorisation decides the common case
-    (all positive definite: returned unchanged; with the compiled kernels a quick factorisation that finds
-    every pivot above ``CLEAR_PIVOT`` of its diagonal entry decides it first); only when it fails are the
-    eigenvalues computed.
+    (all positive definite: returned unchanged); only when it fails are the eigenvalues computed.
     Non-finite entries are not repaired here (``UnscentedTransform.sigma_points`` refuses them).
     Returns the matrices and how many were repaired."""
     cov = np.asarray(cov, dtype=float)
     if cov.size == 0:
         return cov, 0
-    if compiled_kernels.enabled() and cov.ndim == 3:  # the usual batch: clearly positive definite, no LAPACK call
-        if clearly_positive_definite(np.ascontiguousarray(cov), CLEAR_PIVOT):
-            return cov, 0
     try:
         np.linalg.cholesky(cov)
         return cov, 0

@@ -268,6 +268,15 @@ def _extent_rule_args(config: TrackerConfig) -> tuple:
             math.inf if b.max_width is None else float(b.max_width))
 
 
+def _fused_update_applies(config: TrackerConfig, road: Road | None, wrapping: Wrapping) -> bool:
+    """Whether the update of the pairs may take its one compiled call (``update_pairs_kernel``, also
+    inside ``prepared_pairs_kernel``): the kernels on, the curvilinear state with its road, the exact
+    conversion to E (not the paper's Euler one, ``MeasurementConfig.conversion``) and at most one
+    periodic coordinate."""
+    return (compiled_kernels.enabled() and config.coordinates == "curvilinear" and road is not None
+            and config.measurement.conversion != "euler" and len(wrapping.periods) <= 1)
+
+
 def update_clusters(
     means: np.ndarray, covs: np.ndarray, points: np.ndarray, offsets: np.ndarray, velocity: np.ndarray,
     has_velocity: np.ndarray, component_index: np.ndarray, cluster_index: np.ndarray, scan: np.ndarray,
@@ -287,6 +296,9 @@ def update_clusters(
     offsets = np.asarray(offsets, dtype=np.intp).reshape(-1)
     if comp.shape != clu.shape:
         raise ValueError(f"component_index and cluster_index must pair up; got {comp.shape} and {clu.shape}")
+    if not len(offsets) or offsets[0] != 0 or offsets[-1] != len(points) or (np.diff(offsets) < 0).any():
+        raise ValueError(f"update_clusters: offsets must rise from 0 to the number of points ({len(points)}); "
+                         f"got {offsets.tolist()}")
     if len(comp) and (comp.min() < 0 or comp.max() >= len(means) or clu.min() < 0 or clu.max() >= len(offsets) - 1):
         raise ValueError("update_clusters: a pair refers to a component or cluster that does not exist")
     fused = _update_clusters_fused(means, covs, points, offsets, velocity, has_velocity, comp, clu, scan, ego, road,
@@ -333,15 +345,19 @@ def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarr
     """``update_clusters`` in one compiled call; None where it does not apply or hands back (the
     conditions of ``_update_pairs_fused``, a cluster in some pair empty or not finite, a scan that is not
     ``(N, 2)``, or points and velocities of other shapes)."""
-    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None or not len(comp)):
+    if not len(comp) or config.coordinates != "curvilinear" or road is None:
         return None
     wrapping = state_wrapping(road, config.coordinates)
+    if not _fused_update_applies(config, road, wrapping):
+        return None
     scan = np.asarray(scan, dtype=float)
     points = np.asarray(points, dtype=float)
-    if (len(wrapping.periods) > 1 or scan.ndim != 2 or scan.shape[1] != 2 or points.ndim != 2 or points.shape[1] != 2
-            or offsets[-1] != len(points) or np.shape(velocity) != (len(offsets) - 1, 2)
-            or np.shape(has_velocity) != (len(offsets) - 1,)):
-        return None
+    velocity = np.asarray(velocity, dtype=float)
+    has_velocity = np.asarray(has_velocity, dtype=bool)
+    if (scan.ndim != 2 or scan.shape[1] != 2 or points.ndim != 2 or points.shape[1] != 2
+            or velocity.shape != (len(offsets) - 1, 2) or has_velocity.shape != (len(offsets) - 1,)
+            or not np.isfinite(velocity[has_velocity]).all()):
+        return None  # the two steps say what is wrong
     prepare, scanned, update, shadows, continuation = _fused_settings(config)
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
@@ -368,8 +384,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     off or do not apply (Cartesian states, more than one periodic coordinate) or where the kernel hands
     the pairs back (a non-finite or not positive definite prior, a widened prior, a variance that is not
     positive): the staged path then runs, as it always did."""
-    if (not compiled_kernels.enabled() or config.coordinates != "curvilinear" or road is None
-            or len(wrapping.periods) > 1 or not len(means)):
+    if not len(means) or not _fused_update_applies(config, road, wrapping):
         return None
     from tracker.compiled.pairs import DONE, update_pairs_kernel
 

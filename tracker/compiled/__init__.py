@@ -12,9 +12,11 @@ for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. Th
 use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
 project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
 after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
-``extent`` and ``kalman``; ``preparation`` and ``reduction`` call ``clustering``; ``centerline`` calls ``ukf``;
-``extraction`` calls ``centerline``), delete
-``tracker/compiled/__pycache__`` so that the callers compile again with it.
+``extent``, ``kalman`` and ``preparation``; ``preparation`` and ``reduction`` call ``clustering``;
+``centerline``, ``motion`` and ``kalman`` call ``ukf``; ``centerline`` and ``detection`` call ``geometry``;
+``extraction`` calls ``centerline``; ``birth`` calls ``centerline`` and ``detection``; ``preprocess`` calls
+``centerline`` and ``clustering``), delete ``tracker/compiled/__pycache__`` so that the callers compile
+again with it.
 
 Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
 ``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
@@ -28,8 +30,7 @@ pairs; with the predicted measurements and the radar gate), ``extent`` (the exte
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
 the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the lidar's road filter:
 projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of the pairs), ``birth``
-(the road births and where a vehicle can enter the view), ``ukf`` (sigma points, their moments, a quick
-test of positive definiteness), ``extraction`` (the report-range test's rectangle centres of the
+(the road births and where a vehicle can enter the view), ``ukf`` (sigma points and their moments), ``extraction`` (the report-range test's rectangle centres of the
 components to report).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix

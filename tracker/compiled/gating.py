@@ -1,7 +1,7 @@
 """Compiled pre-gating of the tracker's update (``tracker.tracker.Tracker._update``): the (component,
 cluster) pairs worth a UKF update, in one numba call (``candidate_pairs_kernel``). The same arithmetic in
-the same order as the numpy it replaces (each cluster's centroid summed point by point, as
-``numpy.add.reduceat``; the distance ``sqrt(dx^2 + dy^2)``, as ``numpy.linalg.norm``), so the same pairs."""
+the same order as the numpy it replaces (the distance ``sqrt(dx^2 + dy^2)``, as ``numpy.linalg.norm``,
+to the clusters' centroids, which numpy computes), so the same pairs."""
 
 from __future__ import annotations
 
@@ -13,28 +13,12 @@ from tracker.compiled import njit
 
 
 @njit
-def candidate_pairs_kernel(center, reach, points, offsets, p_d, owned, group):  # pragma: no cover - compiled
+def candidate_pairs_kernel(center, reach, centroid, p_d, owned, group):  # pragma: no cover - compiled
     """The pairs ``(comp, clu)``, in row-major order (``numpy.nonzero``'s), of the components whose
-    rectangle centre ``center (C, 2)`` lies within ``reach (C,)`` m of the centroid of cluster ``clu``
-    (points ``points[offsets[k]:offsets[k + 1]]``), whose detection probability ``p_d`` is positive,
-    and which may take the cluster: a cluster no track owns (``owned[k] < 0``) or one their track group
-    owns (``owned[k] == group[comp]``)."""
-    clusters = len(offsets) - 1
-    cx = np.empty(clusters)
-    cy = np.empty(clusters)
-    for k in range(clusters):
-        a, b = offsets[k], offsets[k + 1]
-        if b <= a:  # an empty cluster has no centroid: no pair
-            cx[k] = np.nan
-            cy[k] = np.nan
-            continue
-        sx, sy = points[a, 0], points[a, 1]
-        for i in range(a + 1, b):
-            sx += points[i, 0]
-            sy += points[i, 1]
-        n = float(b - a)
-        cx[k] = sx / n
-        cy[k] = sy / n
+    rectangle centre ``center (C, 2)`` lies within ``reach (C,)`` m of the centroid ``centroid[clu]`` of
+    the cluster, whose detection probability ``p_d`` is positive, and which may take the cluster: a
+    cluster no track owns (``owned[k] < 0``) or one their track group owns (``owned[k] == group[comp]``)."""
+    clusters = centroid.shape[0]
     count = center.shape[0]
     comp = np.empty(count * clusters, dtype=np.int64)
     clu = np.empty(count * clusters, dtype=np.int64)
@@ -45,8 +29,8 @@ def candidate_pairs_kernel(center, reach, points, offsets, p_d, owned, group):  
         for k in range(clusters):
             if owned[k] >= 0 and owned[k] != group[c]:
                 continue
-            dx = center[c, 0] - cx[k]
-            dy = center[c, 1] - cy[k]
+            dx = center[c, 0] - centroid[k, 0]
+            dy = center[c, 1] - centroid[k, 1]
             if math.sqrt(dx * dx + dy * dy) <= reach[c]:
                 comp[pairs] = c
                 clu[pairs] = k

@@ -100,31 +100,3 @@ def moments_kernel(points, wm, wc, angles, period_index, period):  # pragma: no 
                 cov[c, j, k] = acc
     return mean, cov
 
-
-@njit
-def clearly_positive_definite(covs, margin):  # pragma: no cover - compiled
-    """Whether every matrix of ``covs (N, n, n)`` is positive definite with room to spare: the Cholesky
-    factorisation of its lower triangle (LAPACK's convention) has every pivot ``d_j = A_jj - sum_k
-    L_jk^2`` above ``margin`` times ``A_jj`` (and ``A_jj > 0``). Rounding moves a pivot by about ``n eps
-    A_jj``, so with ``margin`` far above that any implementation's factorisation succeeds too; False
-    says only that this quick test is not sure (the caller then asks LAPACK)."""
-    count, dim = covs.shape[0], covs.shape[1]
-    chol = np.zeros((dim, dim))
-    for c in range(count):
-        for j in range(dim):
-            diag = covs[c, j, j]
-            if not diag > 0.0:
-                return False
-            pivot = diag
-            for k in range(j):
-                pivot -= chol[j, k] * chol[j, k]
-            if not pivot > margin * diag:
-                return False
-            root = np.sqrt(pivot)
-            chol[j, j] = root
-            for i in range(j + 1, dim):
-                acc = covs[c, i, j]
-                for k in range(j):
-                    acc -= chol[i, k] * chol[j, k]
-                chol[i, j] = acc / root
-    return True
