@@ -3,7 +3,10 @@ weight, mean and covariance, and every ``Tracker.stats`` counter, of 11 fixed ru
 
 The runs: occlusion seed 1 (8 s), stop-and-go 0 (10 s), mixed-traffic 0 (10 s), curvy-multi 0 (10 s),
 dense-highway 2 (8 s), truck-hairpin 0 (8 s), curve-single 11 (5 s), circuit 0 (10 s), cut-in 0 (8 s)
-with each scenario's own tracker settings, and the bench's 10- and 50-target scenes (200 frames). Their
+with each scenario's own tracker settings, and the bench's 10- and 50-target scenes (200 frames); since
+session 23 also the 10-target scene's first 120 frames under the other tracker variants
+(``VARIANT_RUNS``: lidar-only, Cartesian, the paper's motion, the paper's motion and Euler conversion).
+A snapshot made before that holds only the first 11 runs and is checked on those. Their
 sensor frames are made once and cached in ``FOLDER/frames.pkl`` (the simulator is not what is compared),
 then fed to ``tracker.Tracker`` of the checkout in use::
 
@@ -28,6 +31,9 @@ RUNS = [("occlusion", 1, 8.0), ("stop-and-go", 0, 10.0), ("mixed-traffic", 0, 10
         ("cut-in", 0, 8.0)]
 BENCH_TARGETS = (10, 50)
 BENCH_FRAMES = 200
+#: The other tracker variants (session 23), each on the 10-target bench scene's first 120 frames.
+VARIANT_RUNS = ("curvilinear-lidar", "cartesian-fused", "paper-motion", "paper")
+VARIANT_FRAMES = 120
 
 
 def make_inputs() -> list[tuple]:
@@ -51,6 +57,9 @@ def make_inputs() -> list[tuple]:
     for count in BENCH_TARGETS:
         scene, stream = sensor_frames(count, BENCH_FRAMES, seed=0)
         inputs.append((f"bench{count}", scene.road, bench_config("curvilinear-fused"), [sf.frame for sf in stream]))
+    scene, stream = sensor_frames(10, VARIANT_FRAMES, seed=0)
+    for variant in VARIANT_RUNS:
+        inputs.append((f"bench10-{variant}", scene.road, bench_config(variant), [sf.frame for sf in stream]))
     return inputs
 
 
