@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.frame import RadarDetections
+from tracker.compiled.clustering import cluster_radar_kernel
 
 #: Up to this many runs of consecutive linked points, their graph's components are found densely.
 MAX_DENSE_RUNS = 64
@@ -355,8 +356,6 @@ def cluster_radar_ranges(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, rad
         free = np.ones(len(radar), dtype=bool)
         free[index[index >= 0]] = False
         return velocities, np.flatnonzero(free)
-    from tracker.compiled.clustering import cluster_radar_kernel
-
     index, velocity, free = cluster_radar_kernel(np.ascontiguousarray(points, dtype=float), lo, hi, radar.t, radar.x,
                                                  radar.y, radar.vx, radar.vy, float(t), float(gate))
     velocity.flags.writeable = False  # the clusters' velocities are rows of it: read-only, not aliased edits

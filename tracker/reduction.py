@@ -25,6 +25,8 @@ import numpy as np
 
 from tracker import compiled as compiled_kernels
 from tracker.ukf import NO_WRAP, Wrapping
+from tracker.compiled.reduction import (absorb_candidates_kernel, overlapping_candidates_kernel,
+                                       overlapping_pairs_kernel, reduce_kernel)
 
 
 @dataclass
@@ -235,8 +237,6 @@ def reduce_in_view(
                          f"got {len(near_range)} and {len(lateral)}")
     lo, hi = lateral_bounds
     if compiled_kernels.enabled() and len(mix):
-        from tracker.compiled.reduction import reduce_kernel
-
         weights, means, covs, source, left_view, off_road, pending = reduce_kernel(
             np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
             np.ascontiguousarray(mix.covs, dtype=float), np.ascontiguousarray(mix.labels, dtype=np.int64),
@@ -279,9 +279,6 @@ def _screened_candidates(mix: Mixture, min_weight: float, overlap: float, cartes
     the road in one call with the candidates, ``overlapping_candidates_kernel``; along the heading,
     whose cosine and sine numpy takes, in a second); True where that test does not apply (fewer than 7
     state entries, a periodic position other than ``s`` alone), for the numpy test to decide."""
-    from tracker.compiled.reduction import (absorb_candidates_kernel, overlapping_candidates_kernel,
-                                            overlapping_pairs_kernel)
-
     weights = np.ascontiguousarray(mix.weights, dtype=float)
     labels = np.ascontiguousarray(mix.labels, dtype=np.int64)
     if mix.means.shape[1] >= 7 and (not position_periodic or s_period is not None):

@@ -193,8 +193,15 @@ class Road:
     # -- lanes and bounds -----------------------------------------------------------------------
     @property
     def lane_centers(self) -> np.ndarray:
-        """Lateral offset ``n`` (m) of every lane's centre, lane 0 (rightmost) first."""
-        return self.right_edge + (np.arange(self.lanes) + 0.5) * self.lane_width
+        """Lateral offset ``n`` (m) of every lane's centre, lane 0 (rightmost) first (read-only; kept
+        until the lanes change: the tracker asks every frame)."""
+        key = (self.right_edge, self.lanes, self.lane_width)
+        cached = self.__dict__.get("_lane_centers")
+        if cached is None or cached[0] != key:
+            centers = self.right_edge + (np.arange(self.lanes) + 0.5) * self.lane_width
+            centers.flags.writeable = False
+            cached = self.__dict__["_lane_centers"] = (key, centers)
+        return cached[1]
 
     def lane_center(self, lane: int) -> float:
         """Lateral offset ``n`` (m) of lane ``lane``'s centre; lane 0 is the rightmost."""

@@ -84,6 +84,10 @@ from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
+from tracker.compiled.clustering import cluster_points_kernel, ordered_clusters_kernel
+from tracker.compiled.extraction import report_centres_kernel
+from tracker.compiled.gating import candidate_pairs_kernel
+from tracker.compiled.reduction import inside_updated_kernel
 
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
@@ -449,8 +453,6 @@ class Tracker:
         or two with ``fragment_owners`` (numpy) between them where a fragment may join a track
         (``ordered_clusters_kernel`` then finishes); None (nothing set) where the kernel hands back (a
         non-finite lateral offset, a partition the compiled path does not take)."""
-        from tracker.compiled.clustering import cluster_points_kernel, ordered_clusters_kernel
-
         cfg = self.config.clustering
         tracks = self._reported
         labels = self.mixture.labels
@@ -811,8 +813,6 @@ class Tracker:
             seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
             if not seen.any() or updated.all():
                 return
-            from tracker.compiled.reduction import inside_updated_kernel
-
             rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
             seen = np.flatnonzero(seen)
             psi = rect.psi[seen]
@@ -989,8 +989,6 @@ def _centres(means: np.ndarray, index: np.ndarray, ego: EgoState, road: Road, co
     by one compiled call for curvilinear states when the kernels are on
     (``tracker.compiled.extraction.report_centres_kernel``: the same numbers)."""
     if coordinates == "curvilinear" and compiled_kernels.enabled() and len(index):
-        from tracker.compiled.extraction import report_centres_kernel
-
         kind, *curve = road._curve.kernel_args()
         means = means if means.flags.c_contiguous else np.ascontiguousarray(means)
         centre, finite = report_centres_kernel(kind, means, index, float(ego.x), float(ego.y), float(ego.yaw),
@@ -1015,8 +1013,6 @@ def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, 
     pairs)."""
     centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
     if compiled_kernels.enabled():
-        from tracker.compiled.gating import candidate_pairs_kernel
-
         return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
                                       centroid, np.ascontiguousarray(p_d, dtype=float),
                                       np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
