@@ -875,6 +875,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
     import tracker.compiled.preprocess as kf
     import tracker.compiled.gating as kg
     import tracker.compiled.birth as kb
+    import tracker.compiled.ukf as ku
     import tracker.compiled.extraction as kx
 
     assert compiled.warm_up()
@@ -885,7 +886,7 @@ def test_warm_up_compiles_every_kernel_once_per_process():
                kd.detection_kernel, kd.occluded_kernel, kl.occluded_ends_kernel, kk.measurement_update_kernel,
                ke.grow_extent_kernel, ke.extent_rules_kernel, kq.update_pairs_kernel, kp.scanned_batch_kernel,
                kr.overlapping_pairs_kernel, kf.road_filter_kernel, kc.seed_kernel, kg.candidate_pairs_kernel, kq.prepared_pairs_kernel,
-               kb.road_births_kernel, kr.inside_updated_kernel,
+               kb.road_births_kernel, ku.certainly_positive_definite, kr.inside_updated_kernel,
                kr.absorb_candidates_kernel, kr.overlapping_candidates_kernel, kx.report_centres_kernel]
     before = [len(k.signatures) for k in kernels]
     assert all(n >= 1 for n in before)

@@ -126,3 +126,43 @@ def test_coordinate_residual_is_residuals_column():
     for index in (0, 1, 3):
         np.testing.assert_array_equal(wrapping.coordinate_residual(x[:, index], index), full[:, index])
     assert wrapping.coordinate_residual(x[:, 1], 1) is not x[:, 1]
+
+
+def test_certainly_positive_definite_never_disagrees_with_lapack(monkeypatch):
+    """``ensure_spd``'s compiled test (``tracker.compiled.ukf.certainly_positive_definite``, the scaled
+    matrix less ``CERTAIN_SHIFT`` I factorised): True only for matrices LAPACK's Cholesky factorises --
+    near-singular ones (eigenvalues down to 1e-16 of the rest) with diagonals spread over eight orders of
+    magnitude, indefinite ones, NaN -- and ``ensure_spd`` gives the same matrices and counts with it as
+    without."""
+    pytest.importorskip("numba")
+    from tracker import compiled
+    from tracker.compiled.ukf import certainly_positive_definite
+    from tracker.ukf import CERTAIN_SHIFT, ensure_spd
+
+    rng = np.random.default_rng(4)
+    answers = []
+    for trial in range(3000):
+        n = int(rng.integers(1, 9))
+        u, _ = np.linalg.qr(rng.normal(size=(n, n)))
+        vals = rng.uniform(0.5, 2.0, n)
+        vals[: int(rng.integers(0, n + 1))] *= 10.0 ** -rng.uniform(4, 16)
+        if trial % 7 == 0:
+            vals[0] = -vals[0]  # indefinite
+        scale = 10.0 ** rng.uniform(-4, 4, n)
+        cov = (u * vals) @ u.T
+        cov = 0.5 * (cov + cov.T) * scale[:, None] * scale[None, :]
+        sure = certainly_positive_definite(cov[None], CERTAIN_SHIFT)
+        answers.append(sure)
+        if sure:
+            np.linalg.cholesky(cov)  # never raises where the test is sure
+        if trial % 10 == 0:
+            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            got = ensure_spd(cov[None], 1e-9)
+            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
+            ref = ensure_spd(cov[None], 1e-9)
+            np.testing.assert_array_equal(got[0], ref[0])
+            assert got[1] == ref[1]
+    assert 0.1 < np.mean(answers) < 0.9  # both answers, often
+    assert not certainly_positive_definite(np.full((1, 2, 2), np.nan), CERTAIN_SHIFT)
+    assert not certainly_positive_definite(np.array([[[1.0, 1.0 - 1e-10], [1.0 - 1e-10, 1.0]]]), CERTAIN_SHIFT)
+    assert certainly_positive_definite(np.diag([1.0, 1e-12])[None], CERTAIN_SHIFT)  # scale alone is no doubt

@@ -26,6 +26,7 @@ import numpy as np
 from tracker import compiled as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import STATE_DIM, UKFParams
+from tracker.compiled.ukf import certainly_positive_definite
 
 
 @dataclass(frozen=True)
@@ -99,16 +100,27 @@ def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     return flat.reshape(sym.shape), count
 
 
+#: Shift of the unit-diagonal scaled matrix for which ``ensure_spd``'s compiled test
+#: (``tracker.compiled.ukf.certainly_positive_definite``) still finds a Cholesky factorisation before it
+#: takes a matrix as positive definite without LAPACK: far above the ~1e-14 at which rounding could make
+#: any Cholesky factorisation of an 8 x 8 matrix fail.
+CERTAIN_SHIFT = 1e-8
+
+
 def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     """``cov`` (..., n, n) with the matrices that are not positive semi-definite (smallest eigenvalue
     below 0) repaired: symmetrised, eigenvalues lifted to ``floor``. Whether a matrix is repaired does
     not depend on the others in the batch. One batched Cholesky factorisation decides the common case
-    (all positive definite: returned unchanged); only when it fails are the eigenvalues computed.
+    (all positive definite: returned unchanged; with the compiled kernels a test that proves it with
+    room to spare, ``CERTAIN_SHIFT``, decides first); only when it fails are the eigenvalues computed.
     Non-finite entries are not repaired here (``UnscentedTransform.sigma_points`` refuses them).
     Returns the matrices and how many were repaired."""
     cov = np.asarray(cov, dtype=float)
     if cov.size == 0:
         return cov, 0
+    if (compiled_kernels.enabled() and cov.ndim == 3 and cov.shape[1] == cov.shape[2]
+            and certainly_positive_definite(np.ascontiguousarray(cov), CERTAIN_SHIFT)):
+        return cov, 0  # the usual batch: positive definite beyond doubt, no LAPACK call
     try:
         np.linalg.cholesky(cov)
         return cov, 0

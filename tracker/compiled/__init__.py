@@ -30,7 +30,7 @@ pairs; with the predicted measurements and the radar gate), ``extent`` (the exte
 the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
 the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the lidar's road filter:
 projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of the pairs), ``birth``
-(the road births and where a vehicle can enter the view), ``ukf`` (sigma points and their moments), ``extraction`` (the report-range test's rectangle centres of the
+(the road births and where a vehicle can enter the view), ``ukf`` (sigma points and their moments; a proof of positive definiteness before LAPACK), ``extraction`` (the report-range test's rectangle centres of the
 components to report).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix

@@ -100,3 +100,45 @@ def moments_kernel(points, wm, wc, angles, period_index, period):  # pragma: no 
                 cov[c, j, k] = acc
     return mean, cov
 
+
+
+@njit
+def certainly_positive_definite(covs, shift):  # pragma: no cover - compiled
+    """Whether every matrix of ``covs (N, n, n)`` is positive definite with room to spare: its
+    unit-diagonal scaling ``H = D^-1/2 A D^-1/2`` (``D`` the diagonal, which must be positive) less
+    ``shift`` times the identity has a Cholesky factorisation (of its lower triangle). Its success bounds
+    ``lambda_min(H)`` below by ``shift`` less a rounding error of order ``n^2 eps`` (``||H|| <= n``), and
+    every Cholesky factorisation of ``A`` in floating point runs to completion once ``lambda_min(H)``
+    exceeds a small multiple of ``n^1.5 eps`` (Higham, Accuracy and Stability of Numerical Algorithms,
+    Thm 10.7): with ``shift`` far above both, LAPACK's factorisation of ``A`` succeeds. False says only
+    that this test is not sure (the caller asks LAPACK)."""
+    count, dim = covs.shape[0], covs.shape[1]
+    scaled = np.empty((dim, dim))
+    root = np.empty(dim)
+    chol = np.zeros((dim, dim))
+    for c in range(count):
+        for j in range(dim):
+            diag = covs[c, j, j]
+            if not (diag > 0.0 and diag < np.inf):
+                return False
+            root[j] = np.sqrt(diag)
+        for i in range(dim):
+            for j in range(i + 1):
+                value = covs[c, i, j] / (root[i] * root[j])
+                if not np.isfinite(value):
+                    return False
+                scaled[i, j] = value
+            scaled[i, i] -= shift
+        for j in range(dim):
+            pivot = scaled[j, j]
+            for k in range(j):
+                pivot -= chol[j, k] * chol[j, k]
+            if not pivot > 0.0:
+                return False
+            chol[j, j] = np.sqrt(pivot)
+            for i in range(j + 1, dim):
+                acc = scaled[i, j]
+                for k in range(j):
+                    acc -= chol[i, k] * chol[j, k]
+                chol[i, j] = acc / chol[j, j]
+    return True
