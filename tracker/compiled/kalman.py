@@ -15,26 +15,15 @@ import math
 import numpy as np
 
 from tracker.compiled import njit
-from tracker.compiled.ukf import _residual, _wrap
+from tracker.compiled.ukf import _residual, _wrap, cholesky_into
 
 
 @njit
 def _cholesky(a, low):  # pragma: no cover - compiled
     """Lower Cholesky factor of the SPD matrix ``a`` into ``low`` (its upper triangle left as it is);
     ``numpy.linalg.LinAlgError`` when ``a`` is not positive definite."""
-    size = a.shape[0]
-    for j in range(size):
-        acc = a[j, j]
-        for k in range(j):
-            acc -= low[j, k] * low[j, k]
-        if not acc > 0.0:
-            raise np.linalg.LinAlgError("kalman_kernel: M is not positive definite")
-        low[j, j] = math.sqrt(acc)
-        for i in range(j + 1, size):
-            acc = a[i, j]
-            for k in range(j):
-                acc -= low[i, k] * low[j, k]
-            low[i, j] = acc / low[j, j]
+    if not cholesky_into(a, low):
+        raise np.linalg.LinAlgError("kalman_kernel: M is not positive definite")
 
 
 @njit(fastmath=True)

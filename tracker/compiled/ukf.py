@@ -129,16 +129,27 @@ def certainly_positive_definite(covs, shift):  # pragma: no cover - compiled
                     return False
                 scaled[i, j] = value
             scaled[i, i] -= shift
-        for j in range(dim):
-            pivot = scaled[j, j]
+        if not cholesky_into(scaled, chol):
+            return False
+    return True
+
+
+@njit
+def cholesky_into(a, low):  # pragma: no cover - compiled
+    """The lower Cholesky factor of the symmetric matrix ``a`` (its lower triangle) into ``low`` (its
+    upper triangle left as it is); False (``low`` partly written) at the first pivot that is not
+    positive."""
+    size = a.shape[0]
+    for j in range(size):
+        acc = a[j, j]
+        for k in range(j):
+            acc -= low[j, k] * low[j, k]
+        if not acc > 0.0:
+            return False
+        low[j, j] = math.sqrt(acc)
+        for i in range(j + 1, size):
+            acc = a[i, j]
             for k in range(j):
-                pivot -= chol[j, k] * chol[j, k]
-            if not pivot > 0.0:
-                return False
-            chol[j, j] = np.sqrt(pivot)
-            for i in range(j + 1, dim):
-                acc = scaled[i, j]
-                for k in range(j):
-                    acc -= chol[i, k] * chol[j, k]
-                chol[i, j] = acc / chol[j, j]
+                acc -= low[i, k] * low[j, k]
+            low[i, j] = acc / low[j, j]
     return True
