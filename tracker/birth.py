@@ -87,6 +87,18 @@ def entering_view(rect: Rectangles, tracks: Rectangles, track_labels: np.ndarray
     return (hidden < 0.5) & (gap > gate_distance)
 
 
+def with_acceleration(means: np.ndarray, covs: np.ndarray, acceleration_var: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Birth components ``(B, 7)`` with the acceleration state appended (``a = 0``, variance
+    ``acceleration_var``, m^2/s^4); None: returned as they are (no acceleration state)."""
+    if acceleration_var is None:
+        return means, covs
+    m = np.zeros((len(means), 8))
+    p = np.zeros((len(means), 8, 8))
+    m[:, :7], p[:, :7, :7] = means, covs
+    p[:, 7, 7] = acceleration_var
+    return m, p
+
+
 def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: float, config: BirthConfig,
                         acceleration_var: float | None, tracks: Rectangles, track_labels: np.ndarray,
                         gate_distance: float) -> tuple[np.ndarray, np.ndarray]:
@@ -100,10 +112,7 @@ def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: fl
                          f"{len(tracks.center)} tracks")
     if not compiled_kernels.enabled():
         means, covs = road_births(road, s_ego, ego.v, lidar_range, config)
-        if acceleration_var is not None:
-            means = np.concatenate([means, np.zeros((len(means), 1))], axis=1)
-            covs = np.pad(covs, ((0, 0), (0, 1), (0, 1)))
-            covs[:, 7, 7] = acceleration_var
+        means, covs = with_acceleration(means, covs, acceleration_var)
         if len(means) and len(track_labels):
             keep = entering_view(to_vehicle(means, ego, road), tracks, track_labels, gate_distance)
             means, covs = means[keep], covs[keep]

@@ -64,7 +64,8 @@ from collections.abc import Container
 import numpy as np
 from scipy.stats import chi2
 
-from tracker.birth import cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births
+from tracker.birth import (cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births,
+                           with_acceleration)
 from tracker.cloud import CloudResult
 from tracker import compiled as compiled_kernels
 from tracker.clustering import (bearing_extremes, cluster_radar_ranges, dense_components, distance_partition,
@@ -386,8 +387,7 @@ class Tracker:
             return
         if not self.cartesian:  # a vehicle can enter the view only where it is not blocked and no track is
             means, covs = visible_road_births(self.road, s_ego, ego, cfg.detection.lidar_range, cfg.birth,
-                                              cfg.motion.acceleration_std**2 if self.dim == 8 else None, tracks,
-                                              track_labels, cfg.gating.distance)
+                                              self._acceleration_var(), tracks, track_labels, cfg.gating.distance)
         else:
             means, covs = road_births(self.road, s_ego, ego.v, cfg.detection.lidar_range, cfg.birth)
             means, covs = self._with_acceleration(*to_cartesian_gaussians(self.road, means, covs, self.ut))
@@ -437,7 +437,7 @@ class Tracker:
             clusters = [c for c, keep in zip(clusters, big.tolist()) if keep]
             owned, lo, hi = owned[big], lo[big], hi[big]
         else:
-            self.stats["clusters_too_small"] += 0
+            self.stats["clusters_too_small"] += 0  # the counter exists from the first clustered frame, as before
         self._owned = owned
         if self.config.use_radar and clusters and len(frame.radar):
             velocities, self._free_radar = cluster_radar_ranges(ordered, lo, hi, frame.radar, frame.t, cfg.radar_gate)
@@ -757,13 +757,12 @@ class Tracker:
     def _with_acceleration(self, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth components ``(B, 7)`` with the acceleration state appended when the motion model has
         one (``a = 0``, std ``MotionConfig.acceleration_std``)."""
-        if self.dim == 7:
-            return means, covs
-        m = np.zeros((len(means), self.dim))
-        p = np.zeros((len(means), self.dim, self.dim))
-        m[:, :7], p[:, :7, :7] = means, covs
-        p[:, 7, 7] = self.config.motion.acceleration_std ** 2
-        return m, p
+        return with_acceleration(means, covs, self._acceleration_var())
+
+    def _acceleration_var(self) -> float | None:
+        """The birth components' acceleration variance (``MotionConfig.acceleration_std`` squared; None
+        without the acceleration state)."""
+        return self.config.motion.acceleration_std ** 2 if self.dim == 8 else None
 
     def _reduce(self, ego: EgoState) -> None:
         """Targets that left the field of view (the range of the rectangle's nearest corner beyond the
@@ -804,35 +803,28 @@ class Tracker:
         """``ReductionConfig.drop_inside_updated``: drop the components of labels without a reportable
         posterior in this frame (none above the extraction threshold) whose centre lies inside the
         rectangle of another label's reportable posterior: a duplicate of the seen vehicle, whether no
-        cluster updated it or its vehicle's cluster did, weakly, beside the track that took it. (The
+        cluster updated it or its vehicle's cluster did, weakly, beside the track that took it (the
         centres inside the rectangles as ``points_in_rectangles`` finds them, margin 0; by
-        ``tracker.compiled.reduction.inside_updated_kernel`` in one call when the kernels are on.)"""
+        ``tracker.compiled.reduction.inside_updated_kernel`` in one call when the kernels are on)."""
         mix = self.mixture
         updated = _labels_in(mix.labels, self._strong_labels)
-        if compiled_kernels.enabled():  # the same test in one compiled call
-            seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
-            if not seen.any() or updated.all():
-                return
-            rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
-            seen = np.flatnonzero(seen)
-            psi = rect.psi[seen]
-            keep, dropped = inside_updated_kernel(rect.center, np.cos(psi), np.sin(psi), rect.length, rect.width, seen,
-                                                  np.flatnonzero(~updated))
-            if dropped:
-                self.stats["components_inside_updated_dropped"] += dropped
-                self.mixture = mix.take(keep)
-            return
-        seen = np.flatnonzero(updated & (mix.weights > self.config.reduction.extraction_threshold))
-        idle = np.flatnonzero(~updated)
-        if not len(seen) or not len(idle):
+        seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
+        if not seen.any() or updated.all():
             return
         rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
-        inside = points_in_rectangles(rect.center[idle], rect.center[seen], rect.psi[seen], rect.length[seen],
-                                      rect.width[seen], margin=0.0) >= 0
-        if inside.any():
-            self.stats["components_inside_updated_dropped"] += int(inside.sum())
+        seen, idle = np.flatnonzero(seen), np.flatnonzero(~updated)
+        if compiled_kernels.enabled():
+            psi = rect.psi[seen]
+            keep, dropped = inside_updated_kernel(rect.center, np.cos(psi), np.sin(psi), rect.length, rect.width, seen,
+                                                  idle)
+        else:
+            inside = points_in_rectangles(rect.center[idle], rect.center[seen], rect.psi[seen], rect.length[seen],
+                                          rect.width[seen], margin=0.0) >= 0
             keep = np.ones(len(mix), dtype=bool)
             keep[idle[inside]] = False
+            dropped = int(inside.sum())
+        if dropped:
+            self.stats["components_inside_updated_dropped"] += dropped
             self.mixture = mix.take(keep)
 
     def _lateral(self, means: np.ndarray) -> np.ndarray:
