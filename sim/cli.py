@@ -14,7 +14,7 @@ with exit status 2.
 
 ``eot bench`` with no target runs every benchmark (tracker ms per frame at 1-50 targets in view,
 Stone Soup's GM-PHD ratio, lidar, world, end to end, Monte Carlo, env, peak memory, the machine) and
-writes ``results/bench.json`` (``--out``) plus a table; ``--quick`` shrinks it to seconds
+writes ``eot-output/bench.json`` (``--out``) plus a table; ``--quick`` shrinks it to seconds
 (``sim.benchmarks._suite``). ``eot bench TARGET`` runs one benchmark; ``eot bench tracker
 --compare-stonesoup`` needs the extra ``baselines`` (exit 2 with the install command otherwise).
 
@@ -38,6 +38,9 @@ import sys
 from collections.abc import Sequence
 
 USAGE_EXIT = 2
+#: Default parent folder of every command's outputs (relative to the working directory; not tracked by git).
+#: The committed reference outputs under ``results/`` are re-made by passing ``--out results/...``.
+OUTPUT_ROOT = "eot-output"
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -269,7 +272,7 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
 
 
 def _demo(args: argparse.Namespace) -> int:
-    """``eot demo``: curvy-multi with defaults into results/demo/ with figures and the GIF."""
+    """``eot demo``: curvy-multi with defaults into ``eot-output/demo/`` (``--out``) with figures and the GIF."""
     return _run_and_write("curvy-multi", seed=args.seed, variant="curvilinear-fused", out=args.out, gif=not args.no_gif,
                           duration=None, roadside=None, quiet=args.quiet)
 
@@ -281,7 +284,7 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     name = Path(paths[0]).stem
-    out = args.out or f"out/{name}-{variant}-seed{args.seed}"
+    out = args.out or f"{OUTPUT_ROOT}/{name}-{variant}-seed{args.seed}"
     return _run_and_write(paths[0], seed=args.seed, variant=variant, out=out, gif=args.gif, duration=args.duration,
                           roadside=False if args.no_roadside else None, quiet=args.quiet, lidar_model=args.lidar_model)
 
@@ -413,7 +416,7 @@ def _soak(args: argparse.Namespace) -> int:
                             roadside=False if args.no_roadside else None)
     except ValueError as exc:
         raise UsageError(" ".join(str(exc).split())) from None
-    out = Path(args.out or f"out/soak-{spec.name}-seed{args.seed}")
+    out = Path(args.out or f"{OUTPUT_ROOT}/soak-{spec.name}-seed{args.seed}")
     _check_writable(out)
     columns = [f.name for f in fields(SoakWindow)]
     try:
@@ -603,8 +606,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     from sim.variants import DEFAULT_VARIANT, VARIANTS
 
-    p = sub.add_parser("demo", help="run curvy-multi with defaults; figures, GIF and a summary in results/demo/")
-    p.add_argument("--out", default="results/demo", help="output folder (default: results/demo)")
+    p = sub.add_parser("demo", help=f"run curvy-multi with defaults; figures, GIF and a summary in {OUTPUT_ROOT}/demo/")
+    p.add_argument("--out", default=f"{OUTPUT_ROOT}/demo", help=f"output folder (default: {OUTPUT_ROOT}/demo)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-gif", action="store_true", help="skip the animated GIF")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -614,7 +617,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", help="scenario name (see `eot scenarios`) or a .toml file")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
-    p.add_argument("--out", help="output folder (default: out/SCENARIO-VARIANT-seedN)")
+    p.add_argument("--out", help=f"output folder (default: {OUTPUT_ROOT}/SCENARIO-VARIANT-seedN)")
     p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds (default: the scenario's)")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
@@ -657,7 +660,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
-    p.add_argument("--out", help="output folder (default: out/soak-SCENARIO-seedN)")
+    p.add_argument("--out", help=f"output folder (default: {OUTPUT_ROOT}/soak-SCENARIO-seedN)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_soak)
 
@@ -672,17 +675,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-truth", action="store_true", help="skip the ground-truth perception mode")
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run")
-    p.add_argument("--out", default="results/closed-loop", help="output folder (default: results/closed-loop)")
+    p.add_argument("--out", default=f"{OUTPUT_ROOT}/closed-loop", help=f"output folder (default: {OUTPUT_ROOT}/closed-loop)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_closed_loop)
 
-    p = sub.add_parser("compare", help="the paper's comparison study: every variant, same seeds, results/REPORT.md")
+    p = sub.add_parser("compare", help=f"the paper's comparison study: every variant, same seeds, REPORT.md (default {OUTPUT_ROOT}/compare/)")
     p.add_argument("--suite", default="standard", help="scenario suite (default: standard)")
     p.add_argument("--runs", type=int, default=20, help="seeds per scenario and variant (default 20)")
     p.add_argument("--workers", type=int, default=1, help="parallel workers (default 1)")
     p.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes or Ray")
     p.add_argument("--address", help="Ray cluster address (e.g. auto); default: a local Ray with --workers CPUs")
-    p.add_argument("--out", default="results", help="folder of REPORT.md; figures and CSVs go to OUT/report/ (default: results)")
+    p.add_argument("--out", default=f"{OUTPUT_ROOT}/compare",
+                   help=f"folder of REPORT.md; figures and CSVs go to OUT/report/ (default: {OUTPUT_ROOT}/compare)")
     p.add_argument("--variants", action="append",
                    help="variants, repeat or comma-separate (default: all of the study; unavailable ones are skipped)")
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
@@ -696,11 +700,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_scenarios)
     from sim.benchmarks import targets
 
-    bench = sub.add_parser("bench", help="benchmarks (speed, never asserted in tests); no target: all of them -> results/bench.json",
-                           description="With no TARGET: every benchmark, a table, and the numbers in results/bench.json "
+    bench = sub.add_parser("bench", help=f"benchmarks (speed, never asserted in tests); no target: all of them -> {OUTPUT_ROOT}/bench.json",
+                           description=f"With no TARGET: every benchmark, a table, and the numbers in {OUTPUT_ROOT}/bench.json "
                                        "(sim.benchmarks._suite). With a TARGET: that benchmark's numbers as JSON.")
-    bench.add_argument("--out", "--json", dest="bench_out", metavar="PATH", default="results/bench.json",
-                       help="no target: where to write the JSON (default results/bench.json)")
+    bench.add_argument("--out", "--json", dest="bench_out", metavar="PATH", default=f"{OUTPUT_ROOT}/bench.json",
+                       help=f"no target: where to write the JSON (default {OUTPUT_ROOT}/bench.json)")
     bench.add_argument("--quick", action="store_true", help="no target: shrink every part (seconds; numbers not meaningful)")
     bench.add_argument("--only", nargs="+", metavar="SECTION",
                        help="no target: only these sections (tracker stonesoup lidar world end_to_end montecarlo env)")

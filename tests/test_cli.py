@@ -125,12 +125,12 @@ def test_montecarlo_writes_runs_and_summary(capsys, tmp_path):
     assert len(gospa) == 2 and all(s["n"] == 2 for s in gospa)
 
 
-def test_demo_runs_curvy_multi_into_results_demo(monkeypatch):
+def test_demo_runs_curvy_multi_into_the_output_folder(monkeypatch):
     calls = []
     monkeypatch.setattr(cli, "_run_and_write", lambda scenario, **kw: calls.append((scenario, kw)) or 0)
     assert cli.main(["demo"]) == 0
     scenario, kw = calls[0]
-    assert scenario == "curvy-multi" and kw["out"] == "results/demo" and kw["gif"] is True
+    assert scenario == "curvy-multi" and kw["out"] == "eot-output/demo" and kw["gif"] is True
     assert kw["variant"] == "curvilinear-fused" and kw["seed"] == 0 and kw["duration"] is None
 
 
@@ -153,7 +153,26 @@ def test_run_default_output_folder(monkeypatch):
     monkeypatch.setattr(cli, "_run_and_write", lambda scenario, **kw: calls.append((scenario, kw)) or 0)
     assert cli.main(["run", "cut-in", "--seed", "4", "--variant", "paper-motion"]) == 0
     scenario, kw = calls[0]
-    assert Path(scenario).name == "cut-in.toml" and kw["out"] == "out/cut-in-paper-motion-seed4"
+    assert Path(scenario).name == "cut-in.toml" and kw["out"] == "eot-output/cut-in-paper-motion-seed4"
+
+
+def test_default_outputs_are_untracked():
+    """Every command's default output lies under ``eot-output/``, which git ignores: running the README's
+    commands in a checkout never modifies the committed reference outputs in ``results/``."""
+    import argparse
+
+    parser = cli.build_parser()
+    defaults = {}
+    for action in parser._subparsers._group_actions:
+        for name, sub in action.choices.items():
+            for a in sub._actions:
+                if "--out" in a.option_strings and isinstance(a.default, str):
+                    defaults[name] = a.default
+    assert {"demo", "closed-loop", "compare", "bench"} <= set(defaults), defaults
+    for name, default in defaults.items():
+        assert Path(default).parts[0] == cli.OUTPUT_ROOT, (name, default)
+    ignored = (Path(__file__).parents[1] / ".gitignore").read_text().split()
+    assert f"/{cli.OUTPUT_ROOT}/" in ignored
 
 
 def test_progress_bar_lines():

@@ -58,7 +58,7 @@ from tracker import compiled as compiled_kernels
 SECTIONS = ("tracker", "stonesoup", "lidar", "lidar3d", "world", "end_to_end", "montecarlo", "env")
 E2E_SCENARIOS = ("curvy-multi", "dense-highway")
 MC_SCENARIO = "curvy-multi"
-DEFAULT_OUT = "results/bench.json"
+DEFAULT_OUT = "eot-output/bench.json"
 
 
 @dataclasses.dataclass(frozen=True)
