@@ -1,19 +1,25 @@
 """Typed configuration of the tracker: every tunable number, with its unit and default, in one place.
 
-``TrackerConfig`` groups the parts (all frozen dataclasses, validated on construction; a bad value
-raises ``ValueError`` naming the field, the value and the allowed range):
+``TrackerConfig`` holds three top-level choices (coordinates, object model, radar use) and one section
+per part of the filter, each a frozen dataclass validated on construction (a bad value raises
+``ValueError`` naming the field, the value and the allowed range):
 
-- ``ProcessNoise``: additive process noise, per state, as continuous-time densities (see
-  ``tracker.motion.process_noise`` for the exact discretisation);
+- ``ProcessNoise``: additive process noise densities (``tracker.motion.process_noise``);
 - ``UKFParams``: the unscented transform's ``alpha, beta, kappa`` and the covariance floor;
-- ``MotionConfig``: which motion model (``"frenet"`` exact kinematics, default, or ``"paper"`` flat
-  constant turn) and the RK4 sub-step;
-- ``MeasurementConfig``: lidar point noise, radar velocity noise, the rectangle model's rules
-  (one/two-side eigenvalue ratio 50, partial-visibility threshold 0.6, the cluster downsampling bound);
-- ``DetectionConfig``, ``BirthConfig``, ``GatingConfig``, ``ReductionConfig``, ``ClusteringConfig``:
-  the multi-target GM-PHD layer's numbers (P_D, clutter, birth, gating, pruning/merging/cap,
-  clustering). They are defined here with documented defaults so that one object configures a run;
-  ``tracker.Tracker`` (the multi-target layer) is their consumer.
+- ``MotionConfig``: the motion model (exact Frenet kinematics or the paper's flat constant turn), the
+  road-following prior, the acceleration state and its manoeuvre-gated jerk;
+- ``MeasurementConfig``: the rectangle measurement model (lidar noise, one/two sides, partial
+  visibility, shadows, extent rules) and the radar rows, including radar-only updates;
+- ``DetectionConfig``: ``P_D``, ``P_S``, clutter, the lidar's resolution and range, occlusion;
+- ``BirthConfig``: road births, cluster births and the vehicle-size priors and limits;
+- ``GatingConfig``: which (component, cluster) pairs are updated;
+- ``ReductionConfig``: prune, merge, cap, extraction, label management and re-identification;
+- ``ClusteringConfig``: lidar preprocessing, clustering and radar association;
+- ``PointConfig``: the point-object GNN tracker (``object_model = "point"``);
+- ``tracker.cloud.CloudConfig``: the 3-D point-cloud pipeline (frames with ``(N, 3)`` lidar).
+
+Every field carries a one-line ``#:`` comment: meaning, unit and default. Why a rule exists, and where
+it departs from the paper, is explained in ``docs/tracker.md``.
 
 Study variants are configurations of the same machinery: ``TrackerConfig.for_variant(name)`` with
 ``name`` like ``"curvilinear-fused"``, ``"cartesian-lidar"``, ``"point-fused"``.
@@ -47,26 +53,27 @@ def _check_choice(cls_name: str, name: str, value: Any, choices: tuple[str, ...]
 
 @dataclass(frozen=True)
 class ProcessNoise:
-    """Additive process noise, continuous-time white-noise densities (discretised over ``dt``).
+    """Additive process noise as continuous-time white-noise densities, discretised over ``dt``.
 
-    - ``accel`` (m/s^2/sqrt(Hz), i.e. m s^-1.5): white acceleration driving ``v`` and, through the
-      integrated (``dt^3/3``, ``dt^2/2``) terms, the position along the heading;
-    - ``yaw_accel`` (rad s^-1.5): white yaw acceleration driving ``xi_dot`` (``psi_dot``) and ``xi`` (``psi``);
-    - ``along``, ``lateral`` (m/sqrt(s)): direct random walk of the position along / across the
-      heading (absorbs model error, e.g. lane changes the constant-turn model does not predict);
-    - ``heading`` (rad/sqrt(s)): direct random walk of ``xi`` (``psi``);
-    - ``length``, ``width`` (m/sqrt(s)): random walk of the extent (0 freezes it after convergence).
-
-    Over ``dt`` the covariance added is ``Q = G diag(accel^2, yaw_accel^2) G^T + diag(...)^2 dt``;
-    see ``tracker.motion.process_noise``.
+    Over ``dt`` the covariance added is ``Q = G diag(accel^2, yaw_accel^2) G^T + diag(random walks)^2 dt``:
+    white acceleration and yaw acceleration integrated exactly over the step (the ``dt^3/3``, ``dt^2/2``
+    terms) plus direct random walks. The position terms act along and across the target's heading.
+    See ``tracker.motion.process_noise`` and ``docs/tracker.md`` ("Prediction").
     """
 
+    #: White acceleration density on ``v`` and the position along the heading (m s^-1.5; default 0.5).
     accel: float = 0.5
+    #: White yaw acceleration density on ``xi_dot`` and ``xi`` (``psi_dot``, ``psi``) (rad s^-1.5; default 0.2).
     yaw_accel: float = 0.2
+    #: Random walk of the position along the heading, for model error (m s^-0.5; default 0.02).
     along: float = 0.02
+    #: Random walk of the position across the heading, e.g. unpredicted lane changes (m s^-0.5; default 0.05).
     lateral: float = 0.05
+    #: Random walk of the heading ``xi`` (``psi``) (rad s^-0.5; default 0.01).
     heading: float = 0.01
+    #: Random walk of the length ``L``; 0 freezes it once converged (m s^-0.5; default 0.02).
     length: float = 0.02
+    #: Random walk of the width ``W``; 0 freezes it once converged (m s^-0.5; default 0.01).
     width: float = 0.01
 
     def __post_init__(self) -> None:
@@ -82,16 +89,19 @@ class UKFParams:
 
     ``lambda = alpha^2 (n + kappa) - n``; sigma points ``mean +/- sqrt(n + lambda) * chol(P)`` columns;
     weights ``Wm0 = lambda / (n + lambda)``, ``Wc0 = Wm0 + 1 - alpha^2 + beta``, ``Wi = 1 / (2 (n + lambda))``.
-    The default (``alpha = 1, beta = 2, kappa = 0``: ``Wm0 = 0``, ``Wc0 = 2``) keeps every covariance
-    weight non-negative, which the tracker requires: the innovation covariance is then positive
-    definite by construction and the update can use its low-rank form (``tracker.update``). Tiny
-    ``alpha`` (the textbook 1e-3) gives ``Wm0 ~ -1e6`` and is refused.
-    ``min_eigenvalue`` (state units squared) is the floor the SPD repair lifts eigenvalues to.
+    The tracker requires every covariance weight to be non-negative (``Wc0 >= 0``): the innovation
+    covariance is then positive definite by construction and the update can use its low-rank form
+    (``tracker.update``). The default (``alpha = 1, beta = 2, kappa = 0``) gives ``Wm0 = 0``, ``Wc0 = 2``;
+    a tiny ``alpha`` (the textbook 1e-3) gives ``Wm0 ~ -1e6`` and is refused.
     """
 
+    #: Spread of the sigma points, > 0; must keep ``Wc0 >= 0`` (dimensionless; default 1.0).
     alpha: float = 1.0
+    #: Prior-distribution weight of the central sigma point, >= 0 (2 is optimal for Gaussians; default 2.0).
     beta: float = 2.0
+    #: Secondary scaling of the sigma-point spread (dimensionless; default 0.0).
     kappa: float = 0.0
+    #: Floor the SPD repair lifts a covariance's eigenvalues to (state units squared; default 1e-9).
     min_eigenvalue: float = 1e-9
 
     def __post_init__(self) -> None:
@@ -116,119 +126,54 @@ class UKFParams:
 
 @dataclass(frozen=True)
 class MotionConfig:
-    """Motion model.
+    """Motion model of a target (``tracker.motion``).
 
-    - ``model``: ``"frenet"`` (default) integrates the exact Frenet kinematics
-      ``s' = v cos(xi) / (1 - kappa(s) n)``, ``n' = v sin(xi)``, ``xi' = xi_dot`` with RK4;
-      ``"paper"`` is the paper's constant-turn model in (s, n), which treats the road frame as flat.
-      A Cartesian-state tracker always uses the Cartesian constant-turn model.
-    - ``max_step`` (s): largest RK4 sub-step of the exact model (``ceil(dt / max_step)`` sub-steps).
-    - ``min_denominator``: floor of ``1 - kappa n`` (points at or beyond the centre of curvature are
-      not on any road; the floor keeps a wild sigma point finite).
-    - ``slip_lever`` (fraction of ``L``): the exact model's kinematic slip, ``sin beta = psi_dot
-      slip_lever L / v`` (``tracker.motion.slip_angle``): the rectangle's heading ``psi`` is the body
-      axis and the centre moves along ``psi + beta``. 0.5 is a kinematic bicycle whose rear axle is at
-      the rear end (highway-env's vehicles); a passenger car's rear axle ~1 m ahead of its rear gives
-      ~0.3; 0 is the paper's model (velocity along the body). Departure from the paper, measured
-      (issue 10): without it, a car holding its lane on a curve has ``xi = -beta`` in the truth (body
-      axis turned into the curve) but ``xi = 0`` in the model, a yaw bias of 0.7 deg at R 150 m.
-    - ``heading_decay`` (1/s, default 1.0), ``yaw_rate_decay`` (1/s, default 2.0; 0 and 0 turn the prior
-      off, the paper's constant turn): the exact model's road-following
-      prior, ``xi' = xi_dot - heading_decay * (xi + beta)`` (``beta`` the slip angle: the course relaxes to
-      lane keeping) and ``xi_dot' = -yaw_rate_decay * xi_dot`` (mean-reverting Ornstein-Uhlenbeck
-      processes; ``tracker.motion.FrenetMotion``, whose RK4 sub-steps shrink to ``0.5 / rate`` for large rates). Vehicles follow their road: a lane
-      change ends, a heading relative to the road returns to 0. With updates every 0.1 s the pull is a
-      few per cent per frame and the measurements correct it; while a track coasts (occluded, a sensor
-      blackout) it stops a lane change's ``xi_dot`` from carrying the prediction metres off the lane, and
-      the variances of ``xi`` and ``xi_dot`` stay bounded over any gap (both rates > 0) instead of
-      growing with ``dt^3``. The pull takes the short way to 0, so it assumes ``|xi| < pi/2`` (births
-      start within pi/4 of the road).
-      Departure from the paper (constant turn in ``xi``), measured in issue 10's note.
-    - ``acceleration`` (default on since session 8; ``False``: the model above, constant speed): the
-      exact model carries the longitudinal acceleration ``a`` (m/s^2) as an eighth, internal state after
-      ``W`` (``Track`` still reports the seven of DESIGN.md): ``v' = a``, ``a' = -a / acceleration_time``
-      (a Singer model: an acceleration persists for about ``acceleration_time`` s, then fades), driven by
-      white jerk of ``jerk`` (m s^-2.5, the ``(v, a)`` block of the noise exact by Van Loan), with the
-      white acceleration on ``v`` lowered from ``ProcessNoise.accel`` to ``residual_accel`` (m s^-1.5;
-      the state now carries what persists); a newborn starts at ``a = 0`` with std ``acceleration_std``
-      (m/s^2). Only with ``model = "frenet"`` (the paper's model and the Cartesian state keep seven
-      states). Tuned over ``acceleration_time`` 1.5-10 s, ``jerk`` 0.5-2, ``residual_accel`` 0.3-0.5 on
-      the standard suite (issue 10); ``residual_accel`` 0.3 -> 0.15 in session 12, once births carried
-      the covariance of their unseen length (``BirthConfig.correlated_extent``): the filter's speed
-      spread while following a car at constant speed was ~0.16 m/s against a real error of ~0.03 m/s,
-      so each radar speed row moved the speed by a tenth of its 0.2 m/s noise (10 seeds, fused:
-      curvy-multi GOSPA -0.013 +- 0.006 m, speed RMSE lower on eight of thirteen scenarios, chicane-follow
-      0.033 -> 0.029 m/s; lidar-only curvy-multi position 0.345 -> 0.294 m; worse: emergency-brake speed
-      0.273 -> 0.284 m/s; 0.1 gained little more and lost more there).
-    - ``coast_acceleration_time`` (s, None: ``acceleration_time`` throughout): while no cluster updates
-      a track (hidden, out of view), its acceleration fades with this time constant instead: before each
-      prediction, the components of labels not updated in the last frame have ``a`` (and its covariance
-      row and column) scaled by ``exp(-dt / coast_acceleration_time)``. What the measurements showed a
-      vehicle doing carries it through a short gap, but a braking or an acceleration is not extrapolated
-      for seconds unseen. Measured in issue 10's notes (fused, 10 seeds): with ``acceleration_time`` 6 s
-      throughout, curvy-multi's car accelerating while hidden was followed (GOSPA 0.55 -> 0.36 m) but a
-      car hidden for 5 s in truck-hairpin, whose braking turned into acceleration meanwhile, was
-      extrapolated braking (GOSPA 0.55 -> 0.85 m); with 0.5 s: curvy-multi 0.548 -> 0.458 m (-0.089
-      +- 0.022), stop-and-go 5.24 -> 4.98 m (-0.26 +- 0.10), speed RMSE lower on seven of thirteen
-      scenarios (emergency-brake 0.46 -> 0.28 m/s), truck-hairpin 0.548 -> 0.553 m (+0.004 +- 0.042);
-      worse: hard-accel 0.978 -> 1.004 m (+0.026 +- 0.013), dense-highway position +0.008 m. 1.0 s
-      gained more on curvy-multi (-0.129) and lost more on truck-hairpin (+0.059 +- 0.065).
-    - ``coast_established_sigmas`` (None: off) and ``coast_established_time`` (s): an acceleration the
-      measurements established, ``|a| >= coast_established_sigmas sd(a)``, fades with the longer time
-      constant instead. A car that was accelerating at 2 m/s^2 for seconds when it went behind another
-      keeps accelerating; the acceleration estimate of a car at constant speed (a few tenths of m/s^2,
-      within its spread) is noise and fades at once. The process noise widens ``sd(a)`` while the
-      track coasts, so an established acceleration also fades out after a few seconds unseen. Session
-      11 (fused, 10 seeds): curvy-multi's car accelerating 15 -> 18.6 m/s while neither sensor saw it
-      (seed 3: 4.7 m behind it after 2.1 s) is followed, position RMSE 0.262 -> 0.225 m (-0.037 +-
-      0.016), stop-and-go GOSPA 4.657 -> 4.524 m (-0.133 +- 0.035); truck-hairpin and occlusion,
-      where ``coast_acceleration_time`` 1-2 s for every acceleration was worse (truck-hairpin position
-      +0.048 and +0.110 m), unchanged. 2 s instead of 4: curvy-multi 0.233 m, stop-and-go 4.552 m;
-      1.5 sd instead of 2: 0.221 m but an ID switch more on curvy-multi.
-    - ``quiet_jerk`` (m s^-2.5, None: ``jerk`` always): the manoeuvre-gated jerk (session 13). The Singer
-      jerk is sized for braking at 8 m/s^2; a car holding its speed, most of the time, needs far less,
-      and with the full jerk the filter's speed spread (~0.14 m/s following a car) stays several times
-      its real error. A label is predicted with ``quiet_jerk`` until an update flags a manoeuvre, then
-      with ``jerk`` for ``manoeuvre_hold`` s (extended while flags continue). A flag: the update's
-      correction of ``s`` beyond ``manoeuvre_sigmas`` of its expected spread (``sqrt(P_prior[s, s] -
-      P_post[s, s])``), or the fading mean of that normalised correction (time constant
-      ``manoeuvre_memory`` s; None: off) beyond ``manoeuvre_sigmas`` of its own spread (a steady lag no
-      single frame shows). At a flag's onset the acceleration's variance is raised to the Singer model's
-      stationary ``jerk^2 acceleration_time / 2`` when the flag is abrupt (one large correction; a
-      steady lag is flagged while the filter follows an acceleration it has learned, which the raise
-      would discard), so a braking is taken at once: two frames into a 7 m/s^2 stop
-      (``tests/test_tracker.py``) the flag is set; with the quiet jerk and no detection the braking's
-      speed RMSE is ~1.5x the full jerk's. ``manoeuvre_coasting``: a reported label that no cluster
-      updated in the last frame is predicted with the full jerk (unseen, no update can flag its
-      manoeuvre; stop-and-go's hidden cars pulling away). Measured (fused, 13 scenarios, 10 seeds,
-      against ``quiet_jerk = None``; seeds 0-9 / held-out 10-19): speed RMSE lower on seven of
-      thirteen on both sets (emergency-brake 0.284 -> 0.251 / 0.285 -> 0.252 m/s, chicane-follow 0.029
-      -> 0.024 / 0.032 -> 0.027, cut-in, occlusion, curve-single), positions and GOSPA unchanged within
-      their intervals; lidar-only chicane-follow 0.031 -> 0.027 m/s. Without ``manoeuvre_memory`` and
-      ``manoeuvre_coasting`` stop-and-go's speed was +0.030 +- 0.016 m/s worse (+0.010 +- 0.012 with
-      them); quiet 0.4, memory 0.3 or 1.0 s, hold 1 or 4 s, 1.5 or 2.5 sd all within a few mm/s of
-      this. Worse: standing-vehicle speed +0.004 +- 0.001 / +0.003 +- 0.002 m/s, curvy-multi speed
-      +0.005 +- 0.007 / +0.003 +- 0.003 m/s, truck-hairpin position +0.015 +- 0.022 m on seeds 0-9.
+    ``model = "frenet"`` integrates the exact Frenet kinematics ``s' = v cos(xi + beta) / (1 - kappa(s) n)``,
+    ``n' = v sin(xi + beta)`` with RK4, plus a road-following prior on ``xi`` and ``xi_dot``, a kinematic
+    slip angle ``beta`` and an internal acceleration state (Singer model) whose jerk is gated by
+    manoeuvres; ``"paper"`` is the paper's constant-turn model in ``(s, n)``, which treats the road frame
+    as flat (seven states, constant speed). A Cartesian-state tracker always uses the Cartesian
+    constant-turn model. The acceleration and manoeuvre fields apply only to ``"frenet"``. Why each part
+    exists: ``docs/tracker.md`` ("Prediction", "Departures from the paper").
     """
 
+    #: ``"frenet"``: exact Frenet kinematics (RK4); ``"paper"``: the paper's flat constant turn (default "frenet").
     model: Literal["frenet", "paper"] = "frenet"
+    #: Largest RK4 sub-step of the exact model: ``ceil(dt / max_step)`` sub-steps (s; default 0.1).
     max_step: float = 0.1
+    #: Floor of ``1 - kappa n``, keeping a sigma point beyond the centre of curvature finite (default 0.1).
     min_denominator: float = 0.1
+    #: Rear axle behind the centre, as a fraction of ``L``, for the slip angle; 0: the paper's no slip (default 0.5).
     slip_lever: float = 0.5
+    #: Road-following prior: rate at which the course ``xi + beta`` relaxes to 0 (1/s; default 1.0; 0: off).
     heading_decay: float = 1.0
+    #: Road-following prior: rate at which ``xi_dot`` relaxes to 0 (1/s; default 2.0; 0: off).
     yaw_rate_decay: float = 2.0
+    #: Carry the longitudinal acceleration ``a`` as an internal 8th state (Singer model; exact model only; default True).
     acceleration: bool = True
+    #: Singer time constant: an acceleration persists about this long, then fades (s; default 6.0).
     acceleration_time: float = 6.0
+    #: White jerk density driving ``a`` during a manoeuvre (m s^-2.5; default 0.7).
     jerk: float = 0.7
+    #: White acceleration on ``v`` with the acceleration state, replacing ``ProcessNoise.accel`` (m s^-1.5; default 0.15).
     residual_accel: float = 0.15
+    #: Standard deviation of a newborn's acceleration, whose mean is 0 (m/s^2; default 1.0).
     acceleration_std: float = 1.0
+    #: Time constant with which ``a`` fades while no cluster updates a track (s; default 0.5; None: ``acceleration_time``).
     coast_acceleration_time: float | None = 0.5
+    #: ``|a|`` of at least this many standard deviations is established and fades slower (default 2.0; None: off).
     coast_established_sigmas: float | None = 2.0
+    #: Time constant with which an established acceleration fades while coasting (s; default 4.0).
     coast_established_time: float = 4.0
+    #: Jerk density of a label that is not manoeuvring (m s^-2.5; default 0.3; None: ``jerk`` always).
     quiet_jerk: float | None = 0.3
+    #: A correction of ``s`` beyond this many expected standard deviations flags a manoeuvre (default 2.0).
     manoeuvre_sigmas: float = 2.0
+    #: How long a flagged label is predicted with the full ``jerk`` (s; default 2.0).
     manoeuvre_hold: float = 2.0
+    #: Time constant of the fading mean of ``s`` corrections that flags a steady lag (s; default 0.5; None: off).
     manoeuvre_memory: float | None = 0.5
+    #: A reported label no cluster updated in the last frame is predicted with the full ``jerk`` (default True).
     manoeuvre_coasting: bool = True
 
     def __post_init__(self) -> None:
@@ -265,245 +210,79 @@ class MotionConfig:
 
 @dataclass(frozen=True)
 class MeasurementConfig:
-    """Rectangle measurement model (lidar) and radar velocity rows.
+    """Rectangle measurement model (lidar), radar rows of fused clusters and radar-only updates.
 
-    - ``lidar_sigma`` (m): std of a lidar point about its measurement generating point, per axis
-      (``R = lidar_sigma^2 I2`` per point); it also absorbs the model's approximation (points spread
-      along sides, corners rounded), so keep it above the sensor's range noise.
-    - ``radar_velocity_sigma`` (m/s): std of the radar's absolute velocity, per axis in E.
-    - ``two_side_eigen_ratio``: a cluster is two-sided when the eigenvalue ratio ``lambda_max /
-      lambda_min`` of its points' covariance is below this (MATLAB ``ctrectmeas``: 50) *and* the
-      predicted rectangle shows two sides to the sensor; otherwise one-sided.
-    - ``partial_visibility``: a side whose measured extent is at most this fraction of its predicted
-      length is "partially visible" (its generating points keep the measured spacing in metres, anchored
-      at the observed corner, and do not pull the length); above it the points are taken to span the
-      whole side (MATLAB: 0.6; default 0.9, issue 10: a side whose points cover 60-90 % of its
-      predicted length was taken as whole and pulled L down to the points' extent, which then
-      made the next side "whole" sooner; standard suite, 10 seeds, old tracker: position RMSE
-      0.36 -> 0.18 m on curve-single, 0.77 -> 0.61 m on dense-highway, worse only on curvy-multi
-      0.39 -> 0.43 m).
-    - ``max_cluster_points``: downsampling bound. A cluster with more points is thinned evenly in
-      bearing order to this many (its extreme points and the corner point are kept) before the update.
-      The update's cost is linear in the points (see ``tracker.update``); the bound mainly limits the
-      weight a single cluster gets when the points are not independent, as the model assumes.
-    - ``min_points_two_sided``: fewest points for which the two-sided model (corner split) is tried.
-    - ``end_gap_correction``: a scanning lidar's extreme return on a side lies somewhere within one ray
-      gap of the side's free end, on average half a gap inside. With the correction the generating
-      points span the measured extent plus half the expected gap at each free end (the gap from the
-      ray geometry: ``r^2 db / d`` for range ``r``, bearing step ``db``, line distance ``d``), which
-      removes the length bias of sparse (far or grazing) sides. Without it (MATLAB's model) the extreme
-      points are taken to be the corners themselves.
-    - ``radar_rows``: what a fused cluster's radar velocity ``(vx, vy)`` contributes. ``"speed"``
-      (default): one row, the radar velocity's component along the predicted heading against ``v``
-      (``u . v_radar`` vs ``u . v (cos psi_E, sin psi_E)``, ``u`` the unit heading of the predicted mean).
-      ``"velocity"``: the paper's two rows ``v (cos psi_E, sin psi_E)`` against ``(vx, vy)``. Departure
-      from the paper, measured (issue 10): a vehicle's velocity is not along its body axis (slip: a
-      car holding its lane on a 150 m curve moves at 0.013 rad to its body axis, 0.08 rad on a 30 m
-      curve), and a detection up to one lidar period old points where the vehicle was heading then;
-      the two rows pin the heading to that biased direction, against the lidar's rectangle and the
-      lane-keeping motion, and the conflict drained into the unobservable length (curve-single,
-      10 seeds: length RMSE 0.69 m fused vs 0.36 m lidar-only). The speed row keeps what the radar
-      measures best and leaves the heading to the lidar.
-    - ``hold_unobserved_extent``: an update whose cluster shows no long side fully keeps ``L`` at its
-      prior (no short side fully: ``W``), the Schmidt ("consider") update of ``tracker.update.
-      hold_unobserved_extent``; ``False`` is the plain UKF update (the paper), where ``L`` drifts with
-      every along-track innovation while only the rear is in view.
-    - ``grow_extent``: when a side's points run well past the predicted rectangle (a truck tracked
-      from its rear shows its side), the pair's prior gets the excess as variance of the extent, anchored
-      at the end nearest the sensor, before the update (``tracker.update.grow_extent``); ``False``: the
-      prior is used as is (the paper), and the side's innovation usually fails the gate.
-    - ``settled_width_std`` (m; None: off): a width whose standard deviation is below this is settled,
-      and ``grow_extent`` leaves it alone (the length still grows). A car's rear, scanned for a second,
-      is 2.1 +- 0.03 m wide; when the car changes lanes and the track's heading lags, its rear and the
-      side coming into view fit one side 2.9 m long, and growing the width by that excess made the car
-      a 3 m wide, and then (``BirthConfig.long_width``) 12 m long, vehicle for two frames, its centre
-      5-10 m ahead (session 11: the closed loop's one phantom brake, random-road seed 1). A new track's
-      width (the prior's 0.3 m) still grows to a truck's.
-    - ``single_point_min_apparent``: a single-point cluster is matched to the nearest visible side of
-      the predicted rectangle among those whose apparent width seen from the sensor (side length times
-      the cosine of the incidence angle) is at least this fraction of the widest visible side's: a lone
-      return far away almost always comes from the side facing the sensor, rarely from a side seen at
-      grazing incidence, and a grazing side's far corner would fit the point with the vehicle a whole
-      length off (issue 10, dense-highway). 0 considers every visible side (the model before).
-    - ``conversion``: how the measurement model takes a curvilinear state to E: ``"exact"`` (default,
-      the centerline ``c(s) + n (-sin theta, cos theta)``) or ``"euler"`` (the paper's Algorithm 1:
-      Euler integration of the local cubic heading polynomial fitted around the ego,
-      ``tracker.road.Road.frame_euler``; its error grows with the distance from the ego and the
-      road's departure from a cubic heading within 30 m). Curvilinear states only.
-    - ``shadow_window`` (lidar rays of ``DetectionConfig.lidar_resolution``; None: off) and
-      ``shadow_margin`` (m): an end of a cluster (its first or last point in bearing) whose neighbouring
-      rays, within this many rays beyond it, return something more than ``shadow_margin`` nearer borders
-      another object's shadow (``tracker.clustering.occluded_ends``): the side goes on behind it, so the
-      extreme point is not the side's end. Such a side is partially visible whatever its extent, and a
-      one-sided cluster with one occluded end and a sharp free end (its end-gap margin, half the
-      expected ray gap there, at most ``shadow_free_gap`` m) is partially visible and anchored at the
-      free end (the vehicle's corner) instead of the end or centre nearest the prediction. A far or
-      grazing side, whose next ray skips metres along it, keeps the model before (a bus's side seen at
-      80 m anchored at such an end was held at a car's length for 5 s: mixed-traffic, issue 10). Without it (the model before) a car
-      whose inner half is hidden behind another had its visible outer half taken for the middle of its
-      rear, and the track drifted half a width outward (issue 10, occlusion: 0.5-1 m).
-    - ``sharp_side_whole`` (session 13; needs ``shadow_window``): a one-sided cluster whose both ends are
-      sharp (end-gap margins at most ``shadow_free_gap``) and neither borders a shadow shows the whole
-      side, however much shorter than predicted: a convex rectangle shows each visible side whole, so
-      only an occluder, the range or a coarse sampling cuts it short, and those are what the flags and
-      the margins test. Without it a side below ``partial_visibility`` of the prediction was partially
-      visible, and an extent could only grow: a motorcycle (2.2 x 0.8 m) kept a car's 4.5 x 1.8 m prior
-      for the whole run. Fused, 10 seeds (0-9 / held-out 10-19): hard-accel (a motorcycle) GOSPA 0.967
-      -> 0.647 / 0.969 -> 0.651 m, position 0.477 -> 0.364 / 0.483 -> 0.372 m, length 1.10 -> 0.68 m;
-      mixed-traffic width 0.241 -> 0.144 / 0.218 -> 0.184 m; worse: dense-highway position +0.002 +-
-      0.001 / +0.003 +- 0.002 m and length +0.004 m, emergency-brake position +0.003 +- 0.003 m on
-      seeds 0-9 (-0.002 on 10-19). An end is sharp when half the expected ray gap there (before the
-      cap at half the chord that ``end_margin`` has: a two-point chord on a grazing side is not sharp)
-      is at most ``shadow_free_gap``, and free when it neither borders a shadow nor continues
-      (``continuation_rays``).
-    - ``shadowed_longer_whole`` (session 16; needs ``shadow_window`` and ``grow_extent``): a one-sided
-      part with one end in a shadow (partially visible, above) whose chord is longer than the predicted
-      side by the evidence ``grow_extent`` widens the prior on (``tracker.measurement.GROWTH_MIN_EXCESS``
-      0.5 m and ``GROWTH_SIGMAS`` 2 sd; not a short side longer than a settled width) is measured whole:
-      the vehicle is at least that long, or wide, a lower bound its prediction falls short of. Partially
-      visible, the part had left the extent at its prior: a far truck whose rear's other half a car hid
-      kept a car's 1.8 m width for seconds, so the long-vehicle prior never applied (mixed-traffic).
-      Not a chord wider or longer than any road vehicle (``tracker.measurement.WIDEST_VEHICLE`` 2.55 m,
-      ``LONGEST_VEHICLE`` 25.25 m): that is two vehicles', or a vehicle's and a roadside object's,
-      points in one cluster (without this guard, on ``hill-vlp16`` with the VLP-16 a van's track became
-      3 m wide and then, by the long-vehicle prior, 12 m long: length RMSE 0.39 -> 0.73 m).
-    - ``shadowed_parts_partial`` (session 18; needs ``shadow_window``): a part of a two-sided cluster
-      whose far end (the cluster's first or last point in bearing) borders another object's shadow goes
-      on behind it, so it is partially visible, anchored at the fitted corner, whatever its extent,
-      unless it covers more than its predicted side: then it is measured whole, to its last return (no
-      end-gap margin at the shadowed end: a lower bound; with the margin, a car whose front bordered a
-      nearer car's shadow ratcheted up with every noisy chord above its prediction, hard-accel). Without
-      it such a part counted as the whole side as long as it covered ``partial_visibility`` of the
-      prediction, and the extent shrank with the visible part: a 16 m bus seen from behind and beside
-      whose front roadside objects hid, 0.5 m more every frame, lost 1-2 m of length before the part
-      fell below 90 % (stop-and-go, issue 10). Fused, 13 scenarios x 20 seeds: long vehicles' length
-      within 1 m 3 s after the side is seen 63 -> 70 of 72; position RMSE dense-highway, circuit,
-      standing-vehicle -0.01 to -0.02 m; worse: stop-and-go GOSPA +0.01 to +0.02 m (issue 10's session
-      18 note).
-    - ``sharp_parts_whole`` (session 14; needs ``shadow_window``): the same for each part of a two-sided
-      cluster, from the fitted corner to its far end: a part with a sharp, free far end (sharp also
-      when the predicted side goes on beyond the last return for two whole ray gaps,
-      ``tracker.measurement.MISSED_RAYS_SHARP``, where the next rays would have hit it: a 10.1 m truck
-      20 m away kept the long-vehicle prior's 12 m with a 0.43 m half gap at its side's end) shows its
-      whole side when both parts have at least ``whole_min_points`` points, the corner point included in
-      both (with two or three on the other side, the corner point, which may be the last return on
-      this side, pulls the other side's line fit, and the corner lands up to a ray gap short of the
-      true one: far cars' rears came out 0.3 m narrow, circuit and occlusion), provided that the side
-      it would shrink is
-      consistent with the prediction (shorter than predicted by at most ``whole_gate_sigmas`` standard
-      deviations of that extent plus ``whole_gate_slack`` m; a car disappearing behind another, whose
-      hidden end no flag catches, would otherwise shrink to the visible stub). Without it a motorcycle
-      seen from behind and beside kept a car's 4.5 x 1.8 m prior. Fused, 13 scenarios x 10 seeds
-      (0-9 / held-out 10-19): hard-accel GOSPA 0.647 -> 0.145 / 0.651 -> 0.154 m (0.300 / 0.293 with
-      the ray-gap test alone), width 0.40 -> 0.02 m, length 0.68 -> 0.09 m; mixed-traffic GOSPA
-      1.54 -> 1.39 / 1.61 -> 1.38 m (within its interval); no scenario worse beyond its interval
-      (circuit GOSPA +0.001 +- 0.005 m, stop-and-go +0.006 +- 0.014 m on 0-9).
-    - ``continuation_rays`` (ray gaps; None: off) and ``continuation_offset`` (m): an end beyond which a
-      return of the scan lies within this many ray gaps (twice the end's half gap) along the side's
-      line and ``continuation_offset`` across it continues in another cluster (a dropped ray split the
-      side), so it is not free (``tracker.clustering.continued_ends``).
-    - ``radar_gate`` (normalised innovation squared; None: off): a fused cluster's radar velocity
-      whose rows' own innovation exceeds this for every pair of the cluster is set aside, and the
-      cluster updates its pairs as a lidar-only one (``tracker.update.gate_radar_rows``). The radar's
-      false alarms (0.5 per cycle, velocities spread 10 m/s) sometimes lie within the association gate
-      of a car whose own detection was missed; such a velocity, 17-22 m/s off (issue 10: 2-3 in 10 runs
-      of chicane-follow, curve-single, cut-in), fails the pair's gate, but a track's own cluster
-      updates it past its gate, and the speed jumped. 25 (5 standard deviations) keeps the radar through
-      hard braking, where the prediction lags by a few m/s.
-    - ``radar_only_update`` and ``radar_position_sigma`` (m): a radar detection that joined no lidar
-      cluster updates the track (a label reported before) that no cluster updated in this frame and
-      whose predicted nearest point and velocity it matches (``tracker.radar_update``; fused tracking
-      only; False: the paper, the radar only through the clusters). ``radar_position_sigma`` is the
-      std of the detection about the predicted rectangle's point nearest the sensor, per axis: the
-      radar's 0.5 m plus the model's error (the radar sits on the bumper and reports the nearest
-      *visible* point). 2 m since session 20 (1 m before): measured against the simulator's
-      truth (5 scenarios x 4 seeds, 2,648 detections of vehicles showing the lidar fewer than 3
-      points), a detection lies 1.33 m (along the vehicle) and 1.12 m (across) RMS from
-      the true rectangle's point nearest the E origin, 2.0 m at the 95th percentile along: the
-      visible part of a half-hidden car is where the radar sees it. With 1 m each update pulled a
-      hidden track towards its visible corner, where the lidar should then have seen it: occlusion
-      seed 15, a car hidden from 12.7 s, lost at 13.0 s 0.38 m from it (its weight below
-      ``keep_threshold``), kept with 2 m. Fused, 13 scenarios x 20 seeds against 1 m: occlusion GOSPA
-      -0.093 +- 0.058 m, stop-and-go -0.022 +- 0.009 (position -0.012 +- 0.007), truck-hairpin
-      position -0.005 +- 0.004; no metric worse by more than 0.001 on any scenario. 3 and 5 m gained
-      no more (truck-hairpin back to +0.000), 0.7 m lost on every one of six scenarios.
-    - ``radar_only_holds_extent`` (session 19): a radar-only update (``radar_only_update``) keeps ``L``
-      and ``W`` at their prior mean and variance (the Schmidt update of
-      ``tracker.update.hold_unobserved_extent`` with both held): the nearest visible point of a hidden
-      vehicle says where it is, not how long it is. Without it the update splits the detection's
-      offset between the position and the extent by their variances, and a track off its vehicle
-      shrank: stop-and-go seed 2, a car hidden ahead of a bus, 4.5 -> 0.01 m long in 1.5 s.
-    - ``two_sided_data_partial`` (session 21): a cluster that the data call two-sided (enough points,
-      eigenvalue ratio below ``two_side_eigen_ratio``) matched to a predicted rectangle that shows one
-      side is partially visible (anchored, the extent held): the data and the prediction disagree on
-      what is seen. Without it the points of a corner were taken as one whole side and pulled the
-      length to the cluster's chord: curve-single seed 11, a new track whose mean showed only its right
-      side took the 23 returns of the car's rear and side as that whole side, ``L`` 4.50 -> 3.68 m with
-      a normalised innovation of 1,214 over 47 rows. Fused, 13 scenarios x 20 seeds: curve-single
-      seeds 1 and 8 length RMSE 0.26 -> 0.14 and 0.36 -> 0.24 m, seed 11 0.24 -> 0.45 m (the anchored
-      update moved the track 1.1 m, then a grazing side seen with two returns took ``L`` to 1.9 m);
-      dense-highway length -0.004 +- 0.001 m; nothing worse beyond 0.001 m on any scenario's mean.
-      Taking such a cluster as two-sided instead (its corner trusted, the two sides the chords face)
-      was measured too: curve-single -0.005 m GOSPA, but dense-highway seen GOSPA +0.015 +- 0.004 and
-      stop-and-go length +0.020 m: not kept.
-    - ``shadowed_lidar_sigma`` (m; None: off; session 21): in the state update, the std of every lidar
-      point of a pair that shows a part partially visible (anchored: ``FROM_A``, ``FROM_B``, ``CENTRE``)
-      and whose cluster borders another object's shadow at one of its bearing ends (``shadow_window``),
-      in place of ``lidar_sigma``. The pair's likelihood (its weight) and its gate keep ``lidar_sigma``
-      (``tracker.update.likelihood_variances``). Where a nearer object hides part of a vehicle the
-      rectangle model fits worst (where the hidden side ends is a guess), and a softer gain lets the
-      prediction carry the partly hidden car through such frames instead of following each visible
-      fragment off it. Fused, 13 scenarios x 20 seeds, with ``two_sided_data_partial`` (issue 10's
-      session-21 note): occlusion GOSPA 1.107 -> 0.794 m (-0.31 +- 0.18: a car hidden behind another
-      kept in 10 of 20 runs that lost it, lost in 2 that kept it), dense-highway -0.116 +- 0.052,
-      stop-and-go -0.022 +- 0.014 (seen GOSPA -0.10 +- 0.05, position -0.014 +- 0.012), hard-accel
-      speed -0.020 m/s; worse: truck-hairpin position +0.036 +- 0.057 m (more hidden pairs kept; its
-      GOSPA -0.07), occlusion length +0.006 +- 0.003 m, cut-in +0.001 m. Lidar-only: occlusion -0.37,
-      dense-highway -0.12, but curvy-multi GOSPA +0.020 +- 0.013 m (hidden cars' coasting position
-      +0.044 m). Measured and not kept: the same variance in the likelihood as well (a 16 m bus's
-      partially seen side lost its weight to a wrong whole-side reading, ~40 nats over 100 rows:
-      stop-and-go length +0.03-0.04 m); every anchored pair, shadow or not (emergency-brake speed
-      +0.025 +- 0.004 m/s); without ``two_sided_data_partial`` (curve-single seeds 1, 8 and 11 length
-      RMSE 0.26 -> 1.27 m). ``TrackerConfig.for_variant`` turns it off for the Cartesian state: there
-      it lost more hidden cars than it kept (occlusion, Cartesian, GOSPA +0.27 +- 0.16 m, tracks kept
-      on hidden cars 57.6 -> 36.9 pairs per run): a partly hidden car's constant-turn prediction drifts
-      off the road where the curvilinear one follows its lane, and the softer gain trusts it more.
-    - ``shadow_range_margin`` (m): an end within this of ``DetectionConfig.lidar_range`` counts as
-      occluded as well: the next ray along a far (or grazing) side may return nothing because the
-      side goes on beyond the range, not because the vehicle ends there (a bus's side at 99 m).
+    The model itself (chords, corner, side matching, generating points, end gaps) is described in
+    ``tracker.measurement``; the visibility rules that decide whether a part of a cluster shows a whole
+    side or part of one (shadows, sharp ends, continuation) and the extent rules (hold, growth) in
+    ``docs/tracker.md`` ("Update", "Departures from the paper"). Several rules need the shadow flags
+    (``shadow_window`` not None): ``sharp_side_whole``, ``sharp_parts_whole``, ``shadowed_longer_whole``
+    (also ``grow_extent``) and ``shadowed_parts_partial``.
     """
 
+    #: Std of a lidar point about its generating point, per axis in E, model error included (m; default 0.1).
     lidar_sigma: float = 0.1
+    #: Std of a radar detection's absolute velocity, per axis in E (m/s; default 0.5).
     radar_velocity_sigma: float = 0.5
+    #: A detection that joined no cluster updates a coasting track it fits (fused only; default True).
     radar_only_update: bool = True
+    #: Std of a radar-only detection about the predicted rectangle's nearest point, per axis (m; default 2.0).
     radar_position_sigma: float = 2.0
+    #: A cluster is two-sided in the data when ``lambda_max / lambda_min`` of its points is below this (default 50.0).
     two_side_eigen_ratio: float = 50.0
+    #: A side covering at most this fraction of its predicted length is partially visible (MATLAB 0.6; default 0.9).
     partial_visibility: float = 0.9
+    #: Larger clusters are thinned evenly in bearing to this many points before the update (default 60).
     max_cluster_points: int = 60
+    #: Fewest points for which the two-sided model (corner split) is tried (default 4).
     min_points_two_sided: int = 4
+    #: Extend a chord by half the expected ray gap at each free end, with that uncertainty as noise (default True).
     end_gap_correction: bool = True
+    #: ``"speed"``: one row, radar velocity along the predicted heading; ``"velocity"``: the paper's two (default "speed").
     radar_rows: Literal["speed", "velocity"] = "speed"
+    #: Schmidt update: ``L`` (``W``) keeps its prior unless a long (short) side is seen whole (default True).
     hold_unobserved_extent: bool = True
+    #: Widen the extent prior when a side's points run well past the predicted rectangle (default True).
     grow_extent: bool = True
+    #: A width whose std is below this is settled and not grown by ``grow_extent`` (m; default 0.15; None: off).
     settled_width_std: float | None = 0.15
+    #: A lone point fits only visible sides that look at least this fraction as wide as the widest (default 0.25).
     single_point_min_apparent: float = 0.25
+    #: State to E: ``"exact"`` via the centerline, or ``"euler"``, the paper's Algorithm 1 (default "exact").
     conversion: Literal["exact", "euler"] = "exact"
+    #: Rays beyond a cluster end searched for a nearer return: another object's shadow (rays; default 2.5; None: off).
     shadow_window: float | None = 2.5
+    #: A return at least this much nearer than the end point casts the shadow (m; default 0.5).
     shadow_margin: float = 0.5
+    #: An end within this of ``DetectionConfig.lidar_range`` counts as shadowed too (m; default 5.0).
     shadow_range_margin: float = 5.0
+    #: An end is sharp when half the expected ray gap there is at most this (m; default 0.3).
     shadow_free_gap: float = 0.3
+    #: A one-sided cluster with both ends sharp and free shows its whole side, however short (default True).
     sharp_side_whole: bool = True
+    #: A two-sided cluster's part with a sharp, free far end shows its whole side, within a gate (default True).
     sharp_parts_whole: bool = True
+    #: A one-sided part with one shadowed end, longer than its predicted side, is measured whole (default True).
     shadowed_longer_whole: bool = True
+    #: A two-sided part whose far end is shadowed is partially visible unless longer than predicted (default True).
     shadowed_parts_partial: bool = True
+    #: A radar-only update keeps ``L`` and ``W`` at their prior (Schmidt update) (default True).
     radar_only_holds_extent: bool = True
+    #: Data two-sided, predicted rectangle showing one side: the cluster is partially visible (default True).
     two_sided_data_partial: bool = True
+    #: Lidar std in the state update of an anchored part whose cluster borders a shadow (m; default 0.15; None: off).
     shadowed_lidar_sigma: float | None = 0.15
+    #: Fewest points each part needs for ``sharp_parts_whole``, the corner counted in both (default 4).
     whole_min_points: int = 4
+    #: ``sharp_parts_whole`` may shrink a side by at most this many std of its extent plus the slack (default 3.0).
     whole_gate_sigmas: float = 3.0
+    #: Slack added to that gate (m; default 0.3).
     whole_gate_slack: float = 0.3
+    #: An end continues if a return lies within this many ray gaps beyond it on its line (default 3.0; None: off).
     continuation_rays: float | None = 3.0
+    #: ... and at most this far from that line (m; default 0.3).
     continuation_offset: float = 0.3
+    #: A fused cluster's radar velocity whose own NIS exceeds this for every pair is set aside (default 25.0; None: off).
     radar_gate: float | None = 25.0
 
     def __post_init__(self) -> None:
@@ -550,47 +329,31 @@ class MeasurementConfig:
 
 @dataclass(frozen=True)
 class DetectionConfig:
-    """Detection and clutter model of the GM-PHD update (DESIGN.md "GM-PHD update").
+    """Detection and clutter model of the GM-PHD update (``tracker.detection``).
 
-    - ``p_detection``: probability that a target in the field of view yields a cluster (``P_D``);
-    - ``p_survival``: probability that a target survives one frame (``P_S``);
-    - ``clutter_rate`` (points per frame): mean number ``lambda`` of clutter points on the road;
-    - ``clutter_density`` (1/m^2): spatial density ``c(z)`` of a clutter point (uniform over
-      ``1 / clutter_density`` square metres of road in view);
-    - ``lidar_resolution`` (rad) and ``lidar_range`` (m): the state-dependent model expects
-      ``gamma(x) = (bearing span of the rectangle) / lidar_resolution`` points, and
-      ``P_D(x) = 0`` for a rectangle whose nearest corner is beyond ``lidar_range``;
-    - ``occlusion``: whether ``P_D`` and ``gamma`` are scaled by the fraction of the target's bearing
-      span not hidden by a nearer track;
-    - ``hidden_update_p_detection`` (None: off): a component of a track (a label reported at least
-      once: not a birth that never was) inside the lidar range whose ``P_D`` the occlusion model puts
-      below this still forms pairs with the clusters that gate with it, its
-      detection term taking ``P_D`` at least this; its missed-detection term keeps the occlusion
-      model's ``P_D`` (a hidden vehicle keeps its weight and label). The occluders are estimated
-      rectangles: a car peeking past another by a ray or two was judged wholly hidden (``P_D = 0``),
-      so no cluster could update it, and its track coasted for 1.5 s while lidar and radar saw it,
-      1.5 m and 1.2 m/s off (issue 10, dense-highway seed 0, a car 86 m ahead). Measured (10 seeds,
-      fused): dense-highway position RMSE 0.178 -> 0.155 m, occlusion GOSPA 1.215 -> 1.147 m, the rest
-      unchanged (worse: the faults suite's lidar spikes, GOSPA 0.876 -> 0.924 m).
-    - ``missed_weight_cap`` (default off): a label is one vehicle. After the update, the
-      missed-detection components of a label that some cluster updated keep at most ``1 - U`` weight in
-      all (scaled down together), ``U`` the weight its updated components took; off, the GM-PHD's
-      missed-detection term ``(1 - P_D) w`` stands beside the update, and a label seen while the
-      detection model expects it hidden gains about 1 per frame (weights of 3-9 were seen). Capped,
-      the weights stay at most 1, but measured worse (issue 10, 10 seeds, fused): the weight above 1
-      is what carries a track through the frames its vehicle then spends hidden or without a cluster of
-      its own; capped, such tracks were lost (occlusion: tracks kept on hidden vehicles 0.51 -> 0.39 per
-      frame, GOSPA 1.215 -> 1.586 m; curvy-multi 0.458 -> 0.565 m; dense-highway 2.305 -> 2.399 m).
+    A component's predicted rectangle expects ``gamma = (bearing span) / lidar_resolution`` points
+    (scaled by its visible fraction when ``occlusion``), and ``P_D = p_detection`` while its nearest
+    corner is within ``lidar_range`` (0 beyond; lowered when mostly hidden). Clutter is Poisson with
+    ``clutter_rate`` points per frame spread uniformly at ``clutter_density``.
     """
 
+    #: ``P_D``: probability that a target in the field of view yields a cluster (default 0.9).
     p_detection: float = 0.9
+    #: ``P_S``: probability that a target survives one frame (default 0.99).
     p_survival: float = 0.99
+    #: Mean number ``lambda`` of clutter points per frame (points/frame; default 1.0).
     clutter_rate: float = 1.0
+    #: Spatial density ``c(z)`` of a clutter point, uniform over the road in view (1/m^2; default 1/5000).
     clutter_density: float = 1.0 / 5000.0
+    #: Bearing step of the lidar: ``gamma = bearing span / lidar_resolution`` points expected (rad; default 0.2 deg).
     lidar_resolution: float = math.radians(0.2)
+    #: Lidar range: ``P_D = 0`` for a rectangle whose nearest corner is beyond it (m; default 100.0).
     lidar_range: float = 100.0
+    #: Scale ``gamma`` and ``P_D`` by the fraction of the bearing span not hidden by nearer tracks or returns (default True).
     occlusion: bool = True
+    #: Cap a label's missed-detection weight at one minus its updated components' weight (default False).
     missed_weight_cap: bool = False
+    #: Least ``P_D`` with which a hidden track's component still pairs with clusters (default 0.05; None: off).
     hidden_update_p_detection: float | None = 0.05
 
     def __post_init__(self) -> None:
@@ -610,117 +373,74 @@ class DetectionConfig:
 
 @dataclass(frozen=True)
 class BirthConfig:
-    """Birth intensity: road-based components near the range limits, per lane, and components from the
-    previous frame's unexplained clusters (centre/heading/extent from an L-shape fit).
+    """Birth intensity and the vehicle-size priors (``tracker.birth``, ``tracker.update``).
 
-    - ``weight``: weight of each birth component;
-    - ``range_margin`` (m): road births sit this far inside the lidar range, ahead and behind;
-    - ``speed`` (m/s) and ``speed_std`` (m/s): prior speed of road births (None: the ego's speed);
-    - ``length``, ``width`` (m) and ``length_std``, ``width_std`` (m): prior extent;
-    - ``position_std`` (m) along / ``lateral_std`` (m) across the road, ``heading_std`` (rad),
-      ``heading_rate_std`` (rad/s): prior spreads of a birth component;
-    - ``min_cluster_points``: an unexplained cluster needs at least this many points to seed a birth
-      (single clutter points do not);
-    - ``min_cluster_points_radar`` (None: as ``min_cluster_points``): the fewest points of an
-      unexplained cluster that a radar detection joined (fused tracking only). A car 80-100 m away
-      shows the lidar one or two points for seconds; the radar's detection on it says that it is an
-      object that moves (or at least reflects as a vehicle) and gives its speed. A cluster of fewer
-      than three points shows no orientation: such a birth takes the road's direction, its centre half
-      a prior length beyond the points, away from the sensor;
-    - ``sparse_min_range`` (m): ``min_cluster_points_radar`` applies only to clusters this far or
-      farther from the ego (every point): near the range limit, where vehicles enter the field of view
-      with few points. Nearer, one point is a vehicle almost hidden behind another, and it does not fix
-      where along it the centre lies (a bus's corner is not a car's);
-    - ``min_cluster_points_fused`` (None: as ``min_cluster_points``): the fewest points of an
-      unexplained cluster that a radar detection joined, at any range (fused tracking only): two points
-      and a radar detection are a vehicle coming out from behind another (session 9, issue 10:
-      stop-and-go GOSPA 4.96 -> 4.86 m, ID switches 2.8 -> 2.0 per run, 10 seeds; the rest unchanged);
-    - ``first_scan``: the tracker's first frame with lidar points (a tracker started amid traffic):
-      the clusters that would seed births for the next frame seed them in this one, and this frame's
-      update takes them at once, so the vehicles in view are reported from the first frame instead of
-      the second (False: the paper's model, where a frame's clusters seed the next frame's births). Only
-      the first scan: later, a cluster that no track explains may be clutter or a fragment, and waits a
-      frame for its confirmation (session 10, issue 10);
-    - ``road``: whether road-based births (per lane near the range limits, ahead and behind) are used;
-    - ``long_width`` (m, None: off), ``long_length`` (m), ``long_length_std`` (m): the long-vehicle
-      prior. A vehicle at least ``long_width`` wide is a truck or a bus (cars and vans are at most
-      ~2.2 m wide, trucks and buses 2.5-2.55 m), whose length the rear alone does not show: a cluster
-      birth that wide, and a track whose width reaches it while its length is still unobserved, take the
-      length ``long_length`` +- ``long_length_std`` instead of a car's, the end nearest the sensor
-      staying put (``tracker.update.long_vehicle_prior``). A side seen later sets the length as usual;
-    - ``narrow_width`` (m, None: off), ``narrow_width_std`` (m), ``narrow_length`` (m),
-      ``narrow_length_std`` (m): the narrow-vehicle prior, the long one's mirror image (session 16). A
-      track whose width is measured (its standard deviation at most ``narrow_width_std``) at most
-      ``narrow_width`` is a motorcycle or a bicycle (cars are at least ~1.5 m wide): while its length is
-      still unobserved it takes ``narrow_length`` +- ``narrow_length_std`` instead of a car's, the end
-      nearest the sensor staying put (``tracker.update.narrow_vehicle_prior``); a side seen later sets
-      the length as usual. Only in the update, not at birth: a birth's width is its first cluster's,
-      which may be a part of a car;
-    - ``max_length``, ``max_width`` (m, None: no limit): the largest vehicle. An updated estimate beyond
-      either is projected back onto it (the mean's ``L`` or ``W`` set to the limit; the covariance
-      kept), and so is a cluster birth's extent (session 16; its end nearest the sensor kept: a birth
-      from a 36 m cluster of a truck and the cars stopped in front of it had reported a 36 m track):
-      road vehicles are at most 2.55 m wide and 25.25 m long (EU), and a cluster of two vehicles side
-      by side or nose to tail must not become one 8 m wide or 33 m long rectangle.
-    - ``correlated_extent`` (default on since session 12; False: a diagonal birth covariance): a cluster
-      birth's centre is the visible edge plus half the unseen extent, so its position is correlated
-      with that extent, ``cov((s, n), L) = g var(L)`` and ``var((s, n)) += g g^T var(L)`` (``g`` half the
-      unit direction away from the sensor in road coordinates; the same for ``W``;
-      ``tracker.birth.correlate_unseen_extent``). Seen from the rear, the points then pin the rear
-      (``s - L/2``) to centimetres from the first update, while the length stays unseen; with the
-      diagonal prior the held length (``MeasurementConfig.hold_unobserved_extent``) left the rear
-      uncertain by ~0.1 m for seconds, the lidar told the filter little about the speed, and the radar's
-      speed row dominated it (chicane-follow, fused, 10 seeds: speed RMSE 0.051 -> 0.033 m/s, position
-      0.099 -> 0.091 m; lidar-only speed lower on four of seven standard scenarios). Not for the
-      long-vehicle prior (``long_length_std`` 3.5 m: its sigma points span lengths from ~0 to 20 m and
-      put the centre metres either way; stop-and-go GOSPA 4.52 -> 5.16 m with it) nor for clusters of
-      fewer than ``SPARSE_POINTS`` points (which side they lie on is unknown). Worse: curve-single
-      position 0.098 -> 0.112 m (a length learned 0.18 m too long from a side seen at grazing
-      incidence now moves the centre with it; issue 10's session 12 note).
-    - ``shadow_aware`` (session 19; needs ``MeasurementConfig.shadow_window``): a cluster birth puts its
-      unseen extent beyond the points, away from the sensor, and correlates the centre with that extent
-      (``correlated_extent``). Where exactly one of the cluster's two ends in bearing borders another
-      object's shadow (``tracker.clustering.occluded_ends``) and it is the end *nearer* the sensor along
-      the length (the ends at least ``tracker.birth.SHADOW_SIDE_MIN`` apart along it), the unseen part may
-      as well lie behind that object: the centre stays at the points' along the length and its position
-      takes half the unseen length as standard deviation along it, with no correlation, so the first
-      update's anchor (the free end, ``tracker.measurement``) places it. A car 70 m ahead in a hairpin
-      showed the front half of its side next to a truck's shadow; born half a car beyond the points, its
-      track sat 1-2 m ahead of the truth for up to a second (the birth's correlation let the update move
-      only 60 % of the way to its anchor). Across the road (the width) the rule is not applied: on a
-      motorcycle's 0.8 m rear it let lidar-only tracks drift sideways and be replaced (mixed-traffic
-      seeds 1 and 4, one ID switch each). Session 18 put the unseen part behind the object instead
-      (not kept: in stop-and-go queues the shadowed end was often the car's own rear corner).
+    Road births: one component per lane near the lidar's range limit, ahead and behind (prior spreads
+    ``position_std``, ``lateral_std``, ``speed_std``, ...). Cluster births: one component per cluster of
+    the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
+    from a joined radar detection when fused. The long- and narrow-vehicle priors replace a car's
+    unmeasured length by a truck's or a motorcycle's when the measured width says so; ``max_length`` and
+    ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
+    paper").
     """
 
+    #: Weight of each birth component (default 0.05).
     weight: float = 0.05
+    #: Road births sit this far inside the lidar range, ahead and behind (m; default 5.0).
     range_margin: float = 5.0
+    #: Prior speed of births without a radar detection (m/s; default None: the ego's speed).
     speed: float | None = None
+    #: Std of that prior speed (m/s; default 5.0).
     speed_std: float = 5.0
+    #: Prior length of a road birth, and the least length of a cluster birth (m; default 4.5).
     length: float = 4.5
+    #: Prior width of a road birth, and the least width of a cluster birth (m; default 1.8).
     width: float = 1.8
+    #: Std of a car's prior length (m; default 1.0).
     length_std: float = 1.0
+    #: Std of the prior width (m; default 0.3).
     width_std: float = 0.3
+    #: Std of a road birth's position along the road (m; default 2.0).
     position_std: float = 2.0
+    #: Std of a road birth's position across the road (m; default 0.5).
     lateral_std: float = 0.5
+    #: Std of a birth's heading ``xi`` (rad; default 0.1).
     heading_std: float = 0.1
+    #: Std of a birth's heading rate ``xi_dot`` (rad/s; default 0.05).
     heading_rate_std: float = 0.05
+    #: Fewest points of an unexplained cluster that seeds a birth (default 3).
     min_cluster_points: int = 3
+    #: ... with a joined radar detection, beyond ``sparse_min_range`` (fused; default 1; None: ``min_cluster_points``).
     min_cluster_points_radar: int | None = 1
+    #: ``min_cluster_points_radar`` applies to clusters whose every point is at least this far (m; default 70.0).
     sparse_min_range: float = 70.0
+    #: ... with a joined radar detection, at any range (fused only; default 2; None: ``min_cluster_points``).
     min_cluster_points_fused: int | None = 2
+    #: The first frame with lidar points seeds births from its clusters and updates them in that frame (default True).
     first_scan: bool = True
+    #: Use road births, per lane near the range limits (default True).
     road: bool = True
+    #: A vehicle at least this wide is a truck or bus and takes the long length prior (m; default 2.35; None: off).
     long_width: float | None = 2.35
+    #: Prior length of a truck or bus (m; default 12.0).
     long_length: float = 12.0
+    #: Std of that prior length (m; default 3.5).
     long_length_std: float = 3.5
+    #: A measured width at most this is a motorcycle's and takes the narrow length prior (m; default 1.2; None: off).
     narrow_width: float | None = 1.2
+    #: ... if that width is known to this std or better (m; default 0.1).
     narrow_width_std: float = 0.1
+    #: Prior length of a motorcycle (m; default 2.2).
     narrow_length: float = 2.2
+    #: Std of that prior length (m; default 0.4).
     narrow_length_std: float = 0.4
+    #: Longest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 25.0; None: no limit).
     max_length: float | None = 25.0
+    #: Widest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 3.0; None: no limit).
     max_width: float | None = 3.0
+    #: A cluster birth's centre is correlated with the unseen extent it was shifted by (default True).
     correlated_extent: bool = True
+    #: A cluster birth whose near end borders a shadow spreads its unseen length on both sides (default True).
     shadow_aware: bool = True
 
     def __post_init__(self) -> None:
@@ -757,13 +477,16 @@ class BirthConfig:
 class GatingConfig:
     """Which (component, cluster) pairs are updated at all.
 
-    - ``distance`` (m): a cluster is considered for a component only if its centroid is within this
-      distance of the component's predicted rectangle (cheap pre-gate in E);
-    - ``probability``: gate on the normalised innovation of the pair (chi-square quantile with the
-      measurement dimension); pairs outside it are not updated.
+    A cluster is tried for a component when its centroid lies within ``distance`` of the circle
+    around the component's predicted rectangle (centre distance at most ``distance + hypot(L, W) / 2``),
+    then kept when the pair's normalised innovation lies inside the chi-square ``probability`` quantile
+    of its measurement dimension. A reported track's own cluster (its points inside the track's predicted
+    rectangle) updates it even past the gate.
     """
 
+    #: Pre-gate: the cluster centroid within this of the circle around the predicted rectangle (m; default 5.0).
     distance: float = 5.0
+    #: Gate: chi-square quantile of the pair's normalised innovation, by measurement dimension (default 0.9999).
     probability: float = 0.9999
 
     def __post_init__(self) -> None:
@@ -773,106 +496,48 @@ class GatingConfig:
 
 @dataclass(frozen=True)
 class ReductionConfig:
-    """Mixture reduction and extraction (Vo & Ma GM-PHD).
+    """Mixture reduction (Vo & Ma GM-PHD), extraction and label management.
 
-    - ``prune_threshold``: drop components with weight below this;
-    - ``merge_threshold``: merge components within this squared Mahalanobis distance (angle-aware);
-    - ``max_components``: cap, keeping the heaviest;
-    - ``extraction_threshold``: components above this weight are reported as tracks (DESIGN.md: 0.5);
-    - ``keep_threshold`` (0.3; None: off, the paper's single threshold): a label reported in the
-      previous frame stays reported while its heaviest component weighs more than this (hysteresis
-      below ``extraction_threshold``): a car that drives into another's shadow loses weight in its
-      last partly visible frames and would otherwise drop out of the report at ~0.5 while it coasts.
-      Measured (fused, 10 seeds, paired against None): occlusion GOSPA 2.56 -> 2.29 m (-0.27 +- 0.23),
-      seen cardinality 0.103 -> 0.089, but position RMSE 0.324 -> 0.358 m (coasting tracks are
-      scored); stop-and-go seen cardinality 0.400 -> 0.417 (+0.016 +- 0.016); elsewhere within noise.
-      0.2 gained more on occlusion and lost more on stop-and-go;
-    - ``fov_margin`` (m): components whose nearest corner is farther than the lidar range plus this
-      are dropped (the target left the field of view; without it ``P_D = 0`` there would keep it forever);
-    - ``road_margin`` (m): components whose centre lies beyond the road edges by more than this are
-      dropped (only objects on the road are tracked);
-    - ``same_label_distance`` (m): components sharing a label whose positions lie this close are
-      merged (one track updated by several fragments of a vehicle's points). 3 m (2 m before session
-      11): a car coming out from behind another shows its points in two clusters for a frame, which
-      updated its track 2.1 m apart; the lighter posterior was split off under a new label and won the
-      next frame (lidar-only curvy-multi, 6 of 10 seeds once the coasting track kept an established
-      acceleration, ``MotionConfig.coast_established_sigmas``). 10 seeds, 13 scenarios: ID switches
-      lidar-only curvy-multi 0.6 -> 0, fused curvy-multi 0.1 -> 0, stop-and-go 0.4 -> 0.1, mixed-traffic
-      0.8 -> 1.0 (one seed's start, 3 -> 5); positions within 0.003 m;
-    - ``same_label_along_length`` (session 13): also merged when they lie within half the heaviest's
-      length along its heading (and ``same_label_distance`` across it). A 13.5 m truck 50 m ahead
-      showed its points in three clusters, which updated its track 3-5 m apart along it; the second
-      posterior was split off under a new label and the two took the truck in turns (mixed-traffic
-      seed 9: seven ID switches, two with it). 13 scenarios x 10 seeds (and the hard suite's seeds
-      10-19): nothing else changed;
-    - ``report_range`` (m or ``None``): tracks are reported only while their centre lies within
-      ``detection.lidar_range`` plus this of the sensor: the field of view DESIGN.md scores (truth
-      vehicles whose centre is within the lidar range). A vehicle whose near side is still in range
-      keeps its components (``fov_margin``) and its label, but is not reported beyond the field of
-      view. ``None`` reports every track the filter keeps (the behaviour before).
-    - ``confirm_min_points``: a label is reported for the first time only once a cluster of at least
-      this many lidar points has updated it (a birth confirmed from one or two points at the range
-      limit does not fix its position along the road: one point fits a grazing side's far corner as
-      well as the facing side); once reported, a label stays reportable. 1 confirms on any update.
-    - ``reidentify_window`` (s): a track that stops being reported (hidden behind another vehicle, its
-      weight decayed or its component pruned) is remembered this long; a newly confirmed track whose
-      position matches its prediction takes its label instead of a new one (``tracker.identity``).
-      0 turns re-identification off (the paper: every confirmation is a new label). 10 s (5 s before
-      session 10): in stop-and-go traffic a car waits behind a bus for 9.6 s; fused, 10 seeds, 13
-      scenarios and the faults suite: stop-and-go ID switches 1.4 -> 0.4 per run, every other figure
-      identical (session 7 measured no gain with the tracker of then).
-    - ``reidentify_probability``: the match's gate, a chi-square quantile (2 degrees of freedom) of the
-      squared Mahalanobis distance between the positions.
-    - ``reidentify_accel`` (m/s^2): the acceleration the match allows for while a track was not updated
-      (the motion model holds the speed; a car accelerating at 2 m/s^2 while hidden for 2.4 s is 5.8 m
-      ahead of its coasting track): up to ``accel tau^2 / 2`` ahead of the prediction after ``tau`` s
-      the residual along the road is explained and left out of the distance (session 15: a bound; it
-      was a Gaussian spread of that sd, which let a track whose uncertainty had grown for long take a
-      newcomer from the one it belonged to).
-    - ``reidentify_brake`` (m/s^2; None: ``reidentify_accel``, symmetric): the deceleration allowed for
-      behind the prediction, up to standstill (``tracker.identity``; session 15). In stop-and-go
-      traffic a car hidden for 1.9 s while it braked from 9 to 3 m/s lay 12 m behind its coasting
-      track, outside the 2 m/s^2 allowance, and took the label of the bus behind it (and the bus, 9 s
-      later, the car's): fused, 20 seeds, stop-and-go ID switches 0.45 -> 0.15 per run, every other
-      figure of the 13 scenarios identical but mixed-traffic seed 8 (one label fewer, GOSPA +0.0002 m).
-    - ``drop_inside_updated``: a component whose label no cluster updated in this frame and whose
-      centre lies inside the rectangle of a component of another label that one did (above
-      ``extraction_threshold``) is dropped: two vehicles cannot overlap, so it is a duplicate of the
-      seen vehicle (a fragment of a bus's points born as a car, coasting inside the bus, which the
-      occlusion model would otherwise keep as hidden behind it) or a coasting prediction that a seen
-      vehicle shows to be wrong. Its label may come back through re-identification (session 10).
-      Since session 15 a label counts as updated here only when a cluster gave it a posterior above
-      ``extraction_threshold``: a duplicate that shares its vehicle's cluster with the vehicle's track
-      gets a weak posterior and kept its missed-detection copy reported beside the track (mixed-traffic
-      seed 15: the two labels traded the car twice in 1 s).
-    - ``absorb_overlap`` (m; None: off; session 15): two labels whose reportable components overlap as
-      rectangles along the road by more than this (each centre within half the narrower width of the
-      other across it) are one vehicle, and one label absorbs the other (``tracker.reduction.
-      absorb_overlapping``: last frame's track keeps, of two newcomers the longer, then the older; the
-      union of the two rectangles when both lengths were seen). A truck's side at long range or grazing
-      incidence shows returns farther apart than ``ClusteringConfig.distance`` and became two or three
-      short tracks along one line whose labels traded it (mixed-traffic seed 9: 2 ID switches in 1 s);
-      the first scan could give one car two labels (cut-in seed 1). In 40 runs of five scenarios (mixed-
-      traffic's 20 seeds, the others' 5) in all 11 frames with two reported tracks overlapping by
-      more than 0.5 m at most one of the two was matched to a vehicle, never two vehicles.
+    Prune, angle-aware merge and cap as in the GM-PHD filter; then the rules that keep one label per
+    vehicle: merging a track's posteriors updated by fragments of its points, dropping duplicates inside
+    a seen vehicle, absorbing overlapping labels, confirmation before a first report, hysteresis on the
+    reporting weight and re-identification of lost tracks (``tracker.identity``). Details:
+    ``docs/tracker.md`` ("Reduction", "Extraction and labels").
     """
 
+    #: Components lighter than this are dropped (default 1e-4).
     prune_threshold: float = 1e-4
+    #: Components within this squared Mahalanobis distance are merged, angle-aware (default 4.0).
     merge_threshold: float = 4.0
+    #: Cap on the number of components, the heaviest kept (default 100).
     max_components: int = 100
+    #: Components heavier than this are reported as tracks (default 0.5).
     extraction_threshold: float = 0.5
+    #: A label reported last frame stays reported while its heaviest component exceeds this (default 0.3; None: off).
     keep_threshold: float | None = 0.3
+    #: Components whose nearest corner is beyond the lidar range plus this are dropped (m; default 2.0).
     fov_margin: float = 2.0
+    #: Components whose centre lies beyond a road edge by more than this are dropped (m; default 1.0).
     road_margin: float = 1.0
+    #: Components of one label above ``extraction_threshold`` this close to its heaviest are merged (m; default 3.0).
     same_label_distance: float = 3.0
+    #: ... or within half the heavier one's length along its heading and ``same_label_distance`` across it (default True).
     same_label_along_length: bool = True
+    #: Tracks are reported while their centre is within ``lidar_range`` plus this (m; default 0.0; None: all).
     report_range: float | None = 0.0
+    #: A label is first reported only after a cluster of at least this many points updated it (default 2).
     confirm_min_points: int = 2
+    #: A lost track is remembered this long for re-identification (s; default 10.0; 0: off).
     reidentify_window: float = 10.0
+    #: Re-identification gate: chi-square quantile, 2 degrees of freedom, of the position distance (default 0.99).
     reidentify_probability: float = 0.99
+    #: Acceleration a hidden vehicle may have made: reach ahead of its prediction (m/s^2; default 2.0).
     reidentify_accel: float = 2.0
+    #: Deceleration a hidden vehicle may have made, up to standstill (m/s^2; default 8.0; None: ``reidentify_accel``).
     reidentify_brake: float | None = 8.0
+    #: Drop a label without a reportable posterior whose centre lies inside a seen vehicle's rectangle (default True).
     drop_inside_updated: bool = True
+    #: Two labels whose rectangles overlap along the road by more than this are one vehicle (m; default 0.5; None: off).
     absorb_overlap: float | None = 0.5
 
     def __post_init__(self) -> None:
@@ -903,50 +568,37 @@ class ReductionConfig:
 
 @dataclass(frozen=True)
 class ClusteringConfig:
-    """Lidar pre-processing and clustering, radar association.
+    """Lidar preprocessing, clustering and radar association (``tracker.preprocess``, ``tracker.clustering``).
 
-    - ``road_margin`` (m): keep points within the road bounds widened by this;
-    - ``bearing_bin`` (rad): the paper's bearing filter keeps the closest point per bin of this width;
-    - ``track_margin`` (m): points inside a predicted rectangle grown by this form its cluster;
-    - ``distance`` (m): the rest are partitioned into connected components under this distance;
-    - ``min_points``: smaller clusters are dropped (counted);
-    - ``radar_gate`` (m): a radar detection joins the nearest lidar cluster centroid within this;
-    - ``split_width`` (m, None: off), ``split_gap`` (m): a cluster (a track's or a connected component)
-      whose points span more than ``split_width`` in the lateral road offset ``n`` is cut at its largest
-      gap in ``n`` if that gap is at least ``split_gap``, again until every part is narrower or has no
-      such gap (``tracker.clustering.split_across``). One vehicle spans at most ``W + L |sin xi|``
-      across the road and shows a continuous side when at an angle; two vehicles side by side in
-      adjacent lanes (long buses and trucks whose points the lidar sees as one line, with ~1 m between
-      them) span two widths plus the gap. Of a track's cluster cut so, the part with most points inside
-      its predicted rectangle stays the track's; the others are free clusters.
-    - ``fragment_points`` (None: off), ``fragment_sigmas``, ``fragment_side_tolerance`` (m, None: no
-      such test): a connected component of at most ``fragment_points`` points, none inside a track's
-      rectangle, that lies wholly in the predicted rectangle of a track holding points of its own this
-      frame, stretched at its end away from the sensor by ``fragment_sigmas`` standard deviations of
-      its length (when that exceeds ``track_margin``; plus ``track_margin``), within
-      ``fragment_side_tolerance`` of the line of its long side facing the sensor, and not hidden from
-      the sensor by the rectangle itself, joins that track's cluster
-      (``tracker.clustering.fragment_owners``). The side of a far truck or van seen at grazing
-      incidence returns a point every 2-3 m (the ray spacing ``r delta / sin incidence``), farther
-      apart than ``distance``: while its track still has a car's length the points past the predicted
-      front were one-point clusters of their own, each updating the track into a posterior apart (a
-      split label) or seeding a newborn (session 17). One point: two returns within ``distance`` of
-      each other would have joined the body. 4 sd: at 5-6 (before the side and occlusion tests) a
-      lagging track took its own car's far corner as a side going on (curvy-multi seed 9, two ID
-      switches). The side, occlusion and margin tests keep lidar spikes (a return moved along its ray)
-      out: without them the fault suite's spikes grew cars' lengths (GOSPA +0.07 to +0.25 m).
+    Points off the road (plus ``road_margin``) are dropped, the bearing filter keeps the nearest point per
+    ``bearing_bin``; points inside a reported track's predicted rectangle (plus ``track_margin``) form its
+    cluster, the rest are partitioned into connected components at ``distance``; clusters wider across
+    the road than one vehicle are cut; lone fragments continuing a track's side join it; radar
+    detections join the nearest cluster centroid within ``radar_gate``. Details: ``docs/tracker.md``
+    ("Clustering").
     """
 
+    #: Lidar points within the road bounds widened by this are kept (m; default 0.5).
     road_margin: float = 0.5
+    #: The paper's bearing filter keeps the nearest point per bin of this width (rad; default 0.2 deg).
     bearing_bin: float = math.radians(0.2)
+    #: Points inside a reported track's predicted rectangle grown by this form its cluster (m; default 1.0).
     track_margin: float = 1.0
+    #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
+    #: Smaller clusters are dropped and counted (default 1).
     min_points: int = 1
+    #: A radar detection joins the nearest cluster centroid within this (m; default 3.0).
     radar_gate: float = 3.0
+    #: A cluster spanning more than this across the road (in ``n``) is cut at its largest gap (m; default 3.0; None: off).
     split_width: float | None = 3.0
+    #: ... if that lateral gap is at least this (m; default 0.5).
     split_gap: float = 0.5
+    #: A lone component of at most this many points continuing a track's side joins its cluster (default 1; None: off).
     fragment_points: int | None = 1
+    #: The track's rectangle is stretched at its far end by this many std of its length (default 4.0).
     fragment_sigmas: float = 4.0
+    #: The fragment must lie within this of the track's long side facing the sensor (m; default 0.5; None: no test).
     fragment_side_tolerance: float | None = 0.5
 
     def __post_init__(self) -> None:
@@ -968,21 +620,19 @@ class ClusteringConfig:
 class PointConfig:
     """The point-object GNN tracker (``TrackerConfig.object_model = "point"``, ``tracker.point``).
 
-    - ``centroid_sigma`` (m): std of a cluster centroid about the tracked point, per axis in E; large
-      because the centroid of the visible points moves on the vehicle as the aspect changes;
-    - ``confirm_hits``, ``confirm_window``: a tentative track is confirmed (reported) after
-      ``confirm_hits`` associations within its last ``confirm_window`` frames (M-of-N logic);
-    - ``max_misses``: a track is deleted after this many consecutive frames without an association;
-    - ``tentative_max_misses``: the same for a track not yet confirmed.
-
     Gating uses ``GatingConfig`` (pre-gate distance, chi-square probability), births ``BirthConfig``
     (spreads, minimum points), the radar noise ``MeasurementConfig.radar_velocity_sigma``.
     """
 
+    #: Std of a cluster centroid about the tracked point, per axis in E (m; default 0.5).
     centroid_sigma: float = 0.5
+    #: A tentative track is confirmed after this many associations ... (default 3).
     confirm_hits: int = 3
+    #: ... within its last this many frames (M-of-N; default 5).
     confirm_window: int = 5
+    #: A confirmed track is deleted after this many consecutive misses (default 5).
     max_misses: int = 5
+    #: A tentative track is deleted after this many consecutive misses (default 2).
     tentative_max_misses: int = 2
 
     def __post_init__(self) -> None:
@@ -1012,31 +662,40 @@ _SECTIONS: dict[str, type] = {
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    """The whole tracker configuration.
+    """The whole tracker configuration: three top-level choices and one section per part.
 
-    - ``coordinates``: ``"curvilinear"`` (the paper: state ``[s, n, v, xi, xi_dot, L, W]``, default)
-      or ``"cartesian"`` (same EOT with state ``[x, y, v, psi, psi_dot, L, W]`` in G);
-    - ``object_model``: ``"extended"`` (rectangle EOT, default) or ``"point"`` (point objects on
-      cluster centroids, global nearest neighbour, a UKF in curvilinear coordinates: ``tracker.point``;
-      curvilinear only);
-    - ``use_radar``: fuse radar velocity rows into clusters with an associated radar detection;
-    - the sections (see their classes for units and defaults); ``cloud`` (``tracker.cloud.CloudConfig``)
-      is used only for frames whose lidar is a 3-D cloud: the lidar's mount pose and the ground removal.
+    The sections are the classes above (see them for units and defaults); ``cloud``
+    (``tracker.cloud.CloudConfig``) is used only for frames whose lidar is a 3-D cloud: the lidar's
+    mount pose and the ground removal.
     """
 
+    #: ``"curvilinear"``: state ``[s, n, v, xi, xi_dot, L, W]``; ``"cartesian"``: ``[x, y, v, psi, psi_dot, L, W]`` in G (default "curvilinear").
     coordinates: Literal["curvilinear", "cartesian"] = "curvilinear"
+    #: ``"extended"``: rectangle EOT; ``"point"``: point-object GNN on centroids, curvilinear only (default "extended").
     object_model: Literal["extended", "point"] = "extended"
+    #: Fuse radar detections: velocity rows of fused clusters and radar-only updates (default True).
     use_radar: bool = True
+    #: Process noise (``ProcessNoise``).
     process_noise: ProcessNoise = field(default_factory=ProcessNoise)
+    #: Unscented transform (``UKFParams``).
     ukf: UKFParams = field(default_factory=UKFParams)
+    #: Motion model (``MotionConfig``).
     motion: MotionConfig = field(default_factory=MotionConfig)
+    #: Measurement model (``MeasurementConfig``).
     measurement: MeasurementConfig = field(default_factory=MeasurementConfig)
+    #: Detection and clutter model (``DetectionConfig``).
     detection: DetectionConfig = field(default_factory=DetectionConfig)
+    #: Birth intensity and size priors (``BirthConfig``).
     birth: BirthConfig = field(default_factory=BirthConfig)
+    #: Gating (``GatingConfig``).
     gating: GatingConfig = field(default_factory=GatingConfig)
+    #: Reduction, extraction and labels (``ReductionConfig``).
     reduction: ReductionConfig = field(default_factory=ReductionConfig)
+    #: Preprocessing, clustering, radar association (``ClusteringConfig``).
     clustering: ClusteringConfig = field(default_factory=ClusteringConfig)
+    #: Point-object tracker (``PointConfig``; ``object_model = "point"`` only).
     point: PointConfig = field(default_factory=PointConfig)
+    #: 3-D point-cloud pipeline (``tracker.cloud.CloudConfig``; frames with ``(N, 3)`` lidar only).
     cloud: CloudConfig = field(default_factory=CloudConfig)
 
     def __post_init__(self) -> None:
