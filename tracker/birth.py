@@ -274,11 +274,11 @@ def correlate_unseen_extent(covs: np.ndarray, levers: np.ndarray, rows: np.ndarr
 
         P[sn, sn] = P_e + g_L g_L^T var(L) + g_W g_W^T var(W),   P[sn, L] = g_L var(L),   P[sn, W] = g_W var(W)
 
-    Without the correlation the unseen length's uncertainty sits in ``s`` independently of ``L``; seen
-    from the rear, the points then pin ``s - L/2`` poorly in the filter's eyes, as the length is held
-    (``tracker.update.hold_unobserved_extent``): the rear's along-road position stayed uncertain by
-    ~0.1 m for seconds where the lidar fixes it to a few centimetres, so the lidar told the filter
-    little about the speed and the radar's speed row took over (chicane-follow, session 12)."""
+    Without the correlation the unseen length's uncertainty would sit in ``s`` independently of ``L``:
+    seen from the rear, with the length held (``tracker.update.hold_unobserved_extent``), the filter
+    would keep the rear's along-road position (``s - L/2``) uncertain by the length's spread for
+    seconds, although the lidar fixes it to centimetres, and the lidar would then tell it little about
+    the speed. With the correlation the first update pins the visible edge."""
     for k, index in ((0, 5), (1, 6)):  # (levers slot, extent index): L, W
         g = levers[:, k, :] * rows[:, None]  # (B, 2)
         var = covs[:, index, index]

@@ -141,18 +141,13 @@ class CloudConfig:
       lowest scan line seldom shares a patch with a ground ring outside it and tilts a free plane
       into itself (the hinged fit ties a lone ring to the ground inside instead); beyond 40 m, where
       only climbing ground is hit, 15 m annuli keep the planes local. Wider rings hold more vehicle
-      returns beside the ground: ``(10, 15, 22, 35, 55, 80)`` kept 99.14 % of the vehicle returns
-      of ``scenarios/curvy-multi.toml`` and 98.78 % of ``dense-highway``'s (VLP-16, 21 scans each)
-      instead of 100 and 99.88 %.
+      returns beside the ground and lose more of them as ground.
     - ``ring_sectors`` (integers >= 1, one per ring outside the disc, or one for all of them; a
       tuple after construction): the sectors of each ring, equal in azimuth, sector 0 centred on
       E's +x. Default 16 (22.5 deg: 4 to 5.5 m wide at 10-14 m, 33 m at 85 m). Sectors follow the
       ground's lateral changes (a banked road and the level terrain beside it, the grade turning
       with a curving road); narrower ones hold fewer points, which a vehicle's returns can
-      outnumber. On the simulated hill (``scenarios/hill-vlp16.toml``) 8, 12 and 16 sectors all
-      removed over 99.8 % of the ground returns and over 99.9 % of those on the road; 16 kept the
-      most vehicle returns on the other VLP-16 scenarios tried (``dense-highway`` 99.88 % against
-      99.81 % with 8 or 12).
+      outnumber.
 
     Fits, per patch (after Zermas et al. 2017):
 
@@ -165,8 +160,7 @@ class CloudConfig:
       hinged fit draws half as many, at least 8, through 2 seeds and the hinge point, and tries the
       neighbour's gradient too), scored all at once. Default 32: with half the seeds on the ground
       ``P(no all-ground sample) = (1 - 0.5^3)^32 ~ 1.4 %`` (and its refit may still recover); seeds
-      are the lowest points of a patch, mostly ground. 64 gave the same recall, precision and
-      vehicle figures on five simulated VLP-16 scenarios, at ~0.5 ms more per scan.
+      are the lowest points of a patch, mostly ground.
     - ``distance_threshold`` (m): point-to-plane distance within which a point is ground (RANSAC
       inlier, refit inlier, final classification). Default 0.15: vehicle sills and bumpers start
       0.2-0.3 m above the road; the VLP-16's +-3 cm range noise is < 1 cm vertically on the ground
@@ -183,9 +177,7 @@ class CloudConfig:
       it (a few stray inliers, under 10 %, do not count). Inliers along one scan ring leave the
       plane's tilt about the ring undetermined (a ring arc of sagitta ``S`` spreads ``~0.4 S``, 0.7 m
       across a 16th of a circle 85 m out); two rings ``D`` apart spread ``~D / 2``. Default 1.0.
-      Lower values let free planes tilt on nearly straight arcs: with 0.3, 0.12 % of the road's
-      ground returns on the hill scenario stayed in and 0.11 % of ``curve-single``'s vehicle returns
-      went (none with 1.0).
+      Lower values let free planes tilt on nearly straight arcs.
     - ``max_step`` (m): continuity of the ground. A free fit is rejected unless its plane and its
       inner neighbour's meet (differ by at most this) somewhere between where the neighbour's
       inliers end and where the patch's begin, along the patch's inliers' mean azimuth. Default
@@ -204,21 +196,18 @@ class CloudConfig:
       move the gradient along a direction only as far as the inliers reach out from the hinge
       point along it, compared with this length. The hinge point is known to a few cm, gradients
       change by a few % between patches: ``~0.05 m / 0.025 = 2 m`` is where a ring's height and the
-      prior carry equal weight. Default 2.0. On the hill scenario 1 and 2 m removed 99.83 % of the
-      ground, 3 m 99.75 %, 6 m 99.65 % (larger: a patch cannot bend away from its neighbour's slope,
-      as the level verge of a banked road does; smaller: a ring next to the hinge point tilts the
-      plane by its height error over its short lever).
+      prior carry equal weight. Default 2.0. Larger, a patch cannot bend away from its neighbour's
+      slope, as the level verge of a banked road does; smaller, a ring next to the hinge point tilts
+      the plane by its height error over its short lever.
     - ``min_points``: a fit needs at least this many inliers among the patch's points taking part
       (estimated from the fit subsample), and a patch with fewer such points is not fitted. Default
       30: a vehicle side seen at 60-80 m gives 20-60 returns on one beam, all on the beam's cone,
-      which a plane through the hinge point can take for a climbing ground; with 15, 2.6 % of the
-      vehicle returns of ``curvy-multi`` and 2.0 % of ``dense-highway``'s went as ground.
+      which a plane through the hinge point can take for a climbing ground.
     - ``max_fit_points``: a patch with more points taking part is fitted on a random subsample of
       this many (every point is still classified; a random draw, because an even stride aliases
       with the scan order: a VLP-16 interleaves its beams, so every other point of a patch can lie
       on the same ring). Default 128: a plane has 3 parameters; 128 points fix it to well under a
-      tenth of a degree, and keep the padded ``(patches, points, hypotheses)`` arrays small (256
-      gave the same figures on five simulated VLP-16 scenarios).
+      tenth of a degree, and keep the padded ``(patches, points, hypotheses)`` arrays small.
     - ``column_width_deg`` (deg): the azimuth columns of the steep-rise test: of two returns next to
       each other (outwards) in a column ``floor(phi / w + 1/2)`` that differ in height by more than
       ``distance_threshold`` and lie at most that far apart horizontally (45 deg or steeper), the

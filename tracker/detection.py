@@ -18,13 +18,12 @@ Occlusion by the scan itself (``scan_occluded_fraction``): objects the tracker d
 trees, posts, walls, a vehicle not yet confirmed) hide targets too. The fraction of a rectangle's bearing
 span whose lidar returns lie nearer than its nearest corner by more than ``SCAN_OCCLUSION_MARGIN`` is
 hidden: each ray (a bearing bin of ``lidar_resolution``, ``rint(bearing / resolution)``) with such a
-return stands for one ray of the span. A 2-D scan has one return per ray; a 3-D lidar's projected cloud
-has one per beam and ray (up to 16 for a VLP-16), and counting returns instead of rays had a car 12 m
-ahead, half hidden behind another (45 of its 95 rays), taken as wholly hidden (210 returns): P_D 0, and
-its weight grew by one every frame (occlusion with the VLP-16, session 14). The detection model
-uses the larger of the two fractions. Without it a car passing behind a row of trees lost its weight
-at ``1 - P_D`` per frame (0.9 -> 0.09 -> 0.009: gone in two frames) and came back under a new label
-(circuit, 10 seeds: 4.9 ID switches per run).
+return stands for one ray of the span. Rays, not returns, are counted: a 2-D scan has one return per
+ray, but a 3-D lidar's projected cloud has one per beam and ray (up to 16 for a VLP-16), and counting
+returns would take a half-hidden car for a wholly hidden one. The detection model uses the larger of
+the two fractions. Without the scan's occlusion a target passing behind untracked objects (a row of
+trees) would lose its weight at ``1 - P_D`` per frame, gone within two or three frames, and come back
+under a new label.
 """
 
 from __future__ import annotations

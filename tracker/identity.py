@@ -21,11 +21,11 @@ constant, and a vehicle hidden while it accelerates or brakes drifts from that p
 up to ``accel tau^2 / 2`` ahead of the prediction (``accel`` m/s^2 the acceleration allowed for) and
 up to the distance braking at ``brake`` loses behind it (``brake tau^2 / 2``, ending at standstill:
 ``v tau - v^2 / (2 brake)`` once ``v < brake tau``). The reach is a bound, not a spread: a vehicle is
-no more likely to have driven at exactly its old speed than to have braked. Vehicles brake far
-harder than they accelerate: in stop-and-go traffic a car hidden while it braked from 9 to 3 m/s lay
-12 m behind its coasting prediction, outside a symmetric 2 m/s^2 allowance, and took the label of the
-bus behind it, whose prediction was as far behind the car as the car's own was ahead. An accepted newcomer takes the lost
-track's label. A lost track whose label is reported again by itself leaves the store.
+no more likely to have driven at exactly its old speed than to have braked. The reach is asymmetric
+because vehicles brake far harder than they accelerate: a car braking at 6 m/s^2 while hidden for 2 s
+lies 12 m behind its coasting prediction, far outside the 4 m a 2 m/s^2 allowance reaches, and with a
+symmetric reach it could match the prediction of the vehicle behind it instead of its own. An accepted newcomer
+takes the lost track's label. A lost track whose label is reported again by itself leaves the store.
 
 The same match covers a track that is still reported but coasts (no cluster updated it this frame)
 while a newcomer is confirmed next to it: its prediction missed its vehicle's points, which then

@@ -783,14 +783,14 @@ def build_structure(
         partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
     if shadowed_parts:
         # ... and the side goes on behind it: partially visible, anchored at the corner, unless the chord
-        # is longer than its predicted side (a lower bound: measured whole, to the last return); a bus
-        # whose front roadside objects hid frame by frame shrank with its visible side
+        # is longer than its predicted side (a lower bound: measured whole, to the last return); taken
+        # whole, a side that an occluder hides a little more every frame would shrink with what shows
         partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
     if _shadowed_longer_whole(config, batch.occluded_end is not None, extent_sd is not None):
         # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
-        # bound the prediction falls short of, so the part is measured whole (a far truck's rear half
-        # hidden by a car kept a car's width, and length, for seconds: mixed-traffic seed 16)
+        # bound the prediction falls short of, so the part is measured whole (kept partial, a truck's
+        # rear half-hidden by a car would keep a car's width, and so never take the long-vehicle prior)
         shadowed &= ~_longer_than_predicted(chord_len[:, 0], predicted[:, 0], sides[:, 0], extent_sd,
                                             config.settled_width_std)
     partial |= shadowed[:, None]

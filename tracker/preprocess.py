@@ -67,7 +67,7 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
     taken modulo the bin count when ``bin_width`` divides the circle), so a lidar whose rays sit at
     multiples of its resolution puts each ray in the middle of its own bin. (Bins with edges on the
     rays, ``floor((bearing + pi) / bin_width)``, let float rounding put two neighbouring rays into one
-    bin: 1,620 of a full circle's 1,800 rays survived the filter.)"""
+    bin, and the filter would drop one of them.)"""
     if not bin_width > 0:
         raise ValueError(f"bin_width must be > 0 rad; got {bin_width!r}")
     pts = np.asarray(points_e, dtype=float).reshape(-1, 2)

@@ -5,9 +5,7 @@ The paper fuses the radar only through the lidar clusters (a cluster's velocity 
 hidden from the lidar (behind another, or showing it fewer points than a cluster needs) is often still
 seen by a radar mounted elsewhere on the ego (the bumper), and the radar then reports its position and
 velocity while the track coasts on a prediction that knows neither that the vehicle stopped nor that
-it sped up (issue 10: stop-and-go, a car stopping behind a bus while its track drove on at 8 m/s; a
-third of the frames in which a vehicle shows the lidar fewer than three points carry a radar detection
-of it).
+it sped up (a car stopping behind a bus while its coasting track drives on at its old speed).
 
 Model (``MeasurementConfig.radar_only_update``): a detection is the point of the vehicle's rectangle
 nearest the sensor plus noise, and its absolute velocity in E::
@@ -23,10 +21,9 @@ candidates, only detections that joined no cluster and lie clear of the lidar's 
 pair counts only within ``RADAR_ONLY_LATERAL`` across the track's heading and within the gate
 (``gating.probability`` of a chi-square with 4 degrees of freedom). A detection goes to one track and
 a track takes one detection: the assignment (``scipy.optimize.linear_sum_assignment``) of least total
-normalised innovation between tracks (each at its best component) and detections, for cars queueing
-hidden nose to tail, whose position spreads have grown along the road, gate with each other's
-detections (measured against taking only unambiguous pairs, fused, 10 seeds: curvy-multi position
-0.299 -> 0.262 m, stop-and-go GOSPA 4.68 -> 4.66 m, the same ID switches). Each component of the
+normalised innovation between tracks (each at its best component) and detections, because cars
+queueing hidden nose to tail, whose position spreads have grown along the road, gate with each
+other's detections, and a greedy choice would give one car's detection to its neighbour. Each component of the
 chosen track takes its pair with that detection; its weight is left as the lidar update made it (the
 detection refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays
 the lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update

@@ -328,10 +328,10 @@ def absorb_overlapping(
     known to ``UNION_LENGTH_STD`` its rectangle becomes the union of the two along the heading (centre
     and length ``L``; the larger width ``W``), the variances of the moved centre and of ``L`` and ``W``
     grown by the squares of their changes (a prior's length says nothing of where the vehicle ends: the
-    union of two duplicates of a car from the first scan, each with the prior's 4.5 m, was 7.6 m), but
-    not when only one of them is in ``updated``: a coasting track's rectangle is its prediction, not a
-    fragment seen (Cartesian occlusion, seeds 3, 9 and 11: a car's coasting track 2.5 m off it and the
-    newcomer on it made one 9.5-9.9 m long track, session 20).
+    union of two duplicates of one car, each with the prior's 4.5 m and a few metres apart, would be a
+    vehicle far longer than the car), but not when only one of them is in ``updated``: a coasting
+    track's rectangle is its prediction, not a fragment seen, and its union with the newcomer on the
+    vehicle would stretch the vehicle by the prediction's error.
     Every component of the absorbed label is dropped. Returns the mixture and the number of labels
     absorbed."""
     position_periods, s_period = _position_periods(wrapping)

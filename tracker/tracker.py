@@ -350,7 +350,7 @@ class Tracker:
         (``m = alpha m + (1 - alpha) z``, ``alpha = exp(-dt / manoeuvre_memory)``) leaves
         ``manoeuvre_sigmas`` of its own spread under no manoeuvre, ``sqrt((1 - alpha) / (1 + alpha))``: a
         steady lag, corrections of one sign frame after frame none of which is large alone (a gentle,
-        drawn-out acceleration of stop-and-go traffic). Flagging starts (or extends) the label's
+        drawn-out acceleration in queueing traffic). Flagging starts (or extends) the label's
         ``manoeuvre_hold`` seconds of full jerk; a label newly flagged by a single correction is an
         abrupt onset (``_manoeuvre_jerk`` raises its acceleration's variance). A steady lag does not
         raise it: it is flagged while the filter follows an acceleration it has learned (a car pulling
@@ -437,7 +437,7 @@ class Tracker:
             clusters = [c for c, keep in zip(clusters, big.tolist()) if keep]
             owned, lo, hi = owned[big], lo[big], hi[big]
         else:
-            self.stats["clusters_too_small"] += 0  # the counter exists from the first clustered frame, as before
+            self.stats["clusters_too_small"] += 0  # the counter exists from the first clustered frame on
         self._owned = owned
         if self.config.use_radar and clusters and len(frame.radar):
             velocities, self._free_radar = cluster_radar_ranges(ordered, lo, hi, frame.radar, frame.t, cfg.radar_gate)

@@ -383,7 +383,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     some pair (pair ``p``: component ``inverse[p]``, cluster ``clu[p]``); ``None`` where the kernels are
     off or do not apply (Cartesian states, more than one periodic coordinate) or where the kernel hands
     the pairs back (a non-finite or not positive definite prior, a widened prior, a variance that is not
-    positive): the staged path then runs, as it always did."""
+    positive): the staged path then runs."""
     if not len(means) or not _fused_update_applies(config, road, wrapping):
         return None
     from tracker.compiled.pairs import DONE, update_pairs_kernel
@@ -557,12 +557,12 @@ def grow_extent(
 
     A track born from a truck's rear has a car's length prior (``BirthConfig.length`` 4.5 +- 1 m). When
     the truck's side comes into view its points run 5-15 m past the predicted rectangle: the innovation
-    is far outside the gate, the track is not updated, and a newborn takes the cluster (issue 10,
-    stop-and-go: 25 ID switches per run). A side's chord (the extent of its points, without the end-gap
-    margins) is a lower bound of its length, so an excess ``e = chord - predicted`` (``Structure.excess``)
-    above ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sqrt(P[L, L]))`` (``tracker.measurement.shows_longer_side``)
-    is evidence that the prior is wrong, not noise. (Measured with the margins included, cars' converged lengths grew falsely at grazing
-    views: cut-in length RMSE 0.05 -> 0.39 m over 10 seeds.) The prior then gets
+    is far outside the gate, the track is not updated, and a newborn takes the cluster. A side's chord
+    (the extent of its points, without the end-gap margins) is a lower bound of its length, so an
+    excess ``e = chord - predicted`` (``Structure.excess``) above ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS
+    sqrt(P[L, L]))`` (``tracker.measurement.shows_longer_side``) is evidence that the prior is wrong, not
+    noise. (The end-gap margins are left out because at grazing views they are large and would let a
+    converged car's length grow falsely.) The prior then gets
     the variance ``e^2`` along the direction in which the vehicle can grow while the end nearest the
     sensor stays put::
 
@@ -630,7 +630,7 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     Seen only from its rear, a car's length is unobservable: the points fix ``s - L/2``, and the
     normal update moves ``L`` by the prior's ``s``-``L`` correlation times every along-track innovation.
     Any small model error (slip, a timing lag, an accelerating car) then drains into ``L`` frame after
-    frame (curve-single: -0.5 m over 20 s). The Schmidt update with the extent as a consider
+    frame. The Schmidt update with the extent as a consider
     parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
     prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
     everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
@@ -661,15 +661,15 @@ def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners:
     """A car's length prior replaced by a truck's or a bus's where the width says so, in place.
 
     Seen from behind, a bus is a 2.5 m wide rear: its width is measured, its length never (the Schmidt
-    update holds it, ``hold_unobserved_extent``), and a track born with a car's 4.5 m puts its centre
-    ~6 m behind the bus's (stop-and-go: length RMSE 3.3 m, GOSPA 6.9 m). Cars and vans are at most
+    update holds it, ``hold_unobserved_extent``), and a track born with a car's 4.5 m puts the centre of
+    a 16 m bus ~6 m behind the bus's. Cars and vans are at most
     ~2.2 m wide, trucks and buses 2.5-2.55 m, so a pair whose length was held this update, whose
     posterior width is at least ``config.long_width`` and whose length is still a car's prior (below
     ``long_length - long_length_std``, its standard deviation at least half of ``length_std``: never
     measured) takes the length ``long_length``, with the variance ``long_length_std^2``, while the end
     nearest the sensor stays put (``replace_length_prior``).
     A track that already carries the long prior, or whose length was measured, is left alone (applied
-    again each frame, the added variance had let a truck's track drift off it: truck-hairpin seed 6).
+    again each frame, the added variance would let a truck's track drift off it).
     Returns the mask of the pairs changed."""
     hit = (held_length & (res.mean[:, WIDTH] >= config.long_width)
            & (res.mean[:, LENGTH] < config.long_length - config.long_length_std)
@@ -682,13 +682,13 @@ def narrow_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corner
 
     The mirror image of ``long_vehicle_prior``: seen from behind, a motorcycle is a 0.8 m wide rear
     whose length is never measured, and a track born with a car's 4.5 m puts its centre ~1.2 m ahead of
-    the motorcycle's (mixed-traffic seeds 1 and 2: its length error +2.1 to +2.3 m, its position 1.1-1.3
-    m off for the whole run). Cars are at least ~1.5 m wide, motorcycles and bicycles at most ~1 m, so a
-    pair whose length was held this update, whose posterior width is at most ``config.narrow_width``
-    and known to ``config.narrow_width_std`` (measured, not a prior's guess), and whose length is still
-    a car's prior (above ``narrow_length + narrow_length_std``, its standard deviation at least half of
-    ``length_std``: never measured) takes the length ``narrow_length``, with the variance
-    ``narrow_length_std^2``, the end nearest the sensor staying put (``replace_length_prior``).
+    the motorcycle's for as long as its side stays unseen. Cars are at least ~1.5 m wide, motorcycles
+    and bicycles at most ~1 m, so a pair whose length was held this update, whose posterior width is at
+    most ``config.narrow_width`` and known to ``config.narrow_width_std`` (measured, not a prior's
+    guess), and whose length is still a car's prior (above ``narrow_length + narrow_length_std``, its
+    standard deviation at least half of ``length_std``: never measured) takes the length
+    ``narrow_length``, with the variance ``narrow_length_std^2``, the end nearest the sensor staying put
+    (``replace_length_prior``).
     Returns the mask of the pairs changed."""
     hit = (held_length & (res.mean[:, WIDTH] <= config.narrow_width)
            & (res.cov[:, WIDTH, WIDTH] <= config.narrow_width_std**2)
