@@ -38,9 +38,8 @@ ROAD_MARGIN = 150.0
 LANE_CHANGE_DURATION = (3.0, 6.0)
 #: Clear space (m) kept between a drawn road's edges where it winds back towards itself: the
 #: centerlines of two parts of the road further apart along it than (pi / 2) x (road width + this)
-#: are at least (road width + this) apart, so the road never overlaps itself (a road that did gave
-#: two Frenet coordinates to one place: mixed-traffic seed 17 crossed itself, seed 1 ran 9 m from
-#: itself with 11 m of lanes).
+#: are at least (road width + this) apart, so the road never overlaps itself (a road that does gives
+#: one place two Frenet coordinates).
 ROAD_SELF_CLEARANCE = 10.0
 #: Roads drawn before a generator whose ranges keep making roads that come back onto themselves is
 #: reported as an error.

@@ -1,5 +1,5 @@
 """The hard suite's long-vehicle target: a truck's or bus's length within 1 m of the truth 3 s after its
-side is first seen (issue 10), measured from a run's scored frames.
+side is first seen, measured from a run's scored frames.
 
 A long vehicle (``length >= LONG_VEHICLE_LENGTH``) has its side *seen* in the first frame where, from
 the ego (the lidar at its centre):
@@ -14,9 +14,9 @@ the ego (the lidar at its centre):
   ``SIDE_MISSING_SHARE`` of them and one more (the lidar drops 1 % of its returns, and a ray count
   from the corners' bearings is good to a ray), and, where the frames record them
   (``FrameRecord.lidar_bearings``), its returns reach both ends of its outline's bearing span to
-  within ``END_RAYS`` rays: the whole side is in view, not a part of it beside an occluder (a 16 m
-  bus whose front 2-4 m, sampled a ray every 0.9 m, were hidden by roadside objects still showed
-  91-95 % of its returns, and its length could not be observed).
+  within ``END_RAYS`` rays: the whole side is in view, not a part of it beside an occluder (a long
+  bus whose front few metres are hidden by roadside objects still shows over 90 % of its returns,
+  but its length cannot be observed).
 
 ``LENGTH_DELAY`` later the length of the track that GOSPA assigns to it is compared with the truth;
 a vehicle the run ends on within that delay, or that is no longer scored then (beyond the lidar range),

@@ -65,7 +65,7 @@ duplicate times within [0, duration).
 Generator vehicle classes (``VehicleClass``): ``length`` and ``width`` are a number or a range
 ``[low, high]`` (m, drawn uniformly), ``share`` > 0 and the shares must sum to 1 within 1e-6 (they are
 not normalised: a typo in a share is an error, not a silent re-weighting); without ``classes`` the
-generator draws every vehicle from its ``length`` / ``width`` ranges, as before.
+generator draws every vehicle from its ``length`` / ``width`` ranges.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ import numpy as np
 
 from tracker.measurement import rectangle_corners as tracker_rectangle_corners
 
-#: Default heights (m) of vehicle classes, for the 3-D lidar (``sim.sensors.lidar3d``): the issue's
-#: car 1.5, van 2.0, truck 3.5 and motorcycle 1.2 m, and a bus 3.2 m.
+#: Default heights (m) of vehicle classes, for the 3-D lidar (``sim.sensors.lidar3d``): car 1.5, van
+#: 2.0, truck 3.5, bus 3.2 and motorcycle 1.2 m.
 CLASS_HEIGHTS = {"car": 1.5, "van": 2.0, "truck": 3.5, "bus": 3.2, "motorcycle": 1.2}
 
 
