@@ -1,4 +1,4 @@
-"""The paper's claims (issue 12, claims 1-6) checked against a study's runs, with text from the numbers.
+"""The paper's claims 1-6 checked against a study's runs, with text from the numbers.
 
 Every claim is a set of comparisons. A *paired* comparison (``sim.study.paired_difference``) takes
 variant A minus variant B per (scenario, seed) and its 95 % t interval; its verdict
@@ -9,6 +9,11 @@ variant A minus variant B per (scenario, seed) and its 95 % t interval; its verd
 - ``contradicted``: the interval lies entirely on the other side;
 - ``not evaluated``: a variant is missing (skipped, or fewer than two pairs).
 
+An *absolute* comparison (claims 3 and 6: a mean's 95 % t interval, ``sim.study.mean_interval``,
+against a fixed bound the claim says it stays below) has the same verdicts (``bound_verdict``):
+``supported`` when the interval's upper end is below the bound, ``contradicted`` when its lower end is
+above it, ``not shown`` when the interval reaches the bound, ``not evaluated`` without an interval.
+
 A claim's verdict is ``supported`` when all its evaluated comparisons are, ``contradicted`` when any
 is, else ``not shown`` (or ``not evaluated`` when none could be evaluated). The sentences are built
 from the computed numbers; the only fixed inputs are the criteria below, each derived from a
@@ -16,10 +21,11 @@ documented source:
 
 - ``CURVED_KAPPA``: scenarios whose road has a curve of radius <= 500 m count as curved (claim 2, 5);
 - ``TIGHT_KAPPA``: radius <= 60 m counts as a tight curve (claim 5 names those scenarios);
-- claim 3's "close to the truth": the RMSE interval's upper bound below ``EXTENT_CLOSE_FRACTION``
-  (10 %) of the tracker's nominal car size (``tracker.config.BirthConfig`` length and width);
+- claim 3's "close to the truth": the RMSE interval below ``EXTENT_CLOSE_FRACTION`` (10 %) of the
+  tracker's nominal car size (``tracker.config.BirthConfig`` length and width);
 - claim 6's rates: the paper's point GNN 20 Hz, its EOT 10 Hz and a spline-model EOT 6 Hz
-  (``PAPER_RATES_HZ``); the lidar runs at 10 Hz, so 100 ms per frame is real time.
+  (``PAPER_RATES_HZ``); the lidar runs at 10 Hz, so 100 ms per frame is real time
+  (``LIDAR_PERIOD_MS``): the tracker time interval below it keeps up with the lidar.
 """
 
 from __future__ import annotations
@@ -82,6 +88,17 @@ def paired_verdict(diff: Interval, sign: int) -> str:
     if (sign < 0 and diff.high < 0.0) or (sign > 0 and diff.low > 0.0):
         return "supported"
     if (sign < 0 and diff.low > 0.0) or (sign > 0 and diff.high < 0.0):
+        return "contradicted"
+    return "not shown"
+
+
+def bound_verdict(iv: Interval, bound: float) -> str:
+    """Verdict of the claim "the mean of ``iv`` lies below ``bound``" (module docstring)."""
+    if iv.n < 2 or iv.low is None or iv.high is None:
+        return "not evaluated"
+    if iv.high < bound:
+        return "supported"
+    if iv.low > bound:
         return "contradicted"
     return "not shown"
 
@@ -208,21 +225,21 @@ def claim_extent(rows: Sequence[dict[str, Any]], variants: Sequence[str], skippe
         claim.intervals[f"curvilinear-fused {metric}"] = iv
         bound = EXTENT_CLOSE_FRACTION * size
         what = metric.split("_")[0]
-        if iv.high is None:
-            verdicts.append("not evaluated")
+        verdict = bound_verdict(iv, bound)
+        verdicts.append(verdict)
+        if verdict == "not evaluated":
             body.append(f"{what} RMSE: {describe_interval(iv, 'm')}.")
             continue
-        ok = iv.high < bound
-        verdicts.append("supported" if ok else "not shown")
-        body.append(f"curvilinear-fused {what} RMSE per run: {describe_interval(iv, 'm')}; the upper bound is "
-                    f"{'below' if ok else 'not below'} {bound:.2f} m ({EXTENT_CLOSE_FRACTION:.0%} of a {size:g} m nominal car {what}).")
+        where = {"supported": "lies below", "not shown": "reaches", "contradicted": "lies entirely above"}[verdict]
+        body.append(f"curvilinear-fused {what} RMSE per run: {describe_interval(iv, 'm')}; the interval {where} "
+                    f"{bound:.2f} m ({EXTENT_CLOSE_FRACTION:.0%} of a {size:g} m nominal car {what}).")
     for name in ("point-gnn", "stonesoup-gmphd"):
         if name in variants:
             with_value = sum(r.get("length_rmse_m") is not None for r in rows if r["variant"] == name)
             body.append(f"{name} reports no extent: its length/width RMSE is missing in {sum(r['variant'] == name for r in rows) - with_value} "
                         f"of {sum(r['variant'] == name for r in rows)} runs.")
     claim.verdict = combine(verdicts)
-    if claim.verdict == "not shown":
+    if claim.verdict in ("not shown", "contradicted"):
         body.append("Likely reason: the length of a car seen only from behind (or width seen only from the side) is "
                     "unobservable until another side shows; runs where it never shows keep the prior size.")
     claim.text = f"**Verdict: {claim.verdict}.** " + " ".join(body)
@@ -293,11 +310,14 @@ def claim_runtime(rows: Sequence[dict[str, Any]], variants: Sequence[str], skipp
     body.append(f"The paper: {paper}.")
     verdicts = []
     ours = claim.intervals.get("curvilinear-fused")
-    if ours is not None and ours.high is not None:
-        fast = ours.high < LIDAR_PERIOD_MS
-        verdicts.append("supported" if fast else "not shown")
-        body.append(f"curvilinear-fused {'keeps' if fast else 'does not keep'} up with the 10 Hz lidar "
-                    f"(upper bound {fmt(ours.high)} ms vs {LIDAR_PERIOD_MS:g} ms).")
+    if ours is not None:
+        verdict = bound_verdict(ours, LIDAR_PERIOD_MS)
+        verdicts.append(verdict)
+        if verdict != "not evaluated":
+            says = {"supported": "keeps up with", "not shown": "is not shown to keep up with",
+                    "contradicted": "does not keep up with"}[verdict]
+            body.append(f"curvilinear-fused {says} the 10 Hz lidar (interval [{fmt(ours.low)}, {fmt(ours.high)}] ms "
+                        f"vs {LIDAR_PERIOD_MS:g} ms a frame).")
     if "point-gnn" in variants and "curvilinear-fused" in variants:
         c = Comparison(paired_difference(rows, "tracker_ms_mean", "point-gnn", "curvilinear-fused"), -1, "ms")
         claim.comparisons.append(c)
@@ -330,7 +350,9 @@ __all__ = [
     "EXTENT_CLOSE_FRACTION",
     "PAPER_RATES_HZ",
     "TIGHT_KAPPA",
+    "LIDAR_PERIOD_MS",
     "VERDICTS",
+    "bound_verdict",
     "combine",
     "curved",
     "describe_comparison",
