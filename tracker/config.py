@@ -574,8 +574,8 @@ class ClusteringConfig:
     ``bearing_bin``; points inside a reported track's predicted rectangle (plus ``track_margin``) form its
     cluster, the rest are partitioned into connected components at ``distance``; clusters wider across
     the road than one vehicle are cut; lone fragments continuing a track's side join it; radar
-    detections join the nearest cluster centroid within ``radar_gate``. Details: ``docs/tracker.md``
-    ("Clustering").
+    detections join the nearest cluster (by its nearest point) within ``radar_gate``. Details:
+    ``docs/tracker.md`` ("Clustering").
     """
 
     #: Lidar points within the road bounds widened by this are kept (m; default 0.5).
@@ -588,7 +588,7 @@ class ClusteringConfig:
     distance: float = 1.0
     #: Smaller clusters are dropped and counted (default 1).
     min_points: int = 1
-    #: A radar detection joins the nearest cluster centroid within this (m; default 3.0).
+    #: A radar detection joins a cluster whose nearest point lies within this, greedily by distance (m; default 3.0).
     radar_gate: float = 3.0
     #: A cluster spanning more than this across the road (in ``n``) is cut at its largest gap (m; default 3.0; None: off).
     split_width: float | None = 3.0
