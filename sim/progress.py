@@ -2,9 +2,11 @@
 callbacks to tqdm (terminals, notebooks and logs; nested bars).
 
 ``ProgressBar(total, label)`` is a tqdm bar called as ``bar(done)`` or ``bar(done, total)`` (absolute
-counts; ``total = 0`` means unknown until the first call gives it). On a terminal it redraws at most
-every 0.1 s; elsewhere (logs, CI, pipes) at most every ``LOG_INTERVAL`` s, so logs stay short, and
-always once when it closes. ``enabled=False`` silences it. ``position`` stacks bars (0 is the top
+counts). ``total = 0`` means unknown until a call gives it: nothing is drawn before, so the bar always
+shows ``done/total`` (one that never learns its total is drawn without it from its first call).
+Callers announce the total with ``bar(0, total)`` before the work starts. On a terminal it redraws
+at most every 0.1 s; elsewhere (logs, CI, pipes) at most every ``LOG_INTERVAL`` s, so logs stay
+short, and always once when it closes. ``enabled=False`` silences it. ``position`` stacks bars (0 is the top
 line); a bar with ``leave=False`` is erased when it closes: ``NestedProgress`` uses that for the
 Monte Carlo (a bar over all runs and, below it on a terminal, one bar per scenario).
 """
@@ -41,8 +43,7 @@ class ProgressBar:
         unit: str = "it",
     ) -> None:
         stream = sys.stderr if stream is None else stream
-        self.bar = tqdm(
-            total=max(int(total), 0) or None,
+        self._options = dict(
             desc=label or None,
             file=stream,
             disable=not enabled,
@@ -52,23 +53,36 @@ class ProgressBar:
             mininterval=TTY_INTERVAL if _is_tty(stream) else LOG_INTERVAL,
             dynamic_ncols=True,
         )
-
+        self.bar: tqdm | None = None  # the tqdm bar, made once the total is known (or at the first call)
         self.done = 0  # steps done so far (counted also when the bar is disabled)
         self.total = max(int(total), 0)  # steps in all (0 while unknown)
+        if self.total:
+            self._open()
+
+    def _open(self) -> None:
+        self.bar = tqdm(total=self.total or None, initial=self.done, **self._options)
 
     def __call__(self, done: int, total: int | None = None) -> None:
-        if total is not None and int(total) != self.total:
+        done = int(done)
+        if total is not None and max(int(total), 0) != self.total:
             self.total = max(int(total), 0)
-            self.bar.total = self.total or None
-            self.bar.refresh()
-        step = int(done) - self.done
-        self.done = int(done)
+            if self.bar is not None:
+                self.bar.total = self.total or None
+                self.bar.refresh()
+        if self.bar is None:
+            self.done = done
+            self._open()
+            return
+        step = done - self.done
+        self.done = done
         if step:
             self.bar.update(step)
 
     def close(self) -> None:
-        """Draw the final state (unless ``leave=False``) and release the line."""
-        self.bar.close()
+        """Draw the final state (unless ``leave=False``) and release the line; nothing when the bar
+        was never drawn (no total and no call)."""
+        if self.bar is not None:
+            self.bar.close()
 
     def __enter__(self) -> ProgressBar:
         return self

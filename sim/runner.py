@@ -535,10 +535,10 @@ def run_scenario(
     ``duration`` (s) shortens the run (default: the scenario's; it may not be longer);
     ``roadside`` forces roadside clutter on or off (default: the scenario's ``sensors.roadside``,
     on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
-    ``progress(done, total)`` is called after every frame; ``tracker_factory(road, config)`` builds
-    the tracker (default: the variant's own factory, ``sim.variants.variant_factory``, else
-    ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or ``"vlp16"``) replaces the scenario's
-    ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
+    ``progress(done, total)`` is called with ``done = 0`` first, then after every frame;
+    ``tracker_factory(road, config)`` builds the tracker (default: the variant's own factory,
+    ``sim.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or
+    ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
         raise ValueError(f"run_scenario needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
@@ -584,6 +584,8 @@ def run_scenario(
         stream = injector.apply(stream)
         total += sum(1 for t in faults.duplicate_frames if t <= duration)
     cloud_score = CloudScore()
+    if progress is not None:
+        progress(0, total)
     for k, sf in enumerate(stream):
         t0 = time.perf_counter()
         tracks = list(tracker.step(sf.frame))
