@@ -894,21 +894,31 @@ def headline(insp: Inspection) -> str:
 
 # -- files -----------------------------------------------------------------------------------------
 def plot_events(insp: Inspection, path: str | Path) -> Path:
-    """``events.png``: per vehicle a timeline bar coloured by state with markers for the first lidar
-    point, confirmation, label changes, losses and coasting; GOSPA over time with the worst intervals
-    shaded; the GOSPA^p cost per cause, stacked. Drawn on matplotlib's Agg canvas (no pyplot)."""
+    """``events_figure(insp)`` written to ``path`` (``events.png``)."""
+    events_figure(insp).savefig(path)
+    return Path(path)
+
+
+def events_figure(insp: Inspection) -> Any:
+    """The figure of ``events.png`` (a ``matplotlib.figure.Figure``): per vehicle a timeline bar coloured by state with markers for the first lidar
+    point, confirmation, label changes, losses and coasting (the vehicle names in the vehicle's colour
+    of ``sim.plots.vehicle_color``, as in the run's other figures); GOSPA over time with the worst
+    intervals shaded (when any frame reaches the threshold); the GOSPA^p cost per cause, stacked.
+    Legends sit outside the panels. Drawn on matplotlib's Agg canvas (no pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
+    from sim.plots import vehicle_color
+
     d = insp.data
     cols = insp.vehicles_in_range()
     nv = max(len(cols), 1)
     dt = d.dt
-    fig = Figure(figsize=(12.0, 4.6 + 0.4 * nv), dpi=100)
+    fig = Figure(figsize=(13.0, 4.8 + 0.4 * nv), dpi=100)
     FigureCanvasAgg(fig)
-    gs = fig.add_gridspec(3, 1, height_ratios=[max(2.2, 0.4 * nv), 1.3, 1.3], hspace=0.22)
+    gs = fig.add_gridspec(3, 1, height_ratios=[max(2.2, 0.4 * nv), 1.3, 1.3], hspace=0.38)
     ax = fig.add_subplot(gs[0])
     ax_g = fig.add_subplot(gs[1], sharex=ax)
     ax_c = fig.add_subplot(gs[2], sharex=ax)
@@ -960,38 +970,52 @@ def plot_events(insp: Inspection, path: str | Path) -> Path:
             below = j % 2 == 0  # alternate below / above the bar
             ax.text(t0, y + (0.34 if below else -0.34), ", ".join(dict.fromkeys(texts)), fontsize=6.5, ha="center",
                     va="top" if below else "bottom", color="#222222", clip_on=True, zorder=6)
-    ax.set_yticks(range(len(cols)), [f"veh {int(d.vehicle_ids[v])}" for v in cols], fontsize=8)
+    ax.set_yticks(range(len(cols)), [f"vehicle {int(d.vehicle_ids[v])}" for v in cols], fontsize=8)
+    for tick, v in zip(ax.get_yticklabels(), cols):
+        tick.set_color(vehicle_color(int(d.vehicle_ids[v])))
+        tick.set_fontweight("bold")
     ax.set_ylim(len(cols) - 0.4, -0.9)
-    ax.set_xlim(float(d.t[0]) if len(d.t) else 0.0, t_end)
+    t_start = float(d.t[0]) if len(d.t) else 0.0
+    pad = 0.012 * span  # room for the markers at the first and last frame
+    ax.set_xlim(t_start - pad, t_end + pad)
     ax.grid(axis="x", alpha=0.3)
     ax.tick_params(labelbottom=False)
-    ax.set_title(f"{d.title}: vehicle timelines (bar = state, number = track label)", fontsize=10)
+    ax.set_ylabel("vehicle (id)", fontsize=8)
+    if len(cols) == 0:
+        ax.text(0.5, 0.5, "no vehicle was in range", transform=ax.transAxes, ha="center", va="center")
+    ax.set_title(f"{d.title}: vehicle timelines (bar = state, white number = track label)", fontsize=10)
     handles = [Patch(facecolor=c, label=n) for n, c in zip(STATE_NAMES, STATE_COLORS)]
     handles += [Line2D([], [], ls="none", label=k.replace("_", " "), **v) for k, v in marks.items()]
     fig.legend(handles=handles, loc="upper center", ncol=6, fontsize=7.5, frameon=False, bbox_to_anchor=(0.5, 1.0))
 
     ax_g.plot(d.t, d.gospa, color="k", lw=1.2, label="GOSPA")
-    ax_g.axhline(insp.threshold, color="0.4", ls="--", lw=0.8, label=f"threshold {insp.threshold:.2f} m")
-    top = float(np.max(d.gospa, initial=1.0)) * 1.15 + 0.1
+    ax_g.axhline(insp.threshold, color="0.4", ls="--", lw=0.8, label=f"worst-interval\nthreshold {insp.threshold:.2f} m")
+    top = max(float(np.max(d.gospa, initial=1.0)) * 1.15 + 0.1, 1.1 * insp.threshold)
     for iv in insp.intervals:
         ax_g.axvspan(iv.t_start, iv.t_end + dt, color=CAUSE_COLORS[GOSPA_CAUSES.index(iv.dominant)], alpha=0.25)
         ax_g.text(iv.t_start, top * 0.97, f"#{iv.rank}", fontsize=7, va="top")
     ax_g.set_ylim(0.0, top)
     ax_g.set_ylabel("GOSPA (m)")
-    ax_g.legend(loc="upper right", fontsize=7)
+    outside = dict(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=7, frameon=False)
+    ax_g.legend(**outside)
     ax_g.grid(alpha=0.3)
     ax_g.tick_params(labelbottom=False)
-    ax_g.set_title(f"worst intervals shaded (colour = dominant cause); GOSPA alpha 2, p {d.p:g}, c {d.c:g} m",
-                   fontsize=8.5)
+    gospa_text = f"GOSPA (alpha 2, p {d.p:g}, c {d.c:g} m) per frame"
+    if insp.intervals:
+        shaded = f"{len(insp.intervals)} worst interval{'s' if len(insp.intervals) != 1 else ''} shaded (#rank; colour = dominant cause)"
+    else:
+        shaded = f"no frame reaches the threshold {insp.threshold:.2f} m: no worst interval"
+    ax_g.set_title(f"{gospa_text}; {shaded}", fontsize=8.5)
     if len(d.t):
         ax_c.stackplot(d.t, insp.cause_cost.T, colors=CAUSE_COLORS, labels=GOSPA_CAUSES, step="post", alpha=0.85)
-    ax_c.set_ylabel(f"GOSPA^{d.p:g} by cause (m^{d.p:g})", fontsize=8)
+    ax_c.set_ylim(bottom=0.0)
+    ax_c.set_ylabel(f"GOSPA^{d.p:g} (m^{d.p:g})", fontsize=8)
     ax_c.set_xlabel("t (s)")
-    ax_c.legend(loc="upper left", fontsize=6.5, ncol=4)
+    ax_c.set_title(f"GOSPA^{d.p:g} per frame split by cause (stacked)", fontsize=8.5)
+    ax_c.legend(**outside)
     ax_c.grid(alpha=0.3)
-    fig.subplots_adjust(left=0.07, right=0.98, top=1.0 - 0.75 / fig.get_figheight(), bottom=0.5 / fig.get_figheight() + 0.02)
-    fig.savefig(path)
-    return Path(path)
+    fig.subplots_adjust(left=0.07, right=0.85, top=1.0 - 0.8 / fig.get_figheight(), bottom=0.55 / fig.get_figheight() + 0.02)
+    return fig
 
 
 def write_inspection(insp: Inspection, out: str | Path) -> dict[str, Path]:
@@ -1031,6 +1055,7 @@ __all__ = [
     "analyse",
     "attribute_gospa",
     "default_threshold",
+    "events_figure",
     "find_events",
     "headline",
     "inspect_run",

@@ -279,3 +279,32 @@ def test_eot_inspect_bad_folder_is_one_line(tmp_path, capsys):
     code = cli.main(["inspect", str(tmp_path)])
     captured = capsys.readouterr()
     assert code == 2 and captured.err.count("\n") == 1 and "has no timeseries.csv" in captured.err
+
+
+def test_events_figure_legends_outside_and_title_matches_the_shading(tmp_path, picks):
+    from matplotlib.patches import Polygon, Rectangle
+
+    from sim.inspect import events_figure
+    from sim.plots import vehicle_color
+
+    result = _run(duration=2.5, drop=(picks[0], *DROP))
+    write_results(result, tmp_path)
+    for threshold, shaded in ((None, True), (1e6, False)):  # the drop makes worst intervals; none above 1e6 m
+        insp = inspect_run(tmp_path, threshold=threshold)
+        assert bool(insp.intervals) == shaded
+        fig = events_figure(insp)
+        fig.canvas.draw()
+        timeline, ax_g, ax_c = fig.axes
+        spans = [p for p in ax_g.patches if isinstance(p, (Polygon, Rectangle))]
+        assert len(spans) == len(insp.intervals)
+        assert ("shaded" in ax_g.get_title()) == shaded and ("no worst interval" in ax_g.get_title()) == (not shaded)
+        renderer = fig.canvas.get_renderer()
+        for ax in (ax_g, ax_c):  # each legend lies beside its panel, over none of the data
+            legend = ax.get_legend().get_window_extent(renderer)
+            assert legend.x0 >= ax.get_window_extent(renderer).x1
+            assert all(ax.get_ylabel() for ax in fig.axes) and "(s)" in ax_c.get_xlabel()
+        # the vehicles are named in their colours (the run's other figures use the same)
+        for tick in timeline.get_yticklabels():
+            assert tick.get_color() == vehicle_color(int(tick.get_text().split()[-1]))
+        lo, hi = timeline.get_xlim()
+        assert lo < insp.data.t[0] and hi > insp.data.t[-1]  # markers at the first frame are not cut
