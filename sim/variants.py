@@ -15,9 +15,11 @@ Most variants are a ``tracker.TrackerConfig`` of the same machinery (DESIGN.md "
 - ``stonesoup-gmphd``: Stone Soup's GM-PHD with its UKF on the same cluster centroids
   (``sim.baselines.stonesoup_gmphd``; optional extra ``baselines``): no extent, lidar only.
 
-A variant that this installation cannot build (a tracker feature not built yet, a missing optional
-dependency) stays registered; building it raises ``VariantUnavailableError`` (a ``ValueError``) saying
-why, and ``probe_variant`` reports the reason without running anything, so a study can skip it.
+A variant whose optional dependency this installation lacks (Stone Soup for ``stonesoup-gmphd``) stays
+registered; building it raises ``VariantUnavailableError`` (a ``ValueError``) saying what to install,
+and ``probe_variant`` reports that reason without running anything, so a study can skip the variant.
+Any other failure to build a variant is a bug, not an unavailable variant: ``probe_variant`` lets it
+propagate.
 
 A scenario's ``[tracker]`` table is applied on top of the variant's configuration by the runner.
 """
@@ -40,7 +42,8 @@ class UnknownVariantError(ValueError):
 
 
 class VariantUnavailableError(ValueError):
-    """A registered variant that this installation cannot build; the message says why and what to do."""
+    """A registered variant that this installation cannot build because an optional dependency is
+    missing (raised where its import fails); the message says what to install."""
 
 
 @dataclass(frozen=True)
@@ -72,7 +75,8 @@ def _stonesoup_config() -> TrackerConfig:
 
 
 def stonesoup_factory(road: Road, config: TrackerConfig) -> Any:
-    """``tracker_factory`` of ``stonesoup-gmphd`` (imports the baseline, and Stone Soup, on first use)."""
+    """``tracker_factory`` of ``stonesoup-gmphd`` (imports the baseline, and Stone Soup, on first use);
+    ``VariantUnavailableError`` when Stone Soup is not installed."""
     from sim.baselines.stonesoup_gmphd import MissingBaselineError, StoneSoupGMPHD
 
     try:
@@ -145,14 +149,14 @@ def make_tracker(name: str, road: Road, config: TrackerConfig | None = None) -> 
 
 
 def probe_variant(name: str) -> str | None:
-    """``None`` when the variant can be built here, else the one-line reason (its configuration or
-    its tracker raised, e.g. a feature not built yet or a missing optional dependency). Builds the
-    tracker on a short straight road; runs nothing."""
+    """``None`` when the variant can be built here; the one-line reason when it cannot because an
+    optional dependency is missing (``VariantUnavailableError``). Any other exception of its
+    configuration or tracker propagates. Builds the tracker on a short straight road; runs nothing."""
     check_variant(name)
     road = Road.from_curvature([(200.0, 0.0, 0.0)], start=(0.0, 0.0, 0.0), lanes=2)
     try:
         make_tracker(name, road)
-    except Exception as exc:  # noqa: BLE001 -- any failure to build means the variant is unavailable
+    except VariantUnavailableError as exc:
         return " ".join(str(exc).split()) or type(exc).__name__
     return None
 

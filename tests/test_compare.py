@@ -1,6 +1,8 @@
 """The comparison study (sim/study.py, sim/claims.py, sim/variants.py): every variant tracks the
-curve-single car, paired intervals against scipy, verdicts, variant probing."""
+curve-single car, paired intervals against scipy, verdicts, variant probing (only a missing optional
+dependency makes a variant unavailable; any other failure to build one is an error)."""
 
+import sys
 
 import numpy as np
 import pytest
@@ -11,7 +13,8 @@ from sim import variants as variants_module
 from sim.claims import paired_verdict
 from sim.runner import run_scenario
 from sim.study import Interval, mean_interval, paired_difference, paired_values, split_available
-from sim.variants import VARIANTS, estimates_extent, probe_variant
+from sim.variants import VARIANTS, VariantUnavailableError, estimates_extent, probe_variant
+from tracker import TrackerConfig
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
@@ -74,12 +77,39 @@ def test_verdicts_follow_the_interval():
     assert paired_verdict(Interval(1, 1.0, None, None), -1) == "not evaluated"
 
 
-def test_unavailable_variant_is_reported_and_skipped(monkeypatch):
-    def broken(road, config):
-        raise ValueError("this tracker is not built yet")
+def _register(monkeypatch, name, error):
+    def build(road, config):
+        raise error
 
-    fake = variants_module.Variant("broken", "a variant that cannot be built", variants_module._paper_motion, broken)
-    monkeypatch.setitem(variants_module._VARIANTS, "broken", fake)
-    assert probe_variant("broken") == "this tracker is not built yet"
-    ok, skipped = split_available(["curvilinear-fused", "broken"])
-    assert ok == ["curvilinear-fused"] and skipped == {"broken": "this tracker is not built yet"}
+    fake = variants_module.Variant(name, "a variant that cannot be built",
+                                   lambda: TrackerConfig.for_variant("curvilinear-fused"), build)
+    monkeypatch.setitem(variants_module._VARIANTS, name, fake)
+
+
+def test_a_variant_missing_an_optional_dependency_is_reported_and_skipped(monkeypatch):
+    _register(monkeypatch, "needs-extra", VariantUnavailableError("needs the package extra:  pip install extra"))
+    assert probe_variant("needs-extra") == "needs the package extra: pip install extra"
+    ok, skipped = split_available(["curvilinear-fused", "needs-extra"])
+    assert ok == ["curvilinear-fused"] and skipped == {"needs-extra": "needs the package extra: pip install extra"}
+
+
+@pytest.mark.parametrize("error", [ValueError("a bad setting"), TypeError("a wrong argument"), ImportError("no module x"),
+                                   RuntimeError("a broken tracker")], ids=lambda e: type(e).__name__)
+def test_a_variant_that_fails_to_build_is_an_error_not_a_skip(monkeypatch, error):
+    _register(monkeypatch, "broken", error)
+    with pytest.raises(type(error), match=str(error)):
+        probe_variant("broken")
+    with pytest.raises(type(error), match=str(error)):
+        split_available(["curvilinear-fused", "broken"])
+
+
+def test_missing_stonesoup_makes_its_variant_unavailable(monkeypatch):
+    monkeypatch.setitem(sys.modules, "stonesoup.updater.pointprocess", None)  # its import fails
+    reason = probe_variant("stonesoup-gmphd")
+    assert reason is not None and "needs Stone Soup" in reason and "pip install" in reason
+
+
+def test_only_variants_with_an_optional_dependency_may_be_unavailable():
+    for name in VARIANTS:
+        if name != "stonesoup-gmphd":
+            assert probe_variant(name) is None, name

@@ -25,11 +25,11 @@ def study(tmp_path_factory):
     hard = _suite(folder, "tiny-hard", ["truck-hairpin"])
 
     def broken(road, config):
-        raise ValueError("not built yet in this test")
+        raise variants_module.VariantUnavailableError("needs a package not installed in this test")
 
     mp = pytest.MonkeyPatch()
     mp.setitem(variants_module._VARIANTS, "broken",
-               variants_module.Variant("broken", "cannot be built", variants_module._paper_motion, broken))
+               variants_module.Variant("broken", "cannot be built here", variants_module._paper_motion, broken))
     warnings = []
     settings = CompareSettings(suite=suite, runs=2, duration=1.5, hard_suite=hard, hard_runs=1, workers=1,
                                variants=("curvilinear-fused", "curvilinear-lidar", "cartesian-fused", "stonesoup-gmphd",
@@ -47,7 +47,7 @@ def study(tmp_path_factory):
 
 def test_study_pairs_every_variant_on_the_same_seeds(study):
     data, _, _, _, warnings = study
-    assert warnings == ["skipping variant broken: not built yet in this test"]
+    assert warnings == ["skipping variant broken: needs a package not installed in this test"]
     assert data.meta["variants"] == ["curvilinear-fused", "curvilinear-lidar", "cartesian-fused", "stonesoup-gmphd"]
     keys = {(r["scenario"], r["seed"]) for r in data.rows}
     assert keys == {(s, k) for s in ("curvy-multi", "curve-single", "chicane-follow") for k in (0, 1)}
@@ -69,7 +69,7 @@ def test_report_has_every_section_and_figure(study):
         assert heading in text
     for k in range(1, 7):
         assert f"### {k}. " in text
-    assert "**skipped** `broken`: not built yet in this test" in text
+    assert "**skipped** `broken`: needs a package not installed in this test" in text
     assert "**Verdict: " in text and "not evaluated" in text  # paper-motion/point-gnn were not in this study
     for name in FIGURES:
         png = out / "report" / name
