@@ -29,23 +29,28 @@ for seq in range(N):
     road = fz.ROADS[road_name]
     specs = [{k: v[rng.integers(len(v))] for k, v in choices.items()} | {"ego_s": float(rng.random()), "seed": int(rng.integers(2**31))}
              for _ in range(rng.integers(1, 7))]
-    tracker = Tracker(road, TrackerConfig()); t = 0.0
+    tracker = Tracker(road, TrackerConfig()); t = 0.0; last_t = None
     for i, spec in enumerate(specs):
         t += spec["dt"]
         try:
+            expected = fz.expected_refusal(spec, t, last_t)
             with warnings.catch_warnings():
                 warnings.simplefilter("error")
                 try:
                     frame = fz.make_frame(road, t, spec)
                     tracks = tracker.step(frame)
                 except ValueError as exc:
+                    kind = fz.refusal_kind(exc)  # only the documented refusals, where the recipe expects them
+                    assert kind == expected, f"refused as {kind!r}; the recipe expects {expected!r}: {exc}"
                     counts["refused"] += 1
-                    counts["refused: " + str(exc).split(";")[0][:60]] += 1
+                    counts["refused: " + kind] += 1
                     continue
+            assert expected is None, f"stepped; the recipe expects the refusal {expected!r}"
+            last_t = t
             counts["stepped"] += 1
             fz.check_tracks(tracker, tracks)
         except Exception as exc:  # noqa: BLE001
-            msg = f"{type(exc).__name__}: {str(exc).splitlines()[0][:120]}"
+            msg = f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:120]}"
             counts["failed"] += 1
             failures.append({"road": road_name, "frame_index": i, "error": msg, "specs": specs[: i + 1]})
             break
