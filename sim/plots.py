@@ -46,10 +46,6 @@ from sim.runner import FrameRecord, Result
 from sim.truth import rectangle_corners
 from tracker.transforms import rotate, to_global
 
-_TAB10 = [
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
-    "#8c564b", "#e377c2", "#bcbd22", "#17becf", "#7f7f7f",
-]  # fmt: skip
 #: Colours of the true vehicles, cycled by vehicle id (``vehicle_color``): tab10 without its green,
 #: red and grey (the lidar, the radar and unmatched tracks), and three darker ones from tab20b.
 VEHICLE_COLORS = ("#1f77b4", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf", "#393b79", "#7b4173",
@@ -69,11 +65,6 @@ def vehicle_color(vehicle_id: int) -> str:
 def track_colors(f: FrameRecord) -> list[str]:
     """The colours of the frame's tracks: their GOSPA-assigned vehicle's, grey when unassigned."""
     return [vehicle_color(v) if v >= 0 else UNMATCHED_COLOR for v in np.asarray(f.track_truth_id, dtype=int)]
-
-
-def label_color(label: int) -> str:
-    """A colour per track label (tab10 cycle), for views that know no assignment of tracks to vehicles."""
-    return _TAB10[int(label) % len(_TAB10)]
 
 
 def _figure(width: float, height: float, dpi: int = 110) -> Figure:
@@ -627,7 +618,7 @@ def write_figures(
 
 
 __all__ = [
-    "LIDAR_COLOR", "RADAR_COLOR", "UNMATCHED_COLOR", "VEHICLE_COLORS", "cloud_frame", "gif_frame_count", "label_color",
+    "LIDAR_COLOR", "RADAR_COLOR", "UNMATCHED_COLOR", "VEHICLE_COLORS", "cloud_frame", "gif_frame_count",
     "birdseye_figure", "gospa_figure", "plot_birdseye", "plot_cloud_pipeline", "plot_gospa", "plot_targets", "targets_figure",
     "track_colors", "vehicle_color", "write_figures", "write_gif",
 ]  # fmt: skip

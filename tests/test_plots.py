@@ -19,7 +19,6 @@ from sim.plots import (
     birdseye_figure,
     gif_frame_count,
     gospa_figure,
-    label_color,
     plot_gospa,
     targets_figure,
     track_colors,
@@ -74,8 +73,8 @@ def test_figures_without_tracks(tmp_path):
     assert plot_gospa(result, tmp_path / "v.png", visible=True).exists()
 
 
-def test_label_colours_cycle():
-    assert label_color(3) == label_color(13) != label_color(4)
+def test_vehicle_colours_cycle():
+    assert vehicle_color(3) == vehicle_color(3 + len(VEHICLE_COLORS)) != vehicle_color(4)
 
 
 def test_figures_without_the_gif_count_every_figure(oracle_result, tmp_path):

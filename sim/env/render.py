@@ -3,9 +3,11 @@
 highway-env's pygame viewer draws black frames under ``SDL_VIDEODRIVER=dummy``; this renderer needs no
 display at all (``matplotlib.figure.Figure`` + ``FigureCanvasAgg``, never pyplot). The view follows the
 ego, north up, ``view_half_width`` m each way: road edges and lane lines, the other vehicles' true
-outlines (grey), the ego (black), the latest lidar scan (green points), the radar detections of the
-latest frame (red crosses, 0.5 s velocity arrows), and the tracks as filled rectangles coloured and
-labelled by track label (none with ``perception = "truth"``). The frame is ``(screen_height, screen_width, 3)`` uint8.
+outlines (each in its colour, ``sim.plots.vehicle_color``, as in the run's figures), the ego (black),
+the latest lidar scan (green points), the radar detections of the latest frame (red crosses, 0.5 s
+velocity arrows), and the tracks as filled rectangles labelled by track label, in the colour of the
+vehicle GOSPA assigns them to (the runner's assignment: scored truth set, c = 5 m), grey when
+unassigned (none with ``perception = "truth"``). The frame is ``(screen_height, screen_width, 3)`` uint8.
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 
-from sim.plots import label_color
+from sim.metrics import GOSPA_C, GOSPA_P, gospa
+from sim.plots import LIDAR_COLOR, RADAR_COLOR, UNMATCHED_COLOR, vehicle_color
+from sim.runner import truth_set
 from sim.truth import rectangle_corners
 from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import rotate, to_global
@@ -69,19 +73,20 @@ class Renderer:
             snap = frame.truth
             pose = ((snap.ego.x, snap.ego.y), snap.ego.yaw)
             if len(snap):
-                ax.add_collection(PolyCollection(snap.corners(), facecolors="none", edgecolors="0.35", linewidths=1.2))
+                ax.add_collection(PolyCollection(snap.corners(), facecolors="none", linewidths=1.2,
+                                                 edgecolors=[vehicle_color(v) for v in snap.ids]))
             if np.asarray(frame.frame.lidar).shape[1] == 3:  # the 3-D lidar: its returns off the ground, from above
                 scan = frame.lidar
                 pts = scan.points_global()[~scan.ground, :2]
             else:
                 pts = to_global(np.asarray(frame.frame.lidar).reshape(-1, 2), *pose).reshape(-1, 2)
-            ax.scatter(pts[:, 0], pts[:, 1], s=2.0, c="#2ca02c", zorder=6)
+            ax.scatter(pts[:, 0], pts[:, 1], s=2.0, c=LIDAR_COLOR, zorder=6)
             radar = frame.frame.radar
             if len(radar):
                 rxy = to_global(radar.xy, *pose).reshape(-1, 2)
                 rv = rotate(radar.velocity, snap.ego.yaw).reshape(-1, 2)
-                ax.scatter(rxy[:, 0], rxy[:, 1], s=22.0, marker="x", c="#d62728", zorder=6)
-                ax.add_collection(LineCollection(np.stack([rxy, rxy + 0.5 * rv], axis=1), colors="#d62728", zorder=6))
+                ax.scatter(rxy[:, 0], rxy[:, 1], s=22.0, marker="x", c=RADAR_COLOR, zorder=6)
+                ax.add_collection(LineCollection(np.stack([rxy, rxy + 0.5 * rv], axis=1), colors=RADAR_COLOR, zorder=6))
         e = env.world.ego
         ax.add_collection(PolyCollection(
             rectangle_corners(np.array([e.position]), np.array([e.heading]), np.array([e.LENGTH]), np.array([e.WIDTH])),
@@ -90,7 +95,7 @@ class Renderer:
         if tracks:
             state = curvilinear_to_cartesian(road, np.stack([tr.mean for tr in tracks])).reshape(-1, 7)
             corners = rectangle_corners(state[:, :2], state[:, 3], state[:, 5], state[:, 6])
-            colors = [label_color(tr.label) for tr in tracks]
+            colors = self._track_colors(state[:, :2])
             ax.add_collection(PolyCollection(corners, facecolors=colors, edgecolors=colors, alpha=0.45, zorder=7))
             for k, tr in enumerate(tracks):
                 ax.text(state[k, 0], state[k, 1] + 2.0, str(tr.label), color=colors[k], fontsize=9, ha="center",
@@ -104,6 +109,21 @@ class Renderer:
         self.canvas.draw()
         rgba = np.asarray(self.canvas.buffer_rgba())
         return np.ascontiguousarray(rgba[: self.size[1], : self.size[0], :3])
+
+    def _track_colors(self, track_xy: np.ndarray) -> list[str]:
+        """Each track's colour: its GOSPA-assigned vehicle's (scored truth set of the last frame), else grey."""
+        env = self.env
+        colors = [UNMATCHED_COLOR] * len(track_xy)
+        frame = env.last_frame
+        if frame is None or len(frame.truth) == 0:
+            return colors
+        snap = frame.truth
+        keep = truth_set(snap, env.world.road, env.rig.config.lidar.max_range)
+        g = gospa(snap.xy[keep], track_xy, GOSPA_C, GOSPA_P)
+        ids = snap.ids[keep]
+        for t, k in zip(g.truth_index, g.estimate_index):
+            colors[int(k)] = vehicle_color(int(ids[t]))
+        return colors
 
     def close(self) -> None:
         self.fig.clear()
