@@ -11,18 +11,22 @@ from sim.scenario import ScenarioError, ScenarioSpec, load_scenario, load_suite
 
 #: The gymnasium id of ``sim.env.TrackedRoadEnv``.
 ENV_ID = "eot/TrackedRoad-v0"
+#: ``max_episode_steps`` of its registration (gymnasium's ``TimeLimit`` under ``gym.make``): the default
+#: episode, the default scenario curve-single's 20 s at the default 5 Hz policy frequency
+#: (``sim.env.EnvConfig().episode_steps()``); longer episodes pass their own to ``gym.make``.
+ENV_MAX_EPISODE_STEPS = 100
 
 
 def _register_env() -> None:
     from gymnasium.envs.registration import register, registry
 
     if ENV_ID not in registry:
-        register(id=ENV_ID, entry_point="sim.env:TrackedRoadEnv")
+        register(id=ENV_ID, entry_point="sim.env:TrackedRoadEnv", max_episode_steps=ENV_MAX_EPISODE_STEPS)
 
 
 _register_env()
 
-__all__ = ["ENV_ID", "Result", "ScenarioError", "ScenarioSpec", "load_scenario", "load_suite", "run_scenario"]
+__all__ = ["ENV_ID", "ENV_MAX_EPISODE_STEPS", "Result", "ScenarioError", "ScenarioSpec", "load_scenario", "load_suite", "run_scenario"]
 
 
 def __getattr__(name: str) -> Any:

@@ -155,7 +155,7 @@ def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     frame_metrics(env.step_frames)
     terminated = truncated = False
     while not (terminated or truncated):
-        action = planner.act(obs)
+        action = planner.act(obs, info["labels"])
         d = planner.decision
         sf = env.last_frame
         snap = sf.truth

@@ -1,9 +1,10 @@
 """A rule-based planner that drives ``eot/TrackedRoad-v0`` on its observation alone.
 
-``Planner(config).act(obs) -> action`` for ``action = "ContinuousAction"`` (``[acceleration,
+``Planner(config).act(obs, labels) -> action`` for ``action = "ContinuousAction"`` (``[acceleration,
 steering]`` in [-1, 1]^2, mapped by the env onto ``accel_range`` / ``steering_range``). It reads only
-the observation rows (``sim.env.observation``: row 0 the ego, then one row per track) and the map's
-lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_centers"]``); never the world.
+the observation rows (``sim.env.observation``: row 0 the ego, then one row per track), the rows'
+track labels (the env's ``info["labels"]``: to recognise the same lead from step to step) and the
+map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_centers"]``); never the world.
 
 - **Lead and ACC.** The lead is the nearest row ahead (``ds > 0``) whose centre lies within
   ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre (of both lanes while changing lanes).
@@ -30,6 +31,7 @@ diagnostics of ``sim.closed_loop``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -150,16 +152,22 @@ class Planner:
         return float(np.clip(acc, *c.accel_range))
 
     # -- the policy -----------------------------------------------------------------------------
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        """The action ``[acceleration, steering]`` in [-1, 1]^2 for the (unnormalised) observation."""
+    def act(self, obs: np.ndarray, labels: Sequence[int] | np.ndarray) -> np.ndarray:
+        """The action ``[acceleration, steering]`` in [-1, 1]^2 for the (unnormalised) observation
+        ``obs`` and its row labels ``labels`` (the env's ``info["labels"]``, one per row)."""
         c = self.config
         obs = np.asarray(obs, dtype=float)
+        labels = np.asarray(labels, dtype=np.int64).reshape(-1)
+        if len(labels) != len(obs):
+            raise ValueError(f"Planner.act: {len(labels)} labels for {len(obs)} observation rows (give info['labels'])")
         ego = obs[0]
         n, v, xi, xi_dot = ego[COL["n"]], ego[COL["v"]], ego[COL["xi"]], ego[COL["xi_dot"]]
         length, width = ego[COL["length"]], ego[COL["width"]]
         if self._set_speed is None:
             self._set_speed = float(v)
-        rows = obs[1:][obs[1:, COL["present"]] > 0.5]
+        present = obs[1:, COL["present"]] > 0.5
+        rows = obs[1:][present]
+        row_labels = labels[1:][present]
         lane = self.lane_of(n)
         if self._target is None:
             self._target = lane
@@ -168,21 +176,23 @@ class Planner:
 
         # lead: nearest row ahead in the ego's lane(s), or the held one
         lanes = {lane, self._target}
-        ahead = rows[rows[:, COL["ds"]] > 0.0]
+        is_ahead = rows[:, COL["ds"]] > 0.0
+        ahead, ahead_labels = rows[is_ahead], row_labels[is_ahead]
         mask = np.zeros(len(ahead), dtype=bool)
         for k in lanes:
             mask |= self._in_lane(ahead, k, width)
-        cand = ahead[mask]
+        cand, cand_labels = ahead[mask], ahead_labels[mask]
         lead: tuple[int, str, float, float, float, float] | None = None  # label, source, ds, v, length, n
         if len(cand):
-            row = cand[np.argmin(cand[:, COL["ds"]])]
-            lead = (int(row[COL["label"]]), "row", float(row[COL["ds"]]), float(row[COL["v"]]), float(row[COL["length"]]),
-                    float(row[COL["n"]]))
+            nearest = int(np.argmin(cand[:, COL["ds"]]))
+            row = cand[nearest]
+            lead = (int(cand_labels[nearest]), "row", float(row[COL["ds"]]), float(row[COL["v"]]),
+                    float(row[COL["length"]]), float(row[COL["n"]]))
         held = self._held
         if held is not None:
             held.age += c.period
             held.ds += (held.v - v) * c.period
-            seen = len(rows) and np.any(rows[:, COL["label"]] == held.label)
+            seen = len(rows) and np.any(row_labels == held.label)
             if seen or held.age > c.lead_hold_s or held.ds <= 0.0:
                 held = self._held = None
             elif lead is None or held.ds < lead[2]:

@@ -1,5 +1,6 @@
-"""eot/TrackedRoad-v0 (sim.env): gymnasium API, determinism, vector env, observation, config errors,
-actions, reward, rendering. Episodes are kept to a few simulated seconds."""
+"""eot/TrackedRoad-v0 (sim.env): gymnasium API, registration (max_episode_steps), determinism, vector
+env, observation layout, bounds and labels, config errors, actions, reward, rendering. Episodes are
+kept to a few simulated seconds."""
 
 from __future__ import annotations
 
@@ -12,8 +13,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import sim  # noqa: F401  (registers the env)
-from sim.env import COL, ConfigError, EnvConfig, TrackedRoadEnv
-from sim.env.observation import SCALES, denormalize
+from sim.env import COL, COLUMNS, NO_LABEL, ConfigError, EnvConfig, TrackedRoadEnv
+from sim.env.observation import denormalize, limits, observation_space, scales
 
 IDLE = 1  # meta-action index (0 LANE_LEFT, 1 IDLE, 2 LANE_RIGHT, 3 FASTER, 4 SLOWER)
 
@@ -38,7 +39,22 @@ def test_registered_and_reachable_from_a_fresh_interpreter():
         "print(obs.shape, type(env.unwrapped).__name__)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "(11, 11) TrackedRoadEnv"
+    assert out.stdout.strip() == "(11, 10) TrackedRoadEnv"
+
+
+def test_registered_max_episode_steps_is_the_default_episode():
+    spec = gym.spec("eot/TrackedRoad-v0")
+    assert spec.max_episode_steps == sim.ENV_MAX_EPISODE_STEPS == 100
+    assert EnvConfig().episode_steps() == 100  # curve-single's 20 s at 5 Hz
+    assert EnvConfig(duration=3.0).episode_steps() == 15
+    assert EnvConfig(scenario="circuit").episode_steps() == 400  # longer: pass it to gym.make
+    env = gym.make("eot/TrackedRoad-v0", config={"perception": "truth", "duration": 0.4})
+    assert env.spec.max_episode_steps == 100 and env.unwrapped.max_episode_steps == 2
+    env.close()
+    env = gym.make("eot/TrackedRoad-v0", config={"perception": "truth", "duration": 0.4}, max_episode_steps=1)
+    env.reset(seed=0)
+    assert env.step(IDLE)[3]  # the TimeLimit truncates after one step
+    env.close()
 
 
 def test_reset_with_a_seed_is_deterministic_and_seeds_differ():
@@ -66,10 +82,11 @@ def test_async_vector_env_steps():
                         config={"scenario": "cut-in", "duration": 1.0, "perception": "truth"})
     try:
         obs, info = envs.reset(seed=[0, 1])
-        assert obs.shape == (2, 11, 11) and obs.dtype == np.float32
+        assert obs.shape == (2, 11, 10) and obs.dtype == np.float32
         for _ in range(3):
             obs, reward, terminated, truncated, info = envs.step(np.array([IDLE, 3]))
-        assert obs.shape == (2, 11, 11)
+        assert obs.shape == (2, 11, 10)
+        assert np.asarray(info["labels"]).shape == (2, 11)
         assert reward.shape == (2,) and np.all((reward >= 0) & (reward <= 1))
         assert obs[0, 0, COL["present"]] == 1.0 and obs[1, 0, COL["present"]] == 1.0
     finally:
@@ -82,13 +99,14 @@ def test_tracks_observation_is_within_the_tracker_error_of_truth():
     obs_k, _ = tracks.reset(seed=2)
     obs_t, _ = truth.reset(seed=2)
     for _ in range(15):  # 3 s: the tracker confirms the car ahead in the next lane
-        obs_k, *_ = tracks.step(IDLE)
-        obs_t, *_ = truth.step(IDLE)
+        obs_k, _, _, _, info_k = tracks.step(IDLE)
+        obs_t, _, _, _, info_t = truth.step(IDLE)
+    assert obs_k.shape == obs_t.shape == (11, len(COLUMNS))  # the same layout
     np.testing.assert_array_equal(obs_k[0], obs_t[0])  # the ego row is odometry in both
     rows_t = obs_t[1:][obs_t[1:, 0] > 0]
     rows_k = obs_k[1:][obs_k[1:, 0] > 0]
-    assert len(rows_t) == 1 and rows_t[0, COL["label"]] == 1  # vehicle id 1
-    assert len(rows_k) == 1
+    assert len(rows_t) == 1 and info_t["labels"].tolist() == [NO_LABEL, 1] + [NO_LABEL] * 9  # vehicle id 1
+    assert len(rows_k) == 1 and info_k["labels"][1] == tracks.tracks[0].label and info_k["labels"][0] == NO_LABEL
     t, k = rows_t[0], rows_k[0]
     assert t[COL["sigma_s"]] == 0 and t[COL["sigma_n"]] == 0
     assert 0 < k[COL["sigma_s"]] < 1.0 and 0 < k[COL["sigma_n"]] < 1.0
@@ -108,9 +126,32 @@ def test_normalised_observation_is_scaled_and_in_the_box():
     norm = make(perception="truth", duration=1.0, normalize=True)
     a, _ = raw.reset(seed=0)
     b, _ = norm.reset(seed=0)
-    assert norm.observation_space.contains(b)
-    assert b[0, COL["v"]] == pytest.approx(a[0, COL["v"]] / SCALES["v"])
+    assert raw.observation_space.contains(a) and norm.observation_space.contains(b)
+    assert b[0, COL["v"]] == pytest.approx(a[0, COL["v"]] / scales()["v"])
     np.testing.assert_allclose(denormalize(b), a, atol=1e-5)
+    assert norm.observation_space.low.min() == -1.0 and norm.observation_space.high.max() == 1.0
+
+
+def test_observation_bounds_are_physical_and_finite():
+    assert COLUMNS == ("present", "ds", "n", "v", "xi", "xi_dot", "length", "width", "sigma_s", "sigma_n")
+    assert "label" not in COLUMNS  # an identity, not a feature: info["labels"]
+    env = make(perception="tracks", duration=1.0)
+    space = env.observation_space
+    assert space.shape == (11, 10) and np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
+    assert np.all(space.low < space.high) and np.abs(np.concatenate([space.low, space.high])).max() <= 200.0
+    row = dict(zip(COLUMNS, zip(space.low[0], space.high[0])))
+    assert row["ds"] == (-200.0, 200.0)  # twice the lidar's 100 m range
+    assert row["n"] == (-20.0, 20.0) and row["v"] == (0.0, 50.0)
+    assert row["xi"] == pytest.approx((-np.pi, np.pi)) and row["xi_dot"] == (-2.0, 2.0)
+    assert row["length"] == (0.0, 25.0) and row["width"] == (0.0, 4.0)
+    assert row["sigma_s"] == row["sigma_n"] == (0.0, 10.0) and row["present"] == (0.0, 1.0)
+    assert limits(50.0)["ds"] == (-100.0, 100.0)  # the scenario's lidar range sets the ds bound
+    assert observation_space(3, False, 50.0).shape == (4, 10)
+    # truth and tracks share the layout and the box
+    assert make(perception="truth", duration=1.0).observation_space == space
+    obs, info = env.reset(seed=0)
+    assert space.contains(obs) and info["labels"].dtype == np.int64 and info["labels"].shape == (11,)
+    assert np.all(info["labels"][obs[:, COL["present"]] == 0] == NO_LABEL) and info["labels"][0] == NO_LABEL
 
 
 def test_bad_config_keys_and_values_are_named():

@@ -9,20 +9,23 @@ import numpy as np
 import pytest
 
 from sim.closed_loop import Task, run_task, wilson
-from sim.env import COL, COLUMNS, TrackedRoadEnv
+from sim.env import COL, COLUMNS, NO_LABEL, TrackedRoadEnv
 from sim.planner import Planner, PlannerConfig, planner_for
 
 LANES = (-1.75, 1.75)
 
 
-def obs_with(*rows: tuple[float, float, float, int], ego_n: float = -1.75, ego_v: float = 20.0) -> np.ndarray:
-    """An observation: the ego on lane 0 and rows ``(ds, n, v, label)`` of 4.8 x 2 m cars."""
+def obs_with(*rows: tuple[float, float, float, int], ego_n: float = -1.75,
+             ego_v: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
+    """An observation and its row labels (the env's ``info["labels"]``): the ego on lane 0 and rows
+    ``(ds, n, v, label)`` of 4.8 x 2 m cars."""
     obs = np.zeros((1 + 8, len(COLUMNS)), dtype=np.float32)
+    labels = np.full(1 + 8, NO_LABEL, dtype=np.int64)
     obs[0, [COL["present"], COL["n"], COL["v"], COL["length"], COL["width"]]] = [1, ego_n, ego_v, 4.8, 2.0]
     for k, (ds, n, v, label) in enumerate(rows, start=1):
-        obs[k, [COL["present"], COL["ds"], COL["n"], COL["v"], COL["length"], COL["width"], COL["label"]]] = \
-            [1, ds, n, v, 4.8, 2.0, label]
-    return obs
+        obs[k, [COL["present"], COL["ds"], COL["n"], COL["v"], COL["length"], COL["width"]]] = [1, ds, n, v, 4.8, 2.0]
+        labels[k] = label
+    return obs, labels
 
 
 def accel(planner: Planner, action: np.ndarray) -> float:
@@ -32,17 +35,17 @@ def accel(planner: Planner, action: np.ndarray) -> float:
 
 def test_acc_brakes_for_a_slow_lead_in_lane_and_ignores_the_next_lane():
     p = Planner(PlannerConfig(lane_centers=LANES, lane_changes=False))
-    a_free = accel(p, p.act(obs_with(ego_v=20.0)))
+    a_free = accel(p, p.act(*obs_with(ego_v=20.0)))
     assert a_free == pytest.approx(0.0, abs=1e-5)  # at the set speed (the first observation's), no lead
     p.reset()
-    p.act(obs_with(ego_v=20.0))
-    a_next_lane = accel(p, p.act(obs_with((20.0, 1.75, 5.0, 7))))
+    p.act(*obs_with(ego_v=20.0))
+    a_next_lane = accel(p, p.act(*obs_with((20.0, 1.75, 5.0, 7))))
     assert a_next_lane == pytest.approx(0.0, abs=1e-5) and p.decision.lead_label is None
-    a_lead = accel(p, p.act(obs_with((20.0, -1.6, 5.0, 7))))
+    a_lead = accel(p, p.act(*obs_with((20.0, -1.6, 5.0, 7))))
     # IDM: s* = 4 + 20 * 1.5 + 20 * 15 / (2 sqrt(1.5 * 2.5)); gap = 20 - 4.8 = 15.2 m -> clipped to -8
     assert a_lead == pytest.approx(-8.0)
     assert p.decision.lead_label == 7 and p.decision.lead_gap == pytest.approx(15.2, abs=1e-4)
-    p.act(obs_with((80.0, -1.75, 20.0, 7)))
+    p.act(*obs_with((80.0, -1.75, 20.0, 7)))
     gap = 80.0 - 4.8
     s_star = 4.0 + 20.0 * 1.5
     assert p.decision.accel == pytest.approx(-1.5 * (s_star / gap) ** 2)
@@ -50,33 +53,40 @@ def test_acc_brakes_for_a_slow_lead_in_lane_and_ignores_the_next_lane():
 
 def test_flickering_lead_is_held_then_forgotten():
     p = Planner(PlannerConfig(lane_centers=LANES, lane_changes=False, lead_hold_s=0.6))
-    p.act(obs_with((30.0, -1.75, 15.0, 3)))
+    p.act(*obs_with((30.0, -1.75, 15.0, 3)))
     assert p.decision.lead_source == "row"
-    p.act(obs_with())  # the track flickers out
+    p.act(*obs_with())  # the track flickers out
     assert p.decision.lead_label == 3 and p.decision.lead_source == "held"
     assert p.decision.lead_ds == pytest.approx(30.0 + (15.0 - 20.0) * 0.2)  # predicted at its speed
     assert p.decision.accel < 0
     for _ in range(3):
-        p.act(obs_with())
+        p.act(*obs_with())
     assert p.decision.lead_label is None  # older than lead_hold_s
 
 
 def test_lane_change_only_into_a_safe_gap():
     slow_lead = (58.0, -1.75, 14.0, 1)  # within the 60 m lookahead, slower than the 18 m/s set speed
     p = Planner(PlannerConfig(lane_centers=LANES))
-    p.act(obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))  # a car alongside-behind in lane 1
-    p.act(obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))
+    p.act(*obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))  # a car alongside-behind in lane 1
+    p.act(*obs_with(slow_lead, (-6.0, 1.75, 21.0, 2), ego_v=18.0))
     assert p.decision.target_lane == 0
     q = Planner(PlannerConfig(lane_centers=LANES))
-    q.act(obs_with(slow_lead, (-40.0, 1.75, 21.0, 2), ego_v=18.0))
+    q.act(*obs_with(slow_lead, (-40.0, 1.75, 21.0, 2), ego_v=18.0))
     assert q.decision.target_lane == 1 and q.decision.changing
     assert q.decision.accel > -2.5  # not an emergency
     left = Planner(PlannerConfig(lane_centers=LANES))  # in the leftmost lane the only free lane is lane 0
-    left.act(obs_with((58.0, 1.75, 14.0, 1), ego_n=1.75, ego_v=18.0))
+    left.act(*obs_with((58.0, 1.75, 14.0, 1), ego_n=1.75, ego_v=18.0))
     assert left.decision.target_lane == 0
     braking = Planner(PlannerConfig(lane_centers=LANES))  # braking hard for the lead: stay in the lane
-    braking.act(obs_with((25.0, -1.75, 12.0, 1), (-40.0, 1.75, 21.0, 2), ego_v=18.0))
+    braking.act(*obs_with((25.0, -1.75, 12.0, 1), (-40.0, 1.75, 21.0, 2), ego_v=18.0))
     assert braking.decision.accel < -2.5 and braking.decision.target_lane == 0
+
+
+def test_planner_needs_one_label_per_row():
+    p = Planner(PlannerConfig(lane_centers=LANES))
+    obs, labels = obs_with((30.0, -1.75, 15.0, 3))
+    with pytest.raises(ValueError, match="labels"):
+        p.act(obs, labels[:2])
 
 
 def test_planner_needs_the_continuous_action():
@@ -94,7 +104,7 @@ def drive(scenario: str, duration: float, seed: int = 0) -> tuple[TrackedRoadEnv
     lateral, decisions = [], []
     done = False
     while not done:
-        action = planner.act(obs)
+        action = planner.act(obs, info["labels"])
         decisions.append(planner.decision)
         obs, _, terminated, truncated, info = env.step(action)
         lane = planner.decision.target_lane

@@ -17,8 +17,11 @@ Fields (SI units):
 - ``perception`` ("tracks"): "tracks" (rows from the tracker's tracks) or "truth" (the same layout from
   ground truth; see ``sim.env.observation``).
 - ``max_tracks`` (10): rows for other vehicles (the nearest along the road are kept); the observation
-  has ``1 + max_tracks`` rows, the first being the ego.
-- ``normalize`` (False): scale the columns by ``sim.env.observation.SCALES`` and clip to [-1, 1].
+  has ``1 + max_tracks`` rows, the first being the ego, and ``info["labels"]`` one label per row.
+- ``normalize`` (False): divide each column by the larger magnitude of its bounds
+  (``sim.env.observation.scales``; the box becomes [-1, 1] or [0, 1]). Unnormalised, the columns are
+  in SI units within physical bounds (``sim.env.observation.limits``: ``ds`` within twice the lidar
+  range, ``n`` within 20 m, ``v`` in [0, 50] m/s, ...).
 - ``action`` ("DiscreteMetaAction"): "DiscreteMetaAction" (highway-env's meta-actions) or
   "ContinuousAction" ([acceleration, steering] in [-1, 1]^2, mapped linearly onto the ranges below).
 - ``target_speeds`` (0, 5, ..., 30 m/s): the speeds "FASTER"/"SLOWER" step through (meta-actions).
@@ -28,7 +31,9 @@ Fields (SI units):
 - ``policy_frequency`` (5 Hz): actions per second. The world runs on its 0.05 s grid, the lidar at
   10 Hz and the radars at 14 Hz; the lidar rate must be a whole multiple of the policy frequency
   (10, 5, 2.5, 2, 1, ... Hz) so that every observation is made at a lidar frame.
-- ``duration`` (None: the scenario's) s: truncation time, at most the scenario's duration.
+- ``duration`` (None: the scenario's) s: truncation time, at most the scenario's duration; an episode
+  has ``episode_steps()`` = ``ceil(duration * policy_frequency)`` steps (100 for the defaults: the
+  registered ``max_episode_steps``).
 - ``roadside`` (None: the scenario's ``sensors.roadside``): force roadside clutter on/off.
 - Reward (highway-env's ``highway-v0`` terms): ``collision_reward`` (-1), ``high_speed_reward`` (0.4,
   linear in the speed along the road over ``reward_speed_range`` (20, 30) m/s), ``right_lane_reward``
@@ -52,6 +57,12 @@ ACTIONS = ("DiscreteMetaAction", "ContinuousAction")
 #: The world's internal step (s): ``sim.world.DEFAULT_STEP``; highway-env calls its inverse the
 #: simulation frequency.
 SIMULATION_FREQUENCY = 20
+
+
+def _steps(duration: float, frequency: float) -> int:
+    """Policy steps in ``duration`` s at ``frequency`` Hz (the env truncates at the first step whose
+    time reaches ``duration``)."""
+    return max(1, math.ceil(duration * frequency - 1e-9))
 
 
 class ConfigError(ValueError):
@@ -150,6 +161,17 @@ class EnvConfig:
                 raise bad(key, "must be an integer number of pixels in [64, 4096]")
         if not _number(self.view_half_width) or not 5.0 <= self.view_half_width <= 500.0:
             raise bad("view_half_width", "must be a number of metres in [5, 500]")
+
+    def episode_steps(self) -> int:
+        """Steps in an episode: ``ceil(duration * policy_frequency)``, with the scenario's duration when
+        ``duration`` is None (loads the scenario). Pass it as ``gym.make(..., max_episode_steps=...)``
+        when it exceeds the registered 100."""
+        duration = self.duration
+        if duration is None:
+            from sim.scenario import load_scenario
+
+            duration = load_scenario(self.scenario).duration
+        return _steps(float(duration), self.policy_frequency)
 
     # -- construction from user input -------------------------------------------------------------
     @classmethod

@@ -26,9 +26,19 @@ the same streams as ``sim.run_scenario(spec, seed=k)``; ``reset()`` without a se
 seed from the environment's ``np_random``. A generator scenario draws a new road and traffic per
 episode seed. The same seed and actions give bit-identical observations.
 
+Episode length: ``max_episode_steps`` = ``ceil(duration * policy_frequency)`` steps
+(``EnvConfig.episode_steps``). ``gym.make`` wraps the env in gymnasium's ``TimeLimit`` with the
+registered ``max_episode_steps`` (``sim.ENV_MAX_EPISODE_STEPS`` = 100: the default scenario
+curve-single's 20 s at the default 5 Hz), which never cuts an episode of the defaults short; for a
+longer one (e.g. ``circuit``, 80 s, or a higher ``policy_frequency``) pass
+``gym.make(..., max_episode_steps=EnvConfig(...).episode_steps())``, or ``-1`` for no wrapper (the env
+truncates at ``duration`` itself).
+
 ``info`` holds highway-env's ``speed``, ``crashed``, ``action``, ``rewards`` and: ``t`` (s),
 ``episode_seed``, ``on_road``, ``lane``, ``tracks`` (count), ``collisions`` (``(t, id_a, id_b)`` of
-the episode so far) and ``lane_centers`` (m; the map a planner may use).
+the episode so far), ``lane_centers`` (m; the map a planner may use) and ``labels`` (int64,
+``1 + max_tracks``: each observation row's track label or vehicle id, -1 for the ego and padding;
+``sim.env.observation``).
 """
 
 from __future__ import annotations
@@ -42,7 +52,7 @@ from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.envs.common.action import ContinuousAction
 
-from sim.env.config import ConfigError, EnvConfig
+from sim.env.config import ConfigError, EnvConfig, _steps
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
 from sim.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
@@ -69,6 +79,7 @@ class TrackedRoadEnv(AbstractEnv):
             raise ConfigError(f"render_mode = {render_mode!r}: must be None or 'rgb_array' (drawn offscreen with matplotlib)")
         self.settings = EnvConfig()
         self.spec_file: ScenarioSpec | None = None
+        self.lidar_range = 100.0  # the scenario's lidar max_range (m), set by configure
         self.world: World | None = None
         self.rig: SensorRig | None = None
         self.tracker: Any = None
@@ -111,6 +122,7 @@ class TrackedRoadEnv(AbstractEnv):
                               f"multiple of the world's {DEFAULT_STEP:g} s step")
         self.settings = settings
         self.spec_file = spec
+        self.lidar_range = float(rig.lidar.max_range)
         self.config = settings.highway_config()
 
     def define_spaces(self) -> None:
@@ -137,6 +149,11 @@ class TrackedRoadEnv(AbstractEnv):
         """Truncation time of the episode (s)."""
         assert self.spec_file is not None
         return float(self.settings.duration if self.settings.duration is not None else self.spec_file.duration)
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Steps until the episode is truncated at ``duration``: ``ceil(duration * policy_frequency)``."""
+        return _steps(self.duration, self.settings.policy_frequency)
 
     @property
     def sim_time(self) -> float:
@@ -269,6 +286,7 @@ class TrackedRoadEnv(AbstractEnv):
             "tracks": len(self.tracks),
             "collisions": list(world.collisions),
             "lane_centers": tuple(float(c) for c in world.road.lane_centers),
+            "labels": self.observation_type.labels.copy(),
         })
         return info
 
