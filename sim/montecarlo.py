@@ -21,13 +21,15 @@ freedom; none for a single run). ``write_study`` writes ``runs.csv`` (one row pe
 ``summary.csv`` and ``summary.json`` (with the throughput: simulated seconds per wall second per
 worker).
 
-**Interruptions and resuming.** ``run_study(..., on_row=...)`` reports every finished run as it
-finishes; ``RunsFile`` uses that to rewrite ``runs.csv`` (atomically: a temporary file, then a rename)
-with every row finished so far, so a study stopped by Ctrl-C, or killed, leaves its finished rows.
-Ctrl-C raises ``StudyInterrupted`` carrying those rows (worker processes ignore SIGINT and are
-terminated, so they print nothing). ``RunsFile.resume`` reads an existing ``runs.csv`` back and
-matches its rows to the planned tasks (scenario, variant, seed and simulated seconds); the study then
-runs only the missing tasks, and the rows of both sessions are identical to those of one
+**Interruptions and resuming.** ``run_study(..., on_row=...)`` hands every run's row to ``on_row`` as
+the run ends; ``RunsFile.add`` rewrites ``runs.csv`` with it (atomically: a temporary file, flushed to
+disk, then a rename), so a study stopped by Ctrl-C, or killed, leaves its finished rows. A run counts as
+finished only once its row is in the file: ``RunsFile.rows`` and ``pending`` follow the file as it is
+on disk, whenever Ctrl-C lands (before, during or right after the write), and ``StudyInterrupted``
+carries the rows whose ``on_row`` returned (worker processes ignore SIGINT and are terminated, so they
+print nothing). ``RunsFile.resume`` reads an existing ``runs.csv`` back and matches its rows to the
+planned tasks (scenario, variant, seed and simulated seconds); the study then runs only the missing
+tasks, and the rows of the interrupted and the resumed parts are identical to those of one
 uninterrupted study (runs are deterministic), apart from the wall-clock keys.
 """
 
@@ -149,7 +151,7 @@ def run_task(task: RunTask) -> dict[str, Any]:
 
 class StudyInterrupted(Exception):
     """A study stopped by Ctrl-C (``KeyboardInterrupt``): ``rows`` holds, in task order, the row of
-    every finished run and ``None`` for the others."""
+    every finished run (with ``on_row``: every run whose ``on_row`` returned) and ``None`` for the others."""
 
     def __init__(self, rows: list[dict[str, Any] | None]) -> None:
         self.rows = rows
@@ -172,9 +174,14 @@ def _ignore_sigint() -> None:
 
 def _finished(rows: list[dict[str, Any] | None], i: int, row: dict[str, Any], done: int, total: int,
               progress: Callable[[int, int], None] | None, on_row: RowCallback | None) -> None:
+    """Record the row of task ``i``: it counts in ``rows`` only if ``on_row`` (which writes it) returns."""
     rows[i] = row
     if on_row is not None:
-        on_row(i, row)
+        try:
+            on_row(i, row)
+        except BaseException:
+            rows[i] = None
+            raise
     if progress is not None:
         progress(done, total)
 
@@ -352,7 +359,8 @@ def _fmt(value: Any) -> Any:
 
 def write_runs(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
     """Write ``rows`` to the CSV file ``path`` (ID columns, then every metric in first-seen order;
-    empty cells for ``None``), atomically: a temporary file in the same folder, then a rename."""
+    empty cells for ``None``), atomically: a temporary file in the same folder, flushed to disk, then a
+    rename. On return the file holds ``rows``; after an exception it is as it was."""
     path = Path(path)
     columns = list(ID_COLUMNS) + metric_columns(rows)
     fd, tmp = tempfile.mkstemp(prefix=".runs-", suffix=".csv", dir=path.parent)
@@ -362,6 +370,8 @@ def write_runs(rows: Sequence[dict[str, Any]], path: str | Path) -> Path:
             writer.writerow(columns)
             for row in rows:
                 writer.writerow([_fmt(row.get(c)) for c in columns])
+            fh.flush()
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -410,8 +420,10 @@ def task_duration(task: RunTask) -> float:
 
 class RunsFile:
     """``runs.csv`` of a study kept current while it runs: ``add(i, row)`` (an ``on_row`` callback)
-    records the row of task ``i`` and rewrites the file with every row so far, in task order;
-    ``resume()`` first loads the rows of an earlier, interrupted session of the same study."""
+    rewrites the file with every row so far and the row of task ``i``, in task order; ``resume()``
+    first loads the rows of an earlier, interrupted run of the same study. ``rows`` (and ``pending``)
+    never count a row the file on disk does not hold, nor miss one ``add`` put there, also when an
+    exception (Ctrl-C) interrupts ``add``."""
 
     def __init__(self, path: str | Path, tasks: Sequence[RunTask]) -> None:
         self.path = Path(path)
@@ -449,9 +461,27 @@ class RunsFile:
         return [i for i, row in enumerate(self.rows) if row is None]
 
     def add(self, i: int, row: dict[str, Any]) -> None:
-        """Record the row of task ``i`` and rewrite the file."""
-        self.rows[i] = row
-        self.write()
+        """Rewrite the file with the row of task ``i`` added; the row is recorded in ``rows`` once the
+        file holding it is in place. When the write is interrupted, ``rows`` follows the file: the
+        row is recorded if, and only if, the file on disk has it."""
+        rows = list(self.rows)
+        rows[i] = row
+        try:
+            write_runs([r for r in rows if r is not None], self.path)
+            self.rows[i] = row
+        except BaseException:
+            if self._on_disk(i):
+                self.rows[i] = row
+            raise
+
+    def _on_disk(self, i: int) -> bool:
+        """Whether ``runs.csv`` on disk has the row of task ``i``."""
+        task = self.tasks[i]
+        try:
+            return any((r["scenario"], r["variant"], r["seed"]) == (task.name, task.variant, task.seed)
+                       for r in read_runs(self.path))
+        except (OSError, ValueError):
+            return False
 
     def write(self) -> Path:
         """Rewrite the file with every row so far (task order)."""

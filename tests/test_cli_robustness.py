@@ -175,3 +175,67 @@ def test_ctrl_c_on_a_process_pool_leaves_rows_and_no_traceback(tmp_path):
     assert 1 <= len(kept) < 400 and all(r["frames"] == "4" for r in kept)
     done = int(stderr.split("interrupted: ")[1].split(" of")[0])
     assert done == len(kept)
+
+
+def _rows_on_disk(out: Path) -> list[tuple[str, int]]:
+    with open(out / "runs.csv", newline="") as fh:
+        return [(r["variant"], int(r["seed"])) for r in csv.DictReader(fh)]
+
+
+@pytest.mark.parametrize(("moment", "finished"), [
+    ("before the write", 2),  # the third run's row exists, the file does not have it yet
+    ("during the write", 2),  # the temporary file is written, not yet renamed onto runs.csv
+    ("after the write", 3),  # runs.csv has the third row; the interrupt lands before add records it
+    ("in the progress bar", 3),  # after add returned, in the CLI's own on_row
+])
+def test_ctrl_c_at_the_worst_moment_counts_only_the_rows_on_disk(capsys, tmp_path, monkeypatch, moment, finished):
+    """The reported count is the rows in runs.csv wherever Ctrl-C lands around the third row's write,
+    and --resume redoes exactly the runs the file lacks."""
+    from sim.progress import NestedProgress
+
+    out = tmp_path / "mc"
+    args = ["montecarlo", "curve-single", "--runs", "5", "--duration", "0.5", "--out", out, "--quiet",
+            "--variant", "curvilinear-fused,curvilinear-lidar"]
+    real_write, real_replace, real_done = montecarlo.write_runs, os.replace, NestedProgress.done
+    writes: list = []
+
+    def write_runs(rows, path):
+        writes.append(len(rows))
+        if len(writes) == 3 and moment == "before the write":
+            raise KeyboardInterrupt
+        written = real_write(rows, path)
+        if len(writes) == 3 and moment == "after the write":
+            raise KeyboardInterrupt
+        return written
+
+    def replace(src, dst):
+        if len(writes) == 3 and moment == "during the write":
+            raise KeyboardInterrupt
+        return real_replace(src, dst)
+
+    def done(self, group):
+        real_done(self, group)
+        if len(writes) == 3 and moment == "in the progress bar":
+            raise KeyboardInterrupt
+
+    first: list = []
+    monkeypatch.setattr(montecarlo, "run_task", _fake_run_task(first))
+    monkeypatch.setattr(montecarlo, "write_runs", write_runs)
+    monkeypatch.setattr(montecarlo.os, "replace", replace)
+    monkeypatch.setattr(NestedProgress, "done", done)
+    code, _, err = _main(capsys, *args)
+    assert len(first) == 3 and writes == [1, 2, 3]  # three rows made, the third one's write interrupted
+    assert code == 2 and f"interrupted: {finished} of 10 runs finished" in _one_line(err), err
+    assert _rows_on_disk(out) == [("curvilinear-fused", k) for k in range(finished)]
+    assert sorted(p.name for p in out.iterdir()) == ["runs.csv"]  # no temporary file left behind
+
+    monkeypatch.setattr(montecarlo, "write_runs", real_write)
+    monkeypatch.setattr(montecarlo.os, "replace", real_replace)
+    monkeypatch.setattr(NestedProgress, "done", real_done)
+    second: list = []
+    monkeypatch.setattr(montecarlo, "run_task", _fake_run_task(second))
+    code, stdout, _ = _main(capsys, *args, "--resume")
+    assert code == 0 and f"resuming: {finished} of 10 runs already in" in stdout and f"; {10 - finished} to run" in stdout
+    everything = [("curve-single", v, k) for v in ("curvilinear-fused", "curvilinear-lidar") for k in range(5)]
+    assert second == everything[finished:]  # exactly the runs the file lacked, the unwritten third one included
+    assert _rows_on_disk(out) == [(v, k) for _, v, k in everything]

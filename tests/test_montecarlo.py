@@ -1,5 +1,6 @@
 """Monte Carlo: planning, the summary's confidence intervals, the output files, and backend agreement
-(2 local workers = serial; a tiny Ray run = local, when Ray is installed)."""
+(2 local workers = serial; a tiny Ray run = local, when Ray is installed), and that a run counts as
+finished only once its row is in runs.csv."""
 
 from __future__ import annotations
 
@@ -9,7 +10,17 @@ import math
 
 import pytest
 
-from sim.montecarlo import Study, plan, run_study, summarize_runs, write_study
+from sim import montecarlo
+from sim.montecarlo import (
+    RunsFile,
+    Study,
+    StudyInterrupted,
+    plan,
+    read_runs,
+    run_study,
+    summarize_runs,
+    write_study,
+)
 from sim.runner import TIMING_KEYS
 from sim.variants import UnknownVariantError
 
@@ -103,3 +114,64 @@ def test_plan_rejects_a_duration_longer_than_the_scenario():
         plan(["curve-single"], 1, duration=100.0)
     with pytest.raises(ValueError, match="duration must be in"):
         plan(["curve-single"], 1, duration=0.0)
+
+
+def _fake_rows(monkeypatch):
+    def run(task):
+        return {"scenario": task.name, "variant": task.variant, "seed": task.seed, "sim_s": montecarlo.task_duration(task),
+                "gospa_mean": 0.1 * task.seed}
+
+    monkeypatch.setattr(montecarlo, "run_task", run)
+
+
+@pytest.mark.parametrize("written", [False, True])
+def test_runs_file_counts_a_row_only_once_the_file_has_it(tmp_path, monkeypatch, written):
+    tasks = plan(["curve-single"], 3, duration=0.5)
+    runs = RunsFile(tmp_path / "runs.csv", tasks)
+    row = {"scenario": "curve-single", "variant": "curvilinear-fused", "sim_s": 0.5, "gospa_mean": 1.0}
+    runs.add(0, dict(row, seed=0))
+    real = montecarlo.write_runs
+
+    def interrupted(rows, path):
+        if written:
+            real(rows, path)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(montecarlo, "write_runs", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        runs.add(1, dict(row, seed=1))
+    on_disk = [r["seed"] for r in read_runs(runs.path)]
+    assert on_disk == ([0, 1] if written else [0])
+    assert [i for i, r in enumerate(runs.rows) if r is not None] == on_disk
+    assert runs.pending == [i for i in range(3) if i not in on_disk]
+
+
+def test_an_interrupted_on_row_does_not_count_its_run(monkeypatch):
+    _fake_rows(monkeypatch)
+    tasks = plan(["curve-single"], 4, duration=0.5)
+    seen = []
+
+    def on_row(i, row):
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+        seen.append(i)
+
+    with pytest.raises(StudyInterrupted) as info:
+        run_study(tasks, on_row=on_row)
+    assert info.value.finished == 2 and [r is not None for r in info.value.rows] == [True, True, False, False]
+    assert "interrupted after 2 of 4 runs" in str(info.value)
+
+
+def test_write_runs_leaves_the_old_file_when_interrupted(tmp_path, monkeypatch):
+    path = tmp_path / "runs.csv"
+    rows = [{"scenario": "a", "variant": "v", "seed": i, "sim_s": 1.0, "x": float(i)} for i in range(3)]
+    montecarlo.write_runs(rows[:1], path)
+
+    def replace(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(montecarlo.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        montecarlo.write_runs(rows, path)
+    monkeypatch.undo()
+    assert [r["seed"] for r in read_runs(path)] == [0] and sorted(p.name for p in tmp_path.iterdir()) == ["runs.csv"]
