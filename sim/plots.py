@@ -194,7 +194,7 @@ def _count(n: int, noun: str) -> str:
 
 
 def _data_limits(points: np.ndarray, *, margin_fraction: float = 0.04, min_margin: float = 5.0,
-                 min_extent: float = 30.0) -> tuple[tuple[float, float], tuple[float, float]]:
+                 min_extent: float = 20.0) -> tuple[tuple[float, float], tuple[float, float]]:
     """Axis limits ``(x_lo, x_hi), (y_lo, y_hi)`` (m) around the finite ``points (K, 2)``: their
     bounding box plus ``max(min_margin, margin_fraction * largest side)`` on each side, each side
     at least ``min_extent`` (centred)."""
@@ -246,11 +246,12 @@ def birdseye_figure(result: Result, *, snapshots: int = 3, half_window: float = 
     track_vid = np.concatenate([np.asarray(f.track_truth_id, dtype=int) for f in frames]) if frames else np.zeros(0, int)
     labels = {int(tr.label) for f in frames for tr in f.tracks}
     (x_lo, x_hi), (y_lo, y_hi) = _data_limits(np.concatenate([ego, *paths.values(), track_xy], axis=0))
-    # the overview's height follows the data's aspect (equal scale), within 2-6 in
-    top_h = float(np.clip(8.2 * (y_hi - y_lo) / (x_hi - x_lo), 2.0, 6.0))
+    # the overview's height follows the data's aspect (equal scale), within 1.2-6 in; its legend gets
+    # the top row's right sixth
+    top_h = float(np.clip(8.0 * (y_hi - y_lo) / (x_hi - x_lo), 1.2, 6.0))
     fig = _figure(11.0, top_h + 5.0)
     gs = fig.add_gridspec(2, max(1, snapshots), height_ratios=[top_h, 3.6])
-    ax = fig.add_subplot(gs[0, :])
+    ax = fig.add_subplot(gs[0, :].subgridspec(1, 2, width_ratios=[5.0, 1.0], wspace=0.0)[0])
     margin = 110.0
     s_low = float(ego_s.min()) - margin if len(ego_s) else 0.0
     s_high = float(ego_s.max()) + margin if len(ego_s) else road.length

@@ -98,7 +98,7 @@ def test_birdseye_overview_is_fitted_to_the_data(oracle_result):
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     (x0, x1), (y0, y1) = top.get_xlim(), top.get_ylim()
     assert x0 <= lo[0] and x1 >= hi[0] and y0 <= lo[1] and y1 >= hi[1]  # every point inside
-    slack = max(5.0, 0.04 * float(np.max(hi - lo))) + 15.0  # the margin, and the 30 m minimum side
+    slack = max(5.0, 0.04 * float(np.max(hi - lo))) + 10.0  # the margin, and the 20 m minimum side
     assert lo[0] - x0 <= slack and x1 - hi[0] <= slack and lo[1] - y0 <= slack and y1 - hi[1] <= slack
     assert top.get_aspect() == 1.0  # equal scale kept
     fig.canvas.draw()  # the drawn limits are still the fitted ones (the box adapts, not the limits)
