@@ -1,5 +1,5 @@
-"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``compare``, ``scenarios``,
-``bench``.
+"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``compare``, ``closed-loop``,
+``soak``, ``scenarios``, ``bench``. Every command writes under ``eot-output/`` unless ``--out`` names a folder.
 
 ``eot compare`` runs every study variant over a suite with the same seeds and writes ``REPORT.md``
 with its figures and CSVs (``sim.study``, ``sim.claims``, ``sim.report``); a variant that cannot be
@@ -707,7 +707,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"no target: where to write the JSON (default {OUTPUT_ROOT}/bench.json)")
     bench.add_argument("--quick", action="store_true", help="no target: shrink every part (seconds; numbers not meaningful)")
     bench.add_argument("--only", nargs="+", metavar="SECTION",
-                       help="no target: only these sections (tracker stonesoup lidar world end_to_end montecarlo env)")
+                       help="no target: only these sections (tracker stonesoup lidar lidar3d world end_to_end montecarlo env)")
     bench.add_argument("--no-pin", action="store_true", help="no target: do not pin the single-process parts to one CPU")
     bench.add_argument("--quiet", action="store_true", help="no target: no progress lines on stderr")
     bench.set_defaults(func=_bench_all)
