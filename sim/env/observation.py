@@ -20,7 +20,7 @@ length      (m)                                                             [0, 
 width       (m)                                                             [0, 4] m
 sigma_s     standard deviation of ``s`` from the track's covariance (m);    [0, 10] m
             0 for truth and the ego
-sigma_n     standard deviation of ``n`` (m); 0 for truth and the ego         [0, 10] m
+sigma_n     standard deviation of ``n`` (m); 0 for truth and the ego        [0, 10] m
 ==========  ==============================================================  ==========================
 
 Where the bounds come from (values outside them, e.g. a diverged track's, are clipped into them):
