@@ -1,8 +1,8 @@
 """The paper's comparison study (``eot compare``): every variant over a suite with the same seeds.
 
 ``run_compare`` runs the Monte Carlo of ``sim.montecarlo`` (``plan`` + ``run_study``) for every
-*available* variant (``sim.variants.probe_variant``; one that cannot be built here is skipped with
-its reason) over the scenarios of a suite and the seeds ``seed0 .. seed0 + runs - 1``. All variants
+*available* variant (``sim.variants.probe_variant``: a variant whose optional dependency is missing
+here is skipped with its reason; any other failure to build a variant is an error) over the scenarios of a suite and the seeds ``seed0 .. seed0 + runs - 1``. All variants
 see the same simulated data for the same scenario and seed (the world, the sensors and the clutter
 are seeded by the seed alone), so differences between variants are *paired*: ``paired_difference``
 takes, per (scenario, seed), variant A's value minus variant B's and gives the mean and its 95 %
@@ -260,7 +260,8 @@ class CompareSettings:
 
 
 def split_available(variants: Sequence[str]) -> tuple[list[str], dict[str, str]]:
-    """The variants that can be built here, and the others with the reason (``probe_variant``)."""
+    """The variants that can be built here, and those whose optional dependency is missing, with the
+    reason (``probe_variant``); any other failure to build a variant propagates."""
     from sim.variants import probe_variant
 
     ok, skipped = [], {}

@@ -285,10 +285,9 @@ def test_found_case_a_long_gap_keeps_covariances_positive_semidefinite(case):
     assert len(out[-1]) >= 1
 
 
-@pytest.mark.xfail(strict=True, raises=RuntimeWarning,
-                   reason="tracker.preprocess.drop_nonfinite tests a scan with pts.sum(): +inf and -inf returns in "
-                          "one scan sum to NaN with numpy's 'invalid value encountered in reduce' RuntimeWarning")
 def test_found_case_lidar_returns_at_plus_and_minus_infinity():
+    """+inf and -inf returns in one scan sum to NaN: the non-finite test must not warn (warnings are
+    errors here) and must drop and count exactly the non-finite rows."""
     # found by tests/fuzz_sweep.py (300 sequences, seed 11: 46 of 47 failures); one frame, 60 returns of
     # which 12 are +inf, 5 -inf and 4 NaN
     spec = {"dt": 0.1, "ego": "lane", "ego_s": 0.3, "points": 60, "kind": "nan-inf", "radar": 0, "radar_kind": "near",

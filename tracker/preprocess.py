@@ -27,7 +27,9 @@ from tracker.compiled.preprocess import DONE as FILTER_DONE, SEED as FILTER_SEED
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
     """Rows of ``points`` (N, 2) with both coordinates finite, and the number dropped."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    if np.isfinite(pts.sum()):  # the usual scan: every return finite (one reduction, no mask)
+    with np.errstate(invalid="ignore", over="ignore"):  # +inf and -inf sum to NaN; huge returns overflow
+        total = pts.sum()
+    if np.isfinite(total):  # the usual scan: every return finite (one reduction, no mask)
         return pts.copy(), 0
     keep = np.isfinite(pts).all(axis=1)
     return pts[keep], int(len(pts) - keep.sum())
