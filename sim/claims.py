@@ -183,10 +183,16 @@ def claim_fusion(rows: Sequence[dict[str, Any]], variants: Sequence[str], skippe
         if p.diff.n:
             claim.comparisons.append(Comparison(p, -1, "m^2", primary))
     body = [describe_comparison(c) for c in claim.comparisons]
-    rows_kind = MeasurementConfig().radar_rows
+    measurement = MeasurementConfig()
+    rows_kind = measurement.radar_rows
     reason = (f"in this tracker a fused cluster adds the radar's {'speed only' if rows_kind == 'speed' else 'velocity'} "
-              f"(MeasurementConfig.radar_rows = '{rows_kind}'), never a position, so fusion can lower the localisation "
-              "part only through better predictions between scans; the lidar's rectangle fit already pins the position.")
+              f"(MeasurementConfig.radar_rows = '{rows_kind}'), not its position, so where the lidar sees a vehicle "
+              "its rectangle fit already pins the position and fusion helps only through better predictions; ")
+    if measurement.radar_only_update:
+        reason += (f"the radar's positions enter only for vehicles the lidar does not see (radar-only updates, spread "
+                   f"{measurement.radar_position_sigma:g} m), so scenarios with little occlusion leave it little to gain.")
+    else:
+        reason += "radar-only updates are off (MeasurementConfig.radar_only_update), so the radar never moves a position."
     return _finish(claim, body, reason)
 
 
