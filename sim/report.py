@@ -353,6 +353,7 @@ def render_report(data: CompareData, claims: Sequence[ClaimResult], figures_dir:
         + (f", hard suite {_fmt_s(meta.get('hard_wall_s'))}" if meta.get("hard_wall_s") else "")
         + f"; total {_fmt_s(meta.get('total_wall_s'))}",
         f"- variants: {', '.join(variants)}",
+        f"- {seed_provenance(int(settings.get('seed0', 0)), int(settings.get('runs', 1)))}",
     ]
     if meta.get("commit"):
         lines.append(f"- commit: `{meta['commit']}`")
@@ -386,6 +387,22 @@ def render_report(data: CompareData, claims: Sequence[ClaimResult], figures_dir:
     if hard:
         lines += [hard]
     return "\n".join(lines).rstrip() + "\n"
+
+
+#: The seeds on which the tracker's default configuration was chosen (standard and hard suites).
+TUNING_SEEDS = range(0, 20)
+
+
+def seed_provenance(seed0: int, runs: int) -> str:
+    """One line saying whether the study's seeds ``seed0 .. seed0 + runs - 1`` include the seeds the
+    tracker's defaults were tuned on (``TUNING_SEEDS``): numbers on tuning seeds are in-sample."""
+    seeds = range(seed0, seed0 + runs)
+    overlap = len(set(seeds) & set(TUNING_SEEDS))
+    tuning = f"{TUNING_SEEDS.start}..{TUNING_SEEDS.stop - 1}"
+    if overlap == 0:
+        return f"held-out seeds: none of them is among the seeds {tuning} the tracker's defaults were tuned on"
+    return (f"**in-sample**: {overlap} of the {runs} seeds are among the seeds {tuning} the tracker's defaults were "
+            f"tuned on; use seeds from {TUNING_SEEDS.stop} or above (`--seed 1000`) for held-out numbers")
 
 
 def write_report(data: CompareData, out: str | Path, figures_dir: str = "report") -> dict[str, Path]:

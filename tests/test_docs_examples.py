@@ -19,7 +19,9 @@ import pytest
 import tracker.config as config_module
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCUMENTED = ("docs/tracker.md", "docs/road.md")
+#: Every page with ```python examples: the README's tour and the user guide.
+DOCUMENTED = ("README.md", "docs/tracker.md", "docs/road.md", "docs/scenarios.md", "docs/sensors.md", "docs/metrics.md",
+              "docs/environment.md", "docs/studies.md", "docs/cli.md")
 FENCE = re.compile(r"^```python\n(.*?)^```", re.MULTILINE | re.DOTALL)
 
 

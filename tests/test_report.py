@@ -86,3 +86,13 @@ def test_report_rebuilds_identically_from_its_files(study):
     assert len(again.rows) == len(data.rows) and len(again.series) == len(data.series)
     write_report(again, out)
     assert (out / "REPORT.md").read_text() == first
+
+
+def test_seed_provenance_says_in_sample_or_held_out():
+    from sim.report import TUNING_SEEDS, seed_provenance
+
+    assert seed_provenance(1000, 20).startswith("held-out seeds")
+    assert seed_provenance(TUNING_SEEDS.stop, 5).startswith("held-out seeds")
+    text = seed_provenance(TUNING_SEEDS.stop - 3, 10)
+    assert text.startswith("**in-sample**") and "3 of the 10 seeds" in text
+    assert "20 of the 20 seeds" in seed_provenance(0, 20)
