@@ -7,7 +7,7 @@ gymnasium environment ``eot/TrackedRoad-v0`` (``sim.env``, imported when the env
 
 from typing import Any
 
-from sim.scenario import ScenarioError, ScenarioSpec, load_scenario, load_suite
+from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario, load_suite
 
 #: The gymnasium id of ``sim.env.TrackedRoadEnv``.
 ENV_ID = "eot/TrackedRoad-v0"

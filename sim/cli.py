@@ -88,7 +88,7 @@ def _scenarios(args: argparse.Namespace) -> int:
     """List the suites and the scenario files of a folder (name and one-line description)."""
     from pathlib import Path
 
-    from sim.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
+    from sim.world.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
 
     folder = Path(args.dir) if args.dir else SCENARIO_DIR
     if not folder.is_dir():
@@ -130,7 +130,7 @@ class UsageError(Exception):
 
 def _shipped() -> tuple[list[str], list[str]]:
     """Names of the shipped scenarios and suites (``scenarios/``)."""
-    from sim.scenario import SCENARIO_DIR, is_suite_file
+    from sim.world.scenario import SCENARIO_DIR, is_suite_file
 
     files = sorted(SCENARIO_DIR.glob("*.toml"))
     suites = [p.stem for p in files if is_suite_file(p)]
@@ -142,7 +142,7 @@ def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
     file or shipped suite name. Unknown names raise ``UsageError`` listing the choices."""
     from pathlib import Path
 
-    from sim.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
+    from sim.world.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
 
     path = Path(name)
     candidates = [path] if path.exists() else [SCENARIO_DIR / (path.name if path.suffix == ".toml" else f"{path.name}.toml")]
@@ -230,7 +230,7 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     from sim.progress import ProgressBar
     from sim.results import write_results
     from sim.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
-    from sim.scenario import ScenarioError, load_scenario
+    from sim.world.scenario import ScenarioError, load_scenario
     from sim.variants import check_variant
 
     spec = load_scenario(scenario)
@@ -405,7 +405,7 @@ def _soak(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sim.progress import ProgressBar
-    from sim.scenario import load_scenario
+    from sim.world.scenario import load_scenario
     from sim.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, run_soak, window_row
 
     paths = _resolve_scenarios(args.scenario or SOAK_SCENARIO, allow_suite=False)

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.scenario import load_scenario, resolve_scenario_path
+from sim.world.scenario import load_scenario, resolve_scenario_path
 from sim.variants import check_variant
 from tracker.compiled import warm_up
 

@@ -1,4 +1,4 @@
-"""Sensor faults on the frames of a run (the scenario's ``[faults]`` table, ``sim.scenario.FaultsSpec``)
+"""Sensor faults on the frames of a run (the scenario's ``[faults]`` table, ``sim.world.scenario.FaultsSpec``)
 and the per-run measures of how the tracker lives through a lidar dropout.
 
 ``FaultInjector(spec, lidar_config, rng).apply(frames)`` wraps the ``SensorRig``'s frame stream:
@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sim.scenario import FaultsSpec
+from sim.world.scenario import FaultsSpec
 from sim.sensors.lidar import LidarConfig, LidarScan
 from sim.sensors.radar import RadarScan
 from sim.sensors.rig import SensorFrame

@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
-from sim.scenario import ScenarioError, parse_scenario, resolve_scenario_path
+from sim.world.scenario import ScenarioError, parse_scenario, resolve_scenario_path
 from sim.variants import DEFAULT_VARIANT, check_variant
 from tracker.compiled import warm_up
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sim.env.observation import COL
-from sim.traffic import MAX_REAR_AXLE
+from sim.world.traffic import MAX_REAR_AXLE
 
 
 @dataclass(frozen=True)

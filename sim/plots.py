@@ -43,7 +43,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from sim.runner import FrameRecord, Result
-from sim.truth import rectangle_corners
+from sim.world.truth import rectangle_corners
 from tracker.transforms import rotate, to_global
 
 #: Colours of the true vehicles, cycled by vehicle id (``vehicle_color``): tab10 without its green,

@@ -10,7 +10,7 @@ tracker through every lidar frame and scores its tracks against the truth at eac
 ``[tracker]`` table overrides the variant's ``TrackerConfig`` fields (nested tables for sections);
 before it, the tracker is told the lidar's range and resolution (``detection.lidar_range``,
 ``detection.lidar_resolution``) from the sensor configuration.
-Unknown keys are errors naming the file and the allowed keys (``sim.scenario.apply_overrides``).
+Unknown keys are errors naming the file and the allowed keys (``sim.world.scenario.apply_overrides``).
 
 **Truth set scored at time t** (DESIGN.md): the other vehicles whose centre is within the lidar range
 (``LidarConfig.max_range``, Euclidean from the ego's centre, where the lidar sits) and on the road
@@ -42,7 +42,7 @@ run to run; every other metric is bit-identical for the same scenario, seed and 
 each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` otherwise); ``sim.results``
 writes them to ``tracker_events.csv`` and ``sim.inspect`` uses them to explain losses.
 
-**Faults.** A scenario's ``[faults]`` table (``sim.scenario.FaultsSpec``) is applied to the sensor
+**Faults.** A scenario's ``[faults]`` table (``sim.world.scenario.FaultsSpec``) is applied to the sensor
 frames by ``sim.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
 (``lidar_time_offset``); the run's metrics then add the ``fault_*`` counts and, for lidar dropouts,
 the dropout measures (``sim.faults.dropout_outcomes``: coasting and re-acquisition with the same
@@ -66,14 +66,14 @@ import numpy as np
 from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
 from sim.long_vehicles import metrics as long_vehicle_metrics
 from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
-from sim.scenario import ScenarioError, ScenarioSpec, apply_overrides
+from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
-from sim.ground import Ground
+from sim.world.ground import Ground
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
-from sim.truth import Snapshot
+from sim.world.truth import Snapshot
 from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
-from sim.world import World
+from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.angles import wrap_angle
 from tracker.compiled import warm_up
@@ -206,7 +206,7 @@ def build_rig(rig_cfg: RigConfig, clutter_cfg: ClutterConfig | None, road: Road,
     """The sensor rig of a run with seed ``seed``: ``roadside`` False drops the scenario's roadside
     objects, True adds the default ones (``ClutterConfig()``) where the scenario has none, None keeps
     what the scenario says; the objects are drawn from the run's own clutter stream. ``ground`` (the
-    world's ``World.ground``; ``None``: level) is what the 3-D lidar sees (``sim.ground``)."""
+    world's ``World.ground``; ``None``: level) is what the 3-D lidar sees (``sim.world.ground``)."""
     if roadside is False:
         clutter_cfg = None
     elif roadside is True and clutter_cfg is None:
@@ -541,7 +541,7 @@ def run_scenario(
     ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
-        raise ValueError(f"run_scenario needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
+        raise ValueError(f"run_scenario needs a sim.world.scenario.ScenarioSpec; got {type(spec).__name__}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
     seed = int(seed)

@@ -41,9 +41,9 @@ from sim.runner import (
     truth_set,
     truth_state,
 )
-from sim.scenario import ScenarioSpec
+from sim.world.scenario import ScenarioSpec
 from sim.variants import DEFAULT_VARIANT, check_variant
-from sim.world import World
+from sim.world.world import World
 
 #: Scenario of the soak test (a closed road, so the traffic never ends).
 SOAK_SCENARIO = "dense-highway-loop"

@@ -39,7 +39,7 @@ import numpy as np
 from scipy import stats
 
 from sim.montecarlo import plan, read_runs, run_study, write_runs
-from sim.scenario import load_scenario, load_suite, resolve_scenario_path
+from sim.world.scenario import load_scenario, load_suite, resolve_scenario_path
 from tracker.compiled import warm_up
 
 #: The variants of the study, in report order (DESIGN.md).

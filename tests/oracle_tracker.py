@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.scenario import ScenarioSpec
-from sim.world import World
+from sim.world.scenario import ScenarioSpec
+from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 
 

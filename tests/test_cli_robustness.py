@@ -17,7 +17,7 @@ import pytest
 
 from sim import cli
 from sim import montecarlo
-from sim.scenario import SCENARIO_DIR
+from sim.world.scenario import SCENARIO_DIR
 
 
 def _main(capsys, *argv):

@@ -5,7 +5,7 @@ azimuths, from the mount in E, intersected with the ground and with boxes standi
 aligned with the local ground plane, as a car on a sloped road); the nearest hit of each ray within
 100 m is its return, with Gaussian range noise. The ground is either piecewise planar (a list of
 planes ``z = a x + b y + c``, each valid over an x interval; intersected analytically) or a road
-surface as ``sim.ground.RoadGround`` models it (a road through the origin heading +x, straight or on
+surface as ``sim.world.ground.RoadGround`` models it (a road through the origin heading +x, straight or on
 a circle, climbing ``grade`` along it, banked ``bank`` across it, the terrain beside level across
 the road; intersected by marching along each ray and bisecting).
 """
@@ -151,7 +151,7 @@ def scan(pieces, boxes=(), config=None, noise=0.03, seed=0, az_step_deg=0.2):
 
 @dataclass(frozen=True)
 class RoadSurface:
-    """The ground of ``sim.ground.RoadGround`` for a road through the origin heading +x: straight, or
+    """The ground of ``sim.world.ground.RoadGround`` for a road through the origin heading +x: straight, or
     on a circle of radius ``radius`` (m) turning left (centre ``(0, radius)``; negative: turning
     right). With ``(s, n)`` the arc length along the centreline and the offset to its left (m),
     ``h(s, n) = grade * s + bank * clip(n, -half_width, half_width)``: the road climbs ``grade``, is

@@ -12,9 +12,9 @@ import pytest
 
 from sim.faults import DropoutOutcome, dropout_metrics, dropout_outcomes, in_intervals
 from sim.runner import check_scenario_settings, run_scenario
-from sim.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
+from sim.world.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
 from sim.sensors import SensorRig
-from sim.world import World
+from sim.world.world import World
 
 
 def _spec(faults: dict | None = None, duration: float = 2.0, sensors: dict | None = None):

@@ -26,7 +26,7 @@ def test_frame_holds_copies_as_readonly_float_arrays():
 
 
 def test_frame_empty_parts_and_duck_typed_ego():
-    class Pose:  # e.g. sim.truth.EgoPose: extra attributes are ignored
+    class Pose:  # e.g. sim.world.truth.EgoPose: extra attributes are ignored
         x, y, yaw, v, yaw_rate, length = 1.0, 2.0, 3.0, 4.0, 0.5, 4.8
 
     frame = Frame(2.0, Pose(), None, None)

@@ -1,4 +1,4 @@
-"""Tests of sim/generator.py: valid, varied, reproducible random scenarios."""
+"""Tests of sim/world/generator.py: valid, varied, reproducible random scenarios."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from sim import ScenarioSpec, load_scenario
-from sim.generator import MIN_BUMPER_GAP, ROAD_SELF_CLEARANCE, draw_traffic, realize, self_clearance
-from sim.scenario import GeneratorSpec, LaneChange, ScenarioError, parse_scenario
-from sim.world import World
+from sim.world.generator import MIN_BUMPER_GAP, ROAD_SELF_CLEARANCE, draw_traffic, realize, self_clearance
+from sim.world.scenario import GeneratorSpec, LaneChange, ScenarioError, parse_scenario
+from sim.world.world import World
 from tracker import Road
 
 SEEDS = range(50)

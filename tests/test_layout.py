@@ -60,7 +60,7 @@ def test_scenarios_ship_inside_the_package():
     import tomllib
     from pathlib import Path
 
-    from sim.scenario import SCENARIO_DIR
+    from sim.world.scenario import SCENARIO_DIR
 
     root = Path(__file__).resolve().parents[1]
     link = root / "sim" / "scenarios"

@@ -1,4 +1,4 @@
-"""The 3-D lidar (sim.sensors.lidar3d) and the ground (sim.ground) against brute-force oracles.
+"""The 3-D lidar (sim.sensors.lidar3d) and the ground (sim.world.ground) against brute-force oracles.
 
 The oracles are independent of ``cast_3d``: per box (an oriented 3-D box) all rays move into the
 box frame and meet the three slabs; a general convex prism is cut face by face (side walls, roof,
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from sim.ground import FlatGround, GroundSurface, RoadGround
+from sim.world.ground import FlatGround, GroundSurface, RoadGround
 from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import Prisms, Vlp16, Vlp16Config, cast_3d
 from tracker.road import Road

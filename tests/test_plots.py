@@ -134,7 +134,7 @@ def test_snapshot_titles_count_what_is_drawn(oracle_result):
         assert len(vehicles) == len(f.truth)  # all are drawn (clipped to the view); the title counts the visible
         assert int(m.group(2)) == shown(f.truth.corners())
         st = f.track_state
-        from sim.truth import rectangle_corners
+        from sim.world.truth import rectangle_corners
 
         tracks = rectangle_corners(st[:, :2], st[:, 3], st[:, 5], st[:, 6]) if len(st) else np.zeros((0, 4, 2))
         assert int(m.group(4)) == shown(tracks)

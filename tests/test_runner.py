@@ -11,8 +11,8 @@ from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
 from sim.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
-from sim.scenario import ScenarioError, parse_scenario
-from sim.truth import EgoPose, Snapshot
+from sim.world.scenario import ScenarioError, parse_scenario
+from sim.world.truth import EgoPose, Snapshot
 from sim.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from tracker import Road
 
@@ -159,7 +159,7 @@ def test_truth_set_is_range_and_road():
 def _spec_with(**tables):
     import tomllib
 
-    from sim.scenario import resolve_scenario_path
+    from sim.world.scenario import resolve_scenario_path
 
     with open(resolve_scenario_path("curve-single"), "rb") as fh:
         data = tomllib.load(fh)

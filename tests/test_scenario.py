@@ -1,4 +1,4 @@
-"""Tests of sim/scenario.py: the shipped scenarios and suite, and clear errors for malformed files."""
+"""Tests of sim/world/scenario.py: the shipped scenarios and suite, and clear errors for malformed files."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from sim import ScenarioSpec, load_scenario
 from sim.cli import main
-from sim.scenario import SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite, parse_scenario
+from sim.world.scenario import SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite, parse_scenario
 
 STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
 

@@ -27,7 +27,7 @@ from sim.sensors import (
     generate_roadside,
 )
 from sim.sensors.scene import scene_segments
-from sim.truth import EgoPose, Snapshot
+from sim.world.truth import EgoPose, Snapshot
 from tracker.frame import Frame
 
 EGO = EgoPose(0.0, 0.0, 0.0, 0.0, 0.0, 4.8, 2.0)
@@ -688,7 +688,7 @@ def test_rig_errors():
         SensorRig().run(moving_world, float("nan"))
     with pytest.raises(ValueError, match="returned a snapshot at t="):
         SensorRig().run(lambda t: moving_world(0.0), 0.5)
-    with pytest.raises(ValueError, match="must return a sim.truth.Snapshot"):
+    with pytest.raises(ValueError, match="must return a sim.world.truth.Snapshot"):
         SensorRig().run(lambda t: None, 0.5)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim import cli
-from sim.scenario import load_scenario
+from sim.world.scenario import load_scenario
 from sim.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, bad_covariances, run_soak, summarize_soak
 
 

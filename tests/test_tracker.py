@@ -944,7 +944,7 @@ def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration:
 
     from sim.montecarlo import scenario_task_data
     from sim.runner import run_scenario
-    from sim.scenario import parse_scenario, resolve_scenario_path
+    from sim.world.scenario import parse_scenario, resolve_scenario_path
 
     _, source, data = scenario_task_data(resolve_scenario_path(scenario))
     data = copy.deepcopy(data)

@@ -1,4 +1,4 @@
-"""Tests of sim/traffic.py: scripted braking and acceleration at their rates, standstill, long and
+"""Tests of sim/world/traffic.py: scripted braking and acceleration at their rates, standstill, long and
 small vehicles, and the hard suite's traffic (no overlaps at the start, no collisions, on the road)."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from sim import load_scenario
-from sim.scenario import load_suite, parse_scenario, polygons_overlap
-from sim.traffic import MAX_REAR_AXLE, ScriptedCar
-from sim.truth import Snapshot, rectangle_corners
-from sim.world import World
+from sim.world.scenario import load_suite, parse_scenario, polygons_overlap
+from sim.world.traffic import MAX_REAR_AXLE, ScriptedCar
+from sim.world.truth import Snapshot, rectangle_corners
+from sim.world.world import World
 
 HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
 

@@ -1,4 +1,4 @@
-"""Tests of sim/lanes.py, sim/traffic.py and sim/world.py: highway-env traffic on our road, and truth."""
+"""Tests of sim/world/lanes.py, sim/world/traffic.py and sim/world/world.py: highway-env traffic on our road, and truth."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import pytest
 from highway_env.road.lane import lane_from_config
 
 from sim import load_scenario
-from sim.lanes import FrenetLane, build_network
-from sim.scenario import parse_scenario, polygons_overlap
-from sim.truth import Snapshot, rectangle_corners
-from sim.world import World
+from sim.world.lanes import FrenetLane, build_network
+from sim.world.scenario import parse_scenario, polygons_overlap
+from sim.world.truth import Snapshot, rectangle_corners
+from sim.world.world import World
 from tracker.angles import wrap_angle
 
 STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
@@ -310,8 +310,8 @@ def test_world_records_collisions(tmp_path: Path) -> None:
 
 def test_vehicles_stand_on_the_sloped_road_with_their_heights():
     """hill-vlp16: a 4 % grade and 3 % bank; the snapshot's ground heights are the road surface's
-    (sim.ground.RoadGround gives the same at the vehicles' centres) and the heights the scenario's."""
-    from sim.ground import RoadGround
+    (sim.world.ground.RoadGround gives the same at the vehicles' centres) and the heights the scenario's."""
+    from sim.world.ground import RoadGround
 
     spec = load_scenario("hill-vlp16")
     world = World(spec, 0)

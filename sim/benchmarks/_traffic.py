@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from sim.truth import EgoPose, Snapshot
+from sim.world.truth import EgoPose, Snapshot
 from tracker import Road
 
 RADIUS = 500.0

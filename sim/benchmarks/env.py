@@ -19,7 +19,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from sim.scenario import resolve_scenario_path
+from sim.world.scenario import resolve_scenario_path
 
 BASE_SCENARIO = "dense-highway"
 

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from sim.benchmarks._machine import one_core
-from sim.ground import RoadGround
+from sim.world.ground import RoadGround
 from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import Prisms, Vlp16, cast_3d
 from tracker.cloud import process_cloud

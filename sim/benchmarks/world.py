@@ -6,8 +6,8 @@ import argparse
 import statistics
 import time
 
-from sim.scenario import load_scenario
-from sim.world import World
+from sim.world.scenario import load_scenario
+from sim.world.world import World
 
 SCENARIOS = ("dense-highway", "curvy-multi")
 

@@ -54,7 +54,7 @@ from sim.variants import DEFAULT_VARIANT, UnknownVariantError, check_variant
 
 PERCEPTIONS = ("tracks", "truth")
 ACTIONS = ("DiscreteMetaAction", "ContinuousAction")
-#: The world's internal step (s): ``sim.world.DEFAULT_STEP``; highway-env calls its inverse the
+#: The world's internal step (s): ``sim.world.world.DEFAULT_STEP``; highway-env calls its inverse the
 #: simulation frequency.
 SIMULATION_FREQUENCY = 20
 
@@ -168,7 +168,7 @@ class EnvConfig:
         when it exceeds the registered 100."""
         duration = self.duration
         if duration is None:
-            from sim.scenario import load_scenario
+            from sim.world.scenario import load_scenario
 
             duration = load_scenario(self.scenario).duration
         return _steps(float(duration), self.policy_frequency)

@@ -4,7 +4,7 @@ and tracker, whose observations are the tracker's tracks.
 One ``step(action)`` (period ``1 / policy_frequency``, 0.2 s by default):
 
 1. the action goes to the ego (``sim.env.vehicles``: meta-action or held acceleration/steering);
-2. the world (``sim.world.World``) advances on its 0.05 s grid -- the other vehicles follow the
+2. the world (``sim.world.world.World``) advances on its 0.05 s grid -- the other vehicles follow the
    scenario's behaviours (IDM/MOBIL, constant, scripted) -- while the sensor rig
    (``sim.sensors.SensorRig``: lidar at 10 Hz, radars at 14 Hz out of phase, roadside clutter, exactly
    as ``sim.runner`` uses it) makes a ``tracker.Frame`` at every lidar time and the ``tracker.Tracker``
@@ -17,7 +17,7 @@ clip((v cos xi - v_lo) / (v_hi - v_lo), 0, 1) + right_lane_reward * (lanes - 1 -
 (``lane`` = the ego's target lane for meta-actions; our lane 0 is the rightmost), mapped onto [0, 1] with
 ``normalize_reward`` (from ``[collision_reward, high_speed_reward + right_lane_reward]``), then times
 ``on_road`` (the ego's centre between the road edges). The parts are in ``info["rewards"]``.
-Termination: the ego's rectangle overlaps another vehicle's (``sim.world`` records it; ``crashed``), or
+Termination: the ego's rectangle overlaps another vehicle's (``sim.world.world`` records it; ``crashed``), or
 it left the road with ``offroad_terminal``. Truncation: the episode time reaches ``duration`` (the
 scenario's by default), or, on an open road, the ego would reach the road's end within two periods.
 
@@ -56,10 +56,10 @@ from sim.env.config import ConfigError, EnvConfig, _steps
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
 from sim.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
-from sim.scenario import ScenarioError, ScenarioSpec, load_scenario
+from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
 from sim.sensors import SensorRig
 from sim.sensors.rig import SensorFrame
-from sim.world import DEFAULT_STEP, World
+from sim.world.world import DEFAULT_STEP, World
 from tracker import Track
 
 #: Slack (s) when comparing times.

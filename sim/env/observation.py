@@ -27,7 +27,7 @@ Where the bounds come from (values outside them, e.g. a diverged track's, are cl
 ``ds``: what the lidar sees lies within ``R`` of the ego, and along a bending road the arc to it is
 longer than the straight line (up to ``pi R / 2`` round a half circle), so ``DS_RANGE_FACTOR * R``;
 ``n``: half the widest road a scenario may have (6 lanes of 5 m) plus 5 m beyond its edge
-(``N_LIMIT_M``); ``v``: 1.25 times the scenarios' top speed (``sim.scenario.MAX_SPEED``, 40 m/s);
+(``N_LIMIT_M``); ``v``: 1.25 times the scenarios' top speed (``sim.world.scenario.MAX_SPEED``, 40 m/s);
 ``xi_dot``: above any road vehicle's yaw rate relative to the road (``XI_DOT_LIMIT``); ``length`` and
 ``width``: 1.25 and 1.33 times the largest vehicle a scenario may have (20 x 3 m); ``sigma_s`` and
 ``sigma_n``: a deviation beyond ``SIGMA_LIMIT_M`` (about three lane widths) says the position is not
@@ -58,7 +58,7 @@ import numpy as np
 from gymnasium import spaces
 
 from sim.runner import truth_set
-from sim.scenario import MAX_SPEED
+from sim.world.scenario import MAX_SPEED
 
 if TYPE_CHECKING:
     from sim.env.core import TrackedRoadEnv

@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from sim.metrics import GOSPA_C, GOSPA_P, gospa
 from sim.plots import LIDAR_COLOR, RADAR_COLOR, UNMATCHED_COLOR, vehicle_color
 from sim.runner import truth_set
-from sim.truth import rectangle_corners
+from sim.world.truth import rectangle_corners
 from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import rotate, to_global
 

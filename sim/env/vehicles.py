@@ -1,11 +1,11 @@
 """The ego of ``eot/TrackedRoad-v0``, driven by the agent's action, and its meta-action type.
 
-Two ego classes share the road-coordinate bookkeeping of ``sim.traffic`` (``_FrenetCar``: ``frenet_s``,
+Two ego classes share the road-coordinate bookkeeping of ``sim.world.traffic`` (``_FrenetCar``: ``frenet_s``,
 ``frenet_n``, its lane, the bicycle model with ``rear_axle = min(L / 2, 3 m)``):
 
 - ``MetaEgo`` (``DiscreteMetaAction``): highway-env's ``MDPVehicle`` -- "FASTER"/"SLOWER" step the
   target speed through ``target_speeds``, "LANE_LEFT"/"LANE_RIGHT" set the target lane, a speed
-  controller and highway-env's cascaded lane-keeping controller (with ``sim.traffic``'s lateral-speed
+  controller and highway-env's cascaded lane-keeping controller (with ``sim.world.traffic``'s lateral-speed
   limit) do the rest. Two departures, both documented: the speed controller's acceleration is
   clipped to ``acceleration_range`` (highway-env's is unbounded: -33 m/s^2 when asked to go from 20 to
   0 m/s), and "LANE_LEFT" means the driver's left (positive ``n``, lane index + 1 here, since our lane 0
@@ -14,7 +14,7 @@ Two ego classes share the road-coordinate bookkeeping of ``sim.traffic`` (``_Fre
 - ``ContinuousEgo`` (``ContinuousAction``): the action ``{"acceleration", "steering"}`` is held until
   the next one (highway-env's ``Vehicle``).
 
-``install_ego(world, ...)`` replaces the world's ego (built by ``sim.world.World`` as an IDM car)
+``install_ego(world, ...)`` replaces the world's ego (built by ``sim.world.world.World`` as an IDM car)
 with one of these at the same state.
 """
 
@@ -27,9 +27,9 @@ from highway_env.envs.common.action import DiscreteMetaAction
 from highway_env.vehicle.controller import MDPVehicle
 from highway_env.vehicle.kinematics import Vehicle
 
-from sim.lanes import NODE_FROM, NODE_TO, lane_index
-from sim.traffic import _FrenetCar
-from sim.world import World
+from sim.world.lanes import NODE_FROM, NODE_TO, lane_index
+from sim.world.traffic import _FrenetCar
+from sim.world.world import World
 
 #: The driver's left/right in our convention (lane 0 rightmost) -> highway-env's index steps.
 _HIGHWAY_LANE_ACTION = {"LANE_LEFT": "LANE_RIGHT", "LANE_RIGHT": "LANE_LEFT"}

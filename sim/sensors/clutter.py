@@ -23,7 +23,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from sim.sensors.raycast import Segments
-from sim.truth import rectangle_corners
+from sim.world.truth import rectangle_corners
 
 KINDS = ("post", "tree", "parked_car")
 #: Height (m) of each kind above the ground, for the 3-D lidar (``sim.sensors.lidar3d``): a guard-rail

@@ -20,7 +20,7 @@ import numpy as np
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import CASTERS, RayGrid
 from sim.sensors.scene import scene_segments
-from sim.truth import Snapshot
+from sim.world.truth import Snapshot
 
 
 #: Lidar models: the planar scan of this module, or the 3-D VLP-16 of ``sim.sensors.lidar3d``.
@@ -179,7 +179,7 @@ class Lidar:
         """One scan of ``snapshot`` (the other vehicles) and ``roadside`` from the ego pose, at the
         snapshot time; noise and dropout from ``rng``."""
         if not isinstance(snapshot, Snapshot):
-            raise ValueError(f"Lidar.scan needs a sim.truth.Snapshot; got {type(snapshot).__name__}")
+            raise ValueError(f"Lidar.scan needs a sim.world.truth.Snapshot; got {type(snapshot).__name__}")
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"Lidar.scan needs rng, a numpy.random.Generator; got {type(rng).__name__}")
         cfg = self.config

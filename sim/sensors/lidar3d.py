@@ -19,7 +19,7 @@ scene, so the random stream does not depend on it (as ``sim.sensors.lidar.Lidar.
 The scene (``Prisms``): upright convex prisms in G, each a counter-clockwise polygon footprint
 extruded from ``base`` to ``top`` (m), with an integer ``owner``. Owner convention of ``Vlp16.scan``
 (as ``sim.sensors.scene``): owners ``0 .. V-1`` are the vehicles ``vehicle_ids[0 .. V-1]``, owners
-``V + j`` the roadside object ``j``; the ego is not in the scene. The ground (``sim.ground``) is the
+``V + j`` the roadside object ``j``; the ego is not in the scene. The ground (``sim.world.ground``) is the
 other thing a ray can hit (owner -1, ``ground`` True).
 
 ``cast_3d`` (vectorised, no per-ray Python loop): with ``d`` a unit ray direction, ``rho = |d_xy|``,
@@ -83,7 +83,7 @@ from functools import cached_property
 
 import numpy as np
 
-from sim.ground import Ground
+from sim.world.ground import Ground
 from sim.sensors.lidar import ray_returns
 from sim.sensors.raycast import RayGrid
 from tracker.cloud import mount_rotation
@@ -753,7 +753,7 @@ def cast_3d(
     if not isinstance(prisms, Prisms):
         raise ValueError(f"cast_3d: prisms must be a Prisms; got {type(prisms).__name__}")
     if not isinstance(ground, Ground):
-        raise ValueError(f"cast_3d: ground must be a sim.ground.Ground; got {type(ground).__name__}")
+        raise ValueError(f"cast_3d: ground must be a sim.world.ground.Ground; got {type(ground).__name__}")
     count = d.shape[0]
     dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
     rho = np.hypot(dx, dy)

@@ -34,7 +34,7 @@ from sim.sensors.raycast import RayGrid, cast as cast_rays
 from sim.sensors.scene import scene_segments, static_arrays
 from tracker import compiled
 from tracker.transforms import rotate, to_global
-from sim.truth import Snapshot
+from sim.world.truth import Snapshot
 
 MOUNTS = ("front", "rear")
 
@@ -205,7 +205,7 @@ class RadarUnit:
         """One cycle at the snapshot time: detections of the visible vehicles (each kept with the
         detection probability) and the false alarms, in E at that time; randomness from ``rng``."""
         if not isinstance(snapshot, Snapshot):
-            raise ValueError(f"RadarUnit.detect needs a sim.truth.Snapshot; got {type(snapshot).__name__}")
+            raise ValueError(f"RadarUnit.detect needs a sim.world.truth.Snapshot; got {type(snapshot).__name__}")
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"RadarUnit.detect needs rng, a numpy.random.Generator; got {type(rng).__name__}")
         cfg = self.config

@@ -10,7 +10,7 @@ after the last frame are not delivered. The truth ``Snapshot`` at the frame time
 frame, never inside it.
 
 The lidar is the 2-D scan of ``sim.sensors.lidar`` or, with ``lidar.model = "vlp16"``, the 3-D VLP-16
-of ``sim.sensors.lidar3d`` over the rig's ``ground`` (``sim.ground``; level by default): the frame
+of ``sim.sensors.lidar3d`` over the rig's ``ground`` (``sim.world.ground``; level by default): the frame
 then carries the raw cloud ``(N, 3)`` in the lidar's frame, as a real VLP-16 driver delivers it, and
 the tracker's own 3-D pipeline (``tracker.cloud``) removes the ground.
 
@@ -28,14 +28,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.ground import FlatGround, Ground
+from sim.world.ground import FlatGround, Ground
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
 from sim.sensors.lidar3d import LidarScan3D, Prisms, Vlp16
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
 from sim.sensors.scene import vehicle_prisms
 from tracker.transforms import rotate, to_global, to_local
-from sim.truth import Snapshot
+from sim.world.truth import Snapshot
 from tracker.frame import EgoState, Frame, RadarDetections
 
 #: Slack (s) when comparing event times and the time of a snapshot returned by ``truth_at``.
@@ -109,7 +109,7 @@ def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence
 
 class SensorRig:
     """Lidar and radar units of ``config`` (``RigConfig()`` by default) seeing the vehicles of the
-    truth and the static ``roadside`` objects (may be ``None``); ``ground`` (``sim.ground``, level by
+    truth and the static ``roadside`` objects (may be ``None``); ``ground`` (``sim.world.ground``, level by
     default) is seen by the 3-D lidar only."""
 
     def __init__(self, config: RigConfig | None = None, roadside: RoadsideObjects | None = None,
@@ -120,7 +120,7 @@ class SensorRig:
         if roadside is not None and not isinstance(roadside, RoadsideObjects):
             raise ValueError(f"SensorRig.roadside must be RoadsideObjects or None; got {type(roadside).__name__}")
         if ground is not None and not isinstance(ground, Ground):
-            raise ValueError(f"SensorRig.ground must be a sim.ground.Ground or None; got {type(ground).__name__}")
+            raise ValueError(f"SensorRig.ground must be a sim.world.ground.Ground or None; got {type(ground).__name__}")
         self.config = config
         self.roadside = roadside
         self.ground = FlatGround() if ground is None else ground
@@ -157,9 +157,9 @@ class SensorRig:
         between frames, whose snapshots need the vehicles' poses only (road coordinates may be NaN);
         the frames' truth and the lidar always come from ``truth_at``."""
         if not callable(truth_at):
-            raise ValueError("SensorRig.frames needs truth_at, a callable t -> sim.truth.Snapshot")
+            raise ValueError("SensorRig.frames needs truth_at, a callable t -> sim.world.truth.Snapshot")
         if poses_at is not None and not callable(poses_at):
-            raise ValueError("SensorRig.frames: poses_at must be None or a callable t -> sim.truth.Snapshot")
+            raise ValueError("SensorRig.frames: poses_at must be None or a callable t -> sim.world.truth.Snapshot")
         if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0):
             raise ValueError(f"duration must be a finite number of seconds >= 0 (or None); got {duration!r}")
         if not (isinstance(t0, (int, float)) and math.isfinite(t0)):
@@ -181,7 +181,7 @@ class SensorRig:
                 return cache[1]
             snap = source(t)
             if not isinstance(snap, Snapshot):
-                raise ValueError(f"{name}({t!r}) must return a sim.truth.Snapshot; got {type(snap).__name__}")
+                raise ValueError(f"{name}({t!r}) must return a sim.world.truth.Snapshot; got {type(snap).__name__}")
             if abs(float(snap.t) - t) > 1e-6:
                 raise ValueError(f"{name}({t!r}) returned a snapshot at t={snap.t!r}")
             cache[0], cache[1] = t, snap

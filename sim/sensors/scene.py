@@ -15,7 +15,7 @@ from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.cast_kernel import scene_kernel
 from sim.sensors.raycast import Segments
 from tracker import compiled
-from sim.truth import Snapshot, rectangle_corners
+from sim.world.truth import Snapshot, rectangle_corners
 from tracker.measurement import NEXT_CORNER
 
 _NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))

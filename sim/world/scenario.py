@@ -81,7 +81,7 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr, Strict, ValidationError, model_validator
 
-from sim.truth import default_height, rectangle_corners
+from sim.world.truth import default_height, rectangle_corners
 from tracker import Road
 
 StrictFloat = Annotated[float, Strict()]
@@ -130,7 +130,7 @@ class RoadSpec(_Model):
 
     ``grade`` (0; |grade| <= 0.15) and ``bank`` (0; |bank| <= 0.15): the road surface rises ``grade`` m
     per m of ``s`` and ``bank`` m per m of ``n`` (toward the left); beside the road the ground is level
-    across (``sim.ground.RoadGround``). Only the 3-D lidar and the vehicles' heights see them (the
+    across (``sim.world.ground.RoadGround``). Only the 3-D lidar and the vehicles' heights see them (the
     vehicles drive the 2-D road); a closed road cannot have a grade."""
 
     lanes: StrictInt = Field(default=2, ge=1, le=6)
@@ -255,7 +255,7 @@ class VehicleSpec(_Model):
 
     ``length`` (4.8 m; 2-20 m) and ``width`` (2.0 m; 0.6-3 m) size its rectangle: a 2.2 x 0.8 m
     motorcycle, a 6 x 2.1 m van, a 12-18 x 2.5 m truck or bus. ``height`` (m, 0.8-5; default by
-    length, ``sim.truth.default_height``: motorcycle 1.2, car 1.5, van 2.0, truck 3.5) is seen only by
+    length, ``sim.world.truth.default_height``: motorcycle 1.2, car 1.5, van 2.0, truck 3.5) is seen only by
     the 3-D lidar. ``behaviour = "constant"`` with
     ``speed = 0`` is a vehicle standing still on the road (broken down, parked)."""
 
@@ -344,7 +344,7 @@ class VehicleClass(_Model):
     stored as ``(low, high)``; lengths 2-20 m, widths 0.6-3 m and at most the lane width - 0.5 m)
     and ``share`` (the probability that a drawn vehicle is of this class, in (0, 1]; the shares of
     all classes sum to 1 within 1e-6); ``height`` (m, 0.8-5; default: the class's by ``name`` when it
-    is car, van, truck, bus or motorcycle (``sim.truth.CLASS_HEIGHTS``), else by each vehicle's
+    is car, van, truck, bus or motorcycle (``sim.world.truth.CLASS_HEIGHTS``), else by each vehicle's
     length). Checked by ``GeneratorSpec``, which knows the class's index."""
 
     name: StrictStr = Field(min_length=1, max_length=32)
@@ -362,14 +362,14 @@ class VehicleClass(_Model):
 
 class GeneratorSpec(_Model):
     """Ranges ``[low, high]`` (drawn uniformly) from which each seed draws a new road and/or new
-    traffic (``sim.generator``); defaults in brackets.
+    traffic (``sim.world.generator``); defaults in brackets.
 
     Road (when the file has no ``[road]``): an open road of ``lanes`` [2, 3] lanes of ``lane_width``
     [3.5 m], alternating straights (``straight_length`` [30, 150] m) and curves (clothoid ramp in of
     ``ramp_length`` [20, 50] m, arc of ``arc_length`` [40, 160] m, ramp out), each curve turning left
     or right with curvature uniform in ``[1/radius_high, 1/radius_low]`` (``radius`` [60, 400] m),
     until it is long enough for the ego to drive the scenario's duration; a road that winds back to
-    within its width plus ``sim.generator.ROAD_SELF_CLEARANCE`` (10 m) of itself is drawn again.
+    within its width plus ``sim.world.generator.ROAD_SELF_CLEARANCE`` (10 m) of itself is drawn again.
     Traffic (when the file has no ``[ego]`` and no ``[[vehicles]]``): the ego (idm, no MOBIL,
     ``ego_speed`` [14, 20] m/s) and ``vehicles`` [3, 8] others at ``spawn`` [-60, 120] m from the
     ego along the road, ``speed`` [12, 25] m/s, ``length`` [4.2, 5.2] m, ``width`` [1.7, 2.1] m
@@ -544,7 +544,7 @@ class ScenarioSpec(_Model):
     """A validated scenario: ``name``, one-line ``description``, ``duration`` (s), ``road``, ``ego``,
     ``vehicles``, optional ``sensors`` / ``tracker`` overrides (tables passed to the runner, applied
     with ``apply_overrides``) and an optional ``generator``. With a generator the file may leave out
-    the road and/or the traffic (ego and vehicles together); ``sim.generator.realize(spec, seed)``
+    the road and/or the traffic (ego and vehicles together); ``sim.world.generator.realize(spec, seed)``
     draws what is missing. A concrete spec (no generator) has a road and an ego.
 
     Checks beyond types: lanes exist, vehicles fit in their lanes, start positions lie on the road
@@ -677,7 +677,7 @@ class ScenarioSpec(_Model):
     def build_road(self) -> Road:
         """The ``tracker.Road`` of this scenario (built once at validation and shared)."""
         if self.road is None:
-            raise ValueError(f"scenario {self.name!r} has no road; draw one with sim.generator.realize(spec, seed)")
+            raise ValueError(f"scenario {self.name!r} has no road; draw one with sim.world.generator.realize(spec, seed)")
         if self._road is None:
             self._road = self.road.build()
         return self._road
@@ -739,7 +739,7 @@ def _describe(error: dict[str, Any]) -> str:
         return f"{field}: missing; this field is required"
     if kind == "extra_forbidden":
         model = _model_at(loc)
-        allowed = ", ".join(model.model_fields) if model is not None else "see the scenario format in sim/scenario.py"
+        allowed = ", ".join(model.model_fields) if model is not None else "see the scenario format in sim/world/scenario.py"
         return f"{field} = {value!r}: unknown key; allowed keys here: {allowed}"
     if kind == "union_tag_invalid" or kind == "union_tag_not_found":
         return f"{field}: maneuver kind must be one of 'lane_change', 'speed', 'brake'; got {value!r}"
@@ -791,7 +791,7 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
     if "scenarios" in data and "road" not in data and "generator" not in data:
-        raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.scenario.load_suite")
+        raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.world.scenario.load_suite")
     spec = parse_scenario(data, str(p))
     spec._source = p
     return spec

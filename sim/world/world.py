@@ -4,7 +4,7 @@
 vehicles (the ego is id 0, the file's vehicles 1, 2, ... in order). ``advance(t)`` moves the traffic
 forward on a fixed internal grid ``k * step`` (``step`` = 0.05 s by default): at each grid time every
 vehicle decides its action (IDM/MOBIL, scripts), then all move by ``step`` (highway-env's kinematic
-bicycle model, action held over the step). ``truth_at(t)`` returns a ``sim.truth.Snapshot`` at any
+bicycle model, action held over the step). ``truth_at(t)`` returns a ``sim.world.truth.Snapshot`` at any
 ``t`` between grid times too, by evaluating the same held-action kinematics from the last grid state
 over the remaining fraction of a step, without changing the simulation: so the traffic does not
 depend on when, or how often, it is observed (lidar at 10 Hz, radars at 14 Hz out of phase, or
@@ -17,7 +17,7 @@ Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped); ``v`` 
 ``yaw`` is the body heading (the rectangle's orientation); highway-env's bicycle model moves the
 centre along ``yaw + beta``, ``beta = atan(tan(steering) / 2)`` the slip angle, so a car keeping its
 lane on a steady curve has ``xi ~ -beta ~ -l_r kappa`` with ``l_r = min(L / 2, 3 m)`` the centre to
-rear axle distance (``sim.traffic.MAX_REAR_AXLE``; -0.04 rad for a 4.8 m car at R 60 m),
+rear axle distance (``sim.world.traffic.MAX_REAR_AXLE``; -0.04 rad for a 4.8 m car at R 60 m),
 while ``Snapshot.velocity`` (speed along ``yaw``) differs from the centre's true velocity by ``beta``.
 
 Open roads: a vehicle whose centre passes the end (``s > length``) leaves the world (its id no longer
@@ -35,11 +35,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.ground import RoadGround
-from sim.lanes import build_network
-from sim.scenario import ScenarioSpec, polygons_overlap
-from sim.traffic import TrafficRoad, make_vehicle
-from sim.truth import EgoPose, Snapshot, rectangle_corners
+from sim.world.ground import RoadGround
+from sim.world.lanes import build_network
+from sim.world.scenario import ScenarioSpec, polygons_overlap
+from sim.world.traffic import TrafficRoad, make_vehicle
+from sim.world.truth import EgoPose, Snapshot, rectangle_corners
 from tracker.angles import wrap_angle
 
 #: Default internal step (s).
@@ -74,17 +74,17 @@ class VehicleState:
 class World:
     """highway-env traffic on the scenario's road; see the module notes.
 
-    ``spec`` must be concrete or carry a generator (then ``sim.generator.realize(spec, seed)`` draws
+    ``spec`` must be concrete or carry a generator (then ``sim.world.generator.realize(spec, seed)`` draws
     the road/traffic first; ``world.spec`` is the drawn scenario). ``seed`` also seeds highway-env's
     ``np_random`` (``numpy.random.Generator``). ``step`` is the internal step (s, in (0, 0.1])."""
 
     def __init__(self, spec: ScenarioSpec, seed: int = 0, *, step: float = DEFAULT_STEP) -> None:
         if not isinstance(spec, ScenarioSpec):
-            raise ValueError(f"World needs a sim.scenario.ScenarioSpec; got {type(spec).__name__}")
+            raise ValueError(f"World needs a sim.world.scenario.ScenarioSpec; got {type(spec).__name__}")
         if not (isinstance(step, (int, float)) and 0.0 < step <= 0.1):
             raise ValueError(f"World step must be in (0, 0.1] s; got {step!r}")
         if spec.generator is not None:
-            from sim.generator import realize
+            from sim.world.generator import realize
 
             spec = realize(spec, seed)
         assert spec.road is not None and spec.ego is not None

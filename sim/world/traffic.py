@@ -26,7 +26,7 @@ a vehicle standing still on the road.
 ``TrafficRoad`` is highway-env's ``Road`` with a neighbour search on the stored ``(s, n)`` that wraps
 on closed roads, ``time`` (s, set by the world) and ``dt`` (s, the world's step) for the scripts, and
 no collision physics:
-highway-env's impulses would move vehicles outside their kinematics; ``sim.world`` detects and
+highway-env's impulses would move vehicles outside their kinematics; ``sim.world.world`` detects and
 records overlaps instead.
 """
 
@@ -42,8 +42,8 @@ from highway_env.road.road import RoadNetwork
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 
-from sim.lanes import NODE_FROM, NODE_TO, FrenetProjector, lane_index
-from sim.scenario import Brake, LaneChange, SpeedChange, VehicleSpec
+from sim.world.lanes import NODE_FROM, NODE_TO, FrenetProjector, lane_index
+from sim.world.scenario import Brake, LaneChange, SpeedChange, VehicleSpec
 from tracker import Road
 
 #: IDM jam distance between bumpers (m); highway-env's is 10 m between centres of 5 m cars.
@@ -55,7 +55,7 @@ SCRIPTED_DECEL = 3.0
 #: for ~6 m/s at the start of a MOBIL lane change (a 1.6 rad/s yaw rate at 20 m/s); drivers change
 #: lanes at ~1 m/s over 3-4 s. Scripted lane changes add their profile's rate as feed-forward.
 MAX_LATERAL_SPEED = 1.5
-#: Default step (s) over which a vehicle's action is held (``sim.world`` passes its own step).
+#: Default step (s) over which a vehicle's action is held (``sim.world.world`` passes its own step).
 DEFAULT_DT = 0.05
 #: Largest distance (m) from a vehicle's rectangle centre to the rear axle of the kinematic bicycle
 #: model. highway-env puts the axles at the bumpers (``l_r = length / 2``), which for a 12 m truck on a

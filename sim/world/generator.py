@@ -7,7 +7,7 @@ tracker overrides) is kept. The drawn scenario goes through the same validation 
 valid by construction or the call raises ``ScenarioError``. A drawn road never overlaps itself: one
 that winds back to within its width plus ``ROAD_SELF_CLEARANCE`` of itself is drawn again
 (``draw_clear_road``). The ranges and rules are documented on
-``sim.scenario.GeneratorSpec``; with ``classes`` (``sim.scenario.VehicleClass``) each drawn vehicle is
+``sim.world.scenario.GeneratorSpec``; with ``classes`` (``sim.world.scenario.VehicleClass``) each drawn vehicle is
 a car, van, truck, bus, motorcycle ... with the class's share as its probability, and the class's
 length and width.
 
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.scenario import GeneratorSpec, LaneChange, RoadSpec, ScenarioError, ScenarioSpec, parse_scenario
+from sim.world.scenario import GeneratorSpec, LaneChange, RoadSpec, ScenarioError, ScenarioSpec, parse_scenario
 from tracker.road import Road
 
 #: Stream tag mixed into the seed for the generator's random numbers.

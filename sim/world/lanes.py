@@ -9,10 +9,10 @@ coordinate is the centerline arc length ``s`` (shared by all lanes, so gaps betw
 different lanes compare directly) and the lateral one is the offset from the lane centre ``n_k``.
 
 Closed roads: each lane is one segment whose ``after_end`` is never true, and ``s`` wraps in
-``[0, length)``; the wrap of distances between vehicles is handled by ``sim.traffic``. Open roads:
+``[0, length)``; the wrap of distances between vehicles is handled by ``sim.world.traffic``. Open roads:
 positions beyond an end extrapolate along the end tangent (``tracker.Road``'s documented behaviour);
 ``after_end`` keeps highway-env's meaning and there is no next lane (highway-env then keeps the current
-one); ``sim.world`` removes vehicles that pass the end.
+one); ``sim.world.world`` removes vehicles that pass the end.
 
 Speed: highway-env projects vehicle positions onto lanes hundreds of times per step. All lanes share
 one ``FrenetProjector`` that memoises the projection of each position (a point has the same ``s`` and
@@ -75,7 +75,7 @@ class FrenetProjector:
 class FrenetLane(AbstractLane):
     """Lane ``index`` of a ``tracker.Road`` as a highway-env lane (see the module notes for the
     coordinate mapping). ``road_config`` is the plain-data road description kept for
-    ``to_config``/``from_config`` (a ``sim.scenario.RoadSpec`` dump)."""
+    ``to_config``/``from_config`` (a ``sim.world.scenario.RoadSpec`` dump)."""
 
     def __init__(
         self,
@@ -87,8 +87,8 @@ class FrenetLane(AbstractLane):
     ) -> None:
         if road is None:
             if road_config is None:
-                raise ValueError("FrenetLane needs a road or a road_config (a sim.scenario.RoadSpec dump)")
-            from sim.scenario import RoadSpec
+                raise ValueError("FrenetLane needs a road or a road_config (a sim.world.scenario.RoadSpec dump)")
+            from sim.world.scenario import RoadSpec
 
             road = RoadSpec.model_validate(road_config).build()
         self.road = road
