@@ -31,7 +31,7 @@ __all__ = ["ENV_ID", "ENV_MAX_EPISODE_STEPS", "Result", "ScenarioError", "Scenar
 
 def __getattr__(name: str) -> Any:
     if name in ("run_scenario", "Result"):
-        from sim import runner
+        from sim.evaluation import runner
 
         return getattr(runner, name)
     raise AttributeError(f"module 'sim' has no attribute {name!r}")

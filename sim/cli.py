@@ -6,7 +6,7 @@ with its figures and CSVs (``sim.study``, ``sim.claims``, ``sim.report``); a var
 built here is skipped with a warning and a note in the report; ``--report-only`` rebuilds the report
 from ``OUT/report/``.
 
-``eot run`` / ``eot demo`` also write the run's diagnostics (``sim.inspect``: ``events.csv``,
+``eot run`` / ``eot demo`` also write the run's diagnostics (``sim.evaluation.inspect``: ``events.csv``,
 ``worst_intervals.csv``, ``events.png``) and print one line of them; ``eot inspect RUN_DIR`` prints
 the full summary (per vehicle a line, then the worst GOSPA intervals with their causes) and
 rewrites those files (``--out`` elsewhere). A missing or incomplete run folder is a one-line error
@@ -166,7 +166,7 @@ def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
 
 
 def _check_variants(names: list[str]) -> list[str]:
-    from sim.variants import UnknownVariantError, check_variant
+    from sim.evaluation.variants import UnknownVariantError, check_variant
 
     try:
         return [check_variant(v) for v in names]
@@ -225,13 +225,13 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     import time
     from pathlib import Path
 
-    from sim.inspect import headline, inspect_run, write_inspection
-    from sim.plots import write_figures
+    from sim.evaluation.inspect import headline, inspect_run, write_inspection
+    from sim.evaluation.plots import write_figures
     from sim.progress import ProgressBar
-    from sim.results import write_results
-    from sim.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
+    from sim.evaluation.results import write_results
+    from sim.evaluation.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
     from sim.world.scenario import ScenarioError, load_scenario
-    from sim.variants import check_variant
+    from sim.evaluation.variants import check_variant
 
     spec = load_scenario(scenario)
     try:  # usage errors are checked here; an error inside the run is a bug and keeps its traceback
@@ -291,7 +291,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _inspect(args: argparse.Namespace) -> int:
     """``eot inspect RUN_DIR``: print the diagnostics of a run folder and write their files."""
-    from sim.inspect import InspectError, inspect_run, summary_text, write_inspection
+    from sim.evaluation.inspect import InspectError, inspect_run, summary_text, write_inspection
 
     try:
         insp = inspect_run(args.run_dir, top=args.top, threshold=args.threshold)
@@ -305,7 +305,7 @@ def _inspect(args: argparse.Namespace) -> int:
 
 
 def _split_variants(values: list[str] | None) -> list[str]:
-    from sim.variants import DEFAULT_VARIANT
+    from sim.evaluation.variants import DEFAULT_VARIANT
 
     names = [v.strip() for value in (values or [DEFAULT_VARIANT]) for v in value.split(",") if v.strip()]
     return list(dict.fromkeys(names))
@@ -604,7 +604,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="frenet-eot: extended object tracking in Frenet road coordinates.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    from sim.variants import DEFAULT_VARIANT, VARIANTS
+    from sim.evaluation.variants import DEFAULT_VARIANT, VARIANTS
 
     p = sub.add_parser("demo", help=f"run curvy-multi with defaults; figures, GIF and a summary in {OUTPUT_ROOT}/demo/")
     p.add_argument("--out", default=f"{OUTPUT_ROOT}/demo", help=f"output folder (default: {OUTPUT_ROOT}/demo)")

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from sim.world.scenario import load_scenario, resolve_scenario_path
-from sim.variants import check_variant
+from sim.evaluation.variants import check_variant
 from tracker.compiled import warm_up
 
 #: Mode name of the ground-truth perception.

@@ -42,7 +42,7 @@ from sim.sensors.rig import SensorFrame
 from tracker.frame import Frame, RadarDetections
 
 if TYPE_CHECKING:
-    from sim.runner import FrameRecord
+    from sim.evaluation.runner import FrameRecord
 
 #: Stream tag mixed into the seed for the faults' random generator (lidar spikes).
 FAULT_STREAM = 0x46415554  # "FAUT"

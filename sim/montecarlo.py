@@ -3,9 +3,9 @@
 A study is a list of ``RunTask``s (``plan``): every scenario with every variant for the seeds
 ``seed0 .. seed0 + runs - 1`` (the same seeds for every variant: common random numbers, so variant
 differences are not drowned in scenario noise). ``run_task`` runs one and returns one CSV row: the
-scenario, variant, seed, simulated seconds and every scalar metric of ``sim.runner`` (metrics.json
+scenario, variant, seed, simulated seconds and every scalar metric of ``sim.evaluation.runner`` (metrics.json
 keys). Runs are independent and deterministic, so the rows do not depend on the backend, the number
-of workers or the order in which runs finish (only the wall-clock keys, ``sim.runner.TIMING_KEYS``,
+of workers or the order in which runs finish (only the wall-clock keys, ``sim.evaluation.runner.TIMING_KEYS``,
 differ):
 
 - ``backend="local"``: ``workers`` processes (``concurrent.futures.ProcessPoolExecutor``; 1 runs in
@@ -52,9 +52,9 @@ from typing import Any
 
 import numpy as np
 
-from sim.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
+from sim.evaluation.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
 from sim.world.scenario import ScenarioError, parse_scenario, resolve_scenario_path
-from sim.variants import DEFAULT_VARIANT, check_variant
+from sim.evaluation.variants import DEFAULT_VARIANT, check_variant
 from tracker.compiled import warm_up
 
 BACKENDS = ("local", "ray")
@@ -138,7 +138,7 @@ def _scalar(value: Any) -> bool:
 
 def run_task(task: RunTask) -> dict[str, Any]:
     """Run one task and return its row: ``scenario``, ``variant``, ``seed``, ``sim_s`` and the scalar
-    metrics of ``sim.runner`` (``None`` where undefined)."""
+    metrics of ``sim.evaluation.runner`` (``None`` where undefined)."""
     spec = parse_scenario(task.data, task.source)
     result = run_scenario(spec, task.seed, task.variant, duration=task.duration, roadside=task.roadside,
                           tracker_factory=task.tracker_factory, lidar_model=task.lidar_model)

@@ -7,7 +7,7 @@ wall times, skipped variants), the claims (``sim.claims``: one paragraph each, f
 per-scenario tables (``TABLE_METRICS``, mean and 95 % t interval over seeds), the figures, the
 per-run wall time per variant (to budget a study) and, when it ran, the hard suite.
 
-Figures (matplotlib's Agg canvas, never pyplot, as ``sim.plots``):
+Figures (matplotlib's Agg canvas, never pyplot, as ``sim.evaluation.plots``):
 
 - ``fused_vs_lidar.png``: GOSPA and cardinality over time on curvy-multi, fused vs lidar-only;
 - ``curvilinear_vs_cartesian.png``: GOSPA and yaw error over time on curve-single;

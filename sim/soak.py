@@ -3,7 +3,7 @@ what must stay bounded over hours: the tracker's component count, the process's 
 non-finite or non-PSD states, the tracker's time per frame and GOSPA.
 
 ``run_soak(SoakConfig(...))`` builds the ``World`` (traffic), the ``SensorRig`` and the ``Tracker``
-exactly as ``sim.runner.run_scenario`` does (same overrides, same seeds), then steps through the
+exactly as ``sim.evaluation.runner.run_scenario`` does (same overrides, same seeds), then steps through the
 frames without keeping them: every ``window_s`` simulated seconds it closes one ``SoakWindow`` of
 aggregates (``on_window`` is called with it, e.g. to append a CSV row), so memory does not grow with
 the run's length and a killed run leaves its finished windows behind. The default scenario,
@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.metrics import GOSPA_C, GOSPA_P, gospa
-from sim.runner import (
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, gospa
+from sim.evaluation.runner import (
     SENSOR_STREAM,
     build_rig,
     default_tracker_factory,
@@ -42,7 +42,7 @@ from sim.runner import (
     truth_state,
 )
 from sim.world.scenario import ScenarioSpec
-from sim.variants import DEFAULT_VARIANT, check_variant
+from sim.evaluation.variants import DEFAULT_VARIANT, check_variant
 from sim.world.world import World
 
 #: Scenario of the soak test (a closed road, so the traffic never ends).

@@ -1,7 +1,7 @@
 """The paper's comparison study (``eot compare``): every variant over a suite with the same seeds.
 
 ``run_compare`` runs the Monte Carlo of ``sim.montecarlo`` (``plan`` + ``run_study``) for every
-*available* variant (``sim.variants.probe_variant``: a variant whose optional dependency is missing
+*available* variant (``sim.evaluation.variants.probe_variant``: a variant whose optional dependency is missing
 here is skipped with its reason; any other failure to build a variant is an error) over the scenarios of a suite and the seeds ``seed0 .. seed0 + runs - 1``. All variants
 see the same simulated data for the same scenario and seed (the world, the sensors and the clutter
 are seeded by the seed alone), so differences between variants are *paired*: ``paired_difference``
@@ -175,7 +175,7 @@ class SeriesTask:
 
 def series_of(task: SeriesTask) -> tuple[list[dict[str, Any]], float | None]:
     """Run ``task`` and return its ``series.csv`` rows (``SERIES_COLUMNS``) and its GOSPA mean."""
-    from sim.runner import run_scenario
+    from sim.evaluation.runner import run_scenario
 
     spec = load_scenario(task.path)
     result = run_scenario(spec, task.seed, task.variant, duration=task.duration)
@@ -262,7 +262,7 @@ class CompareSettings:
 def split_available(variants: Sequence[str]) -> tuple[list[str], dict[str, str]]:
     """The variants that can be built here, and those whose optional dependency is missing, with the
     reason (``probe_variant``); any other failure to build a variant propagates."""
-    from sim.variants import probe_variant
+    from sim.evaluation.variants import probe_variant
 
     ok, skipped = [], {}
     for v in variants:

@@ -15,7 +15,7 @@ from sim.baselines.stonesoup_gmphd import (
     _cartesian_view,
     import_stonesoup,
 )
-from sim.runner import run_scenario
+from sim.evaluation.runner import run_scenario
 from tracker import EgoState, Frame, Road, TrackerConfig
 
 pytest.importorskip("stonesoup")

@@ -1460,7 +1460,7 @@ def test_the_papers_euler_conversion_never_takes_the_fused_update(monkeypatch):
     same numbers with the fused calls as with the two steps, and the fused calls decline its updates."""
     import tracker.tracker as tt
     import tracker.update as tu
-    from sim.variants import variant_config
+    from sim.evaluation.variants import variant_config
 
     config = variant_config("paper")
     assert config.measurement.conversion == "euler"

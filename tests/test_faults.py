@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sim.faults import DropoutOutcome, dropout_metrics, dropout_outcomes, in_intervals
-from sim.runner import check_scenario_settings, run_scenario
+from sim.evaluation.runner import check_scenario_settings, run_scenario
 from sim.world.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
 from sim.sensors import SensorRig
 from sim.world.world import World

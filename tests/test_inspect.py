@@ -1,4 +1,4 @@
-"""Diagnostics of a run (``sim.inspect``, ``eot inspect``): oracle runs with hand-made losses, label
+"""Diagnostics of a run (``sim.evaluation.inspect``, ``eot inspect``): oracle runs with hand-made losses, label
 changes, coasting and merges give exactly those events with the documented causes; a hand-written
 run folder checks the merge heuristic and the GOSPA attribution (duplicate, clutter, missed); the
 CLI writes its files and fails with one line on a bad folder."""
@@ -13,7 +13,7 @@ import pytest
 from oracle_tracker import OracleTracker
 
 from sim import cli, load_scenario
-from sim.inspect import (
+from sim.evaluation.inspect import (
     FAILED_GATE,
     GOSPA_CAUSES,
     MERGED,
@@ -28,9 +28,9 @@ from sim.inspect import (
     summary_text,
     write_inspection,
 )
-from sim.metrics import gospa
-from sim.results import TIMESERIES_COLUMNS, TRACK_COLUMNS, TRUTH_COLUMNS, write_results
-from sim.runner import run_scenario
+from sim.evaluation.metrics import gospa
+from sim.evaluation.results import TIMESERIES_COLUMNS, TRACK_COLUMNS, TRUTH_COLUMNS, write_results
+from sim.evaluation.runner import run_scenario
 
 DROP = (1.0, 2.0)  # vehicle DROPPED's track is not reported in [1.0, 2.0) s
 RELABEL_T = 2.0  # vehicle RELABELLED gets label 100 + id from 2.0 s on
@@ -166,7 +166,7 @@ def test_tracker_events_give_coasting_and_merge(picks, tmp_path):
 
 def _folder(tmp_path, truth, tracks, *, frames=11, dt=0.1, visible=None):
     """A run folder by hand: ``truth[vid] = (x, y)`` fixed; ``tracks`` = (label, t0, t1, x, y) shown in
-    [t0, t1]; assignment and GOSPA by ``sim.metrics.gospa``; ``visible[vid]`` (bool) default True."""
+    [t0, t1]; assignment and GOSPA by ``sim.evaluation.metrics.gospa``; ``visible[vid]`` (bool) default True."""
     visible = visible or {}
     ts, tk, tr = [], [], []
     ids = sorted(truth)
@@ -284,8 +284,8 @@ def test_eot_inspect_bad_folder_is_one_line(tmp_path, capsys):
 def test_events_figure_legends_outside_and_title_matches_the_shading(tmp_path, picks):
     from matplotlib.patches import Polygon, Rectangle
 
-    from sim.inspect import events_figure
-    from sim.plots import vehicle_color
+    from sim.evaluation.inspect import events_figure
+    from sim.evaluation.plots import vehicle_color
 
     result = _run(duration=2.5, drop=(picks[0], *DROP))
     write_results(result, tmp_path)

@@ -1,4 +1,4 @@
-"""``sim.long_vehicles``: when a long vehicle's side counts as seen, and the length error 3 s later."""
+"""``sim.evaluation.long_vehicles``: when a long vehicle's side counts as seen, and the length error 3 s later."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sim.long_vehicles import LENGTH_DELAY, length_errors, metrics, side_seen
+from sim.evaluation.long_vehicles import LENGTH_DELAY, length_errors, metrics, side_seen
 from tracker.measurement import rectangle_corners, rectangle_scan
 
 RES = np.radians(0.2)

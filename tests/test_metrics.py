@@ -1,4 +1,4 @@
-"""Tests of sim/metrics.py: hand-computed GOSPA cases and Stone Soup's GOSPAMetric as the oracle."""
+"""Tests of sim/evaluation/metrics.py: hand-computed GOSPA cases and Stone Soup's GOSPAMetric as the oracle."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import datetime
 import numpy as np
 import pytest
 
-from sim.metrics import (
+from sim.evaluation.metrics import (
     IdSwitchCounter,
     cardinality_error,
     euclidean_distances,

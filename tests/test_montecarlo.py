@@ -21,8 +21,8 @@ from sim.montecarlo import (
     summarize_runs,
     write_study,
 )
-from sim.runner import TIMING_KEYS
-from sim.variants import UnknownVariantError
+from sim.evaluation.runner import TIMING_KEYS
+from sim.evaluation.variants import UnknownVariantError
 
 
 def _strip(rows):

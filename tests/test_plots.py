@@ -13,7 +13,7 @@ from oracle_tracker import OracleFactory, SilentTracker
 from PIL import Image
 
 from sim import load_scenario
-from sim.plots import (
+from sim.evaluation.plots import (
     UNMATCHED_COLOR,
     VEHICLE_COLORS,
     birdseye_figure,
@@ -26,7 +26,7 @@ from sim.plots import (
     write_figures,
     write_gif,
 )
-from sim.runner import run_scenario
+from sim.evaluation.runner import run_scenario
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from oracle_tracker import OracleFactory
 
 from sim import load_scenario
 from sim.progress import ProgressBar
-from sim.runner import run_scenario
+from sim.evaluation.runner import run_scenario
 
 
 def _lines(text: str) -> list[str]:

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from sim import variants as variants_module
+from sim.evaluation import variants as variants_module
 from sim.report import FIGURES, write_report
 from sim.world.scenario import SCENARIO_DIR
 from sim.study import CompareSettings, read_compare, run_compare, write_compare

@@ -10,10 +10,10 @@ import pytest
 from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
-from sim.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
+from sim.evaluation.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
 from sim.world.scenario import ScenarioError, parse_scenario
 from sim.world.truth import EgoPose, Snapshot
-from sim.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
+from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from tracker import Road
 
 DESIGN_KEYS = (
@@ -310,7 +310,7 @@ def test_the_vlp16_pipeline_tracks_as_well_as_the_2d_lidar(name: str) -> None:
 
 
 def test_with_lidar_model_sets_the_model_and_the_tracker_gets_the_mount() -> None:
-    from sim.runner import rig_config_for, tracker_config_for, with_lidar_model
+    from sim.evaluation.runner import rig_config_for, tracker_config_for, with_lidar_model
 
     spec = load_scenario("curve-single")
     spec3 = with_lidar_model(spec, "vlp16")

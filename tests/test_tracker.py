@@ -943,7 +943,7 @@ def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration:
     import copy
 
     from sim.montecarlo import scenario_task_data
-    from sim.runner import run_scenario
+    from sim.evaluation.runner import run_scenario
     from sim.world.scenario import parse_scenario, resolve_scenario_path
 
     _, source, data = scenario_task_data(resolve_scenario_path(scenario))

@@ -43,7 +43,7 @@ def compare(frames: int = 200, *, seed: int = 0, variants: tuple[str, ...] = OUR
     each of them is timed that many times, in rounds (ours, then Stone Soup's, per round), and each
     keeps its fastest round (``best_of``), so a busy minute of the machine slows both alike."""
     version = require_stonesoup()
-    from sim.variants import make_tracker
+    from sim.evaluation.variants import make_tracker
 
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ValueError(f"repeat must be an integer >= 1; got {repeat!r}")

@@ -156,7 +156,7 @@ def world_section(s: Settings) -> dict[str, Any]:
 
 
 def end_to_end_section(s: Settings) -> dict[str, Any]:
-    from sim.runner import run_scenario
+    from sim.evaluation.runner import run_scenario
     from sim.world.scenario import load_scenario
 
     out: dict[str, Any] = {}

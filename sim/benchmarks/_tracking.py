@@ -20,10 +20,10 @@ from typing import Any
 import numpy as np
 
 from sim.benchmarks._traffic import Layout, layout, truth_function
-from sim.runner import MIN_VISIBLE_POINTS
+from sim.evaluation.runner import MIN_VISIBLE_POINTS
 from sim.sensors import SensorRig
 from sim.sensors.rig import RigConfig, SensorFrame
-from sim.variants import make_tracker, variant_config
+from sim.evaluation.variants import make_tracker, variant_config
 from tracker import TrackerConfig
 
 WARMUP_FRAMES = 10
@@ -50,7 +50,7 @@ def in_view(frames: list[SensorFrame]) -> np.ndarray:
 
 
 def bench_config(variant: str) -> TrackerConfig:
-    """The variant's configuration told the default lidar's range and resolution (as ``sim.runner``
+    """The variant's configuration told the default lidar's range and resolution (as ``sim.evaluation.runner``
     does for a scenario)."""
     config = variant_config(variant)
     lidar = RigConfig().lidar

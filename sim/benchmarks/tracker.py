@@ -68,7 +68,7 @@ def measure(counts: list[int] | tuple[int, ...], variants: list[str] | tuple[str
     timing runs that many times, in rounds over all counts and variants (a busy minute of the machine
     then slows one round of each, not every round of one), and each row is its fastest round
     (``best_of``: with ``rounds`` and ``ms_median_rounds``)."""
-    from sim.variants import check_variant
+    from sim.evaluation.variants import check_variant
 
     for v in variants:
         check_variant(v)

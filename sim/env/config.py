@@ -12,7 +12,7 @@ Fields (SI units):
 - ``scenario`` ("curve-single"): a scenario name of ``scenarios/`` or a path to a scenario file. A
   scenario with a ``[generator]`` table (e.g. "random-road") draws a new road and traffic for every
   ``reset(seed=...)``.
-- ``variant`` ("curvilinear-fused"): the tracker variant (``sim.variants``), used with
+- ``variant`` ("curvilinear-fused"): the tracker variant (``sim.evaluation.variants``), used with
   ``perception = "tracks"``.
 - ``perception`` ("tracks"): "tracks" (rows from the tracker's tracks) or "truth" (the same layout from
   ground truth; see ``sim.env.observation``).
@@ -50,7 +50,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-from sim.variants import DEFAULT_VARIANT, UnknownVariantError, check_variant
+from sim.evaluation.variants import DEFAULT_VARIANT, UnknownVariantError, check_variant
 
 PERCEPTIONS = ("tracks", "truth")
 ACTIONS = ("DiscreteMetaAction", "ContinuousAction")

@@ -7,7 +7,7 @@ One ``step(action)`` (period ``1 / policy_frequency``, 0.2 s by default):
 2. the world (``sim.world.world.World``) advances on its 0.05 s grid -- the other vehicles follow the
    scenario's behaviours (IDM/MOBIL, constant, scripted) -- while the sensor rig
    (``sim.sensors.SensorRig``: lidar at 10 Hz, radars at 14 Hz out of phase, roadside clutter, exactly
-   as ``sim.runner`` uses it) makes a ``tracker.Frame`` at every lidar time and the ``tracker.Tracker``
+   as ``sim.evaluation.runner`` uses it) makes a ``tracker.Frame`` at every lidar time and the ``tracker.Tracker``
    of ``variant`` steps on each (``perception = "truth"`` skips the tracker);
 3. the observation (``sim.env.observation``) is built from the tracks (or the truth) at the last lidar
    frame, which falls on the end of the period.
@@ -55,7 +55,7 @@ from highway_env.envs.common.action import ContinuousAction
 from sim.env.config import ConfigError, EnvConfig, _steps
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
-from sim.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
+from sim.evaluation.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
 from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
 from sim.sensors import SensorRig
 from sim.sensors.rig import SensorFrame

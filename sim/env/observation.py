@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from gymnasium import spaces
 
-from sim.runner import truth_set
+from sim.evaluation.runner import truth_set
 from sim.world.scenario import MAX_SPEED
 
 if TYPE_CHECKING:

@@ -3,7 +3,7 @@
 highway-env's pygame viewer draws black frames under ``SDL_VIDEODRIVER=dummy``; this renderer needs no
 display at all (``matplotlib.figure.Figure`` + ``FigureCanvasAgg``, never pyplot). The view follows the
 ego, north up, ``view_half_width`` m each way: road edges and lane lines, the other vehicles' true
-outlines (each in its colour, ``sim.plots.vehicle_color``, as in the run's figures), the ego (black),
+outlines (each in its colour, ``sim.evaluation.plots.vehicle_color``, as in the run's figures), the ego (black),
 the latest lidar scan (green points), the radar detections of the latest frame (red crosses, 0.5 s
 velocity arrows), and the tracks as filled rectangles labelled by track label, in the colour of the
 vehicle GOSPA assigns them to (the runner's assignment: scored truth set, c = 5 m), grey when
@@ -19,9 +19,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 
-from sim.metrics import GOSPA_C, GOSPA_P, gospa
-from sim.plots import LIDAR_COLOR, RADAR_COLOR, UNMATCHED_COLOR, vehicle_color
-from sim.runner import truth_set
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, gospa
+from sim.evaluation.plots import LIDAR_COLOR, RADAR_COLOR, UNMATCHED_COLOR, vehicle_color
+from sim.evaluation.runner import truth_set
 from sim.world.truth import rectangle_corners
 from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import rotate, to_global

@@ -2,7 +2,7 @@
 
 ``inspect_run(folder)`` reads the files ``eot run ... --out DIR`` writes (``timeseries.csv``,
 ``truth.csv``, ``tracks.csv``, ``metrics.json`` and, when the tracker exposed ``last_events``,
-``tracker_events.csv``; see ``sim.results``) and returns an ``Inspection``: per true vehicle a
+``tracker_events.csv``; see ``sim.evaluation.results``) and returns an ``Inspection``: per true vehicle a
 timeline of states and events, and the worst GOSPA intervals with their causes.
 ``write_inspection`` writes ``events.csv``, ``worst_intervals.csv`` and ``events.png``;
 ``summary_text`` is the printed human summary (``eot inspect RUN_DIR``). The assignment of tracks to
@@ -902,7 +902,7 @@ def plot_events(insp: Inspection, path: str | Path) -> Path:
 def events_figure(insp: Inspection) -> Any:
     """The figure of ``events.png`` (a ``matplotlib.figure.Figure``): per vehicle a timeline bar coloured by state with markers for the first lidar
     point, confirmation, label changes, losses and coasting (the vehicle names in the vehicle's colour
-    of ``sim.plots.vehicle_color``, as in the run's other figures); GOSPA over time with the worst
+    of ``sim.evaluation.plots.vehicle_color``, as in the run's other figures); GOSPA over time with the worst
     intervals shaded (when any frame reaches the threshold); the GOSPA^p cost per cause, stacked.
     Legends sit outside the panels. Drawn on matplotlib's Agg canvas (no pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -910,7 +910,7 @@ def events_figure(insp: Inspection) -> Any:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from sim.plots import vehicle_color
+    from sim.evaluation.plots import vehicle_color
 
     d = insp.data
     cols = insp.vehicles_in_range()

@@ -5,7 +5,7 @@ Figures are drawn on matplotlib's Agg canvas directly (``matplotlib.figure.Figur
 ``FigureCanvasAgg``), never through pyplot, so they work on headless machines and do not change the
 backend of an interactive session.
 
-**Colours** are the same in every figure (and in ``events.png`` of ``sim.inspect``): one colour per
+**Colours** are the same in every figure (and in ``events.png`` of ``sim.evaluation.inspect``): one colour per
 true vehicle, ``vehicle_color(id)`` (``VEHICLE_COLORS``, cycled by id); a track takes the colour of
 the vehicle GOSPA assigns it to in that frame (``FrameRecord.track_truth_id``), and a track assigned
 to none (a false track) is grey (``UNMATCHED_COLOR``); the ego is black. Track labels are written as
@@ -42,7 +42,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from sim.runner import FrameRecord, Result
+from sim.evaluation.runner import FrameRecord, Result
 from sim.world.truth import rectangle_corners
 from tracker.transforms import rotate, to_global
 

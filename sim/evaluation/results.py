@@ -2,7 +2,7 @@
 
 - ``metrics.json``: ``scenario``, ``variant``, ``seed``, ``duration_s``, the GOSPA settings and
   convention, the truth-set rule, every key of ``Result.metrics`` (DESIGN.md keys and more; see
-  ``sim.runner``; ``null`` where undefined, e.g. an RMSE without any assigned pair) and the
+  ``sim.evaluation.runner``; ``null`` where undefined, e.g. an RMSE without any assigned pair) and the
   tracker's ``tracker_stats`` counters.
 - ``timeseries.csv``: one row per frame: ``t`` (s), ``n_truth`` (scored truth set), ``n_visible``,
   ``n_tracks``, ``gospa`` (m) and its parts ``gospa_localization``, ``gospa_missed``,
@@ -15,7 +15,7 @@
   none).
 - ``truth.csv``: one row per other vehicle per frame: ``t``, ``id``, ``x, y, yaw, v, yaw_rate,
   length, width, s, n, xi``, ``scored`` and ``visible`` (0/1) and ``lidar_points``.
-- ``tracker_events.csv`` (only when the tracker exposes ``last_events``; ``sim.runner``): one row per
+- ``tracker_events.csv`` (only when the tracker exposes ``last_events``; ``sim.evaluation.runner``): one row per
   label per event per frame: ``t``, ``label``, ``event`` (``born``, ``updated``, ``missed``,
   ``dropped``, ``merged``) and ``other_label`` (for ``merged``: the label that absorbed it; else -1).
 
@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.metrics import GOSPA_C, GOSPA_P
-from sim.runner import TRACKER_EVENT_LABEL_KEYS, Result
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P
+from sim.evaluation.runner import TRACKER_EVENT_LABEL_KEYS, Result
 
 GOSPA_CONVENTION = (
     "GOSPA alpha=2, order p and cut-off c as given (default p=2, c=5 m) on rectangle centres (x, y) in G; "

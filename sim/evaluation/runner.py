@@ -1,7 +1,7 @@
 """Run one scenario closed-loop: world -> sensors -> tracker -> metrics, and collect a ``Result``.
 
 ``run_scenario(spec, seed, variant)`` builds the ``World`` (traffic), the ``SensorRig`` (lidar +
-radars, with roadside clutter), the ``tracker.Tracker`` of the variant (``sim.variants``), steps the
+radars, with roadside clutter), the ``tracker.Tracker`` of the variant (``sim.evaluation.variants``), steps the
 tracker through every lidar frame and scores its tracks against the truth at each frame time.
 
 **Scenario overrides.** The scenario's ``[sensors]`` table overrides ``RigConfig`` fields (``lidar``,
@@ -23,7 +23,7 @@ scores the visible vehicles against the tracks that the first scoring does not a
 vehicle (``tracks_on_hidden_mean`` counts those): what the tracker makes of what it can see, without
 penalising its memory of what it cannot.
 
-**Metrics** (``sim.metrics``; GOSPA with alpha = 2, p = 2, c = 5 m on the rectangle centres in G;
+**Metrics** (``sim.evaluation.metrics``; GOSPA with alpha = 2, p = 2, c = 5 m on the rectangle centres in G;
 its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` per frame; the
 ``*_mean`` keys average the per-frame values over frames). ``cardinality_error_mean`` is the mean of
 ``|N_est - N_true|``, ``cardinality_bias_mean`` the mean of ``N_est - N_true``. RMSEs are over every
@@ -33,14 +33,14 @@ track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidd
 pairs); ``yaw`` errors are
 wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
 ``long_sides_seen``, ``long_length_within_1m``, ``long_length_err_max_m`` (extended trackers): the hard
-suite's target, a long vehicle's length 3 s after its side is first seen (``sim.long_vehicles``).
+suite's target, a long vehicle's length 3 s after its side is first seen (``sim.evaluation.long_vehicles``).
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
 run to run; every other metric is bit-identical for the same scenario, seed and variant).
 
 **Tracker events.** When the tracker exposes ``last_events`` after ``step`` (a dict: ``"born"``,
 ``"updated"``, ``"missed"``, ``"dropped"`` -> labels, ``"merged"`` -> (absorbed, kept) label pairs),
-each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` otherwise); ``sim.results``
-writes them to ``tracker_events.csv`` and ``sim.inspect`` uses them to explain losses.
+each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` otherwise); ``sim.evaluation.results``
+writes them to ``tracker_events.csv`` and ``sim.evaluation.inspect`` uses them to explain losses.
 
 **Faults.** A scenario's ``[faults]`` table (``sim.world.scenario.FaultsSpec``) is applied to the sensor
 frames by ``sim.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
@@ -64,15 +64,15 @@ from typing import Any, Protocol
 import numpy as np
 
 from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
-from sim.long_vehicles import metrics as long_vehicle_metrics
-from sim.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
+from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
 from sim.world.ground import Ground
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.world.truth import Snapshot
-from sim.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
+from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.angles import wrap_angle
@@ -131,7 +131,7 @@ class FrameRecord:
       ``normalize_tracker_events`` (``None`` when the tracker does not expose them);
     - ``lidar_bearings`` (N, 2): the lowest and highest bearing from the ego (rad, in G, unwrapped about
       the bearing of the vehicle's centre) of each truth vehicle's lidar returns in this scan (NaN
-      without any): which part of its outline the lidar reached (``sim.long_vehicles``)."""
+      without any): which part of its outline the lidar reached (``sim.evaluation.long_vehicles``)."""
 
     t: float
     truth: Snapshot
@@ -537,7 +537,7 @@ def run_scenario(
     on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
     ``progress(done, total)`` is called with ``done = 0`` first, then after every frame;
     ``tracker_factory(road, config)`` builds the tracker (default: the variant's own factory,
-    ``sim.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or
+    ``sim.evaluation.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or
     ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
