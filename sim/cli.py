@@ -2,7 +2,7 @@
 ``soak``, ``scenarios``, ``bench``. Every command writes under ``eot-output/`` unless ``--out`` names a folder.
 
 ``eot compare`` runs every study variant over a suite with the same seeds and writes ``REPORT.md``
-with its figures and CSVs (``sim.study``, ``sim.claims``, ``sim.report``); a variant that cannot be
+with its figures and CSVs (``sim.studies.study``, ``sim.studies.claims``, ``sim.studies.report``); a variant that cannot be
 built here is skipped with a warning and a note in the report; ``--report-only`` rebuilds the report
 from ``OUT/report/``.
 
@@ -19,7 +19,7 @@ writes ``eot-output/bench.json`` (``--out``) plus a table; ``--quick`` shrinks i
 --compare-stonesoup`` needs the extra ``baselines`` (exit 2 with the install command otherwise).
 
 ``eot soak [SCENARIO]`` streams one long run (default: ``dense-highway-loop`` for an hour of
-simulated time) and writes ``soak.csv`` (a row per window) and ``soak.json`` (``sim.soak``).
+simulated time) and writes ``soak.csv`` (a row per window) and ``soak.json`` (``sim.studies.soak``).
 ``eot montecarlo`` rewrites ``runs.csv`` as each run finishes; after Ctrl-C, ``--resume`` with the same
 arguments runs only the missing rows.
 
@@ -316,7 +316,7 @@ def _montecarlo(args: argparse.Namespace) -> int:
     Ctrl-C stops with a one-line message (exit status 2) and ``--resume`` runs only the missing rows."""
     from pathlib import Path
 
-    from sim.montecarlo import (
+    from sim.studies.montecarlo import (
         RunsFile,
         Study,
         StudyInterrupted,
@@ -406,7 +406,7 @@ def _soak(args: argparse.Namespace) -> int:
 
     from sim.progress import ProgressBar
     from sim.world.scenario import load_scenario
-    from sim.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, run_soak, window_row
+    from sim.studies.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, run_soak, window_row
 
     paths = _resolve_scenarios(args.scenario or SOAK_SCENARIO, allow_suite=False)
     variant = _check_variants([args.variant])[0]
@@ -456,12 +456,12 @@ def _soak(args: argparse.Namespace) -> int:
 
 def _closed_loop(args: argparse.Namespace) -> int:
     """``eot closed-loop [SCENARIO_OR_SUITE]``: the planner on truth and on tracks over seeds
-    (``sim.closed_loop``); table, figure, runs and events in ``--out``."""
+    (``sim.studies.closed_loop``); table, figure, runs and events in ``--out``."""
     import shlex
     import time
     from pathlib import Path
 
-    from sim.closed_loop import plan, run_tasks, write_outputs
+    from sim.studies.closed_loop import plan, run_tasks, write_outputs
     from sim.progress import ProgressBar
 
     paths = _resolve_scenarios(args.target, allow_suite=True)
@@ -497,7 +497,7 @@ def _closed_loop(args: argparse.Namespace) -> int:
 
 def _check_backend(args: argparse.Namespace) -> None:
     """``--backend ray`` needs Ray installed; ``--address`` goes with Ray only."""
-    from sim.montecarlo import import_ray
+    from sim.studies.montecarlo import import_ray
 
     if args.backend == "ray":
         try:
@@ -531,8 +531,8 @@ def _compare(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sim.progress import ProgressBar
-    from sim.report import write_report
-    from sim.study import STUDY_VARIANTS, CompareSettings, read_compare, run_compare, write_compare
+    from sim.studies.report import write_report
+    from sim.studies.study import STUDY_VARIANTS, CompareSettings, read_compare, run_compare, write_compare
 
     out = Path(args.out)
     folder = out / "report"

@@ -25,7 +25,7 @@ map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_cente
 
 ``decision`` (a ``Decision``) records what the last ``act`` did: the lead's label and where it came
 from ("row" or "held"), the gap, the commanded acceleration and the target lane (for the closed-loop
-diagnostics of ``sim.closed_loop``).
+diagnostics of ``sim.studies.closed_loop``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""How the claims' verdicts are built (sim/claims.py), from hand-made runs.csv rows: every claim gives
+"""How the claims' verdicts are built (sim/studies/claims.py), from hand-made runs.csv rows: every claim gives
 "supported", "not shown" and "contradicted" from rows made to show each; claims 3 and 6 just inside and
 just outside their bounds; a claim's comparisons combine (``combine``) with "contradicted" first, then
 "not shown", and only its primary comparisons count."""
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import pytest
 
-from sim.claims import (
+from sim.studies.claims import (
     CURVED_KAPPA,
     EXTENT_CLOSE_FRACTION,
     LIDAR_PERIOD_MS,
@@ -26,7 +26,7 @@ from sim.claims import (
     evaluate_claims,
     paired_verdict,
 )
-from sim.study import Interval, mean_interval
+from sim.studies.study import Interval, mean_interval
 from tracker.config import BirthConfig
 
 FUSED, LIDAR, CARTESIAN = "curvilinear-fused", "curvilinear-lidar", "cartesian-fused"

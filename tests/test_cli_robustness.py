@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from sim import cli
-from sim import montecarlo
+from sim.studies import montecarlo
 from sim.world.scenario import SCENARIO_DIR
 
 

@@ -1,4 +1,4 @@
-"""The comparison study (sim/study.py, sim/claims.py, sim/evaluation/variants.py): every variant tracks the
+"""The comparison study (sim/studies/study.py, sim/studies/claims.py, sim/evaluation/variants.py): every variant tracks the
 curve-single car, paired intervals against scipy, verdicts, variant probing (only a missing optional
 dependency makes a variant unavailable; any other failure to build one is an error)."""
 
@@ -10,9 +10,9 @@ from scipy import stats
 
 from sim import load_scenario
 from sim.evaluation import variants as variants_module
-from sim.claims import paired_verdict
+from sim.studies.claims import paired_verdict
 from sim.evaluation.runner import run_scenario
-from sim.study import Interval, mean_interval, paired_difference, paired_values, split_available
+from sim.studies.study import Interval, mean_interval, paired_difference, paired_values, split_available
 from sim.evaluation.variants import VARIANTS, VariantUnavailableError, estimates_extent, probe_variant
 from tracker import TrackerConfig
 

@@ -10,8 +10,8 @@ import math
 
 import pytest
 
-from sim import montecarlo
-from sim.montecarlo import (
+from sim.studies import montecarlo
+from sim.studies.montecarlo import (
     RunsFile,
     Study,
     StudyInterrupted,

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.closed_loop import Task, run_task, wilson
+from sim.studies.closed_loop import Task, run_task, wilson
 from sim.env import COL, COLUMNS, NO_LABEL, TrackedRoadEnv
 from sim.planner import Planner, PlannerConfig, planner_for
 

@@ -1,4 +1,4 @@
-"""REPORT.md from a tiny comparison study (sim/report.py, sim/study.py): every section and figure,
+"""REPORT.md from a tiny comparison study (sim/studies/report.py, sim/studies/study.py): every section and figure,
 the paired CSV, the skipped-variant note, the hard-suite section, and the files round-trip."""
 
 from pathlib import Path
@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 
 from sim.evaluation import variants as variants_module
-from sim.report import FIGURES, write_report
+from sim.studies.report import FIGURES, write_report
 from sim.world.scenario import SCENARIO_DIR
-from sim.study import CompareSettings, read_compare, run_compare, write_compare
+from sim.studies.study import CompareSettings, read_compare, run_compare, write_compare
 
 
 def _suite(folder: Path, name: str, scenarios: list[str]) -> str:
@@ -89,7 +89,7 @@ def test_report_rebuilds_identically_from_its_files(study):
 
 
 def test_seed_provenance_says_in_sample_or_held_out():
-    from sim.report import TUNING_SEEDS, seed_provenance
+    from sim.studies.report import TUNING_SEEDS, seed_provenance
 
     assert seed_provenance(1000, 20).startswith("held-out seeds")
     assert seed_provenance(TUNING_SEEDS.stop, 5).startswith("held-out seeds")

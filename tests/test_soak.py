@@ -1,4 +1,4 @@
-"""The soak run (``sim.soak``, ``eot soak``): streamed windows, the covariance check and the summary."""
+"""The soak run (``sim.studies.soak``, ``eot soak``): streamed windows, the covariance check and the summary."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from sim import cli
 from sim.world.scenario import load_scenario
-from sim.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, bad_covariances, run_soak, summarize_soak
+from sim.studies.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, bad_covariances, run_soak, summarize_soak
 
 
 def test_soak_scenario_is_a_closed_dense_road_for_an_hour():

@@ -21,7 +21,7 @@ Sections (the keys of the JSON, in the order they run):
   the scenario's one-time set-up, as the first run of a Monte Carlo worker does), and the fastest of
   them (``best_sim_s_per_wall_s``: this 2-core machine's speed for the same run varies by up to ~1.5x
   between runs);
-- ``montecarlo``: ``curvy-multi`` runs through ``sim.montecarlo.run_study`` with 1, 2 (and 4, 8, ...
+- ``montecarlo``: ``curvy-multi`` runs through ``sim.studies.montecarlo.run_study`` with 1, 2 (and 4, 8, ...
   up to the usable CPUs) worker processes: runs per minute and simulated seconds per wall second;
 - ``env``: ``eot/TrackedRoad-v0`` steps per second with tracks and with truth (``sim.benchmarks.env``);
 - ``memory``: peak resident memory of this process and of its largest worker (``getrusage``);
@@ -184,7 +184,7 @@ def end_to_end_section(s: Settings) -> dict[str, Any]:
 
 
 def montecarlo_section(s: Settings) -> dict[str, Any]:
-    from sim.montecarlo import plan, run_study
+    from sim.studies.montecarlo import plan, run_study
 
     out: dict[str, Any] = {"scenario": MC_SCENARIO, "duration_s": s.mc_duration, "runs_per_worker": s.mc_runs_per_worker,
                            "workers": {}}

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from sim.montecarlo import default_workers, plan, run_study
+from sim.studies.montecarlo import default_workers, plan, run_study
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

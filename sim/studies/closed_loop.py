@@ -25,7 +25,7 @@ Per run (one row of ``runs.csv``; the ego's truth, sampled at every lidar frame,
 
 ``events.csv`` lists every event and collision with what the tracker had near the vehicle (nearest
 track distance, lidar points on the vehicle) for tracing failures back to the tracker.
-Summaries: ``summary.csv`` / ``summary.json`` (``sim.montecarlo.summarize_runs``: mean, Student-t 95 %
+Summaries: ``summary.csv`` / ``summary.json`` (``sim.studies.montecarlo.summarize_runs``: mean, Student-t 95 %
 interval per scenario, mode and metric), ``table.md`` (with Wilson 95 % intervals for the collision
 rate), ``closed_loop.png``.
 """
@@ -295,7 +295,7 @@ def table_markdown(rows: Sequence[dict[str, Any]], summary: Sequence[dict[str, A
         "",
         f"Made by `{command}`. Mean and 95 % interval over seeds (Student t; collisions: the Wilson interval of",
         f"the rate). Headway capped at {HEADWAY_CAP:g} s and TTC at {TTC_CAP:g} s (no lead / never closing in).",
-        "Definitions: `sim/closed_loop.py`; every event is listed in `events.csv`.",
+        "Definitions: `sim/studies/closed_loop.py`; every event is listed in `events.csv`.",
         "",
         "| scenario | mode | runs | " + " | ".join(label for _, label, _ in _TABLE) + " |",
         "|---|---|---:|" + "---:|" * len(_TABLE),
@@ -369,9 +369,9 @@ def plot_summary(summary: Sequence[dict[str, Any]], rows: Sequence[dict[str, Any
 
 def write_outputs(rows: list[dict[str, Any]], events: list[dict[str, Any]], out: str | Path, *, command: str,
                   wall_s: float, workers: int) -> dict[str, Path]:
-    """``runs.csv``, ``summary.csv``, ``summary.json`` (``sim.montecarlo.write_study``), ``events.csv``,
+    """``runs.csv``, ``summary.csv``, ``summary.json`` (``sim.studies.montecarlo.write_study``), ``events.csv``,
     ``table.md`` and ``closed_loop.png`` in ``out``."""
-    from sim.montecarlo import Study, summarize_runs, write_study
+    from sim.studies.montecarlo import Study, summarize_runs, write_study
 
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
@@ -381,7 +381,7 @@ def write_outputs(rows: list[dict[str, Any]], events: list[dict[str, Any]], out:
         doc = json.load(fh)
     doc["command"] = command
     doc["note"] = ("mean and 95 % CI of the mean (Student t) per scenario, mode (variant column: 'truth' or the "
-                   "tracker variant) and metric; definitions in sim/closed_loop.py")
+                   "tracker variant) and metric; definitions in sim/studies/closed_loop.py")
     with open(folder / "summary.json", "w", encoding="utf-8") as fh:
         json.dump(doc, fh, indent=2)
         fh.write("\n")

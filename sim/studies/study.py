@@ -1,6 +1,6 @@
 """The paper's comparison study (``eot compare``): every variant over a suite with the same seeds.
 
-``run_compare`` runs the Monte Carlo of ``sim.montecarlo`` (``plan`` + ``run_study``) for every
+``run_compare`` runs the Monte Carlo of ``sim.studies.montecarlo`` (``plan`` + ``run_study``) for every
 *available* variant (``sim.evaluation.variants.probe_variant``: a variant whose optional dependency is missing
 here is skipped with its reason; any other failure to build a variant is an error) over the scenarios of a suite and the seeds ``seed0 .. seed0 + runs - 1``. All variants
 see the same simulated data for the same scenario and seed (the world, the sensors and the clutter
@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from sim.montecarlo import plan, read_runs, run_study, write_runs
+from sim.studies.montecarlo import plan, read_runs, run_study, write_runs
 from sim.world.scenario import load_scenario, load_suite, resolve_scenario_path
 from tracker.compiled import warm_up
 

@@ -1,6 +1,6 @@
 """The paper's claims 1-6 checked against a study's runs, with text from the numbers.
 
-Every claim is a set of comparisons. A *paired* comparison (``sim.study.paired_difference``) takes
+Every claim is a set of comparisons. A *paired* comparison (``sim.studies.study.paired_difference``) takes
 variant A minus variant B per (scenario, seed) and its 95 % t interval; its verdict
 (``paired_verdict``) is
 
@@ -9,7 +9,7 @@ variant A minus variant B per (scenario, seed) and its 95 % t interval; its verd
 - ``contradicted``: the interval lies entirely on the other side;
 - ``not evaluated``: a variant is missing (skipped, or fewer than two pairs).
 
-An *absolute* comparison (claims 3 and 6: a mean's 95 % t interval, ``sim.study.mean_interval``,
+An *absolute* comparison (claims 3 and 6: a mean's 95 % t interval, ``sim.studies.study.mean_interval``,
 against a fixed bound the claim says it stays below) has the same verdicts (``bound_verdict``):
 ``supported`` when the interval's upper end is below the bound, ``contradicted`` when its lower end is
 above it, ``not shown`` when the interval reaches the bound, ``not evaluated`` without an interval.
@@ -34,7 +34,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from sim.study import Interval, Paired, mean_interval, paired_difference
+from sim.studies.study import Interval, Paired, mean_interval, paired_difference
 from tracker.config import BirthConfig, MeasurementConfig
 
 #: Road curvature (1/m) from which a scenario counts as curved (radius <= 500 m).

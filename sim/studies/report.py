@@ -1,9 +1,9 @@
-"""``results/REPORT.md`` and its figures from a comparison study (``sim.study.CompareData``).
+"""``results/REPORT.md`` and its figures from a comparison study (``sim.studies.study.CompareData``).
 
 ``write_report(data, out)`` writes ``out/REPORT.md`` and, in ``out/report/``, the figures
 (``FIGURES``) and ``summary.csv`` (per scenario, variant and metric: n, mean and 95 % interval) and
 ``paired.csv`` (every paired comparison of the claims). Sections: how it was made (command, settings,
-wall times, skipped variants), the claims (``sim.claims``: one paragraph each, from the numbers), the
+wall times, skipped variants), the claims (``sim.studies.claims``: one paragraph each, from the numbers), the
 per-scenario tables (``TABLE_METRICS``, mean and 95 % t interval over seeds), the figures, the
 per-run wall time per variant (to budget a study) and, when it ran, the hard suite.
 
@@ -31,8 +31,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from sim.claims import ClaimResult, evaluate_claims, fmt
-from sim.study import CompareData, Interval, mean_interval
+from sim.studies.claims import ClaimResult, evaluate_claims, fmt
+from sim.studies.study import CompareData, Interval, mean_interval
 from tracker.angles import wrap_angle
 
 #: Metrics of the per-scenario tables: (runs.csv key, column title).
