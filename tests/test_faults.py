@@ -1,4 +1,4 @@
-"""Sensor faults (``[faults]`` in the scenario format, ``sim.faults``): validation, what each fault does
+"""Sensor faults (``[faults]`` in the scenario format, ``sim.sensors.faults``): validation, what each fault does
 to the frames, the dropout measures (coasting, re-acquisition with the same label) and the rig's
 delayed lidar scan."""
 
@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sim.faults import DropoutOutcome, dropout_metrics, dropout_outcomes, in_intervals
+from sim.sensors.faults import DropoutOutcome, dropout_metrics, dropout_outcomes, in_intervals
 from sim.evaluation.runner import check_scenario_settings, run_scenario
 from sim.world.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
 from sim.sensors import SensorRig

@@ -1,4 +1,4 @@
-"""sim.planner: ACC, flicker hold, lane-change gaps on synthetic observations; closed-loop episodes on
+"""sim.env.planner: ACC, flicker hold, lane-change gaps on synthetic observations; closed-loop episodes on
 tracks (curve-single, cut-in) without collision; the closed-loop study's metrics on one short run."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 
 from sim.studies.closed_loop import Task, run_task, wilson
 from sim.env import COL, COLUMNS, NO_LABEL, TrackedRoadEnv
-from sim.planner import Planner, PlannerConfig, planner_for
+from sim.env.planner import Planner, PlannerConfig, planner_for
 
 LANES = (-1.75, 1.75)
 

@@ -4,10 +4,15 @@ sensors and tracker inside ``step``; observations are the tracker's tracks in ro
 
 ``import sim`` registers it, so ``gym.make("eot/TrackedRoad-v0")`` works after that import and
 ``gym.make("sim:eot/TrackedRoad-v0")`` from a fresh interpreter; the registration's
-``max_episode_steps`` is ``sim.ENV_MAX_EPISODE_STEPS`` (100, the default episode). Modules: ``sim.env.core``
-(``TrackedRoadEnv``: the loop, reward, termination), ``sim.env.config`` (``EnvConfig``: typed,
-validated keys), ``sim.env.observation`` (the rows, columns, bounds and labels), ``sim.env.vehicles`` (the ego and
-its actions), ``sim.env.render`` (headless ``rgb_array`` frames).
+``max_episode_steps`` is ``sim.ENV_MAX_EPISODE_STEPS`` (100, the default episode). Above
+``sim.evaluation``; below ``sim.studies``. Modules:
+
+- ``sim.env.core``: ``TrackedRoadEnv``, the loop, reward and termination;
+- ``sim.env.config``: ``EnvConfig``, typed and validated keys;
+- ``sim.env.observation``: the observation's rows, columns, bounds and labels;
+- ``sim.env.vehicles``: the ego and its actions;
+- ``sim.env.render``: headless ``rgb_array`` frames;
+- ``sim.env.planner``: a rule-based planner that drives the environment on its observation alone.
 """
 
 from sim import ENV_ID, ENV_MAX_EPISODE_STEPS

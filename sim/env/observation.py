@@ -44,7 +44,7 @@ own ``n, v, xi, xi_dot, length, width`` (odometry, exact). Rows 1.. are the othe
 So "truth" and "tracks" differ only by the tracker, and have the same layout. **Labels** are
 identities, not features, so they are not in the array: ``info["labels"]`` (int64, ``1 + max_tracks``)
 gives each row's track label (``"tracks"``) or vehicle id (``"truth"``), -1 for the ego row and for
-padding; a planner uses them to follow a vehicle from step to step (``sim.planner``). With
+padding; a planner uses them to follow a vehicle from step to step (``sim.env.planner``). With
 ``normalize = True`` every column is divided by the larger magnitude of its bounds (``scales``), so
 the box is [-1, 1] for the signed columns and [0, 1] for the others.
 """

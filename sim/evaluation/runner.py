@@ -43,10 +43,10 @@ each ``FrameRecord`` keeps a normalised copy (``tracker_events``; ``None`` other
 writes them to ``tracker_events.csv`` and ``sim.evaluation.inspect`` uses them to explain losses.
 
 **Faults.** A scenario's ``[faults]`` table (``sim.world.scenario.FaultsSpec``) is applied to the sensor
-frames by ``sim.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
+frames by ``sim.sensors.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
 (``lidar_time_offset``); the run's metrics then add the ``fault_*`` counts and, for lidar dropouts,
-the dropout measures (``sim.faults.dropout_outcomes``: coasting and re-acquisition with the same
-label within ``sim.faults.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
+the dropout measures (``sim.sensors.faults.dropout_outcomes``: coasting and re-acquisition with the same
+label within ``sim.sensors.faults.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
 
 Randomness: ``World(spec, seed)`` seeds the traffic; the sensors, the clutter and the faults draw
 from their own ``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all are independent and
@@ -63,7 +63,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sim.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
+from sim.sensors.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
 from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
 from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides

@@ -1,10 +1,20 @@
-"""Sensor models of the testbed: a ray-cast 2-D lidar, object-level radars, roadside clutter, and
-the rig that turns truth over time into the tracker's ``Frame``s.
+"""Sensor models of the testbed: a ray-cast 2-D lidar and a 3-D VLP-16, object-level radars,
+roadside clutter, sensor faults, and the rig that turns truth over time into the tracker's ``Frame``s.
 
-Modules: ``raycast`` (numpy caster + pymunk oracle), ``scene`` (vehicles and roadside objects as
-segments in a sensor frame), ``lidar``, ``radar``, ``clutter`` (roadside objects) and ``rig`` (timing
-and frames); frame transforms G <-> sensor frames are ``tracker.transforms``. Conventions: DESIGN.md (SI units, E = ego frame,
-x forward, y left; angles wrapped to (-pi, pi]).
+Above ``sim.world`` (truth, ground, scenario settings); below ``sim.evaluation``. Modules:
+
+- ``sim.sensors.raycast``: 2-D ray casting (numpy caster + pymunk oracle);
+- ``sim.sensors.cast_kernel``: the compiled (numba) twin of the numpy caster and the scene kernels;
+- ``sim.sensors.lidar3d``: the 3-D ray-cast VLP-16 over upright prisms and the ground;
+- ``sim.sensors.scene``: vehicles and roadside objects as segments (2-D) or prisms (3-D) for a sensor;
+- ``sim.sensors.clutter``: roadside objects beside the road (posts, trees, parked cars);
+- ``sim.sensors.lidar``: ``LidarConfig`` (2-D or VLP-16) and the 2-D lidar;
+- ``sim.sensors.radar``: the front and rear object-level radars;
+- ``sim.sensors.rig``: the rig: timing, and the frames the tracker gets;
+- ``sim.sensors.faults``: sensor faults applied to the rig's frames (dropouts, spikes, duplicates).
+
+Frame transforms G <-> sensor frames are ``tracker.transforms``. Conventions: DESIGN.md (SI units,
+E = ego frame, x forward, y left; angles wrapped to (-pi, pi]).
 """
 
 from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadside

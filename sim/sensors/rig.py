@@ -150,7 +150,7 @@ class SensorRig:
 
         ``lidar_delay`` (s, 0 by default, below the lidar's period) is a fault: the scan delivered
         with the frame stamped ``t`` is measured at ``t - lidar_delay`` (``SensorFrame.lidar.t``),
-        while the ego pose, the truth and the radar keep their true times (``sim.faults``); a scan
+        while the ego pose, the truth and the radar keep their true times (``sim.sensors.faults``); a scan
         that would fall before ``t0`` is measured at ``t0``.
 
         ``poses_at`` (optional, e.g. ``World.poses_at``): a cheaper ``truth_at`` for the radar cycles

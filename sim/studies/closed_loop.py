@@ -1,4 +1,4 @@
-"""``eot closed-loop``: the planner (``sim.planner``) driving ``eot/TrackedRoad-v0`` on truth and on
+"""``eot closed-loop``: the planner (``sim.env.planner``) driving ``eot/TrackedRoad-v0`` on truth and on
 tracks, over seeds and scenarios; per-run safety and comfort metrics, track-caused events, a table
 with 95 % intervals and a figure.
 
@@ -111,7 +111,7 @@ def _lead_truth(snap: Any, ego_s: float, ego_n: float, ego_v: float, ego_l: floa
 
 def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Run one episode with the planner; the row (``METRICS``) and its events (``EVENT_COLUMNS``)."""
-    from sim.planner import planner_for
+    from sim.env.planner import planner_for
 
     env = make_env(task.source, task.mode, task.duration)
     obs, info = env.reset(seed=task.seed)

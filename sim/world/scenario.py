@@ -37,7 +37,7 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     [sensors]                             # optional overrides, applied by the runner
     lidar = { model = "vlp16" }           #   "2d" (default) or "vlp16": the 3-D lidar (sim.sensors.lidar3d)
     [tracker]                             # optional overrides, applied by the runner
-    [faults]                              # optional sensor faults, applied by the runner (sim.faults)
+    [faults]                              # optional sensor faults, applied by the runner (sim.sensors.faults)
     lidar_dropout = [[6.0, 8.0]]          # intervals [start, end) s: lidar frames carry no points
     radar_dropout = [[6.0, 8.0]]          # intervals [start, end) s: no radar detections
     radar_missing = false                 # true: no radar detections in the whole run
@@ -487,7 +487,7 @@ Interval = tuple[StrictFloat, StrictFloat]
 
 
 class FaultsSpec(_Model):
-    """Sensor faults injected by the runner (``sim.faults``); every default is "no fault".
+    """Sensor faults injected by the runner (``sim.sensors.faults``); every default is "no fault".
 
     - ``lidar_dropout``: intervals ``[start, end)`` (s) in which lidar frames carry no points (the
       frame still arrives, with the ego pose and any radar detections);
