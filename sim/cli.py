@@ -227,11 +227,11 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
 
     from sim.evaluation.inspect import headline, inspect_run, write_inspection
     from sim.evaluation.plots import write_figures
-    from sim.progress import ProgressBar
     from sim.evaluation.results import write_results
     from sim.evaluation.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
-    from sim.world.scenario import ScenarioError, load_scenario
     from sim.evaluation.variants import check_variant
+    from sim.progress import ProgressBar
+    from sim.world.scenario import ScenarioError, load_scenario
 
     spec = load_scenario(scenario)
     try:  # usage errors are checked here; an error inside the run is a bug and keeps its traceback
@@ -405,8 +405,8 @@ def _soak(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sim.progress import ProgressBar
-    from sim.world.scenario import load_scenario
     from sim.studies.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, run_soak, window_row
+    from sim.world.scenario import load_scenario
 
     paths = _resolve_scenarios(args.scenario or SOAK_SCENARIO, allow_suite=False)
     variant = _check_variants([args.variant])[0]
@@ -461,8 +461,8 @@ def _closed_loop(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from sim.studies.closed_loop import plan, run_tasks, write_outputs
     from sim.progress import ProgressBar
+    from sim.studies.closed_loop import plan, run_tasks, write_outputs
 
     paths = _resolve_scenarios(args.target, allow_suite=True)
     variants = _check_variants(_split_variants(args.variant or ["curvilinear-fused,curvilinear-lidar"]))

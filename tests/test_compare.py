@@ -10,10 +10,10 @@ from scipy import stats
 
 from sim import load_scenario
 from sim.evaluation import variants as variants_module
-from sim.studies.claims import paired_verdict
 from sim.evaluation.runner import run_scenario
-from sim.studies.study import Interval, mean_interval, paired_difference, paired_values, split_available
 from sim.evaluation.variants import VARIANTS, VariantUnavailableError, estimates_extent, probe_variant
+from sim.studies.claims import paired_verdict
+from sim.studies.study import Interval, mean_interval, paired_difference, paired_values, split_available
 from tracker import TrackerConfig
 
 

@@ -10,10 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sim.sensors.faults import DropoutOutcome, dropout_metrics, dropout_outcomes, in_intervals
+from sim.evaluation.dropouts import DropoutOutcome, dropout_metrics, dropout_outcomes
 from sim.evaluation.runner import check_scenario_settings, run_scenario
-from sim.world.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
 from sim.sensors import SensorRig
+from sim.sensors.faults import in_intervals
+from sim.world.scenario import SCENARIO_DIR, ScenarioError, load_suite, parse_scenario
 from sim.world.world import World
 
 

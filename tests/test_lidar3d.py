@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from sim.world.ground import FlatGround, GroundSurface, RoadGround
 from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import Prisms, Vlp16, Vlp16Config, cast_3d
+from sim.world.ground import FlatGround, GroundSurface, RoadGround
 from tracker.road import Road
 
 MAX_RANGE = 100.0

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from sim.studies.closed_loop import Task, run_task, wilson
 from sim.env import COL, COLUMNS, NO_LABEL, TrackedRoadEnv
 from sim.env.planner import Planner, PlannerConfig, planner_for
+from sim.studies.closed_loop import Task, run_task, wilson
 
 LANES = (-1.75, 1.75)
 

@@ -10,8 +10,8 @@ import re
 from oracle_tracker import OracleFactory
 
 from sim import load_scenario
-from sim.progress import ProgressBar
 from sim.evaluation.runner import run_scenario
+from sim.progress import ProgressBar
 
 
 def _lines(text: str) -> list[str]:

@@ -7,8 +7,8 @@ import pytest
 
 from sim.evaluation import variants as variants_module
 from sim.studies.report import FIGURES, write_report
-from sim.world.scenario import SCENARIO_DIR
 from sim.studies.study import CompareSettings, read_compare, run_compare, write_compare
+from sim.world.scenario import SCENARIO_DIR
 
 
 def _suite(folder: Path, name: str, scenarios: list[str]) -> str:

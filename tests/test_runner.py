@@ -11,9 +11,9 @@ from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
 from sim.evaluation.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
+from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from sim.world.scenario import ScenarioError, parse_scenario
 from sim.world.truth import EgoPose, Snapshot
-from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from tracker import Road
 
 DESIGN_KEYS = (

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sim import cli
-from sim.world.scenario import load_scenario
 from sim.studies.soak import SOAK_SCENARIO, SoakConfig, SoakWindow, bad_covariances, run_soak, summarize_soak
+from sim.world.scenario import load_scenario
 
 
 def test_soak_scenario_is_a_closed_dense_road_for_an_hour():

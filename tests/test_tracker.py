@@ -942,8 +942,8 @@ def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration:
     """A short fused run of one of the suites' scenarios with ``tracker.<section>.<key> = value``."""
     import copy
 
-    from sim.studies.montecarlo import scenario_task_data
     from sim.evaluation.runner import run_scenario
+    from sim.studies.montecarlo import scenario_task_data
     from sim.world.scenario import parse_scenario, resolve_scenario_path
 
     _, source, data = scenario_task_data(resolve_scenario_path(scenario))

@@ -3,12 +3,26 @@
 Each public module in this package is one target named after the module. It defines
 ``run(args: argparse.Namespace) -> dict`` returning the measured numbers (JSON-serialisable) and,
 optionally, ``add_arguments(parser)`` for its own options and ``summary(result) -> str | None`` for a
-line printed after the JSON. Modules whose names start with ``_`` are helpers, not targets:
-``_suite`` (``eot bench`` with no target: every section, ``results/bench.json`` and a table, see
-``--quick``), ``_table`` (that table), ``_machine`` (machine, git state, peak memory, one-core
-pinning), ``_traffic`` / ``_tracking`` (the tracker benchmark's all-in-view scene and timing),
-``_stonesoup`` (Stone Soup's GM-PHD timed against ours), ``_timing``. Benchmarks measure speed; tests
-never assert wall-clock time.
+line printed after the JSON. Benchmarks measure speed; tests never assert wall-clock time. Targets:
+
+- ``road``: ``tracker.Road``'s to_frenet / to_cartesian, one point and 10^5 points;
+- ``filter``: one UKF predict and update, and a batch of components x clusters;
+- ``tracker``: the multi-target tracker's ms per frame at 1 to 50 targets in view (``--compare-stonesoup``);
+- ``world``: traffic only, ms of wall time per simulated second;
+- ``sensors``: lidar ray casting (numpy vs pymunk), radar cycles and rig frames;
+- ``lidar3d``: one VLP-16 scan over a sloped road with traffic and clutter;
+- ``env``: ``eot/TrackedRoad-v0`` steps per second with the tracker in the loop;
+- ``montecarlo``: simulated seconds per wall second per worker.
+
+Modules whose names start with ``_`` are helpers, not targets:
+
+- ``_suite``: ``eot bench`` with no target: every section, ``results/bench.json`` and a table (``--quick``);
+- ``_table``: that table;
+- ``_machine``: the machine, the git state, peak memory, one-core pinning;
+- ``_traffic``: the tracker benchmark's all-in-view scene;
+- ``_tracking``: timing trackers frame by frame on that scene;
+- ``_stonesoup``: Stone Soup's GM-PHD timed against ours;
+- ``_timing``: the shared timing helper.
 
 Commands::
 

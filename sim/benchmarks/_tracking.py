@@ -21,9 +21,9 @@ import numpy as np
 
 from sim.benchmarks._traffic import Layout, layout, truth_function
 from sim.evaluation.runner import MIN_VISIBLE_POINTS
+from sim.evaluation.variants import make_tracker, variant_config
 from sim.sensors import SensorRig
 from sim.sensors.rig import RigConfig, SensorFrame
-from sim.evaluation.variants import make_tracker, variant_config
 from tracker import TrackerConfig
 
 WARMUP_FRAMES = 10

@@ -25,9 +25,9 @@ import time
 import numpy as np
 
 from sim.benchmarks._machine import one_core
-from sim.world.ground import RoadGround
 from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import Prisms, Vlp16, cast_3d
+from sim.world.ground import RoadGround
 from tracker.cloud import process_cloud
 from tracker.road import Road
 

@@ -31,10 +31,10 @@ from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadsid
 from sim.sensors.lidar import Lidar, LidarConfig
 from sim.sensors.radar import FRONT_RADAR, RadarUnit
 from sim.sensors.raycast import PymunkScene, RayGrid, cast, cast_numpy, cast_pymunk
-from tracker import compiled
 from sim.sensors.rig import RigConfig, SensorRig
 from sim.sensors.scene import scene_segments
 from sim.world.truth import EgoPose, Snapshot
+from tracker import compiled
 
 LANE_WIDTH = 3.5
 LANES = 4

@@ -12,6 +12,7 @@ sensors and tracker inside ``step``; observations are the tracker's tracks in ro
 - ``sim.env.observation``: the observation's rows, columns, bounds and labels;
 - ``sim.env.vehicles``: the ego and its actions;
 - ``sim.env.render``: headless ``rgb_array`` frames;
+- ``sim.env.view``: ``EnvView``, what the observation and the renderer read of the environment;
 - ``sim.env.planner``: a rule-based planner that drives the environment on its observation alone.
 """
 

@@ -56,9 +56,9 @@ from sim.env.config import ConfigError, EnvConfig, _steps
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
 from sim.evaluation.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
-from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
 from sim.sensors import SensorRig
 from sim.sensors.rig import SensorFrame
+from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
 from sim.world.world import DEFAULT_STEP, World
 from tracker import Track
 

@@ -61,7 +61,7 @@ from sim.evaluation.runner import truth_set
 from sim.world.scenario import MAX_SPEED
 
 if TYPE_CHECKING:
-    from sim.env.core import TrackedRoadEnv
+    from sim.env.view import EnvView
 
 COLUMNS = ("present", "ds", "n", "v", "xi", "xi_dot", "length", "width", "sigma_s", "sigma_n")
 #: Column index by name.
@@ -151,7 +151,7 @@ class TrackObservation:
     """highway-env's ``ObservationType`` interface (``space()``, ``observe()``) for the rows above;
     ``labels`` holds the row labels of the last ``observe()`` (the env's ``info["labels"]``)."""
 
-    def __init__(self, env: TrackedRoadEnv) -> None:
+    def __init__(self, env: EnvView) -> None:
         self.env = env
         self.labels = np.full(1 + env.settings.max_tracks, NO_LABEL, dtype=np.int64)
 

@@ -27,7 +27,7 @@ from tracker.track import curvilinear_to_cartesian
 from tracker.transforms import rotate, to_global
 
 if TYPE_CHECKING:
-    from sim.env.core import TrackedRoadEnv
+    from sim.env.view import EnvView
 
 _DPI = 100
 
@@ -35,7 +35,7 @@ _DPI = 100
 class Renderer:
     """Draws frames of one environment (the figure is made once and reused)."""
 
-    def __init__(self, env: TrackedRoadEnv) -> None:
+    def __init__(self, env: EnvView) -> None:
         s = env.settings
         self.env = env
         self.size = (int(s.screen_width), int(s.screen_height))

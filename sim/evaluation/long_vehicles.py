@@ -35,7 +35,7 @@ from tracker.angles import wrap_angle
 from tracker.measurement import rectangle_corners
 
 if TYPE_CHECKING:
-    from sim.evaluation.runner import FrameRecord
+    from sim.evaluation.records import FrameRecord
 
 #: A vehicle at least this long (m) is a long vehicle (trucks 8-18 m, buses; a van is 6 m).
 LONG_VEHICLE_LENGTH = 8.0

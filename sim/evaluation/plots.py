@@ -42,7 +42,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from sim.evaluation.runner import FrameRecord, Result
+from sim.evaluation.records import FrameRecord
+from sim.evaluation.runner import Result
 from sim.world.truth import rectangle_corners
 from tracker.transforms import rotate, to_global
 

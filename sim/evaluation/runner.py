@@ -45,8 +45,8 @@ writes them to ``tracker_events.csv`` and ``sim.evaluation.inspect`` uses them t
 **Faults.** A scenario's ``[faults]`` table (``sim.world.scenario.FaultsSpec``) is applied to the sensor
 frames by ``sim.sensors.faults.FaultInjector`` (dropouts, spikes, duplicated frames) and the rig
 (``lidar_time_offset``); the run's metrics then add the ``fault_*`` counts and, for lidar dropouts,
-the dropout measures (``sim.sensors.faults.dropout_outcomes``: coasting and re-acquisition with the same
-label within ``sim.sensors.faults.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
+the dropout measures (``sim.evaluation.dropouts.dropout_outcomes``: coasting and re-acquisition with the same
+label within ``sim.evaluation.dropouts.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
 
 Randomness: ``World(spec, seed)`` seeds the traffic; the sensors, the clutter and the faults draw
 from their own ``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all are independent and
@@ -63,16 +63,18 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sim.sensors.faults import FAULT_STREAM, FaultInjector, dropout_metrics, dropout_outcomes, fault_metrics
+from sim.evaluation.dropouts import dropout_metrics, dropout_outcomes
 from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
-from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
-from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, IdSwitchCounter, gospa, matched_errors
+from sim.evaluation.records import FrameRecord
+from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
-from sim.world.ground import Ground
+from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
+from sim.world.ground import Ground
+from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.world.truth import Snapshot
-from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.angles import wrap_angle
@@ -107,65 +109,6 @@ def default_tracker_factory(road: Road, config: TrackerConfig) -> TrackerLike:
             "no run can be made without it"
         ) from None
     return Tracker(road, config)
-
-
-@dataclass(frozen=True, eq=False)
-class FrameRecord:
-    """One scored frame at time ``t`` (s).
-
-    - ``truth``: the snapshot (all other vehicles); ``scored`` (bool per truth row): the truth set of
-      the module docstring; ``visible``: scored and seen by at least ``min_visible_points`` lidar
-      points; ``lidar_points`` (int per truth row): points on each vehicle in this scan;
-    - ``truth_state`` (N, 7): truth rows ``[x, y, v, yaw, yaw_rate, L, W]`` in G;
-    - ``tracks``: the tracker's output; ``track_state`` (K, 7): their ``Track.cartesian`` views;
-    - ``gospa`` / ``gospa_visible``: ``GospaResult`` against the scored / visible truth (indices into
-      ``np.flatnonzero(scored)`` / ``np.flatnonzero(visible)`` and into ``tracks``);
-    - ``on_hidden`` (K,): tracks that ``gospa`` assigns to a scored vehicle that is not visible (a
-      track kept through an occlusion); ``gospa_seen``: the visible truth against the other tracks
-      (indices into ``np.flatnonzero(visible)`` and ``np.flatnonzero(~on_hidden)``), the visible-only
-      score that does not count a kept track of a hidden vehicle as false;
-    - ``track_truth_id`` (K,): the truth id each track is assigned to in ``gospa`` (-1: none);
-    - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
-    - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF);
-    - ``tracker_events``: the tracker's ``last_events`` after this step, normalised by
-      ``normalize_tracker_events`` (``None`` when the tracker does not expose them);
-    - ``lidar_bearings`` (N, 2): the lowest and highest bearing from the ego (rad, in G, unwrapped about
-      the bearing of the vehicle's centre) of each truth vehicle's lidar returns in this scan (NaN
-      without any): which part of its outline the lidar reached (``sim.evaluation.long_vehicles``)."""
-
-    t: float
-    truth: Snapshot
-    scored: np.ndarray
-    visible: np.ndarray
-    lidar_points: np.ndarray
-    truth_state: np.ndarray
-    tracks: list[Track]
-    track_state: np.ndarray
-    gospa: GospaResult
-    gospa_visible: GospaResult
-    track_truth_id: np.ndarray
-    tracker_ms: float
-    ego_s: float
-    frame: Frame | None = None
-    tracker_events: dict[str, list] | None = None
-    on_hidden: np.ndarray | None = None
-    gospa_seen: GospaResult | None = None
-    lidar_bearings: np.ndarray | None = None
-
-    @property
-    def n_truth(self) -> int:
-        """Size of the scored truth set."""
-        return int(self.scored.sum())
-
-    @property
-    def n_visible(self) -> int:
-        """Size of the visible truth set."""
-        return int(self.visible.sum())
-
-    @property
-    def n_tracks(self) -> int:
-        """Number of reported tracks."""
-        return len(self.tracks)
 
 
 @dataclass(eq=False)
@@ -686,7 +629,6 @@ def deterministic_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 
 __all__ = [
-    "FrameRecord",
     "MIN_VISIBLE_POINTS",
     "Result",
     "TIMING_KEYS",

@@ -3,7 +3,7 @@ roadside clutter, sensor faults, and the rig that turns truth over time into the
 
 Above ``sim.world`` (truth, ground, scenario settings); below ``sim.evaluation``. Modules:
 
-- ``sim.sensors.raycast``: 2-D ray casting (numpy caster + pymunk oracle);
+- ``sim.sensors.raycast``: 2-D ray casting (numpy caster + pymunk oracle); a lidar's returns of a cast;
 - ``sim.sensors.cast_kernel``: the compiled (numba) twin of the numpy caster and the scene kernels;
 - ``sim.sensors.lidar3d``: the 3-D ray-cast VLP-16 over upright prisms and the ground;
 - ``sim.sensors.scene``: vehicles and roadside objects as segments (2-D) or prisms (3-D) for a sensor;

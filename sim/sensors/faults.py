@@ -1,5 +1,4 @@
-"""Sensor faults on the frames of a run (the scenario's ``[faults]`` table, ``sim.world.scenario.FaultsSpec``)
-and the per-run measures of how the tracker lives through a lidar dropout.
+"""Sensor faults on the frames of a run: the scenario's ``[faults]`` table (``sim.world.scenario.FaultsSpec``).
 
 ``FaultInjector(spec, lidar_config, rng).apply(frames)`` wraps the ``SensorRig``'s frame stream:
 
@@ -18,12 +17,8 @@ frame is unchanged, and the spikes draw from their own generator, so a faulty ru
 traffic and the same sensor noise as the clean run of the same seed. ``counts`` tallies what was
 done (``fault_*`` keys of the run's metrics).
 
-**Dropout measures** (``dropout_measures``; for each ``lidar_dropout`` interval ``[a, b)``): the
-vehicles *tracked before* are those GOSPA-assigned to a track in the last frame before ``a``; of
-those, the *eligible* ones are still in the scored truth set at the end of the re-acquisition window,
-the first frame at or after ``b + window_s``. A vehicle *coasted* when its track's label is still
-reported in the last frame before ``b``; it was *re-acquired with its label* when, in that
-end-of-window frame, it is GOSPA-assigned to a track with the same label as before the dropout.
+How the tracker lives through a lidar dropout is measured after the run, from its scored frames, by
+``sim.evaluation.dropouts``.
 """
 
 from __future__ import annotations
@@ -31,23 +26,17 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sim.world.scenario import FaultsSpec
 from sim.sensors.lidar import LidarConfig, LidarScan
 from sim.sensors.radar import RadarScan
 from sim.sensors.rig import SensorFrame
+from sim.world.scenario import FaultsSpec
 from tracker.frame import Frame, RadarDetections
-
-if TYPE_CHECKING:
-    from sim.evaluation.runner import FrameRecord
 
 #: Stream tag mixed into the seed for the faults' random generator (lidar spikes).
 FAULT_STREAM = 0x46415554  # "FAUT"
-#: Default re-acquisition window (s) after a lidar dropout ends.
-REACQUIRE_WINDOW_S = 1.0
 
 
 def in_intervals(t: float, intervals: Sequence[tuple[float, float]]) -> bool:
@@ -145,76 +134,9 @@ def fault_metrics(counts: Counter[str]) -> dict[str, int]:
     return {f"fault_{k}": int(counts.get(k, 0)) for k in keys}
 
 
-@dataclass(frozen=True)
-class DropoutOutcome:
-    """One vehicle across one lidar dropout ``[start, end)`` (s): its truth ``vehicle_id``, the
-    ``label`` of its track before the dropout, whether that track ``coasted`` (still reported at the
-    dropout's last frame) and whether it was ``reacquired`` with that label at ``check_t`` (s), the
-    end of the re-acquisition window; ``label_after`` is the label assigned to it then (-1: none)."""
-
-    start: float
-    end: float
-    vehicle_id: int
-    label: int
-    coasted: bool
-    reacquired: bool
-    label_after: int
-    check_t: float
-
-
-def dropout_outcomes(records: Sequence[FrameRecord], intervals: Sequence[tuple[float, float]],
-                     window_s: float = REACQUIRE_WINDOW_S) -> list[DropoutOutcome]:
-    """Per lidar dropout interval and eligible vehicle, what happened (module docstring). Intervals
-    without a frame before them or without a frame at or after ``end + window_s`` are skipped."""
-    if not window_s >= 0.0:
-        raise ValueError(f"window_s must be >= 0 s; got {window_s!r}")
-    times = np.array([r.t for r in records])
-    out: list[DropoutOutcome] = []
-    for start, end in intervals:
-        before = np.flatnonzero(times < start - 1e-9)
-        during = np.flatnonzero((times >= start - 1e-9) & (times < end - 1e-9))
-        after = np.flatnonzero(times >= end + window_s - 1e-9)
-        if not len(before) or not len(after):
-            continue
-        rec_before = records[before[-1]]
-        rec_check = records[after[0]]
-        rec_last = records[during[-1]] if len(during) else rec_before
-        reported_last = {tr.label for tr in rec_last.tracks}
-        check_scored = set(int(i) for i in rec_check.truth.ids[rec_check.scored])
-        check_label = {int(vid): int(tr.label) for tr, vid in zip(rec_check.tracks, rec_check.track_truth_id) if vid >= 0}
-        for tr, vid in zip(rec_before.tracks, rec_before.track_truth_id):
-            if vid < 0 or int(vid) not in check_scored:
-                continue
-            after_label = check_label.get(int(vid), -1)
-            out.append(DropoutOutcome(
-                start=float(start), end=float(end), vehicle_id=int(vid), label=int(tr.label),
-                coasted=int(tr.label) in reported_last, reacquired=after_label == int(tr.label),
-                label_after=after_label, check_t=float(rec_check.t),
-            ))
-    return out
-
-
-def dropout_metrics(outcomes: Sequence[DropoutOutcome]) -> dict[str, Any]:
-    """``fault_dropout_vehicles`` (eligible vehicles over all dropouts), ``fault_dropout_coasted``,
-    ``fault_dropout_reacquired`` (counts) and ``fault_dropout_reacquired_fraction`` (``None`` when no
-    vehicle was eligible)."""
-    n = len(outcomes)
-    reacquired = sum(o.reacquired for o in outcomes)
-    return {
-        "fault_dropout_vehicles": n,
-        "fault_dropout_coasted": sum(o.coasted for o in outcomes),
-        "fault_dropout_reacquired": reacquired,
-        "fault_dropout_reacquired_fraction": reacquired / n if n else None,
-    }
-
-
 __all__ = [
     "FAULT_STREAM",
-    "REACQUIRE_WINDOW_S",
-    "DropoutOutcome",
     "FaultInjector",
-    "dropout_metrics",
-    "dropout_outcomes",
     "fault_metrics",
     "in_intervals",
 ]

@@ -18,7 +18,8 @@ from functools import cached_property
 import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
-from sim.sensors.raycast import CASTERS, RayGrid
+from sim.sensors.lidar3d import Vlp16Config
+from sim.sensors.raycast import CASTERS, RayGrid, ray_returns
 from sim.sensors.scene import scene_segments
 from sim.world.truth import Snapshot
 
@@ -102,10 +103,8 @@ class LidarConfig:
         else:
             self.vlp16_config()  # the 3-D fields' own checks
 
-    def vlp16_config(self):  # -> sim.sensors.lidar3d.Vlp16Config
+    def vlp16_config(self) -> Vlp16Config:
         """The ``sim.sensors.lidar3d.Vlp16Config`` of these settings (``model = "vlp16"``)."""
-        from sim.sensors.lidar3d import Vlp16Config
-
         shared = ("resolution_deg", "max_range", "min_range", "range_noise_std", "dropout_probability", "rate_hz", "phase_s")
         return Vlp16Config(**{name: getattr(self, name) for name in shared + VLP16_FIELDS})
 
@@ -136,29 +135,6 @@ class LidarScan:
     def points_on(self, vehicle_id: int) -> np.ndarray:
         """The points (K, 2) in E that hit the vehicle with this id."""
         return self.points[self.vehicle_id == vehicle_id]
-
-
-def ray_returns(hit: np.ndarray, true_range: np.ndarray, owner: np.ndarray, vehicle_ids: np.ndarray,
-                config: LidarConfig, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
-    """The returns of one cast of ``R`` rays (``hit``, ``true_range`` m, ``owner`` per ray: owners
-    ``0 .. V-1`` the vehicles ``vehicle_ids``, ``V + j`` roadside object ``j``, -1 none or the ground):
-    two draws per ray (a normal, then a uniform), whatever the scene; a ray that hits returns unless it
-    drops out (``dropout_probability``) or is nearer than ``min_range``, at the true range plus
-    Gaussian noise (``range_noise_std``). Returns the returning rays' indices, their measured ranges,
-    ``vehicle_id`` (-1 unless a vehicle) and ``roadside_index`` (-1 unless a roadside object).
-    ``config`` is any lidar configuration with those three fields (2-D or the VLP-16's)."""
-    count = len(hit)
-    noise = rng.standard_normal(count)
-    dropped = rng.random(count) < config.dropout_probability
-    idx = np.flatnonzero(hit & ~dropped & (true_range >= config.min_range))
-    measured = true_range[idx] + config.range_noise_std * noise[idx]
-    ids = np.asarray(vehicle_ids, dtype=np.int64).reshape(-1)
-    own = owner[idx]
-    vehicles = ids.shape[0]
-    is_vehicle = (own >= 0) & (own < vehicles)
-    vehicle_id = np.full(idx.size, -1, dtype=np.int64)
-    vehicle_id[is_vehicle] = ids[own[is_vehicle]]
-    return idx, measured, vehicle_id, np.where(own >= vehicles, own - vehicles, -1).astype(np.int64)
 
 
 class Lidar:

@@ -83,9 +83,8 @@ from functools import cached_property
 
 import numpy as np
 
+from sim.sensors.raycast import RayGrid, ray_returns
 from sim.world.ground import Ground
-from sim.sensors.lidar import ray_returns
-from sim.sensors.raycast import RayGrid
 from tracker.cloud import mount_rotation
 
 TWO_PI = 2.0 * math.pi

@@ -28,13 +28,13 @@ from functools import cached_property
 
 import numpy as np
 
-from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.cast_kernel import visible_kernel
+from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import RayGrid, cast as cast_rays
 from sim.sensors.scene import scene_segments, static_arrays
+from sim.world.truth import Snapshot
 from tracker import compiled
 from tracker.transforms import rotate, to_global
-from sim.world.truth import Snapshot
 
 MOUNTS = ("front", "rear")
 

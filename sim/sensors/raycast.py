@@ -24,6 +24,9 @@ each with an integer ``owner`` (the object it belongs to). Both casters return, 
 culling, no broad phase of ours) and calls ``Space.segment_query_first`` once per ray; it is the
 independent oracle the tests compare against. Back-face culling assumes the origin is outside every
 polygon (a sensor inside an object sees nothing of that object).
+
+``ray_returns`` turns one cast into a lidar's returns (range noise, dropout, minimum range); the 2-D
+lidar (``sim.sensors.lidar``) and the VLP-16 (``sim.sensors.lidar3d``) share it.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Protocol
 
 import numpy as np
 
@@ -327,3 +331,41 @@ compiled.register_warm_up(_warm_up_cast)
 #: The casters by name (``LidarConfig.caster``): "numpy" is the vectorised caster (``cast``: compiled
 #: when the kernels are on), "pymunk" the oracle.
 CASTERS = {"numpy": cast, "pymunk": cast_pymunk}
+
+
+# -- the returns of a cast ------------------------------------------------------------------------
+class ReturnSettings(Protocol):
+    """What ``ray_returns`` reads of a lidar configuration (m; a probability)."""
+
+    @property
+    def dropout_probability(self) -> float: ...
+
+    @property
+    def min_range(self) -> float: ...
+
+    @property
+    def range_noise_std(self) -> float: ...
+
+
+def ray_returns(hit: np.ndarray, true_range: np.ndarray, owner: np.ndarray, vehicle_ids: np.ndarray,
+                config: ReturnSettings, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """The returns of one cast of ``R`` rays (``hit``, ``true_range`` m, ``owner`` per ray: owners
+    ``0 .. V-1`` the vehicles ``vehicle_ids``, ``V + j`` roadside object ``j``, -1 none or the ground):
+    two draws per ray (a normal, then a uniform), whatever the scene; a ray that hits returns unless it
+    drops out (``dropout_probability``) or is nearer than ``min_range``, at the true range plus
+    Gaussian noise (``range_noise_std``). Returns the returning rays' indices, their measured ranges,
+    ``vehicle_id`` (-1 unless a vehicle) and ``roadside_index`` (-1 unless a roadside object).
+    ``config`` is any lidar configuration with those three fields (``ReturnSettings``: the 2-D
+    ``sim.sensors.lidar.LidarConfig`` or the ``sim.sensors.lidar3d.Vlp16Config``)."""
+    count = len(hit)
+    noise = rng.standard_normal(count)
+    dropped = rng.random(count) < config.dropout_probability
+    idx = np.flatnonzero(hit & ~dropped & (true_range >= config.min_range))
+    measured = true_range[idx] + config.range_noise_std * noise[idx]
+    ids = np.asarray(vehicle_ids, dtype=np.int64).reshape(-1)
+    own = owner[idx]
+    vehicles = ids.shape[0]
+    is_vehicle = (own >= 0) & (own < vehicles)
+    vehicle_id = np.full(idx.size, -1, dtype=np.int64)
+    vehicle_id[is_vehicle] = ids[own[is_vehicle]]
+    return idx, measured, vehicle_id, np.where(own >= vehicles, own - vehicles, -1).astype(np.int64)

@@ -28,15 +28,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim.world.ground import FlatGround, Ground
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
 from sim.sensors.lidar3d import LidarScan3D, Prisms, Vlp16
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
 from sim.sensors.scene import vehicle_prisms
-from tracker.transforms import rotate, to_global, to_local
+from sim.world.ground import FlatGround, Ground
 from sim.world.truth import Snapshot
 from tracker.frame import EgoState, Frame, RadarDetections
+from tracker.transforms import rotate, to_global, to_local
 
 #: Slack (s) when comparing event times and the time of a snapshot returned by ``truth_at``.
 TIME_TOLERANCE = 1e-9

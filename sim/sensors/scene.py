@@ -11,11 +11,12 @@ import math
 
 import numpy as np
 
-from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.cast_kernel import scene_kernel
+from sim.sensors.clutter import RoadsideObjects
+from sim.sensors.lidar3d import Prisms
 from sim.sensors.raycast import Segments
-from tracker import compiled
 from sim.world.truth import Snapshot, rectangle_corners
+from tracker import compiled
 from tracker.measurement import NEXT_CORNER
 
 _NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))
@@ -86,13 +87,11 @@ def scene_segments(
 VEHICLE_CLEARANCE = 0.25
 
 
-def vehicle_prisms(snapshot: Snapshot, origin: tuple[float, float], max_range: float | None = None):
+def vehicle_prisms(snapshot: Snapshot, origin: tuple[float, float], max_range: float | None = None) -> Prisms:
     """The snapshot's vehicles as upright boxes (``sim.sensors.lidar3d.Prisms``) for the 3-D lidar:
     footprint = the rectangle, from ``z + VEHICLE_CLEARANCE`` to ``z + height`` (m, G; ``Snapshot.z``
     the ground under the centre). Owners are the snapshot rows ``0 .. V-1``; with ``max_range`` the
     vehicles wholly beyond it from ``origin`` (m, G) are left out."""
-    from sim.sensors.lidar3d import Prisms
-
     rows = np.arange(len(snapshot), dtype=np.int64)
     if max_range is not None and len(rows):
         dx, dy = snapshot.xy[:, 0] - float(origin[0]), snapshot.xy[:, 1] - float(origin[1])

@@ -43,8 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.world.scenario import load_scenario, resolve_scenario_path
 from sim.evaluation.variants import check_variant
+from sim.world.scenario import load_scenario, resolve_scenario_path
 from tracker.compiled import warm_up
 
 #: Mode name of the ground-truth perception.

@@ -41,8 +41,8 @@ from sim.evaluation.runner import (
     truth_set,
     truth_state,
 )
-from sim.world.scenario import ScenarioSpec
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant
+from sim.world.scenario import ScenarioSpec
 from sim.world.world import World
 
 #: Scenario of the soak test (a closed road, so the traffic never ends).
