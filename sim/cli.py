@@ -2,9 +2,9 @@
 ``soak``, ``scenarios``, ``bench``. Every command writes under ``eot-output/`` unless ``--out`` names a folder.
 
 ``eot compare`` runs every study variant over a suite with the same seeds and writes ``REPORT.md``
-with its figures and CSVs (``sim.studies.study``, ``sim.studies.claims``, ``sim.studies.report``); a variant that cannot be
-built here is skipped with a warning and a note in the report; ``--report-only`` rebuilds the report
-from ``OUT/report/``.
+with its figures and CSVs (``sim.studies.study``, ``sim.studies.claims``, ``sim.studies.report``); a
+variant that cannot be built here is skipped with a warning and a note in the report;
+``--report-only`` rebuilds the report from ``OUT/report/``.
 
 ``eot run`` / ``eot demo`` also write the run's diagnostics (``sim.evaluation.inspect``: ``events.csv``,
 ``worst_intervals.csv``, ``events.png``) and print one line of them; ``eot inspect RUN_DIR`` prints

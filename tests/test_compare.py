@@ -1,6 +1,6 @@
-"""The comparison study (sim/studies/study.py, sim/studies/claims.py, sim/evaluation/variants.py): every variant tracks the
-curve-single car, paired intervals against scipy, verdicts, variant probing (only a missing optional
-dependency makes a variant unavailable; any other failure to build one is an error)."""
+"""The comparison study (sim/studies/study.py, sim/studies/claims.py, sim/evaluation/variants.py): every
+variant tracks the curve-single car, paired intervals against scipy, verdicts, variant probing (only a
+missing optional dependency makes a variant unavailable; any other failure to build one is an error)."""
 
 import sys
 

@@ -12,7 +12,8 @@ import pytest
 
 from sim import ScenarioSpec, load_scenario
 from sim.cli import main
-from sim.world.scenario import SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite, parse_scenario
+from sim.world.scenario import (SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite,
+                                parse_scenario)
 
 STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
 

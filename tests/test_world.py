@@ -1,4 +1,5 @@
-"""Tests of sim/world/lanes.py, sim/world/traffic.py and sim/world/world.py: highway-env traffic on our road, and truth."""
+"""Tests of sim/world/lanes.py, sim/world/traffic.py and sim/world/world.py: highway-env traffic on our
+road, and truth."""
 
 from __future__ import annotations
 
