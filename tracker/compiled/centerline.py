@@ -100,9 +100,10 @@ def road_frame_at(kind, s, closed, length, ends, table, bucket_cell, starts_next
     """``Road._frame_flat(s, extrapolate=True)`` at one ``s``: wrapped on a closed road; on an open
     one the frame at ``s`` clipped to [0, length], its position moved along the end tangent
     (``ends`` rows ``(x, y, cos, sin)`` at 0 and at ``length``) and its curvature 0 beyond an end."""
+    at = s % length if closed else min(max(s, 0.0), length)
+    x, y, tx, ty, kappa = curve_at(kind, at, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
     if closed:
-        return curve_at(kind, s % length, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
-    x, y, tx, ty, kappa = curve_at(kind, min(max(s, 0.0), length), table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
+        return x, y, tx, ty, kappa
     if s < 0.0:
         return ends[0, 0] + s * ends[0, 2], ends[0, 1] + s * ends[0, 3], tx, ty, 0.0
     if s > length:

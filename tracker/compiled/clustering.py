@@ -100,12 +100,13 @@ def _counting_order(value, within):  # pragma: no cover - compiled
 def _cell_order(cx, cy):  # pragma: no cover - compiled
     """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
     of one cell is any). Two counting sorts (by ``cy``, then stably by ``cx``); with more rows and
-    columns than ``4 n + 1024``, ``numpy.argsort`` of the keys."""
+    columns than ``4 n + 1024``, ``numpy.argsort`` of the keys (a merge sort: the one sort routine the
+    kernels compile for integer keys)."""
     n = len(cx)
     if n == 0:
         return np.empty(0, dtype=np.int64)
     if cx.max() + cy.max() + 2 > 4 * n + 1024:
-        return np.argsort(cx * (cy.max() + 1) + cy)
+        return np.argsort(cx * (cy.max() + 1) + cy, kind="mergesort")
     return _counting_order(cx, _counting_order(cy, np.arange(n)))
 
 
@@ -592,7 +593,7 @@ def bearing_sorted_scan(scan):  # pragma: no cover - compiled
     bearing = np.empty(count)
     for j in range(count):
         bearing[j] = np.arctan2(scan[j, 1], scan[j, 0])
-    order = np.argsort(bearing)
+    order = np.argsort(bearing, kind="mergesort")  # any order of equal bearings serves the searches
     b = bearing[order]
     r = np.empty(count)
     xy = np.empty((count, 2))

@@ -36,11 +36,9 @@ def _interp(x, xp, fp):
 
 @njit(inline="always")
 def _curvature(s, table_s, table_k, closed, length):
-    if closed:
-        return _interp(s % length, table_s, table_k)  # Python's float modulo: numpy's np.mod
-    if s < table_s[0] or s > table_s[-1]:
+    if not closed and (s < table_s[0] or s > table_s[-1]):
         return 0.0
-    return _interp(s, table_s, table_k)
+    return _interp(s % length if closed else s, table_s, table_k)  # Python's float modulo: numpy's np.mod
 
 
 @njit(inline="always")
@@ -75,26 +73,24 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
               acceleration_time, max_sin_slip, slip_min_speed)
     count, dim = x.shape
     out = x.copy()
-    k1 = np.empty(dim)
-    k2 = np.empty(dim)
-    k3 = np.empty(dim)
-    k4 = np.empty(dim)
+    k = np.empty((4, dim))  # the four stages' slopes
     tmp = np.empty(dim)
+    half = 0.5 * h
     for i in range(count):
         xi = out[i]
         for _ in range(steps):
-            _derivative(xi, k1, params)
+            # one call site of the (inlined) derivative for the four stages: the state of stage q is
+            # x + c_q k_{q-1} with c = (0, h/2, h/2, h), the first stage's the state itself
+            for q in range(4):
+                if q == 0:
+                    tmp[:] = xi
+                else:
+                    c = h if q == 3 else half
+                    for j in range(dim):
+                        tmp[j] = xi[j] + c * k[q - 1, j]
+                _derivative(tmp, k[q], params)
             for j in range(dim):
-                tmp[j] = xi[j] + 0.5 * h * k1[j]
-            _derivative(tmp, k2, params)
-            for j in range(dim):
-                tmp[j] = xi[j] + 0.5 * h * k2[j]
-            _derivative(tmp, k3, params)
-            for j in range(dim):
-                tmp[j] = xi[j] + h * k3[j]
-            _derivative(tmp, k4, params)
-            for j in range(dim):
-                xi[j] = xi[j] + (h / 6.0) * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                xi[j] = xi[j] + (h / 6.0) * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
     return out
 
 

@@ -212,7 +212,8 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
         margin = np.zeros((3, 2))
         half_gap = np.zeros((3, 2))
         if gap_correction and n >= 2:
-            gaps = np.sort(rel[1:] - rel[:-1])
+            gaps = rel[1:] - rel[:-1]
+            gaps = gaps[np.argsort(gaps, kind="mergesort")]  # numpy.sort's values
             db = gaps[(n - 1) // 2]
             for s in range(3):
                 dist = abs(origin[s, 0] * direction[s, 1] - origin[s, 1] * direction[s, 0])
