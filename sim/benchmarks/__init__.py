@@ -16,7 +16,7 @@ line printed after the JSON. Benchmarks measure speed; tests never assert wall-c
 
 Modules whose names start with ``_`` are helpers, not targets:
 
-- ``_suite``: ``eot bench`` with no target: every section, ``results/bench.json`` and a table (``--quick``);
+- ``_suite``: ``eot bench`` with no target: every section, ``eot-output/bench.json`` and a table (``--quick``);
 - ``_table``: that table;
 - ``_machine``: the machine, the git state, peak memory, one-core pinning;
 - ``_traffic``: the tracker benchmark's all-in-view scene;
@@ -26,7 +26,7 @@ Modules whose names start with ``_`` are helpers, not targets:
 
 Commands::
 
-    eot bench                                   # everything -> results/bench.json + a table
+    eot bench                                   # everything -> eot-output/bench.json + a table
     eot bench --quick --out /tmp/bench.json     # the whole path in seconds
     eot bench tracker --compare-stonesoup       # ratio to Stone Soup's GM-PHD (extra 'baselines')
 """

@@ -34,8 +34,8 @@ its numbers are not benchmarks.
 
 Commands::
 
-    eot bench                                  # everything (a few minutes), results/bench.json
-    OMP_NUM_THREADS=1 eot bench --out results/bench.json
+    eot bench                                  # everything (a few minutes), eot-output/bench.json
+    OMP_NUM_THREADS=1 eot bench --out results/bench.json   # re-make the committed reference
     eot bench --quick --out /tmp/bench.json    # the whole path in seconds
     eot bench --only tracker stonesoup         # some sections
 """
