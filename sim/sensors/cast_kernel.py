@@ -25,7 +25,7 @@ from tracker.compiled.geometry import corner_offset
 TWO_PI = 2.0 * math.pi
 
 
-@njit(error_model="numpy")
+@njit(error_model="numpy", inline="always")
 def _narrow(k_from, k_to, count, wrap, ax, ay, bx, by, cr, owner, cos, sin, max_range, ranges, owners):  # pragma: no cover - compiled
     for k in range(k_from, k_to + 1):
         ray = k % count if wrap else k

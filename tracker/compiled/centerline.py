@@ -30,7 +30,7 @@ def _cos_sin_small(phi):
     return cos, sin
 
 
-@njit
+@njit(inline="always")
 def _frame_arrays(count):
     """Empty outputs of a frame kernel: positions and unit tangents ``(count, 2)``, curvatures ``(count,)``."""
     return np.empty((count, 2)), np.empty((count, 2)), np.empty(count)

@@ -36,7 +36,7 @@ def _union(parent, a, b):
         parent[max(a, b)] = min(a, b)
 
 
-@njit
+@njit(inline="always")
 def _labels_in_order(parent):
     """Component label per node of a union-find forest, numbered in order of each component's first node."""
     n = len(parent)
@@ -78,7 +78,7 @@ def partition_points_kernel(pts, threshold):
     return partition_kernel(pts, threshold, cx, cy, span_y), True
 
 
-@njit
+@njit(inline="always")
 def _counting_order(value, within):  # pragma: no cover - compiled
     """``within`` (indices) stably reordered by ``value[within]`` (non-negative integers): a counting sort."""
     size = 0
@@ -96,7 +96,7 @@ def _counting_order(value, within):  # pragma: no cover - compiled
     return order
 
 
-@njit
+@njit(inline="always")
 def _cell_order(cx, cy):  # pragma: no cover - compiled
     """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
     of one cell is any). Two counting sorts (by ``cy``, then stably by ``cx``); with more rows and
@@ -110,7 +110,7 @@ def _cell_order(cx, cy):  # pragma: no cover - compiled
     return _counting_order(cx, _counting_order(cy, np.arange(n)))
 
 
-@njit
+@njit(inline="always")
 def partition_kernel(pts, threshold, cx, cy, span_y):
     """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
     shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
@@ -182,7 +182,7 @@ def radar_association_kernel(points, offsets, radar, gate):
     return associate_ranges(points, offsets[:-1], offsets[1:], radar, gate)
 
 
-@njit
+@njit(inline="always")
 def associate_ranges(points, lo, hi, radar, gate):
     """``tracker.clustering.associate_radar`` for clusters ``points[lo[k]:hi[k]]``: the distance of a
     detection to a cluster is that to its nearest point; gated pairs are taken greedily in increasing
@@ -329,7 +329,7 @@ def overlap_groups_kernel(corners, c, s):
     return _labels_in_order(parent)
 
 
-@njit
+@njit(inline="always")
 def _grouped(key):  # pragma: no cover - compiled
     """A stable counting sort of the non-negative integer ``key``: the point indices ordered by key
     (ties by index, as ``numpy.argsort(key, kind="stable")``) and the edges ``(G + 1,)`` of the runs of
@@ -358,7 +358,7 @@ def _grouped(key):  # pragma: no cover - compiled
     return order, edges
 
 
-@njit
+@njit(inline="always")
 def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
                         max_points):  # pragma: no cover - compiled
     """The first half of ``tracker.tracker.Tracker._cluster``'s grouping: per point the track group
@@ -437,7 +437,7 @@ def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, 
     return True, groups, owner, inside, component, component_group, fragments
 
 
-@njit
+@njit(inline="always")
 def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cover - compiled
     """``tracker.tracker.Tracker._split_across`` on ``key`` and ``owner`` in place (with
     ``tracker.clustering.split_across``'s rounds): a cluster (run of equal keys) spanning more than
@@ -584,7 +584,7 @@ def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels
     return ok, True, groups, owner, inside, component, component_group, ordered, edges, owned, added
 
 
-@njit
+@njit(inline="always")
 def bearing_sorted_scan(scan):  # pragma: no cover - compiled
     """The returns of ``scan (R, 2)`` sorted by bearing from the E origin: their bearings (rad, (-pi, pi]),
     ranges (m) and coordinates, for the ends' searches in a bearing window (``occluded_ends_kernel``,
@@ -635,7 +635,7 @@ def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):  
     return occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin)
 
 
-@njit
+@njit(inline="always")
 def occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin):  # pragma: no cover - compiled
     """``occluded_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): per end only
     the returns within ``window`` of its bearing (padded) are tested, with the same test; an end is
@@ -679,7 +679,7 @@ def continued_ends_kernel(ends, outward, start, reach, scan, offset):  # pragma:
     return continued_ends_sorted(ends, outward, start, reach, b, xy, offset)
 
 
-@njit
+@njit(inline="always")
 def continued_ends_sorted(ends, outward, start, reach, b, xy, offset):  # pragma: no cover - compiled
     """``continued_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): a return that
     passes an end's test lies within ``sqrt(reach^2 + offset^2)`` of the end, so within that disc's

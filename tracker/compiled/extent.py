@@ -16,7 +16,7 @@ from tracker.compiled.structure import FULL
 from tracker.motion import LENGTH, WIDTH, XI
 
 
-@njit
+@njit(inline="always")
 def _growth_direction(corners, heading, index, d):  # pragma: no cover - compiled
     """``tracker.update.extent_growth_direction`` of one pair into ``d (D,)`` (zeroed first):
     ``0.5 sgn u`` in the position slots (``u`` along the body for ``index = LENGTH``, across it for
@@ -39,7 +39,7 @@ def _growth_direction(corners, heading, index, d):  # pragma: no cover - compile
     d[index] = 1.0
 
 
-@njit
+@njit(inline="always")
 def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
     """``replace_length_prior`` of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
     its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along

@@ -94,7 +94,7 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
     return out
 
 
-@njit
+@njit(inline="always")
 def _relaxed(means, covs, relax, floor):  # pragma: no cover - compiled
     """Copies of ``means (C, 8)``, ``covs (C, 8, 8)`` with each acceleration (state 7) scaled by
     ``relax[c]`` (the mean, then the covariance's row, then its column: ``tracker.motion.predict``'s

@@ -17,18 +17,18 @@ from tracker.compiled import njit
 from tracker.compiled.clustering import bearing_sorted_scan, continued_ends_sorted, occluded_ends_sorted
 
 
-@njit
+@njit(inline="always")
 def _lambda_min(sxx: float, syy: float, sxy: float) -> float:
     return 0.5 * (sxx + syy) - math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
 
 
-@njit
+@njit(inline="always")
 def _residual(cnt: float, sx: float, sy: float, sxx: float, syy: float, sxy: float) -> float:
     cnt = max(cnt, 1.0)
     return max(_lambda_min(sxx - sx * sx / cnt, syy - sy * sy / cnt, sxy - sx * sy / cnt), 0.0)
 
 
-@njit
+@njit(inline="always")
 def _even(keep: np.ndarray, lo: int, hi: int, count: int) -> None:
     count = max(count, 2)
     step = (hi - lo) / (count - 1)
@@ -37,7 +37,7 @@ def _even(keep: np.ndarray, lo: int, hi: int, count: int) -> None:
         keep[int(np.rint(pos))] = True
 
 
-@njit
+@njit(inline="always")
 def _mean_scatter(pts, j0, j1):
     """Centroid and biased scatter ``(cx, cy, sxx, syy, sxy)`` of ``pts[j0:j1 + 1]``."""
     cnt = j1 - j0 + 1
@@ -60,7 +60,7 @@ def _mean_scatter(pts, j0, j1):
     return cx, cy, sxx / cnt, syy / cnt, sxy / cnt
 
 
-@njit
+@njit(inline="always")
 def _corner_split(pts: np.ndarray, n: int) -> int:
     cx, cy, _, _, _ = _mean_scatter(pts, 0, n - 1)
     c = np.zeros((n + 1, 6))

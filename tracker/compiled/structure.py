@@ -21,7 +21,7 @@ _SX = np.array([1.0, 1.0, -1.0, -1.0])
 _SY = np.array([-1.0, 1.0, 1.0, -1.0])
 
 
-@njit
+@njit(inline="always")
 def _sign(x: float) -> float:
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
