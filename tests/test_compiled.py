@@ -1,6 +1,7 @@
 """Tests of tracker/compiled: every numba kernel against its numpy reference (the same discrete
 decisions exactly, the numbers within 1e-9), on random clusters and on the pairs of a tracked scene; and
-the switch (``EOT_NUMBA``). Skipped where numba is not installed (the ``fast`` extra)."""
+the switch (``EOT_NUMBA``). numba is a dependency of the package; the tests skip where it cannot be
+imported."""
 
 from __future__ import annotations
 

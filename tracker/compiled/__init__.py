@@ -1,53 +1,70 @@
-"""Optional compiled kernels (numba) for the tracker's per-frame fixed costs.
+"""Compiled kernels (numba) for the tracker's per-frame fixed costs.
 
 At the tracker's sizes (a few to a few dozen clusters and components per frame) numpy's cost is the
 number of calls, not the arithmetic: preparing one cluster takes as long as preparing ten. The kernels
-here do the same work as their numpy references in one compiled call each. They are an optional extra
-(``pip install -e ".[fast]"``); without numba, or with the environment variable ``EOT_NUMBA=0``, the
-tracker runs the numpy code, which stays the reference: ``tests/test_compiled.py`` checks every kernel
-against it (the same discrete decisions, the numbers within 1e-9; sums run in another order).
+here do the same work as their numpy references in one compiled call each. numba is a dependency of
+the package and the kernels are the tracker's default path. With the environment variable
+``EOT_NUMBA=0`` (or where numba cannot be imported) the tracker runs the numpy code, which stays the
+reference: ``tests/test_compiled.py`` checks every kernel against it (the same discrete decisions, the
+numbers within 1e-9; sums run in another order).
 
 ``enabled()`` says whether the kernels are used; ``require()`` raises a clear error when they are asked
-for and numba is missing; ``warm_up()`` compiles (or loads) them all at once. They compile on first
-use and are cached next to this package (``cache=True``): a fresh checkout compiles once (~20 s on this
-project's machines), later processes load them (~0.3 s). Numba's cache checks a kernel's own file only:
-after editing a kernel that kernels of other files call (``pairs`` calls ``centerline``, ``structure``,
-``extent``, ``kalman`` and ``preparation``; ``preparation`` and ``reduction`` call ``clustering``;
-``centerline``, ``motion`` and ``kalman`` call ``ukf``; ``centerline`` and ``detection`` call ``geometry``;
-``extraction`` calls ``centerline``; ``birth`` calls ``centerline`` and ``detection``; ``preprocess`` calls
-``centerline`` and ``clustering``), delete ``tracker/compiled/__pycache__`` so that the callers compile
-again with it.
+for and numba is missing; ``pinned()`` reads the switch once for a block (one ``Tracker.step``).
 
-Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the measurement structure),
-``centerline`` (clothoid and Hermite frames, the projection and its seeding, states to rectangles, sigma
-points with their rectangles), ``motion`` (Frenet RK4; the whole UKF prediction), ``clustering``
-(bearing filter, distance partition, radar association, points in rectangles, overlap groups, ends
-next to a shadow; the tracker's whole grouping of the points into clusters, its radar association),
-``reduction`` (the reduce stage: the field-of-view and road test, prune, merge, cap and the closed
-road's ``s`` in one call; the test of components inside an updated one's rectangle; the candidates of
-overlapping labels and their overlap test), ``kalman`` (the UKF update of the
-pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules before and after
-the update), ``pairs`` (the whole update of the pairs in one call: the sigma points' rectangles through
-the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the lidar's road filter:
-projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of the pairs), ``birth``
-(the road births and where a vehicle can enter the view), ``ukf`` (sigma points and their moments; a proof of positive definiteness before LAPACK), ``extraction`` (the report-range test's rectangle centres of the
-components to report).
+Compilation and the cache. The kernels compile on first use and are cached (``cache=True``: next to
+this package, or under ``NUMBA_CACHE_DIR``); later processes load them (about 0.6 s for all).
+``warm_up()`` compiles or loads them all at once, through the calls of ``tracker.compiled._warm``.
+Where a kernel is missing from the cache it reports one line before compiling (with the expected time,
+``COMPILE_ESTIMATE_S``) and one after (``report_to``: stderr by default), and a helper process
+compiles the update of the pairs meanwhile into the same cache, so that two cores share the work.
+Numba's cache checks a kernel's own file only: after editing a kernel that kernels of other files call
+(``pairs`` calls ``centerline``, ``structure``, ``extent``, ``kalman`` and ``preparation``;
+``preparation`` and ``reduction`` call ``clustering``; ``centerline``, ``motion`` and ``kalman`` call
+``ukf``; ``centerline``, ``detection`` and the simulator's ``sim.sensors.cast_kernel`` call ``geometry``;
+``extraction`` calls ``centerline``; ``birth`` calls ``centerline`` and ``detection``; ``preprocess``
+calls ``centerline`` and ``clustering``), delete ``tracker/compiled/__pycache__`` so that the callers
+compile again with it.
+
+Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the
+measurement structure), ``centerline`` (clothoid and Hermite frames, the projection and its seeding,
+states to rectangles, sigma points with their rectangles), ``motion`` (Frenet RK4; the whole UKF
+prediction), ``clustering`` (bearing filter, distance partition, radar association, points in
+rectangles, overlap groups, ends next to a shadow; the tracker's whole grouping of the points into
+clusters, its radar association), ``reduction`` (the reduce stage: the field-of-view and road test,
+prune, merge, cap and the closed road's ``s`` in one call; the test of components inside an updated
+one's rectangle; the candidates of overlapping labels and their overlap test), ``kalman`` (the UKF
+update of the pairs; with the predicted measurements and the radar gate), ``extent`` (the extent rules
+before and after the update), ``pairs`` (the whole update of the pairs in one call: the sigma points'
+rectangles through the extent rules; with the pairs' clusters prepared first), ``preprocess`` (the
+lidar's road filter: projection, road bounds, bearing filter), ``gating`` (the update's pre-gating of
+the pairs), ``birth`` (the road births and where a vehicle can enter the view), ``ukf`` (sigma points
+and their moments; a proof of positive definiteness before LAPACK), ``extraction`` (the report-range
+test's rectangle centres of the components to report).
 Where one kernel does the work of several numpy steps it repeats their operations in their order, so
 that the numbers are the same bit for bit, except where numpy's sums run in another order (matrix
 products, the Kalman update): there they agree to rounding (``tests/test_compiled.py`` says which).
-``pinned()``: the switch read once for a block (one ``Tracker.step``).
+Small helpers that only other kernels call are inlined into them (``inline="always"``), which
+compiles faster than a kernel of their own. An inlined helper takes its caller's flags (fastmath, error
+model): inlining a helper into a caller of other flags (the ``kalman`` kernels use fastmath) may change
+the numbers.
 """
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import time
 
 try:  # pragma: no cover - exercised by whichever environment runs the tests
     import numba as _numba
+    from numba.core import event as _event
 except ImportError:  # pragma: no cover
-    _numba = None
+    _numba = _event = None
 
 ENV_SWITCH = "EOT_NUMBA"
+COMPILE_ESTIMATE_S = 40  # s: a cold warm_up() on a 2-core machine (the line warm_up() reports before compiling)
+HELPER_TIMEOUT_S = 600.0  # s: warm_up() stops waiting for its helper process after this (and compiles its share)
 _WARM = False  # warm_up() has compiled or loaded every kernel in this process
 _EXTRA_WARM_UPS: list = []  # callables registered by other packages' kernels (register_warm_up)
 
@@ -91,13 +108,17 @@ class pinned:
 def require() -> None:
     """Raise a clear error when numba is not installed."""
     if _numba is None:
-        raise RuntimeError('the compiled kernels need numba: pip install -e ".[fast]" (or set EOT_NUMBA=0)')
+        raise RuntimeError("the compiled kernels need numba, a dependency of frenet-eot: pip install numba "
+                           "(or reinstall the package); EOT_NUMBA=0 runs the numpy code")
 
 
 def njit(*args, **kwargs):
-    """``numba.njit(cache=True, ...)``; without numba a decorator that leaves the function as it is (the
-    kernels are then never called by the tracker, but stay importable and testable as plain Python)."""
+    """``numba.njit(cache=True, no_cfunc_wrapper=True, ...)`` (no kernel is passed around as a C
+    function pointer, so numba's C-callable wrapper is not built); without numba a decorator that leaves
+    the function as it is (the kernels are then never called by the tracker, but stay importable and
+    testable as plain Python)."""
     kwargs.setdefault("cache", True)
+    kwargs.setdefault("no_cfunc_wrapper", True)
     if _numba is None:
         if args and callable(args[0]):
             return args[0]
@@ -112,86 +133,121 @@ def register_warm_up(function) -> None:
         _EXTRA_WARM_UPS.append(function)
 
 
-def warm_up() -> bool:
-    """Compile every kernel now (or load it from the cache): a few frames of a small tracked scene
-    and one call of each kernel the scene may not reach. Call it before starting worker processes, so
-    that they load the cache instead of each compiling (~20 s on a fresh checkout), and before timing.
-    Returns whether the kernels are on (nothing is done when they are off). Once per process: later
-    calls return at once."""
+def _stderr_line(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+_REPORT = _stderr_line  # where warm_up() says that it compiles (report_to)
+
+
+def report_to(function):
+    """Send ``warm_up()``'s two lines about compiling (the start, with the expected time, and the
+    time it took) to ``function(line)`` instead; the default prints them to stderr; None drops them.
+    Returns the function that was in use. Nothing is reported when every kernel loads from the cache."""
+    global _REPORT
+    previous, _REPORT = _REPORT, function
+    return previous
+
+
+def _report(line: str) -> None:
+    if _REPORT is not None:
+        _REPORT(line)
+
+
+class _Compiling(_event.Listener if _event is not None else object):
+    """A listener of numba's compile events (``numba.core.event``) for one ``warm_up()``: the first
+    compilation (a kernel missing from the cache) reports the start and, while the calling process's
+    share runs, starts the helper process on the other share (``tracker.compiled._warm``)."""
+
+    def __init__(self, parallel: bool) -> None:
+        self.parallel = parallel  # start the helper on a first compilation (before join())
+        self.started: float | None = None  # perf_counter() of the first compilation
+        self.helper: subprocess.Popen | None = None
+
+    def on_start(self, event) -> None:
+        if self.started is not None:
+            return
+        self.started = time.perf_counter()
+        _report(f"compiling the tracker's kernels once (about {COMPILE_ESTIMATE_S} s on a 2-core machine; "
+                "later runs load them from the cache)...")
+        if self.parallel:
+            self.helper = _start_helper()
+
+    def on_end(self, event) -> None:
+        pass
+
+    def join(self) -> None:
+        """Wait for the helper (if one runs; at most ``HELPER_TIMEOUT_S``) and start no other."""
+        self.parallel = False
+        if self.helper is not None:
+            try:
+                self.helper.wait(timeout=HELPER_TIMEOUT_S)
+            except subprocess.TimeoutExpired:  # pragma: no cover - a helper that hangs: its share compiles here
+                self.stop()
+
+    def stop(self) -> None:
+        if self.helper is not None and self.helper.poll() is None:
+            self.helper.kill()
+            self.helper.wait()
+
+
+def _cores() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - no affinity on this platform
+        return os.cpu_count() or 1
+
+
+def _start_helper() -> subprocess.Popen | None:
+    """``python -m tracker.compiled._warm`` (its share: the update of the pairs) with this process's
+    environment and this package on its path; None where it cannot start or where this process has one
+    CPU only (this process then compiles that share itself)."""
+    if _cores() < 2:
+        return None
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
+    try:
+        return subprocess.Popen([sys.executable, "-m", "tracker.compiled._warm"], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:  # pragma: no cover - no interpreter to start
+        return None
+
+
+def warm_up(parallel: bool = True) -> bool:
+    """Compile every kernel now, or load it from the cache: the calls of ``tracker.compiled._warm`` (a
+    tracker's first frame, a small tracked scene, the update of the pairs, the calls of the kernels a
+    scene may not reach) and the functions of ``register_warm_up``. Call it before starting worker
+    processes, so that they load the cache instead of each compiling, and before timing.
+
+    Where a kernel is missing from the cache, one line says so (``report_to``; stderr by default)
+    before the compilation and one after it with the seconds it took; with ``parallel`` a helper
+    process compiles the update of the pairs meanwhile, into the same cache. Nothing is said when every
+    kernel loads from the cache. Returns whether the kernels are on (nothing is done when they are
+    off). Once per process: later calls return at once."""
     global _WARM
     if not enabled():
         return False
     if _WARM:
         return True
-    import numpy as np
+    from tracker.compiled import _warm
 
-    from tracker.clustering import points_in_rectangles
-    from tracker.config import TrackerConfig
-    from tracker.detection import occluded_fraction
-    from tracker.frame import EgoState, Frame, RadarDetections
-    from tracker.measurement import Rectangles, rectangle_corners, rectangle_scan
-    from tracker.road import Road
-    from tracker.tracker import Tracker, _duplicate_groups
-
-    ring = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True)
-    ring.frame(np.array([1.0, 2.0]))
-    road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
-    road.to_frenet(np.array([[10.0, 1.0], [20.0, -1.0]]))  # Road._project's kernels (filter_points' fused call holds them)
-    tracker = Tracker(road, TrackerConfig())
-    bearings = np.arange(-np.pi, np.pi, np.radians(0.2))
-    for k in range(4):
-        t = 0.1 * k
-        cars = np.array([[15.0 + 12.0 * t, 1.75], [22.0 + 10.0 * t, -1.75]])
-        scan = [rectangle_scan(rectangle_corners(c, np.array(0.0), np.array(4.5), np.array(1.9)), bearings)[0]
-                for c in cars]
-        radar = RadarDetections(t=np.full(2, t), x=cars[:, 0], y=cars[:, 1], vx=np.array([12.0, 10.0]), vy=np.zeros(2))
-        tracker.step(Frame(t, EgoState(100.0, 0.0, 0.0, 10.0, 0.0), np.concatenate(scan), radar))
-    rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
-    _duplicate_groups(rect)
-    occluded_fraction(rect, np.array([1, 2]), rect, np.array([3, 4]))  # the Cartesian births' occlusion test
-    points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
-    # the grouping's second call (after a fragment's numpy step) and its hand-back's partition
-    from tracker.clustering import SPLIT_MAX_CUTS, distance_partition
-    from tracker.compiled.clustering import ordered_clusters_kernel
-
-    pts = np.array([[10.0, 0.0], [10.5, 0.0]])
-    distance_partition(pts, 1.0)
-    ordered_clusters_kernel(pts, np.array([0, -1]), np.array([True, False]), np.zeros(2, dtype=np.int64), 1, np.zeros(2),
-                            True, 3.0, 0.5, SPLIT_MAX_CUTS)
-    # the staged kernels a frame takes where the fused ones hand back: a truck's 12 m side seen by a
-    # component with a car's length prior (its prior is widened: tracker.update's staged path), and
-    # clusters prepared alone, with and without their shadow flags (tracker.preparation)
-    from tracker.preparation import prepare_batch, prepare_scanned_batch
-    from tracker.update import update_pairs
-
-    truck = rectangle_scan(rectangle_corners(np.array([30.0, 1.75]), np.array(0.0), np.array(12.0), np.array(2.5)),
-                           bearings)[0]
-    batch = prepare_batch([truck], tracker.config.measurement)
-    prepare_scanned_batch([truck], tracker.config.measurement, None, truck, 0.01, 100.0)  # the two steps' first
-    mean = np.zeros((1, tracker.dim))
-    mean[0, :7] = [130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]
-    cov = np.diag(np.r_[1.0, 0.2, 1.0, 0.01, 0.01, 0.25, 0.04, np.ones(tracker.dim - 7)])[None]
-    update_pairs(mean, cov, batch, np.zeros(1, dtype=int), np.zeros(1, dtype=int), EgoState(100.0, 0.0, 0.0, 10.0, 0.0),
-                 road, tracker.config, tracker.ut)
-    # the reduce stage's kernels, whatever the scene reached: the reduction in view, the test of the
-    # components inside an updated one's rectangle, absorb_overlapping's screen (road and Cartesian axes)
-    from tracker.compiled.reduction import inside_updated_kernel
-    from tracker.reduction import Mixture, absorb_overlapping, reduce_in_view
-
-    means = np.array([[130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9], [130.5, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]])
-    mix = Mixture(np.array([0.9, 0.6]), means, np.broadcast_to(np.eye(7), (2, 7, 7)).copy(), np.array([1, 1]))
-    reduce_in_view(mix, np.full(2, 30.0), 102.0, means[:, 1], (-5.0, 5.0), prune_threshold=1e-4, merge_gate=4.0,
-                   max_components=100, wrapping=tracker.wrapping, same_label_distance=3.0, s_period=500.0)
-    inside_updated_kernel(rect.center, np.ones(1), np.zeros(1), rect.length, rect.width, np.zeros(1, dtype=np.int64),
-                          np.ones(1, dtype=np.int64))
-    two = Mixture(mix.weights, mix.means, mix.covs, np.array([1, 2]))
-    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping)
-    absorb_overlapping(two, 0.5, 0.5, tracker.wrapping, cartesian=True)
-    # the extraction's report-range centres (tracker.compiled.extraction), whether or not the scene reported
-    from tracker.tracker import _centres
-
-    _centres(means, np.array([0, 1], dtype=np.intp), EgoState(100.0, 0.0, 0.0, 10.0, 0.0), road, "curvilinear")
-    for function in _EXTRA_WARM_UPS:
-        function()
+    watch = _Compiling(parallel)
+    with _event.install_listener("numba:compile", watch):
+        try:
+            # this process's share while the helper compiles the update of the pairs; then the rest
+            _warm.first_frame()
+            _warm.predict_share()
+            _warm.other_calls()
+            for function in _EXTRA_WARM_UPS:
+                function()
+            watch.join()
+            _warm.update_share()
+            _warm.scene()
+        finally:
+            watch.stop()
+    if watch.started is not None:
+        _report(f"compiled the tracker's kernels in {time.perf_counter() - watch.started:.0f} s")
     _WARM = True
     return True
