@@ -17,13 +17,12 @@ this package, or under ``NUMBA_CACHE_DIR``); later processes load them (about 0.
 Where a kernel is missing from the cache it reports one line before compiling (with the expected time,
 ``COMPILE_ESTIMATE_S``) and one after (``report_to``: stderr by default), and a helper process
 compiles the update of the pairs meanwhile into the same cache, so that two cores share the work.
-Numba's cache checks a kernel's own file only: after editing a kernel that kernels of other files call
-(``pairs`` calls ``centerline``, ``structure``, ``extent``, ``kalman`` and ``preparation``;
-``preparation`` and ``reduction`` call ``clustering``; ``centerline``, ``motion`` and ``kalman`` call
-``ukf``; ``centerline``, ``detection`` and the simulator's ``sim.sensors.cast_kernel`` call ``geometry``;
-``extraction`` calls ``centerline``; ``birth`` calls ``centerline`` and ``detection``; ``preprocess``
-calls ``centerline`` and ``clustering``), delete ``tracker/compiled/__pycache__`` so that the callers
-compile again with it.
+Kernels call kernels of other files (``pairs`` calls ``centerline``, ``structure``, ``extent``,
+``kalman`` and ``preparation``; ``centerline``, ``detection`` and the simulator's
+``sim.sensors.cast_kernel`` call ``geometry``; ...), and numba's cache checks a kernel's own file
+only; so every kernel built with ``njit`` here is keyed by the contents of its own file and of every
+file of this folder (``tracker.compiled._cache``): editing any kernel recompiles all of them on their
+next call, with no manual step.
 
 Kernels: ``preparation`` (cluster preparation; with the ends' shadow flags), ``structure`` (the
 measurement structure), ``centerline`` (clothoid and Hermite frames, the projection and its seeding,
@@ -61,6 +60,8 @@ try:  # pragma: no cover - exercised by whichever environment runs the tests
     from numba.core import event as _event
 except ImportError:  # pragma: no cover
     _numba = _event = None
+
+from tracker.compiled import _cache  # noqa: E402 - needs nothing above; kept beside njit's use
 
 ENV_SWITCH = "EOT_NUMBA"
 COMPILE_ESTIMATE_S = 40  # s: a cold warm_up() on a 2-core machine (the line warm_up() reports before compiling)
@@ -123,6 +124,14 @@ def njit(*args, **kwargs):
         if args and callable(args[0]):
             return args[0]
         return lambda f: f
+    if kwargs["cache"]:
+        _cache.install()
+
+        def decorate(function):
+            _cache.register(function.__code__.co_filename)  # keyed by every kernel file (tracker.compiled._cache)
+            return _numba.njit(**kwargs)(function)
+
+        return decorate(args[0]) if args and callable(args[0]) else decorate
     return _numba.njit(*args, **kwargs)
 
 
