@@ -91,7 +91,8 @@ def test_the_report_goes_to_stderr_by_default(cold_warm_up, capsys):
     cold_warm_up({"first_frame": compile_something}, capture=False)
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.startswith("compiling the tracker's kernels once") and "compiled the tracker's kernels in" in captured.err
+    assert captured.err.startswith("compiling the tracker's kernels once")
+    assert "compiled the tracker's kernels in" in captured.err
 
 
 def run_python(code: str) -> subprocess.CompletedProcess:
@@ -113,6 +114,14 @@ def test_a_process_with_every_kernel_cached_prints_nothing():
     out = run_python("import sim.sensors.raycast\nfrom tracker import compiled\nassert compiled.warm_up()\n")
     assert out.returncode == 0, out.stderr
     assert out.stdout == "" and out.stderr == ""
+
+
+def test_the_helper_process_runs_its_share():
+    warm_every_kernel()  # the helper loads its kernels from the cache
+    helper = compiled._start_helper()
+    if helper is None:
+        pytest.skip("one CPU: warm_up starts no helper")
+    assert helper.wait(timeout=600) == 0
 
 
 KERNELS = {  # the kernels that tell the shares apart
