@@ -209,19 +209,15 @@ def _cores() -> int:
 
 
 def _start_helper() -> subprocess.Popen | None:
-    """The helper process: ``tracker.compiled._warm`` run as a script (its share: the update of the
-    pairs) by this interpreter, with this process's environment, without the working directory on its
-    path (``-P``) and with this package's folder at the end of it (where the environment alone does not
-    find the package); None where it cannot start or where this process has one CPU only (this process
-    then compiles that share itself)."""
+    """The helper process: ``python -P -m tracker.compiled._warm`` (its share: the update of the pairs)
+    by this interpreter with this process's environment, without the working directory on its path
+    (``-P``); None where it cannot start or where this process has one CPU only. Where it fails (a
+    package this process found only through a path it added itself) this process compiles that share."""
     if _cores() < 2:
         return None
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    code = (f"import runpy, sys; sys.path.append({root!r}); "
-            "runpy.run_module('tracker.compiled._warm', run_name='__main__')")
     try:
-        return subprocess.Popen([sys.executable, "-P", "-c", code], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+        return subprocess.Popen([sys.executable, "-P", "-m", "tracker.compiled._warm"], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:  # pragma: no cover - no interpreter to start
         return None
 

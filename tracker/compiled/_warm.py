@@ -3,7 +3,7 @@ that compile in parallel on a cold cache.
 
 - ``update_share``: the update of the pairs (``tracker.update.update_clusters``: the fused kernel, then
   by hand-back the two steps and the staged kernels) and the cluster preparation alone. A helper
-  process runs it (this module as ``__main__``) while the calling process runs
+  process runs it (``python -P -m tracker.compiled._warm``) while the calling process runs
 - ``first_frame`` (a tracker's first frame in which no cluster pairs with a component: the road filter,
   the grouping of the points, the radar association, the road births, the detection model, the
   reduction), ``other_calls`` (the kernels a small scene may not reach) and ``predict_share``;
