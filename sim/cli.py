@@ -182,7 +182,7 @@ def _kernels_note() -> str:
         return "compiled kernels"
     if compiled.available():
         return "numpy code: EOT_NUMBA=0"
-    return 'numpy code; pip install -e ".[fast]" for the compiled kernels'
+    return "numpy code; numba could not be imported (pip install numba) for the compiled kernels"
 
 
 def _fmt_value(value: object, digits: int = 3) -> str:
