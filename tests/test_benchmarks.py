@@ -1,6 +1,6 @@
 """``eot bench``: the whole-suite run writes a complete bench.json, the Stone Soup comparison, the scene.
 
-Speed is never asserted here (DESIGN.md): only that every number exists, is finite and positive, and
+Speed is never asserted here (docs/architecture.md): only that every number exists, is finite and positive, and
 that the scenes are what they claim (every car in view). The quick run takes a few seconds.
 """
 

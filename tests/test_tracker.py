@@ -133,7 +133,7 @@ def test_entering_car_confirmed_and_leaving_car_dropped_within_1s():
 @pytest.mark.parametrize("report_range, beyond", [(0.0, False), (None, True)])
 def test_a_car_pulling_away_is_reported_only_while_its_centre_is_in_range(report_range, beyond):
     # a car 30 m ahead pulling away at 2 m/s; range 40 m. Its rear stays in view for 2 s after its centre
-    # leaves the range (t = 5 s): the filter keeps it (fov_margin), but DESIGN.md's field of view (the
+    # leaves the range (t = 5 s): the filter keeps it (fov_margin), but docs/architecture.md's field of view (the
     # scored truth) is the centre within the range, so by default it is no longer reported
     road = Road.from_curvature([(2 * np.pi * 300.0, 1 / 300.0, 1 / 300.0)], closed=True, lanes=2, lane_width=3.5)
     config = TrackerConfig()

@@ -1,4 +1,4 @@
-"""The tracker's input: one ``Frame`` per lidar scan (DESIGN.md, "tracker.Frame").
+"""The tracker's input: one ``Frame`` per lidar scan (docs/architecture.md, "tracker.Frame").
 
 A ``Frame(t, ego, lidar, radar)`` holds
 

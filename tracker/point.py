@@ -78,7 +78,7 @@ class PointTracker:
         self.road = road
         self.config = config
         self.ut = UnscentedTransform(config.ukf)
-        # the point tracker keeps the seven states of DESIGN.md (no internal acceleration state)
+        # the point tracker keeps the seven states of docs/architecture.md (no internal acceleration state)
         self.motion = make_motion(dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=False)), road)
         self.wrapping = state_wrapping(road, "curvilinear")
         self.means = np.zeros((0, 7))

@@ -8,7 +8,7 @@ weighted means, so components on either side of ``s = 0`` merge.
 - prune: drop components with weight below ``threshold``;
 - merge: repeatedly take the heaviest remaining component ``j`` and merge every component ``i``
   with ``(m_i - m_j)^T P_i^-1 (m_i - m_j) <= gate`` into one moment-matched Gaussian; the merged
-  component keeps the label of the heaviest (DESIGN.md);
+  component keeps the label of the heaviest (docs/architecture.md);
 - cap: keep the ``max_components`` heaviest.
 
 ``reduce_in_view`` is the tracker's reduce stage before its overlap rules: the components out of view or

@@ -1,6 +1,6 @@
 """The road: a centerline parameterised by arc length, lanes, bounds and Frenet conversions.
 
-Conventions (DESIGN.md): ``s`` is arc length along the centerline in ``[0, length)`` (wrapping on a
+Conventions (docs/architecture.md): ``s`` is arc length along the centerline in ``[0, length)`` (wrapping on a
 closed road); ``n`` is the signed lateral offset, **positive to the left** of the driving direction;
 lane 0 is the rightmost lane. The lanes lie side by side between ``right_edge`` and ``left_edge``
 (offsets in ``n``); by default the centerline runs down the middle of the carriageway.

@@ -1,6 +1,6 @@
 """The tracker's output ``Track`` and the state conversions between road and Cartesian coordinates.
 
-Curvilinear state (index order fixed, DESIGN.md): ``[s, n, v, xi, xi_dot, L, W]`` -- arc length (m) of
+Curvilinear state (index order fixed, docs/architecture.md): ``[s, n, v, xi, xi_dot, L, W]`` -- arc length (m) of
 the rectangle centre's projection, lateral offset (m, positive left), absolute speed (m/s) along the
 heading, heading relative to the road tangent ``xi`` (rad), its rate (rad/s), length and width (m).
 Cartesian state in G: ``[x, y, v, psi, psi_dot, L, W]`` with ``psi = theta(s) + xi`` and the absolute yaw

@@ -9,7 +9,7 @@ Two ego classes share the road-coordinate bookkeeping of ``sim.world.traffic`` (
   limit) do the rest. Two departures, both documented: the speed controller's acceleration is
   clipped to ``acceleration_range`` (highway-env's is unbounded: -33 m/s^2 when asked to go from 20 to
   0 m/s), and "LANE_LEFT" means the driver's left (positive ``n``, lane index + 1 here, since our lane 0
-  is the rightmost; DESIGN.md). highway-env's own roads number lanes the other way round, which is why
+  is the rightmost; docs/architecture.md). highway-env's own roads number lanes the other way round, which is why
   its "LANE_LEFT" decreases the index.
 - ``ContinuousEgo`` (``ContinuousAction``): the action ``{"acceleration", "steering"}`` is held until
   the next one (highway-env's ``Vehicle``).

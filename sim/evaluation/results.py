@@ -1,7 +1,7 @@
 """Writing a run's results: ``metrics.json``, ``timeseries.csv``, ``tracks.csv`` and ``truth.csv``.
 
 - ``metrics.json``: ``scenario``, ``variant``, ``seed``, ``duration_s``, the GOSPA settings and
-  convention, the truth-set rule, every key of ``Result.metrics`` (DESIGN.md keys and more; see
+  convention, the truth-set rule, every key of ``Result.metrics`` (docs/architecture.md keys and more; see
   ``sim.evaluation.runner``; ``null`` where undefined, e.g. an RMSE without any assigned pair) and the
   tracker's ``tracker_stats`` counters.
 - ``timeseries.csv``: one row per frame: ``t`` (s), ``n_truth`` (scored truth set), ``n_visible``,

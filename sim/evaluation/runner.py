@@ -12,7 +12,7 @@ before it, the tracker is told the lidar's range and resolution (``detection.lid
 ``detection.lidar_resolution``) from the sensor configuration.
 Unknown keys are errors naming the file and the allowed keys (``sim.world.scenario.apply_overrides``).
 
-**Truth set scored at time t** (DESIGN.md): the other vehicles whose centre is within the lidar range
+**Truth set scored at time t** (docs/architecture.md): the other vehicles whose centre is within the lidar range
 (``LidarConfig.max_range``, Euclidean from the ego's centre, where the lidar sits) and on the road
 (lateral offset within the road bounds; on an open road, ``0 <= s <= length``), occluded ones
 included (a tracker should keep them). A second scoring uses only the *visible* ones: those of the
@@ -115,7 +115,7 @@ def default_tracker_factory(road: Road, config: TrackerConfig) -> TrackerLike:
 class Result:
     """The outcome of ``run_scenario``: the (realised) ``spec``, ``seed``, ``variant``, the tracker
     ``config``, the ``road``, the ``roadside`` objects (or ``None``), the per-frame ``frames``, the
-    summary ``metrics`` (metrics.json keys, DESIGN.md), the tracker's ``tracker_stats`` counters and
+    summary ``metrics`` (metrics.json keys, docs/architecture.md), the tracker's ``tracker_stats`` counters and
     the simulated ``duration`` (s); ``settings``: the scoring settings (``gospa_c`` m, ``gospa_p``,
     ``min_visible_points``), ``roadside_objects`` (count) and ``estimates_extent`` (False for a point
     tracker, whose length/width errors are not scored)."""
@@ -400,7 +400,7 @@ def _seen_metrics(frames: list[FrameRecord], n_est: np.ndarray, n_vis: np.ndarra
 
 def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None,
               extent: bool = True) -> dict[str, Any]:
-    """The summary metrics (metrics.json, DESIGN.md keys and more) of scored frames. ``extent=False``
+    """The summary metrics (metrics.json, docs/architecture.md keys and more) of scored frames. ``extent=False``
     (a point tracker): ``length_rmse_m`` and ``width_rmse_m`` are ``None`` (missing, not zero)."""
     pos: list[np.ndarray] = []
     seen: list[np.ndarray] = []  # per matched pair: the vehicle is visible in this frame

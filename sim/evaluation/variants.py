@@ -1,6 +1,6 @@
 """Study variants: named trackers used by ``eot run --variant``, the Monte Carlo and ``eot compare``.
 
-Most variants are a ``tracker.TrackerConfig`` of the same machinery (DESIGN.md "tracker.Tracker"):
+Most variants are a ``tracker.TrackerConfig`` of the same machinery (docs/architecture.md "tracker.Tracker"):
 
 - ``curvilinear-fused`` (default): the paper's tracker, state ``[s, n, v, xi, xi_dot, L, W]``,
   exact Frenet motion, lidar + radar;

@@ -13,7 +13,7 @@ Above ``sim.world`` (truth, ground, scenario settings); below ``sim.evaluation``
 - ``sim.sensors.rig``: the rig: timing, and the frames the tracker gets;
 - ``sim.sensors.faults``: sensor faults applied to the rig's frames (dropouts, spikes, duplicates).
 
-Frame transforms G <-> sensor frames are ``tracker.transforms``. Conventions: DESIGN.md (SI units,
+Frame transforms G <-> sensor frames are ``tracker.transforms``. Conventions: docs/architecture.md (SI units,
 E = ego frame, x forward, y left; angles wrapped to (-pi, pi]).
 """
 

@@ -39,7 +39,8 @@ def stamp(py_file: str) -> bytes:
     """SHA-256 over the paths and contents of ``covered_files(py_file)`` (memoised by their mtimes
     and sizes, so an edit during a process is seen)."""
     files = covered_files(py_file)
-    key = (os.path.abspath(py_file), *((str(f), f.stat().st_mtime_ns, f.stat().st_size) for f in files))
+    stats = [f.stat() for f in files]
+    key = (os.path.abspath(py_file), *((str(f), st.st_mtime_ns, st.st_size) for f, st in zip(files, stats)))
     if key not in _MEMO:
         digest = hashlib.sha256()
         for f in files:
