@@ -7,6 +7,6 @@ import pytest
 @pytest.fixture(scope="session", autouse=True)
 def _compiled_kernels():
     import sim.sensors.raycast  # noqa: F401 - registers the caster's warm-up
-    from tracker import compiled
+    from tracker.warmup import warm_up
 
-    compiled.warm_up()
+    warm_up()

@@ -277,7 +277,7 @@ def test_a_rear_whose_near_end_borders_a_shadow_is_born_as_before():
 
 @pytest.mark.parametrize("closed", [False, True])
 def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch):
-    """``visible_road_births``' one compiled call (``tracker.compiled.birth.road_births_kernel``) gives
+    """``visible_road_births``' one compiled call (``tracker.birth.road_births_kernel``) gives
     bit for bit what its steps give with the compiled kernels (``road_births``, the acceleration state,
     ``to_vehicle``, ``entering_view``): no tracks, tracks hiding some births, tracks beside some births,
     7 and 8 state coordinates, an open road's ends (births beyond them left out); and the numpy path

@@ -1,5 +1,5 @@
 """The kernels' on-disk cache is never stale: editing a kernel file recompiles the kernels of other
-files that call it (``tracker.compiled._cache``), with no manual step.
+files that call it (``tracker.jit``), with no manual step.
 
 The end-to-end test works on a copy of the ``tracker`` package in a temporary folder, with two new
 kernel files (a caller and its callee in another file); each step runs in a new process, as a user's
@@ -19,14 +19,14 @@ import pytest
 import tracker
 from tracker.compiled import _cache
 
-CALLEE = '''from tracker.compiled import njit
+CALLEE = '''from tracker.jit import njit
 
 
 @njit
 def value():
     return {value}
 '''
-CALLER = '''from tracker.compiled import njit
+CALLER = '''from tracker.jit import njit
 from tracker.compiled.probe_callee import value
 
 

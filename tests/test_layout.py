@@ -37,29 +37,8 @@ def test_tracker_imports_only_numpy_and_scipy():
     assert bad == "", f"tracker pulled in: {bad}"
     # anything else outside the standard library must be a dependency of numpy/scipy themselves
     allowed_transitive = {"packaging", "typing_extensions", "cython_runtime"}  # cython_runtime: made by scipy's extensions
-    optional = {"numba", "llvmlite"}  # the `fast` extra, imported by tracker/compiled only (when installed)
-    assert set(filter(None, third.split(","))) <= allowed_transitive | optional, f"tracker imports third-party: {third}"
-
-
-def test_tracker_runs_without_numba():
-    """numba is optional: with it hidden, ``tracker`` imports, runs its numpy code, and says so."""
-    code = (
-        "import sys; sys.modules['numba'] = None\n"
-        "import numpy as np\n"
-        "from tracker import Road, Tracker, TrackerConfig, Frame, EgoState, compiled\n"
-        "assert not compiled.available() and not compiled.enabled()\n"
-        "road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)\n"
-        "tr = Tracker(road, TrackerConfig())\n"
-        "pts = np.column_stack([np.full(20, 15.0), np.linspace(-1.0, 1.0, 20)])\n"
-        "for k in range(3): tr.step(Frame(t=0.1 * k, ego=EgoState(10.0, 0.0, 0.0, 10.0), lidar=pts))\n"
-        "try:\n"
-        "    compiled.require()\n"
-        "except RuntimeError as e:\n"
-        "    print('refused:', e)\n"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr
-    assert "pip install" in out.stdout
+    compiler = {"numba", "llvmlite"}  # the kernels' compiler (tracker.jit)
+    assert set(filter(None, third.split(","))) <= allowed_transitive | compiler, f"tracker imports third-party: {third}"
 
 
 def test_scenarios_ship_inside_the_package():
@@ -101,20 +80,20 @@ SIM_LAYERS = {
 }
 
 
-def sim_modules() -> dict[str, Path]:
-    """Every module of ``sim`` by dotted name (a package by its ``__init__.py``)."""
+def sim_modules(package: str = "sim") -> dict[str, Path]:
+    """Every module of ``package`` by dotted name (a package by its ``__init__.py``)."""
     found = {}
-    for path in sorted((ROOT / "sim").rglob("*.py")):
+    for path in sorted((ROOT / package).rglob("*.py")):
         parts = path.relative_to(ROOT).with_suffix("").parts
         found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
     return found
 
 
-def sim_import_graph() -> dict[str, set[str]]:
-    """Module -> the ``sim`` modules it imports: every import statement anywhere in the module (top level,
-    in functions, under ``if TYPE_CHECKING:``); ``from x import y`` counts as importing ``x.y`` when that
-    is a module, else ``x``; relative imports are resolved."""
-    modules = sim_modules()
+def sim_import_graph(package: str = "sim") -> dict[str, set[str]]:
+    """Module -> the modules of ``package`` it imports: every import statement anywhere in the module
+    (top level, in functions, under ``if TYPE_CHECKING:``); ``from x import y`` counts as importing
+    ``x.y`` when that is a module, else ``x``; relative imports are resolved."""
+    modules = sim_modules(package)
     graph: dict[str, set[str]] = {name: set() for name in modules}
     for name, path in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
@@ -179,4 +158,43 @@ def test_sim_is_grouped_into_layered_parts():
     # lower parts never import higher ones
     upward = sorted(f"{a} imports {b}" for a, targets in sim_import_graph().items() for b in targets
                     if SIM_LAYERS[sim_part(a)] < SIM_LAYERS[sim_part(b)])
+    assert not upward, upward
+
+
+# -- tracker: import graph ----------------------------------------------------------------------
+#: The tracker's lower layers: the geometry, the road, the UKF and the motion model, with the kernels'
+#: compiler, the input checks and the configuration (which holds the 3-D pipeline's ``CloudConfig``
+#: from ``tracker.cloud``, a module that imports only ``tracker.checks``). They never import a stage
+#: above them (clustering, measurement, update, births, reduction, the tracker itself).
+TRACKER_LOWER = ("tracker.jit", "tracker.checks", "tracker.config", "tracker.cloud", "tracker.angles",
+                 "tracker.geometry", "tracker.transforms", "tracker.centerline", "tracker.road", "tracker.ukf",
+                 "tracker.motion")
+
+
+def _closure(graph: dict[str, set[str]], start: str) -> set[str]:
+    seen, todo = set(), [start]
+    while todo:
+        for target in graph[todo.pop()]:
+            if target not in seen:
+                seen.add(target)
+                todo.append(target)
+    return seen
+
+
+def test_tracker_has_no_import_cycles():
+    graph = sim_import_graph("tracker")
+    del graph["tracker"]  # the package's public API re-exports the stages; no stage imports it
+    graph = {name: targets - {"tracker"} for name, targets in graph.items()}
+    try:
+        order = list(graphlib.TopologicalSorter(graph).static_order())
+    except graphlib.CycleError as err:
+        pytest.fail("import cycle in tracker: " + " -> ".join(err.args[1]))
+    assert set(order) == set(graph)
+
+
+def test_tracker_lower_layers_import_no_stage_above_them():
+    graph = sim_import_graph("tracker")
+    lower = set(TRACKER_LOWER)
+    assert lower <= set(graph)
+    upward = sorted(f"{a} imports {b}" for a in lower for b in _closure(graph, a) - lower)
     assert not upward, upward

@@ -89,7 +89,7 @@ def test_bearing_filter_keeps_every_ray_of_the_lidar_grid():
 
 @pytest.mark.parametrize("closed", [False, True])
 def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
-    """``filter_points``' one compiled call (``tracker.compiled.preprocess.road_filter_kernel``) gives
+    """``filter_points``' one compiled call (``tracker.preprocess.road_filter_kernel``) gives
     bit for bit what its steps give one by one (``to_global``, ``Road.to_frenet``, ``within_bounds``,
     ``bearing_filter``): returns on and off the road, beyond an open road's ends, a wall behind a car in
     the same bearings; and returns off the seed grid (seeded from the k-d tree, then a second call)."""

@@ -12,18 +12,10 @@ deviation. A change of the method moves numbers by far more."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from make_reference import REFERENCE, run_reference
 
-from tracker import compiled
 
-
-@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
-def test_tracker_reproduces_the_reference_run(kernels, monkeypatch):
-    """With the numpy code and with the compiled kernels (``tracker.compiled``, when numba is installed)."""
-    if kernels == "compiled" and not compiled.available():
-        pytest.skip("numba is not installed (the fast extra)")
-    monkeypatch.setenv(compiled.ENV_SWITCH, "1" if kernels == "compiled" else "0")
+def test_tracker_reproduces_the_reference_run():
     ref = np.load(REFERENCE)
     now = run_reference()
     np.testing.assert_array_equal(now["frame"], ref["frame"], err_msg="tracks reported in other frames")

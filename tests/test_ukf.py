@@ -129,14 +129,14 @@ def test_coordinate_residual_is_residuals_column():
 
 
 def test_certainly_positive_definite_never_disagrees_with_lapack(monkeypatch):
-    """``ensure_spd``'s compiled test (``tracker.compiled.ukf.certainly_positive_definite``, the scaled
+    """``ensure_spd``'s compiled test (``tracker.ukf.certainly_positive_definite``, the scaled
     matrix less ``CERTAIN_SHIFT`` I factorised): True only for matrices LAPACK's Cholesky factorises --
     near-singular ones (eigenvalues down to 1e-16 of the rest) with diagonals spread over eight orders of
     magnitude, indefinite ones, NaN -- and ``ensure_spd`` gives the same matrices and counts with it as
     without."""
     pytest.importorskip("numba")
     from tracker import compiled
-    from tracker.compiled.ukf import certainly_positive_definite
+    from tracker.ukf import certainly_positive_definite
     from tracker.ukf import CERTAIN_SHIFT, ensure_spd
 
     rng = np.random.default_rng(4)

@@ -8,7 +8,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from tracker import Road
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.config import MeasurementConfig, TrackerConfig
 from tracker.measurement import prepare_cluster, rectangle_scan, to_vehicle
 from tracker.motion import make_motion, predict

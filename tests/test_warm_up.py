@@ -1,4 +1,4 @@
-"""Tests of ``tracker.compiled.warm_up``'s report of a cold cache and of its split into shares that
+"""Tests of ``tracker.warmup.warm_up``'s report of a cold cache and of its split into shares that
 compile in parallel: with a kernel missing from the cache it says so before compiling and says how long
 it took, and starts the helper process; with every kernel cached it says nothing (in this process and in
 a new one); the shares reach disjoint kernels, so that the two processes do not compile the same one."""
@@ -152,7 +152,7 @@ def kernels_reached(share_code: str) -> dict[str, list[str]]:
 
 def test_the_helper_share_and_this_process_share_reach_disjoint_kernels():
     warm_every_kernel()  # the new processes load the kernels from the cache
-    helper = kernels_reached("import runpy\nrunpy.run_module('tracker.compiled._warm', run_name='__main__')")
+    helper = kernels_reached("import runpy\nrunpy.run_module('tracker.warmup', run_name='__main__')")
     assert helper["update"] == KERNELS["update"] and helper["other"] == []
     own = kernels_reached("from tracker.compiled import _warm\n_warm.first_frame()\n_warm.predict_share()\n"
                           "_warm.other_calls()")

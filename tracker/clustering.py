@@ -20,10 +20,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.frame import RadarDetections
-from tracker.compiled.clustering import cluster_radar_kernel
+from tracker.jit import njit
 
 #: Up to this many runs of consecutive linked points, their graph's components are found densely.
 MAX_DENSE_RUNS = 64
@@ -48,8 +48,6 @@ def points_in_rectangles(
         return np.full(len(pts), -1, dtype=int)
     c, s = np.cos(yaw), np.sin(yaw)
     if compiled_kernels.enabled():
-        from tracker.compiled.clustering import points_in_rectangles_kernel
-
         half_l = np.broadcast_to(0.5 * np.asarray(length, dtype=float) + margin, (len(ctr),))
         half_w = np.broadcast_to(0.5 * np.asarray(width, dtype=float) + margin, (len(ctr),))
         return points_in_rectangles_kernel(np.ascontiguousarray(pts), np.ascontiguousarray(ctr),
@@ -74,7 +72,7 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     and only the few edges between runs go into a graph over the runs, whose components
     (``dense_components``, or ``scipy.sparse.csgraph`` for many runs) are the clusters; any order of
     the points gives the same partition, only more runs. The compiled kernel
-    (``tracker.compiled.clustering``, when on) finds the same components by union-find on a grid."""
+    (``tracker.clustering``, when on) finds the same components by union-find on a grid."""
     if not threshold > 0:
         raise ValueError(f"distance threshold must be > 0 m; got {threshold!r}")
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -84,8 +82,6 @@ def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     if compiled_kernels.enabled():
         # cells of side threshold / sqrt(2) from 2 (the neighbours two cells away have keys >= 0); a
         # non-finite point, or keys that could overflow, take the numpy path
-        from tracker.compiled.clustering import partition_points_kernel
-
         labels, ok = partition_points_kernel(np.ascontiguousarray(pts), float(threshold))
         if ok:
             return labels
@@ -280,7 +276,7 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
     radar reports a point near the target's visible surface). Pairs are taken in increasing distance;
     each cluster and each detection is used at most once; pairs farther than ``gate`` metres are
     never taken. Returns, per cluster, the index of its detection or -1. (By
-    ``tracker.compiled.clustering`` when the compiled kernels are on.)
+    ``tracker.clustering`` when the compiled kernels are on.)
     """
     radar = np.asarray(radar_xy, dtype=float).reshape(-1, 2)
     out = np.full(len(cluster_points), -1, dtype=int)
@@ -288,8 +284,6 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
         return out
     sizes = np.array([len(p) for p in cluster_points])
     if compiled_kernels.enabled():
-        from tracker.compiled.clustering import radar_association_kernel
-
         offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
         if all(type(p) is np.ndarray and p.ndim == 2 and p.shape[1] == 2 and p.dtype == np.float64 for p in cluster_points):
@@ -343,7 +337,7 @@ def cluster_radar_ranges(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, rad
     """``cluster_radar`` for the clusters ``points[lo[k]:hi[k]]`` (``points (N, 2)`` in E ordered by
     cluster, as the tracker groups them): per cluster the velocity ``(vx, vy)`` of its detection (a
     row of one read-only ``(R, 2)`` array) or None, and the indices of the detections that joined no
-    cluster. One compiled call (``tracker.compiled.clustering.cluster_radar_kernel``: the detections
+    cluster. One compiled call (``tracker.clustering.cluster_radar_kernel``: the detections
     moved to ``t`` as ``RadarDetections.positions_at``, then the association) when the kernels are on."""
     lo = np.asarray(lo, dtype=np.int64).reshape(-1)
     hi = np.asarray(hi, dtype=np.int64).reshape(-1)
@@ -395,13 +389,11 @@ def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: flo
     extreme point is not the side's end. An end whose neighbouring rays return nothing or something
     farther is the object's own boundary, unless it lies within ``range_margin`` of the lidar's
     ``max_range`` (m): there the side may go on beyond the range, and the end counts as occluded too.
-    One compiled call (``tracker.compiled.clustering.occluded_ends_kernel``) when the kernels are on."""
+    One compiled call (``tracker.clustering.occluded_ends_kernel``) when the kernels are on."""
     ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
     if len(ends) == 0 or len(scan) == 0:
         return np.zeros((len(ends), 2), dtype=bool)
     if compiled_kernels.enabled():
-        from tracker.compiled.clustering import occluded_ends_kernel
-
         compiled_kernels.require()
         return occluded_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(scan, dtype=float), float(window),
                                     float(margin), float(max_range), float(range_margin))
@@ -428,7 +420,7 @@ def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, 
     (``2 half_gap`` each), and at most ``offset`` m from that line: the next ray or two along the side
     found it again in another cluster (a dropped return split the side), so the extreme point is not
     the side's end. One compiled call
-    (``tracker.compiled.clustering.continued_ends_kernel``) when the kernels are on."""
+    (``tracker.clustering.continued_ends_kernel``) when the kernels are on."""
     ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
     outward = np.asarray(outward, dtype=float).reshape(-1, 2, 2)
     half_gap = np.asarray(half_gap, dtype=float).reshape(-1, 2)
@@ -436,8 +428,6 @@ def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, 
     if len(ends) == 0 or len(scan) == 0:
         return np.zeros((len(ends), 2), dtype=bool)
     if compiled_kernels.enabled():
-        from tracker.compiled.clustering import continued_ends_kernel
-
         compiled_kernels.require()
         return continued_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(outward), np.ascontiguousarray(half_gap),
                                      np.ascontiguousarray(reach), np.ascontiguousarray(scan, dtype=float), float(offset))
@@ -445,3 +435,747 @@ def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, 
     along = np.einsum("kerd,ked->ker", d, outward)
     across = np.abs(d[..., 0] * outward[..., None, 1] - d[..., 1] * outward[..., None, 0])
     return ((along > half_gap[..., None]) & (along <= reach[..., None]) & (across <= offset)).any(axis=2)
+
+# --------------------------------------------------------------------------------------------------
+# The compiled kernels of this stage.
+#
+# Compiled distance partition: ``tracker.clustering.distance_partition`` in one numba call.
+#
+# The same graph (points joined when at most ``threshold`` apart, as ``cKDTree.query_pairs``) and its
+# connected components, found on a grid of square cells of side ``threshold / sqrt(2)``: the points of
+# one cell are all within ``threshold`` of each other (one component), and two cells at most two apart
+# along each axis are joined as soon as one pair of their points is close enough (union-find; a pair of
+# cells already in one component is skipped). Components are labelled in order of their first point (so
+# any order of the unions gives the same labels).
+#
+# Also the clustering's other kernels: the tracker's whole grouping of a frame's points into clusters
+# (``cluster_points_kernel``: track rectangles' overlap groups, points in rectangles, the partition, strays
+# adopted, clusters cut across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for
+# its second half), the radar association (``associate_ranges``, ``cluster_radar_kernel``), and the
+# scan's bearing searches (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``).
+# --------------------------------------------------------------------------------------------------
+
+
+@njit
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit
+def _union(parent, a, b):
+    a = _root(parent, a)
+    b = _root(parent, b)
+    if a != b:
+        parent[max(a, b)] = min(a, b)
+
+
+@njit(inline="always")
+def _labels_in_order(parent):
+    """Component label per node of a union-find forest, numbered in order of each component's first node."""
+    n = len(parent)
+    labels = np.empty(n, dtype=np.int64)
+    rank = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        r = _root(parent, i)
+        if rank[r] < 0:
+            rank[r] = count
+            count += 1
+        labels[i] = rank[r]
+    return labels
+
+
+@njit
+def partition_points_kernel(pts, threshold):
+    """``partition_kernel`` with the cells computed here as ``tracker.clustering.distance_partition``
+    computes them (``floor(p sqrt(2) / threshold)``, shifted to start at 2). Returns ``(labels, ok)``;
+    ``ok`` False (nothing computed) when a point is not finite or the cell keys could overflow (the
+    caller then takes the numpy path)."""
+    n = len(pts)
+    scale = np.sqrt(2.0) / threshold
+    cx = np.empty(n, dtype=np.int64)
+    cy = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        if not (np.isfinite(pts[i, 0]) and np.isfinite(pts[i, 1])):
+            return np.empty(0, dtype=np.int64), False
+        cx[i] = np.int64(np.floor(pts[i, 0] * scale))
+        cy[i] = np.int64(np.floor(pts[i, 1] * scale))
+    shift_x = cx.min() - 2
+    shift_y = cy.min() - 2
+    cx -= shift_x
+    cy -= shift_y
+    span_x = cx.max() + 4
+    span_y = cy.max() + 4
+    if float(span_x) * float(span_y) >= 2.0**62:
+        return np.empty(0, dtype=np.int64), False
+    return partition_kernel(pts, threshold, cx, cy, span_y), True
+
+
+@njit(inline="always")
+def _counting_order(value, within):  # pragma: no cover - compiled
+    """``within`` (indices) stably reordered by ``value[within]`` (non-negative integers): a counting sort."""
+    size = 0
+    for i in within:
+        size = max(size, value[i] + 1)
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in within:
+        start[value[i] + 1] += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    order = np.empty(len(within), dtype=np.int64)
+    for i in within:
+        order[start[value[i]]] = i
+        start[value[i]] += 1
+    return order
+
+
+@njit(inline="always")
+def _cell_order(cx, cy):  # pragma: no cover - compiled
+    """Point indices ordered by cell: by ``cx``, then ``cy`` (non-negative cells; the order of the points
+    of one cell is any). Two counting sorts (by ``cy``, then stably by ``cx``); with more rows and
+    columns than ``4 n + 1024``, ``numpy.argsort`` of the keys (a merge sort: the one sort routine the
+    kernels compile for integer keys)."""
+    n = len(cx)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    if cx.max() + cy.max() + 2 > 4 * n + 1024:
+        return np.argsort(cx * (cy.max() + 1) + cy, kind="mergesort")
+    return _counting_order(cx, _counting_order(cy, np.arange(n)))
+
+
+@njit(inline="always")
+def partition_kernel(pts, threshold, cx, cy, span_y):
+    """Component label per point; ``cx``, ``cy`` the points' cells (side ``threshold / sqrt(2)``)
+    shifted to start at 2 and ``span_y`` the number of cell rows plus 4 (the keys ``cx * span_y + cy`` of
+    every cell and of its neighbours two cells away are then distinct and non-negative)."""
+    n = len(pts)
+    key = cx * span_y + cy
+    order = _cell_order(cx, cy)
+    sorted_key = key[order]
+    parent = np.arange(n)
+    # the cells: unique keys with the range of their points in ``order``
+    cell_key = np.empty(n, dtype=np.int64)
+    cell_start = np.empty(n + 1, dtype=np.int64)
+    cells = 0
+    for j in range(n):
+        if j == 0 or sorted_key[j] != sorted_key[j - 1]:
+            cell_key[cells] = sorted_key[j]
+            cell_start[cells] = j
+            cells += 1
+        else:
+            _union(parent, order[j], order[cell_start[cells - 1]])  # one cell: one component
+    cell_start[cells] = n
+    cell_key = cell_key[:cells]
+    r2 = threshold * threshold
+    # the 12 neighbours' key offsets (each pair of cells once), all positive; the cells are sorted by key,
+    # so the neighbour at each offset is found by a pointer that only moves forward
+    offsets = np.empty(12, dtype=np.int64)
+    m = 0
+    for dx in range(0, 3):
+        for dy in range(-2, 3):
+            if dx == 0 and dy <= 0:
+                continue
+            offsets[m] = dx * span_y + dy
+            m += 1
+    pointer = np.zeros(12, dtype=np.int64)
+    for a in range(cells):
+        pa = order[cell_start[a]]
+        ka = cell_key[a]
+        for m in range(12):
+            target = ka + offsets[m]
+            b = pointer[m]
+            while b < cells and cell_key[b] < target:
+                b += 1
+            pointer[m] = b
+            if b >= cells or cell_key[b] != target:
+                continue
+            pb = order[cell_start[b]]
+            if _root(parent, pa) == _root(parent, pb):
+                continue
+            joined = False
+            for u in range(cell_start[a], cell_start[a + 1]):
+                i = order[u]
+                for w in range(cell_start[b], cell_start[b + 1]):
+                    q = order[w]
+                    ddx = pts[q, 0] - pts[i, 0]
+                    ddy = pts[q, 1] - pts[i, 1]
+                    if ddx * ddx + ddy * ddy <= r2:
+                        _union(parent, pa, pb)
+                        joined = True
+                        break
+                if joined:
+                    break
+    return _labels_in_order(parent)
+
+
+@njit
+def radar_association_kernel(points, offsets, radar, gate):
+    """``tracker.clustering.associate_radar`` for clusters ``points[offsets[k]:offsets[k + 1]]``
+    (``associate_ranges``)."""
+    return associate_ranges(points, offsets[:-1], offsets[1:], radar, gate)
+
+
+@njit(inline="always")
+def associate_ranges(points, lo, hi, radar, gate):
+    """``tracker.clustering.associate_radar`` for clusters ``points[lo[k]:hi[k]]``: the distance of a
+    detection to a cluster is that to its nearest point; gated pairs are taken greedily in increasing
+    distance (ties in row-major order, as a stable sort of the flattened matrix), each cluster and each
+    detection at most once. Returns the detection index per cluster, or -1. A pair whose detection lies
+    beyond the gate from the cluster's bounding box keeps an infinite distance (it can never be taken);
+    only the pairs within the gate are sorted."""
+    count = len(lo)
+    n_radar = len(radar)
+    dist = np.full(count * n_radar, np.inf)
+    reach = gate * gate * (1.0 + 1e-9)  # beyond it a pair is never taken: its distance is not needed
+    for k in range(count):
+        lo_x = hi_x = points[lo[k], 0] if hi[k] > lo[k] else 0.0
+        lo_y = hi_y = points[lo[k], 1] if hi[k] > lo[k] else 0.0
+        for i in range(lo[k], hi[k]):
+            lo_x, hi_x = min(lo_x, points[i, 0]), max(hi_x, points[i, 0])
+            lo_y, hi_y = min(lo_y, points[i, 1]), max(hi_y, points[i, 1])
+        for r in range(n_radar):
+            bx = max(lo_x - radar[r, 0], 0.0, radar[r, 0] - hi_x)  # to the cluster's bounding box
+            by = max(lo_y - radar[r, 1], 0.0, radar[r, 1] - hi_y)
+            if bx * bx + by * by > reach:
+                continue  # every point is farther than the gate: the distance stays inf
+            best = np.inf  # the nearest point's squared distance, then its root (sqrt is monotonic)
+            for i in range(lo[k], hi[k]):
+                dx = points[i, 0] - radar[r, 0]
+                dy = points[i, 1] - radar[r, 1]
+                d2 = dx * dx + dy * dy
+                if d2 < best:
+                    best = d2
+            dist[k * n_radar + r] = np.sqrt(best)
+    # the gated pairs in row-major order, then stably by distance: the prefix of a stable sort of all
+    # pairs that the greedy pass reads (it stops at the first distance beyond the gate)
+    gated = 0
+    for f in range(count * n_radar):
+        if dist[f] <= gate:
+            gated += 1
+    flat = np.empty(gated, dtype=np.int64)
+    gated = 0
+    for f in range(count * n_radar):
+        if dist[f] <= gate:
+            flat[gated] = f
+            gated += 1
+    order = flat[np.argsort(dist[flat], kind="mergesort")]
+    out = np.full(count, -1, dtype=np.int64)
+    used = np.zeros(n_radar, dtype=np.bool_)
+    for f in order:
+        k = f // n_radar
+        r = f % n_radar
+        if out[k] < 0 and not used[r]:
+            out[k] = r
+            used[r] = True
+    return out
+
+
+@njit
+def cluster_radar_kernel(points, lo, hi, t_radar, x, y, vx, vy, t, gate):  # pragma: no cover - compiled
+    """``tracker.clustering.cluster_radar`` for clusters ``points[lo[k]:hi[k]]`` and the detections'
+    fields (``RadarDetections``): each detection moved to ``t`` (``x + vx (t - t_radar)``, as
+    ``RadarDetections.positions_at``), then ``associate_ranges``. Returns the detection per cluster (or
+    -1), the detections' velocities ``(R, 2)`` and the indices of the detections that joined no cluster."""
+    n_radar = len(t_radar)
+    radar = np.empty((n_radar, 2))
+    velocity = np.empty((n_radar, 2))
+    for r in range(n_radar):
+        lag = t - t_radar[r]
+        radar[r, 0] = x[r] + vx[r] * lag
+        radar[r, 1] = y[r] + vy[r] * lag
+        velocity[r, 0] = vx[r]
+        velocity[r, 1] = vy[r]
+    index = associate_ranges(points, lo, hi, radar, gate)
+    used = np.zeros(n_radar, dtype=np.bool_)
+    for k in range(len(index)):
+        if index[k] >= 0:
+            used[index[k]] = True
+    free = np.empty(n_radar - used.sum(), dtype=np.int64)
+    m = 0
+    for r in range(n_radar):
+        if not used[r]:
+            free[m] = r
+            m += 1
+    return index, velocity, free
+
+
+@njit
+def points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w):
+    """``tracker.clustering.points_in_rectangles``: per point the rectangle (widened: ``half_l``,
+    ``half_w`` include the margin) whose normalised score ``max(|u|, |v|)`` is smallest, if <= 1."""
+    n = len(pts)
+    m = len(ctr)
+    out = np.full(n, -1, dtype=np.int64)
+    # beyond a widened rectangle's circumscribed circle (with a margin far above rounding) the score
+    # exceeds 1: that rectangle cannot be the point's, so its score is not needed
+    reach = np.empty(m)
+    for k in range(m):
+        reach[k] = (half_l[k] * half_l[k] + half_w[k] * half_w[k]) * (1.0 + 1e-9)
+    for i in range(n):
+        best = np.inf
+        arg = 0
+        for k in range(m):
+            dx = pts[i, 0] - ctr[k, 0]
+            dy = pts[i, 1] - ctr[k, 1]
+            if dx * dx + dy * dy > reach[k]:
+                continue
+            u = abs((dx * c[k] + dy * s[k]) / half_l[k])
+            v = abs((-dx * s[k] + dy * c[k]) / half_w[k])
+            score = max(u, v)
+            if score < best:
+                best = score
+                arg = k
+        if best <= 1.0:
+            out[i] = arg
+    return out
+
+
+@njit
+def overlap_groups_kernel(corners, c, s):
+    """Group per rectangle: overlapping rectangles (no separating axis among their own four; the axes
+    ``(c, s)`` and ``(-s, c)`` of each, ``c``, ``s`` the cosine and sine of its heading) are one group;
+    groups numbered in order of their first rectangle (``tracker.tracker._duplicate_groups``)."""
+    t = len(corners)
+    parent = np.arange(t)
+    for i in range(t):
+        for j in range(i + 1, t):
+            separated = False
+            for owner in (i, j):
+                for turn in range(2):
+                    ax = c[owner] if turn == 0 else -s[owner]
+                    ay = s[owner] if turn == 0 else c[owner]
+                    lo_i = np.inf
+                    hi_i = -np.inf
+                    lo_j = np.inf
+                    hi_j = -np.inf
+                    for k in range(4):
+                        pi_ = corners[i, k, 0] * ax + corners[i, k, 1] * ay
+                        pj = corners[j, k, 0] * ax + corners[j, k, 1] * ay
+                        lo_i = min(lo_i, pi_)
+                        hi_i = max(hi_i, pi_)
+                        lo_j = min(lo_j, pj)
+                        hi_j = max(hi_j, pj)
+                    if hi_i < lo_j or hi_j < lo_i:
+                        separated = True
+            if not separated:
+                _union(parent, i, j)
+    return _labels_in_order(parent)
+
+
+@njit(inline="always")
+def _grouped(key):  # pragma: no cover - compiled
+    """A stable counting sort of the non-negative integer ``key``: the point indices ordered by key
+    (ties by index, as ``numpy.argsort(key, kind="stable")``) and the edges ``(G + 1,)`` of the runs of
+    equal keys in that order."""
+    count = len(key)
+    size = key.max() + 1 if count else 0
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(count):
+        start[key[i] + 1] += 1
+    groups = 0
+    for k in range(size):
+        if start[k + 1] > 0:
+            groups += 1
+        start[k + 1] += start[k]
+    edges = np.empty(groups + 1, dtype=np.int64)
+    g = 0
+    for k in range(size):
+        if start[k + 1] > start[k]:
+            edges[g] = start[k]
+            g += 1
+    edges[groups] = count
+    order = np.empty(count, dtype=np.int64)
+    for i in range(count):
+        order[start[key[i]]] = i
+        start[key[i]] += 1
+    return order, edges
+
+
+@njit(inline="always")
+def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
+                        max_points):  # pragma: no cover - compiled
+    """The first half of ``tracker.tracker.Tracker._cluster``'s grouping: per point the track group
+    owning it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine
+    and sine of their headings, widened by ``margin``: half extents ``0.5 length + margin``; mapped to
+    the rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every
+    rectangle then joins the group owning most points of its connected
+    component, ``tracker.tracker._adopt_strays``, the first such group on a tie), whether it lay inside
+    a rectangle, its connected component (``partition_points_kernel``), per mixture component the group
+    of the first track carrying its label (``labels`` against ``track_labels``; -1), and whether some
+    component of at most ``max_points`` points is wholly free (``tracker.clustering.fragment_owners``
+    has work; -1: never). Returns ``(ok, owner, inside, component, component_group, fragments)``; ``ok``
+    False when the partition hands back or a lateral offset ``n`` is not finite (the caller then takes
+    the numpy path)."""
+    count = len(pts)
+    owner = np.full(count, -1, dtype=np.int64)
+    inside = np.zeros(count, dtype=np.bool_)
+    component_group = np.full(len(labels), -1, dtype=np.int64)
+    groups = overlap_groups_kernel(corners, c, s) if len(ctr) > 1 else np.zeros(len(ctr), dtype=np.int64)
+    for i in range(len(n)):
+        if not np.isfinite(n[i]):
+            return False, groups, owner, inside, owner, component_group, False
+    component, ok = partition_points_kernel(pts, threshold)
+    if not ok:
+        return False, groups, owner, inside, owner, component_group, False
+    for c_ in range(len(labels)):
+        for t in range(len(track_labels)):
+            if labels[c_] == track_labels[t]:
+                component_group[c_] = groups[t]
+                break
+    if len(ctr):
+        half_l = np.empty(len(ctr))
+        half_w = np.empty(len(ctr))
+        for k in range(len(ctr)):
+            half_l[k] = 0.5 * length[k] + margin
+            half_w[k] = 0.5 * width[k] + margin
+        box = points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w)
+        for i in range(count):
+            if box[i] >= 0:
+                owner[i] = groups[box[i]]
+                inside[i] = True
+    n_comp = component.max() + 1 if count else 0
+    owned = 0
+    n_own = 0
+    for i in range(count):
+        if owner[i] >= 0:
+            owned += 1
+            n_own = max(n_own, owner[i] + 1)
+    if owned > 0 and owned < count:  # strays join their component's majority group
+        votes = np.zeros((n_comp, n_own), dtype=np.int64)
+        for i in range(count):
+            if owner[i] >= 0:
+                votes[component[i], owner[i]] += 1
+        majority = np.full(n_comp, -1, dtype=np.int64)
+        for k in range(n_comp):
+            best = 0
+            for g in range(n_own):
+                if votes[k, g] > best:
+                    best = votes[k, g]
+                    majority[k] = g
+        for i in range(count):
+            if owner[i] < 0:
+                owner[i] = majority[component[i]]
+    fragments = False
+    if max_points >= 0 and owned < count:
+        size = np.zeros(n_comp, dtype=np.int64)
+        taken = np.zeros(n_comp, dtype=np.bool_)
+        for i in range(count):
+            size[component[i]] += 1
+            if owner[i] >= 0:
+                taken[component[i]] = True
+        for k in range(n_comp):
+            if size[k] <= max_points and not taken[k]:
+                fragments = True
+                break
+    return True, groups, owner, inside, component, component_group, fragments
+
+
+@njit(inline="always")
+def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cover - compiled
+    """``tracker.tracker.Tracker._split_across`` on ``key`` and ``owner`` in place (with
+    ``tracker.clustering.split_across``'s rounds): a cluster (run of equal keys) spanning more than
+    ``width`` in ``n`` is cut at its largest gap (the first point after it, in ``n`` order; ties by
+    index) if at least ``gap``, again for up to ``max_cuts`` rounds; the parts of a cut cluster take
+    the keys ``max(key) + 1 + part`` (parts numbered by cluster, then ``n``), and of a track's cluster
+    only the parts with most points ``inside`` (plus 1e-6 per point: ties to the larger part) stay
+    owned. Returns the number of parts added."""
+    order, edges = _grouped(key)
+    clusters = len(edges) - 1
+    wide = np.zeros(clusters, dtype=np.bool_)
+    total = 0
+    for g in range(clusters):
+        lo = hi = n[order[edges[g]]]
+        for j in range(edges[g], edges[g + 1]):
+            lo = min(lo, n[order[j]])
+            hi = max(hi, n[order[j]])
+        wide[g] = hi - lo > width
+        if wide[g]:
+            total += edges[g + 1] - edges[g]
+    if total == 0:
+        return 0
+    # the candidates, by cluster then n (ties by index): src (point index), ns (offset), ps (part)
+    src = np.empty(total, dtype=np.int64)
+    ns = np.empty(total)
+    ps = np.empty(total, dtype=np.int64)
+    cluster_of = np.empty(total, dtype=np.int64)  # the original cluster (run index) of each candidate
+    m = 0
+    rank = 0
+    for g in range(clusters):
+        if not wide[g]:
+            continue
+        idx = order[edges[g]:edges[g + 1]]
+        sub = n[idx]
+        within = np.argsort(sub, kind="mergesort")
+        for j in range(len(idx)):
+            src[m] = idx[within[j]]
+            ns[m] = sub[within[j]]
+            ps[m] = rank
+            cluster_of[m] = g
+            m += 1
+        rank += 1
+    first = np.empty(total, dtype=np.bool_)
+    cut = np.empty(total, dtype=np.bool_)
+    for _ in range(max_cuts):
+        for j in range(total):
+            first[j] = j == 0 or ps[j] != ps[j - 1]
+            cut[j] = False
+        any_cut = False
+        a = 0
+        while a < total:
+            b = a + 1
+            while b < total and not first[b]:
+                b += 1
+            if ns[b - 1] - ns[a] > width:
+                largest = -np.inf
+                for j in range(a + 1, b):
+                    largest = max(largest, ns[j] - ns[j - 1])
+                for j in range(a + 1, b):
+                    step = ns[j] - ns[j - 1]
+                    if step == largest and step >= gap:
+                        cut[j] = True
+                        any_cut = True
+                        break
+            a = b
+        if not any_cut:
+            break
+        part = -1
+        for j in range(total):
+            if first[j] or cut[j]:
+                part += 1
+            ps[j] = part
+    # clusters in more than one part are cut; the others keep their key and owner
+    top = key.max()
+    added = 0
+    a = 0
+    while a < total:
+        b = a + 1
+        while b < total and cluster_of[b] == cluster_of[a]:
+            b += 1
+        pieces = ps[b - 1] - ps[a] + 1
+        if pieces > 1:
+            added += pieces - 1
+            g_owner = owner[src[a]]
+            if g_owner >= 0:  # the part(s) with most points inside the rectangle stay owned
+                votes = np.zeros(pieces)
+                points = np.zeros(pieces, dtype=np.int64)
+                for j in range(a, b):
+                    if inside[src[j]]:
+                        votes[ps[j] - ps[a]] += 1.0
+                    points[ps[j] - ps[a]] += 1
+                best = -1.0
+                for p in range(pieces):
+                    votes[p] = votes[p] + 1e-6 * points[p]
+                    best = max(best, votes[p])
+                for j in range(a, b):
+                    if not votes[ps[j] - ps[a]] >= best:
+                        owner[src[j]] = -1
+            for j in range(a, b):
+                key[src[j]] = top + 1 + ps[j]
+        a = b
+    return added
+
+
+@njit
+def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, width, gap,
+                            max_cuts):  # pragma: no cover - compiled
+    """The second half of ``tracker.tracker.Tracker._cluster``'s grouping: the key of each point (its
+    owner group, else ``n_tracks`` plus its connected component), with ``split`` the clusters cut
+    across the road (``_split_keys``), then the points ordered by key (ties by index): returns the
+    ordered points, the clusters' edges ``(K + 1,)`` in them, each cluster's owner group (or -1) and
+    the number of parts the cuts added."""
+    count = len(pts)
+    key = np.empty(count, dtype=np.int64)
+    owner = owner.copy()
+    for i in range(count):
+        key[i] = owner[i] if owner[i] >= 0 else n_tracks + component[i]
+    added = _split_keys(key, owner, inside, n, width, gap, max_cuts) if split else 0
+    order, edges = _grouped(key)
+    ordered = np.empty((count, 2))
+    for j in range(count):
+        ordered[j, 0] = pts[order[j], 0]
+        ordered[j, 1] = pts[order[j], 1]
+    owned = np.empty(len(edges) - 1, dtype=np.int64)
+    for g in range(len(owned)):
+        owned[g] = owner[order[edges[g]]]
+    return ordered, edges, owned, added
+
+
+@njit
+def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
+                          max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
+    """``track_owners_kernel`` then, unless a fragment needs ``tracker.clustering.fragment_owners``
+    (numpy, in between) or the kernel handed back, ``ordered_clusters_kernel``: returns ``(ok, done,
+    groups, owner, inside, component, component_group, ordered, edges, owned, added)`` (``done`` False:
+    the last four are empty and the caller finishes the grouping)."""
+    ok, groups, owner, inside, component, component_group, fragments = track_owners_kernel(
+        pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n, max_points)
+    if not ok or fragments:
+        return (ok, False, groups, owner, inside, component, component_group, np.empty((0, 2)),
+                np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int64), 0)
+    ordered, edges, owned, added = ordered_clusters_kernel(pts, owner, inside, component, len(track_labels), n, split,
+                                                           split_width, gap, max_cuts)
+    return ok, True, groups, owner, inside, component, component_group, ordered, edges, owned, added
+
+
+@njit(inline="always")
+def bearing_sorted_scan(scan):  # pragma: no cover - compiled
+    """The returns of ``scan (R, 2)`` sorted by bearing from the E origin: their bearings (rad, (-pi, pi]),
+    ranges (m) and coordinates, for the ends' searches in a bearing window (``occluded_ends_kernel``,
+    ``continued_ends_kernel``)."""
+    count = len(scan)
+    bearing = np.empty(count)
+    for j in range(count):
+        bearing[j] = np.arctan2(scan[j, 1], scan[j, 0])
+    order = np.argsort(bearing, kind="mergesort")  # any order of equal bearings serves the searches
+    b = bearing[order]
+    r = np.empty(count)
+    xy = np.empty((count, 2))
+    for i in range(count):
+        xy[i, 0] = scan[order[i], 0]
+        xy[i, 1] = scan[order[i], 1]
+        r[i] = np.hypot(xy[i, 0], xy[i, 1])
+    return b, r, xy
+
+
+@njit(inline="always")
+def _window(b, lo, hi):  # pragma: no cover - compiled
+    """Index ranges of the sorted bearings ``b`` in ``[lo, hi]`` read modulo 2 pi (``lo`` may be below
+    -pi, ``hi`` above pi): up to three ``(start, stop)`` pairs (empty ones ``(0, 0)``)."""
+    two_pi = 2.0 * np.pi
+    if hi - lo >= two_pi:
+        return (0, len(b)), (0, 0), (0, 0)
+    main = (np.searchsorted(b, lo), np.searchsorted(b, hi, side="right"))
+    below = (0, 0)
+    above = (0, 0)
+    if lo < -np.pi:
+        below = (np.searchsorted(b, lo + two_pi), len(b))
+    if hi > np.pi:
+        above = (0, np.searchsorted(b, hi - two_pi, side="right"))
+    return main, below, above
+
+
+#: Padding (rad) of the bearing windows the ends' searches look in (far above the rounding of a bearing).
+WINDOW_PAD = 1e-6
+
+
+@njit
+def occluded_ends_kernel(ends, scan, window, margin, max_range, range_margin):  # pragma: no cover - compiled
+    """``tracker.clustering.occluded_ends`` for ``ends (K, 2, 2)``: whether a nearer return of ``scan``
+    lies within ``window`` beyond each end, or the end lies within ``range_margin`` of ``max_range``."""
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=np.bool_)
+    b, r, _ = bearing_sorted_scan(scan)
+    return occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin)
+
+
+@njit(inline="always")
+def occluded_ends_sorted(ends, b, r, window, margin, max_range, range_margin):  # pragma: no cover - compiled
+    """``occluded_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): per end only
+    the returns within ``window`` of its bearing (padded) are tested, with the same test; an end is
+    occluded when any return passes it, whatever the order they are visited in."""
+    count = len(ends)
+    out = np.zeros((count, 2), dtype=np.bool_)
+    two_pi = 2.0 * np.pi
+    for k in range(count):
+        for e in range(2):
+            bearing = np.arctan2(ends[k, e, 1], ends[k, e, 0])
+            reach = np.hypot(ends[k, e, 0], ends[k, e, 1])
+            if reach >= max_range - range_margin:
+                out[k, e] = True
+                continue
+            lo = bearing - window - WINDOW_PAD if e == 0 else bearing - WINDOW_PAD
+            hi = bearing + WINDOW_PAD if e == 0 else bearing + window + WINDOW_PAD
+            for start, stop in _window(b, lo, hi):
+                for i in range(start, stop):
+                    if not r[i] < reach - margin:
+                        continue
+                    d = b[i] - bearing
+                    d = d - two_pi * np.round(d / two_pi)
+                    if e == 0:
+                        d = -d
+                    if d > 0.0 and d <= window:
+                        out[k, e] = True
+                        break
+                if out[k, e]:
+                    break
+    return out
+
+
+@njit
+def continued_ends_kernel(ends, outward, start, reach, scan, offset):  # pragma: no cover - compiled
+    """``tracker.clustering.continued_ends`` for ``ends``, ``outward (K, 2, 2)``, ``start``, ``reach (K, 2)``
+    (m): whether a return of ``scan`` lies beyond each end along its line, past ``start`` and within
+    ``reach``, and within ``offset`` of the line."""
+    if len(ends) == 0 or len(scan) == 0:
+        return np.zeros((len(ends), 2), dtype=np.bool_)
+    b, _, xy = bearing_sorted_scan(scan)
+    return continued_ends_sorted(ends, outward, start, reach, b, xy, offset)
+
+
+@njit(inline="always")
+def continued_ends_sorted(ends, outward, start, reach, b, xy, offset):  # pragma: no cover - compiled
+    """``continued_ends_kernel`` with the scan sorted by bearing (``bearing_sorted_scan``): a return that
+    passes an end's test lies within ``sqrt(reach^2 + offset^2)`` of the end, so within that disc's
+    bearing window seen from the lidar (padded; the whole scan where the disc holds the lidar); only
+    those are tested, with the same test."""
+    count = len(ends)
+    out = np.zeros((count, 2), dtype=np.bool_)
+    for k in range(count):
+        for e in range(2):
+            ex = ends[k, e, 0]
+            ey = ends[k, e, 1]
+            radius = np.sqrt(reach[k, e] * reach[k, e] + offset * offset) * (1.0 + 1e-9)
+            distance = np.hypot(ex, ey)
+            bearing = np.arctan2(ey, ex)
+            if distance > radius:
+                spread = np.arcsin(min(radius / distance, 1.0)) + WINDOW_PAD
+                ranges = _window(b, bearing - spread, bearing + spread)
+            else:
+                ranges = ((0, len(b)), (0, 0), (0, 0))
+            for first, stop in ranges:
+                for i in range(first, stop):
+                    dx = xy[i, 0] - ex
+                    dy = xy[i, 1] - ey
+                    along = dx * outward[k, e, 0] + dy * outward[k, e, 1]
+                    if along > start[k, e] and along <= reach[k, e]:
+                        if abs(dx * outward[k, e, 1] - dy * outward[k, e, 0]) <= offset:
+                            out[k, e] = True
+                            break
+                if out[k, e]:
+                    break
+    return out
+
+
+@njit
+def bearing_filter_kernel(pts, bin_width, count, wrap):  # pragma: no cover - compiled
+    """``tracker.preprocess.bearing_filter``: indices of the closest point of each bearing bin (the
+    first by index among equal ranges), in increasing bearing order (ties by index). Bins ``floor(bearing
+    / bin_width + 1/2)``, taken modulo ``count`` when ``wrap``."""
+    size = pts.shape[0]
+    bearing = np.empty(size)
+    rng = np.empty(size)
+    bins = np.empty(size, dtype=np.int64)
+    for i in range(size):
+        bearing[i] = np.arctan2(pts[i, 1], pts[i, 0])
+        rng[i] = np.hypot(pts[i, 0], pts[i, 1])
+        b = np.int64(np.floor(bearing[i] / bin_width + 0.5))
+        bins[i] = b % count if wrap else b
+    order = np.argsort(bins, kind="mergesort")  # stable: by bin, then by index
+    kept = np.empty(size, dtype=np.int64)
+    n_kept = 0
+    i = 0
+    while i < size:
+        best = order[i]
+        j = i + 1
+        while j < size and bins[order[j]] == bins[order[i]]:
+            if rng[order[j]] < rng[best]:
+                best = order[j]
+            j += 1
+        kept[n_kept] = best
+        n_kept += 1
+        i = j
+    kept = kept[:n_kept]
+    return kept[np.argsort(bearing[kept], kind="mergesort")]

@@ -90,11 +90,11 @@ from typing import Literal
 
 import numpy as np
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
 from tracker.road import Road
-from tracker.compiled.centerline import rectangles_kernel
+from tracker.centerline import rectangles_kernel
 
 Coordinates = Literal["curvilinear", "cartesian"]
 
@@ -701,7 +701,7 @@ def build_structure(
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
     as in the module docstring. ``extent_sd (P, 2)``: the predicted standard deviations of ``L`` and
     ``W`` (m), for ``MeasurementConfig.sharp_parts_whole`` (None: that rule off). Vectorised over
-    pairs; by the compiled kernel (``tracker.compiled.structure``) when ``compiled`` (default:
+    pairs; by the compiled kernel (``tracker.structure``) when ``compiled`` (default:
     ``tracker.compiled.enabled()``)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
@@ -883,7 +883,7 @@ def build_structure(
 
 
 def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
-    """The clusters' arguments of the compiled structure kernel (``tracker.compiled.structure``), in its
+    """The clusters' arguments of the compiled structure kernel (``tracker.structure``), in its
     order: the batch's arrays (C-contiguous: one compiled signature), its shadow flags (none: no end in
     a shadow) and whether each bearing end is in a shadow or continues."""
     c = np.ascontiguousarray
@@ -913,7 +913,7 @@ def structure_config_args(config: MeasurementConfig, shadows: bool, use_radar: b
 
 def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
                               use_radar: bool, extent_sd: np.ndarray | None) -> Structure:
-    from tracker.compiled.structure import structure_kernel
+    from tracker.structure import structure_kernel
 
     head, tail = structure_config_args(config, batch.occluded_end is not None, use_radar, extent_sd is not None)
     sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)

@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.cloud import CloudConfig, CloudResult, process_cloud
 from tracker.config import ClusteringConfig
 from tracker.frame import EgoState, Frame
 from tracker.road import Road
 from tracker.transforms import to_global
-from tracker.compiled.preprocess import DONE as FILTER_DONE, SEED as FILTER_SEED, road_filter_kernel
+from tracker.jit import njit
+from tracker.clustering import bearing_filter_kernel
+from tracker.centerline import project_kernel, seed_kernel
 
 
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -78,7 +80,7 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
     count = round(2.0 * np.pi / bin_width)
     tiles = abs(count * bin_width - 2.0 * np.pi) <= 1e-9  # the bins tile the circle: -pi and pi are one bin
     if compiled_kernels.enabled():  # the same selection, one compiled call
-        from tracker.compiled.clustering import bearing_filter_kernel
+        from tracker.clustering import bearing_filter_kernel
 
         return bearing_filter_kernel(np.ascontiguousarray(pts), float(bin_width), int(max(count, 1)), bool(tiles))
     bearing = np.arctan2(pts[:, 1], pts[:, 0])
@@ -131,7 +133,7 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
 
 def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
                      config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """``filter_points``' steps in one compiled call (``tracker.compiled.preprocess.road_filter_kernel``:
+    """``filter_points``' steps in one compiled call (``tracker.preprocess.road_filter_kernel``:
     the same formulas, the same numbers): the kept returns' indices into ``scan`` (bearing order), every
     return's lateral offset ``n`` (m) and how many lie on the road; None where the kernel does not apply
     (no seed grid, a bearing bin <= 0, a projection that did not converge): the staged path then runs.
@@ -147,9 +149,74 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     tail = (*args, not road.closed, road.right_edge - margin, road.left_edge + margin, float(config.bearing_bin),
             int(max(count, 1)), bool(tiles))
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
-    if status == FILTER_SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
+    if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
         if not np.isfinite(pts[missing]).all():
             return None  # a non-finite return: the staged path's error names it
         road.seed_missing(pts, s, missing)
         status, kept, n, on_road, *_ = road_filter_kernel(*head, s, True, *tail)
-    return (kept, n, int(on_road)) if status == FILTER_DONE else None
+    return (kept, n, int(on_road)) if status == DONE else None
+
+# --------------------------------------------------------------------------------------------------
+# The compiled kernels of this stage.
+#
+# Compiled lidar preprocessing: ``tracker.preprocess.filter_points``' steps 2 and 3 on a frame's
+# returns in one numba call (``road_filter_kernel``): the returns to G (``tracker.transforms.to_global``'s
+# formula), their projection on the centerline (``Road._project`` without a hint: the seed grid's start,
+# then the lock-step Newton iterations of ``project_kernel``), the road-bound test (``Road.within_bounds``)
+# and the closest return per bearing bin (``bearing_filter_kernel``). The same kernels and formulas in
+# the same order: the same numbers. Where a return is off the seed grid the caller seeds it from the
+# k-d tree and calls again; where Newton does not converge it takes the staged path (the bracketed search).
+# --------------------------------------------------------------------------------------------------
+
+
+#: ``road_filter_kernel``'s status: done; some returns off the seed grid (the caller seeds them from the
+#: k-d tree and calls again with the seeds); hand back to the staged path.
+DONE, SEED, STAGED = 0, 1, 2
+
+
+@njit
+def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid_origin, inv_resolution, grid,
+                       node_frame, nodes, kind, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops,
+                       gl_nodes, gl_weights, max_iterations, tolerance, max_step, min_denominator, check_s, n_low,
+                       n_high, bin_width, bin_count, wrap):  # pragma: no cover - compiled
+    """The returns ``scan (N, 2)`` in E (finite) of an ego at ``(ego_x, ego_y)`` in G whose heading has
+    cosine ``cos_yaw`` and sine ``sin_yaw``: their projections ``(s, n)`` on the road (Newton from
+    ``seeds (N,)`` when ``seeded``, else from the seed grid's), those within ``n_low <= n <= n_high``
+    (and ``0 <= s <= length`` when ``check_s``: an open road), and of those the closest per bearing bin.
+    Returns ``(status, kept, lateral, on_road_count, points, starts, missing)``: ``kept`` indices into
+    ``scan`` in increasing bearing order (``bearing_filter_kernel`` of the on-road returns), the lateral
+    offsets ``n (N,)`` of every return. ``status`` ``SEED``: some returns are off the seed grid
+    (``missing``); ``points`` (G) and ``starts`` are then the caller's to complete. ``STAGED``: a
+    projection did not converge. Neither leaves ``kept`` or ``lateral`` valid."""
+    count = scan.shape[0]
+    pts = np.empty((count, 2))
+    for i in range(count):  # to_global: rotate(points, yaw) + origin
+        x, y = scan[i, 0], scan[i, 1]
+        pts[i, 0] = (cos_yaw * x - sin_yaw * y) + ego_x
+        pts[i, 1] = (sin_yaw * x + cos_yaw * y) + ego_y
+    empty = np.empty(0, dtype=np.int64)
+    if seeded:
+        s = seeds.copy()
+        missing = np.zeros(count, dtype=np.bool_)
+    else:
+        s, missing = seed_kernel(pts, grid_origin, inv_resolution, grid, node_frame, nodes, min_denominator)
+        if missing.any():
+            return SEED, empty, np.empty(0), 0, pts, s, missing
+    s, lateral, pending = project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, starts_next,
+                                         inv_bucket, hops, gl_nodes, gl_weights, max_iterations, tolerance, max_step,
+                                         min_denominator)
+    if pending.any():
+        return STAGED, empty, np.empty(0), 0, pts, s, missing
+    on_road = np.empty(count, dtype=np.int64)
+    kept = 0
+    for i in range(count):
+        if lateral[i] >= n_low and lateral[i] <= n_high and (not check_s or (s[i] >= 0.0 and s[i] <= length)):
+            on_road[kept] = i
+            kept += 1
+    on_road = on_road[:kept]
+    inside = np.empty((kept, 2))
+    for j in range(kept):
+        inside[j, 0] = scan[on_road[j], 0]
+        inside[j, 1] = scan[on_road[j], 1]
+    chosen = bearing_filter_kernel(inside, bin_width, bin_count, wrap)
+    return DONE, on_road[chosen], lateral, kept, pts, s, missing

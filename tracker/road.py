@@ -23,7 +23,7 @@ from typing import Literal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.centerline import ClothoidCenterline, HermiteCenterline
 
@@ -467,7 +467,7 @@ class Road:
         return self._nodes[node] + (dx * tx + dy * ty) / denom
 
     def projection_kernel_args(self) -> tuple | None:
-        """The arguments of ``tracker.compiled.preprocess.road_filter_kernel`` that describe this road's
+        """The arguments of ``tracker.preprocess.road_filter_kernel`` that describe this road's
         projection without a hint (``_project``'s compiled path: the seed grid, the stored curve
         samples, the curve kernels' arrays, Newton's constants), from the seed grid's origin to
         ``min_denominator``; None when the road has no seed grid (the k-d tree seeds every point)."""
@@ -490,7 +490,7 @@ class Road:
 
     def _project(self, pts: np.ndarray, s_start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         if s_start is None and self._grid is not None and compiled_kernels.enabled():
-            from tracker.compiled.centerline import seed_kernel  # _nearest_node and _seed in one call
+            from tracker.centerline import seed_kernel  # _nearest_node and _seed in one call
 
             pts = np.ascontiguousarray(pts, dtype=float)
             s, missing = seed_kernel(pts, self._grid_origin, 1.0 / SEED_GRID_RESOLUTION, self._grid, self._node_frame,
@@ -501,7 +501,7 @@ class Road:
         else:
             s = s_start
         if compiled_kernels.enabled():  # the same iterations, one compiled call
-            from tracker.compiled.centerline import project_kernel
+            from tracker.centerline import project_kernel
 
             kind, *curve = self._curve.kernel_args()
             s, lateral, pending = project_kernel(

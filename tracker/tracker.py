@@ -67,7 +67,7 @@ from scipy.stats import chi2
 from tracker.birth import (cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births,
                            with_acceleration)
 from tracker.cloud import CloudResult
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.clustering import (bearing_extremes, cluster_radar_ranges, dense_components, distance_partition,
                                 fragment_owners, occluded_ends, points_in_rectangles, split_across,
                                 SPLIT_MAX_CUTS)
@@ -85,10 +85,10 @@ from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
-from tracker.compiled.clustering import cluster_points_kernel, ordered_clusters_kernel
-from tracker.compiled.extraction import report_centres_kernel
-from tracker.compiled.gating import candidate_pairs_kernel
-from tracker.compiled.reduction import inside_updated_kernel
+from tracker.clustering import cluster_points_kernel, ordered_clusters_kernel
+from tracker.extraction import report_centres_kernel
+from tracker.gating import candidate_pairs_kernel
+from tracker.reduction import inside_updated_kernel
 
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
@@ -449,7 +449,7 @@ class Tracker:
         return clusters, velocities
 
     def _grouped_points(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """``_grouped_points_numpy`` in one compiled call (``tracker.compiled.clustering.cluster_points_kernel``),
+        """``_grouped_points_numpy`` in one compiled call (``tracker.clustering.cluster_points_kernel``),
         or two with ``fragment_owners`` (numpy) between them where a fragment may join a track
         (``ordered_clusters_kernel`` then finishes); None (nothing set) where the kernel hands back (a
         non-finite lateral offset, a partition the compiled path does not take)."""
@@ -805,7 +805,7 @@ class Tracker:
         rectangle of another label's reportable posterior: a duplicate of the seen vehicle, whether no
         cluster updated it or its vehicle's cluster did, weakly, beside the track that took it (the
         centres inside the rectangles as ``points_in_rectangles`` finds them, margin 0; by
-        ``tracker.compiled.reduction.inside_updated_kernel`` in one call when the kernels are on)."""
+        ``tracker.reduction.inside_updated_kernel`` in one call when the kernels are on)."""
         mix = self.mixture
         updated = _labels_in(mix.labels, self._strong_labels)
         seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
@@ -979,7 +979,7 @@ class Tracker:
 def _centres(means: np.ndarray, index: np.ndarray, ego: EgoState, road: Road, coordinates: str) -> np.ndarray:
     """The rectangle centres ``(K, 2)`` in E of the states ``means[index]``: ``to_vehicle(...).center``,
     by one compiled call for curvilinear states when the kernels are on
-    (``tracker.compiled.extraction.report_centres_kernel``: the same numbers)."""
+    (``tracker.extraction.report_centres_kernel``: the same numbers)."""
     if coordinates == "curvilinear" and compiled_kernels.enabled() and len(index):
         kind, *curve = road._curve.kernel_args()
         means = means if means.flags.c_contiguous else np.ascontiguousarray(means)
@@ -1001,7 +1001,7 @@ def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, 
     """The (component, cluster) pairs the update tries, row-major: the component's rectangle centre
     ``center`` within ``reach`` (m) of the centroid of cluster ``k`` (``points[offsets[k]:offsets[k + 1]]``,
     non-empty), ``p_d > 0``, and the cluster either owned by no track (``owned < 0``) or by the
-    component's track group ``group`` (by ``tracker.compiled.gating`` when the kernels are on: the same
+    component's track group ``group`` (by ``tracker.gating`` when the kernels are on: the same
     pairs)."""
     centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
     if compiled_kernels.enabled():
@@ -1036,7 +1036,7 @@ def _duplicate_groups(rect: Rectangles) -> np.ndarray:
         return np.zeros(count, dtype=int)
     corners = rect.corners()  # (T, 4, 2)
     if compiled_kernels.enabled():
-        from tracker.compiled.clustering import overlap_groups_kernel
+        from tracker.clustering import overlap_groups_kernel
 
         return overlap_groups_kernel(np.ascontiguousarray(corners), np.cos(rect.psi), np.sin(rect.psi))
     axes = np.concatenate([np.stack([np.cos(rect.psi), np.sin(rect.psi)], -1),

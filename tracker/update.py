@@ -16,12 +16,12 @@ the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` p
 ``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
 noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation). With the compiled
 kernels on (``tracker.compiled``), ``kalman_update`` is one numba call over the pairs
-(``tracker.compiled.kalman``, tested against this numpy code within 1e-9); ``update_pairs`` of
+(``tracker.kalman``, tested against this numpy code within 1e-9); ``update_pairs`` of
 curvilinear states is one call, from the sigma points' rectangles through the measurement structure,
 the extent growth, the predicted measurements, the radar gate and the update to the extent rules
-(``tracker.compiled.pairs``); where that call hands the pairs back (a widened prior, a non-finite or
+(``tracker.pairs``); where that call hands the pairs back (a widened prior, a non-finite or
 not positive definite input), and for Cartesian states, the staged kernels run
-(``tracker.compiled.kalman.measurement_update_kernel`` for the measurement step, ``tracker.compiled.extent``
+(``tracker.kalman.measurement_update_kernel`` for the measurement step, ``tracker.extent``
 for the extent rules): the same numbers.
 """
 
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.indices import unique_indices
@@ -44,7 +44,7 @@ from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wr
 from tracker.preparation import _kernel_settings, prepare_scanned_batch
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
-from tracker.compiled.pairs import DONE as FUSED_DONE, prepared_pairs_kernel
+from tracker.pairs import DONE as FUSED_DONE, prepared_pairs_kernel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -108,7 +108,7 @@ def kalman_update(
             raise ValueError(f"kalman_update: r_likelihood {r_like.shape} must have the shape of r {r.shape}")
         _check_noise(r_like, mask)
     if compiled_kernels.enabled() and len(wrapping.periods) <= 1 and z.shape[0]:
-        from tracker.compiled.kalman import kalman_kernel
+        from tracker.kalman import kalman_kernel
 
         extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
         contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
@@ -256,7 +256,7 @@ def update_pairs(
 
 
 def _extent_rule_args(config: TrackerConfig) -> tuple:
-    """The settings' arguments of the compiled extent rules (``tracker.compiled.extent.extent_rules_kernel``
+    """The settings' arguments of the compiled extent rules (``tracker.extent.extent_rules_kernel``
     after its arrays): the hold, the long- and narrow-vehicle priors and the largest vehicle."""
     b = config.birth
     return (bool(config.measurement.hold_unobserved_extent),
@@ -288,7 +288,7 @@ def update_clusters(
     lidar returns ``scan`` (``config.detection``'s resolution and range), then ``update_pairs`` of the
     components in some pair. Returns the result and the numbers of the prepared clusters' ends in a
     shadow and continued (``ClusterBatch.occluded_end``, ``continued_end``; None where that flag is
-    off). One compiled call (``tracker.compiled.pairs.prepared_pairs_kernel``: the same kernels in the
+    off). One compiled call (``tracker.pairs.prepared_pairs_kernel``: the same kernels in the
     same order, the same numbers) where the fused update applies (``_update_pairs_fused``) and every
     cluster in some pair is non-empty and finite; else the two steps."""
     comp = np.asarray(component_index, dtype=np.intp).reshape(-1)
@@ -378,7 +378,7 @@ def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarr
 def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray, clu: np.ndarray, batch: ClusterBatch,
                         ego: EgoState | tuple, road: Road | None, config: TrackerConfig, ut: UnscentedTransform,
                         wrapping: Wrapping) -> UpdateResult | None:
-    """``update_pairs``' compiled steps in one call (``tracker.compiled.pairs.update_pairs_kernel``: the
+    """``update_pairs``' compiled steps in one call (``tracker.pairs.update_pairs_kernel``: the
     same kernels in the same order, the same numbers) for the components ``means (U, D)``, ``covs`` in
     some pair (pair ``p``: component ``inverse[p]``, cluster ``clu[p]``); ``None`` where the kernels are
     off or do not apply (Cartesian states, more than one periodic coordinate) or where the kernel hands
@@ -386,7 +386,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     positive): the staged path then runs."""
     if not len(means) or not _fused_update_applies(config, road, wrapping):
         return None
-    from tracker.compiled.pairs import DONE, update_pairs_kernel
+    from tracker.pairs import DONE, update_pairs_kernel
 
     mcfg = config.measurement
     ego = EgoState.coerce(ego)
@@ -413,10 +413,10 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
     ``MeasurementConfig.hold_unobserved_extent``), then where a length was held ``long_vehicle_prior``
     and ``narrow_vehicle_prior`` (``BirthConfig.long_width``, ``narrow_width``), then the largest
     vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto it). By the
-    compiled kernel (``tracker.compiled.extent``: the same numbers) when the kernels are on."""
+    compiled kernel (``tracker.extent``: the same numbers) when the kernels are on."""
     b = config.birth
     if compiled_kernels.enabled() and len(res.mean):
-        from tracker.compiled.extent import extent_rules_kernel
+        from tracker.extent import extent_rules_kernel
 
         mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)
         extent_rules_kernel(
@@ -442,10 +442,10 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
     """The sigma points ``(C, S, n)`` of ``N(means, covs)`` and their rectangles in E ``(C, S)``
     (``UnscentedTransform.sigma_points``, then ``tracker.measurement.to_vehicle``); for curvilinear
     states with the exact conversion, by one compiled call when the kernels are on
-    (``tracker.compiled.centerline.sigma_rectangles_kernel``: the same numbers)."""
+    (``tracker.centerline.sigma_rectangles_kernel``: the same numbers)."""
     if (compiled_kernels.enabled() and coordinates == "curvilinear" and euler_s0 is None and road is not None
             and len(wrapping.periods) <= 1 and means.ndim == 2 and len(means)):
-        from tracker.compiled.centerline import sigma_rectangles_kernel
+        from tracker.centerline import sigma_rectangles_kernel
 
         ego = EgoState.coerce(ego)
         kind, *curve = road._curve.kernel_args()
@@ -486,13 +486,13 @@ def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarr
                       structure: Structure, cluster_index: np.ndarray, gate: float | None,
                       wrapping: Wrapping, r_like: np.ndarray | None = None) -> UpdateResult | None:
     """``predict_measurements``, ``gate_radar_rows`` and ``kalman_update`` of the pairs in one compiled
-    call (``tracker.compiled.kalman.measurement_update_kernel``; the same steps, the numbers agree to
+    call (``tracker.kalman.measurement_update_kernel``; the same steps, the numbers agree to
     rounding); ``None`` where the kernels are off or do not apply (more than one periodic coordinate,
     or a non-finite input the numpy path reports)."""
     if not compiled_kernels.enabled() or len(wrapping.periods) > 1 or not len(means):
         return None
     _check_noise(structure.r, structure.mask)
-    from tracker.compiled.kalman import measurement_update_kernel
+    from tracker.kalman import measurement_update_kernel
 
     c = np.ascontiguousarray
     shape = sigma.shape[:2]
@@ -574,10 +574,10 @@ def grow_extent(
     ``settled_width_std`` (``MeasurementConfig``) is not grown: a short side longer than a settled
     width is the track's heading lagging (the side next to it joined the chord), not a wider vehicle.
     Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
-    False). By the compiled kernel (``tracker.compiled.extent.grow_extent_kernel``: the same numbers)
+    False). By the compiled kernel (``tracker.extent.grow_extent_kernel``: the same numbers)
     when the kernels are on."""
     if compiled_kernels.enabled() and len(means):
-        from tracker.compiled.extent import grow_extent_kernel
+        from tracker.extent import grow_extent_kernel
 
         c = np.ascontiguousarray
         return grow_extent_kernel(c(means, dtype=float), c(covs, dtype=float), c(structure.excess, dtype=float),

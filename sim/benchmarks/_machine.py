@@ -13,7 +13,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from tracker import compiled as compiled_kernels
+from tracker import jit as compiled_kernels
 
 #: The repository (or installed tree) holding ``sim/``.
 ROOT = Path(__file__).resolve().parents[2]

@@ -34,7 +34,7 @@ from sim.sensors.raycast import PymunkScene, RayGrid, cast, cast_numpy, cast_pym
 from sim.sensors.rig import RigConfig, SensorRig
 from sim.sensors.scene import scene_segments
 from sim.world.truth import EgoPose, Snapshot
-from tracker import compiled
+from tracker import jit as compiled
 
 LANE_WIDTH = 3.5
 LANES = 4

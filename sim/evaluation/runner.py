@@ -78,7 +78,7 @@ from sim.world.truth import Snapshot
 from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
 from tracker.angles import wrap_angle
-from tracker.compiled import warm_up
+from tracker.warmup import warm_up
 from tracker.track import curvilinear_to_cartesian
 
 #: Stream tags mixed into the seed for the sensors' and the clutter's random generators.

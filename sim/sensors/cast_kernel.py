@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from tracker.compiled import njit
-from tracker.compiled.geometry import corner_offset
+from tracker.jit import njit
+from tracker.geometry import corner_offset
 
 TWO_PI = 2.0 * math.pi
 

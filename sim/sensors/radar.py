@@ -33,7 +33,7 @@ from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.raycast import RayGrid, cast as cast_rays
 from sim.sensors.scene import scene_segments, static_arrays
 from sim.world.truth import Snapshot
-from tracker import compiled
+from tracker import jit as compiled
 from tracker.transforms import rotate, to_global
 
 MOUNTS = ("front", "rear")

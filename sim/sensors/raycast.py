@@ -39,7 +39,7 @@ from typing import Protocol
 import numpy as np
 
 from sim.sensors.cast_kernel import cast_kernel, visible_kernel
-from tracker import compiled
+from tracker import jit as compiled
 
 TWO_PI = 2.0 * math.pi
 
@@ -326,7 +326,9 @@ def _warm_up_cast() -> None:
                    math.remainder(fan.start, TWO_PI), fan.resolution, fan.cos, fan.sin)
 
 
-compiled.register_warm_up(_warm_up_cast)
+from tracker.warmup import register_warm_up  # noqa: E402
+
+register_warm_up(_warm_up_cast)
 
 #: The casters by name (``LidarConfig.caster``): "numpy" is the vectorised caster (``cast``: compiled
 #: when the kernels are on), "pymunk" the oracle.

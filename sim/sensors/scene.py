@@ -16,7 +16,7 @@ from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar3d import Prisms
 from sim.sensors.raycast import Segments
 from sim.world.truth import Snapshot, rectangle_corners
-from tracker import compiled
+from tracker import jit as compiled
 from tracker.measurement import NEXT_CORNER
 
 _NO_STATIC = (np.zeros((0, 4)), np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros(0))

@@ -45,7 +45,7 @@ import numpy as np
 
 from sim.evaluation.variants import check_variant
 from sim.world.scenario import load_scenario, resolve_scenario_path
-from tracker.compiled import warm_up
+from tracker.warmup import warm_up
 
 #: Mode name of the ground-truth perception.
 TRUTH = "truth"

@@ -55,7 +55,7 @@ import numpy as np
 from sim.evaluation.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant
 from sim.world.scenario import ScenarioError, parse_scenario, resolve_scenario_path
-from tracker.compiled import warm_up
+from tracker.warmup import warm_up
 
 BACKENDS = ("local", "ray")
 #: Columns of runs.csv that identify a run (the metrics follow).

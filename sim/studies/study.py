@@ -40,7 +40,7 @@ from scipy import stats
 
 from sim.studies.montecarlo import plan, read_runs, run_study, write_runs
 from sim.world.scenario import load_scenario, load_suite, resolve_scenario_path
-from tracker.compiled import warm_up
+from tracker.warmup import warm_up
 
 #: The variants of the study, in report order (docs/architecture.md).
 STUDY_VARIANTS: tuple[str, ...] = (

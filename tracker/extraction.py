@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker.compiled import njit
-from tracker.compiled.centerline import to_vehicle_kernel
+from tracker.jit import njit
+from tracker.centerline import to_vehicle_kernel
 
 
 @njit

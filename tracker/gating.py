@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from tracker.compiled import njit
+from tracker.jit import njit
 
 
 @njit

@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from tracker.compiled import njit
-from tracker.compiled.ukf import _residual, _wrap, cholesky_into
+from tracker.jit import njit
+from tracker.ukf import _residual, _wrap, cholesky_into
 
 
 @njit

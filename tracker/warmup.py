@@ -1,9 +1,16 @@
-"""The calls through which ``tracker.compiled.warm_up`` compiles (or loads) every kernel, in shares
-that compile in parallel on a cold cache.
+"""``warm_up()``: compile every kernel of the tracker now (or load it from the cache), and the calls
+through which it does so, in shares that compile in parallel on a cold cache.
+
+Call ``warm_up()`` before starting worker processes, so that they load the cache instead of each
+compiling, and before timing. Where a kernel is missing from the cache it reports one line before
+compiling (with the expected time, ``COMPILE_ESTIMATE_S``) and one after (``report_to``: stderr by
+default), and a helper process (``python -P -m tracker.warmup``) compiles the update of the pairs
+meanwhile into the same cache, so that two cores share the work.
+
+The shares:
 
 - ``update_share``: the update of the pairs (``tracker.update.update_clusters``: the fused kernel, then
-  by hand-back the two steps and the staged kernels) and the cluster preparation alone. A helper
-  process runs it (``python -P -m tracker.compiled._warm``) while the calling process runs
+  by hand-back the two steps and the staged kernels) and the cluster preparation alone (the helper's);
 - ``first_frame`` (a tracker's first frame in which no cluster pairs with a component: the road filter,
   the grouping of the points, the radar association, the road births, the detection model, the
   reduction), ``other_calls`` (the kernels a small scene may not reach) and ``predict_share``;
@@ -12,14 +19,145 @@ that compile in parallel on a cold cache.
 
 The shares reach disjoint sets of kernels, so that the two processes do not compile the same one
 (a kernel both reach is compiled by whichever comes first, and loaded by the other where the cache
-already holds it).
+already holds it). This module sits above every stage and imports them inside its functions; no stage
+imports it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
+import time
 
 import numpy as np
+from numba.core import event as _event
+
+COMPILE_ESTIMATE_S = 40  # s: a cold warm_up() on a 2-core machine (the line warm_up() reports before compiling)
+HELPER_TIMEOUT_S = 600.0  # s: warm_up() stops waiting for its helper process after this (and compiles its share)
+_WARM = False  # warm_up() has compiled or loaded every kernel in this process
+_EXTRA_WARM_UPS: list = []  # callables registered by other packages' kernels (register_warm_up)
+
+
+def register_warm_up(function) -> None:
+    """Have ``warm_up()`` also call ``function()`` (no arguments): for kernels outside the tracker
+    built with this ``njit`` (the simulator's ray caster), so that one call warms them all."""
+    if function not in _EXTRA_WARM_UPS:
+        _EXTRA_WARM_UPS.append(function)
+
+
+def _stderr_line(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+_REPORT = _stderr_line  # where warm_up() says that it compiles (report_to)
+
+
+def report_to(function):
+    """Send ``warm_up()``'s two lines about compiling (the start, with the expected time, and the
+    time it took) to ``function(line)`` instead; the default prints them to stderr; None drops them.
+    Returns the function that was in use. Nothing is reported when every kernel loads from the cache."""
+    global _REPORT
+    previous, _REPORT = _REPORT, function
+    return previous
+
+
+def _report(line: str) -> None:
+    if _REPORT is not None:
+        _REPORT(line)
+
+
+class _Compiling(_event.Listener):
+    """A listener of numba's compile events (``numba.core.event``) for one ``warm_up()``: the first
+    compilation (a kernel missing from the cache) reports the start and, while the calling process's
+    share runs, starts the helper process on the other share (``tracker.warmup``)."""
+
+    def __init__(self, parallel: bool) -> None:
+        self.parallel = parallel  # start the helper on a first compilation (before join())
+        self.started: float | None = None  # perf_counter() of the first compilation
+        self.helper: subprocess.Popen | None = None
+
+    def on_start(self, event) -> None:
+        if self.started is not None:
+            return
+        self.started = time.perf_counter()
+        _report(f"compiling the tracker's kernels once (about {COMPILE_ESTIMATE_S} s on a 2-core machine; "
+                "later runs load them from the cache)...")
+        if self.parallel:
+            self.helper = _start_helper()
+
+    def on_end(self, event) -> None:
+        pass
+
+    def join(self) -> None:
+        """Wait for the helper (if one runs; at most ``HELPER_TIMEOUT_S``) and start no other."""
+        self.parallel = False
+        if self.helper is not None:
+            try:
+                self.helper.wait(timeout=HELPER_TIMEOUT_S)
+            except subprocess.TimeoutExpired:  # pragma: no cover - a helper that hangs: its share compiles here
+                self.stop()
+
+    def stop(self) -> None:
+        if self.helper is not None and self.helper.poll() is None:
+            self.helper.kill()
+            self.helper.wait()
+
+
+def _cores() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - no affinity on this platform
+        return os.cpu_count() or 1
+
+
+def _start_helper() -> subprocess.Popen | None:
+    """The helper process: ``python -P -m tracker.warmup`` (its share: the update of the pairs)
+    by this interpreter with this process's environment, without the working directory on its path
+    (``-P``); None where it cannot start or where this process has one CPU only. Where it fails (a
+    package this process found only through a path it added itself) this process compiles that share."""
+    if _cores() < 2:
+        return None
+    try:
+        return subprocess.Popen([sys.executable, "-P", "-m", "tracker.warmup"], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:  # pragma: no cover - no interpreter to start
+        return None
+
+
+def warm_up(parallel: bool = True) -> None:
+    """Compile every kernel now, or load it from the cache: the calls of ``tracker.warmup`` (a
+    tracker's first frame, a small tracked scene, the update of the pairs, the calls of the kernels a
+    scene may not reach) and the functions of ``register_warm_up``. Call it before starting worker
+    processes, so that they load the cache instead of each compiling, and before timing.
+
+    Where a kernel is missing from the cache, one line says so (``report_to``; stderr by default)
+    before the compilation and one after it with the seconds it took; with ``parallel`` a helper
+    process compiles the update of the pairs meanwhile, into the same cache. Nothing is said when every
+    kernel loads from the cache. Once per process: later calls return at once."""
+    global _WARM
+    if _WARM:
+        return
+    watch = _Compiling(parallel)
+    with _event.install_listener("numba:compile", watch):
+        try:
+            # this process's share while the helper compiles the update of the pairs; then the rest
+            first_frame()
+            predict_share()
+            other_calls()
+            for function in _EXTRA_WARM_UPS:
+                function()
+            watch.join()
+            update_share()
+            scene()
+        finally:
+            watch.stop()
+    if watch.started is not None:
+        _report(f"compiled the tracker's kernels in {time.perf_counter() - watch.started:.0f} s")
+    _WARM = True
+
 
 EGO = (100.0, 0.0, 0.0, 10.0, 0.0)  # x, y (m), yaw (rad), speed (m/s), yaw rate (rad/s) of the scenes' ego
 LIDAR_STEP_DEG = 0.2  # the scenes' lidar resolution (deg)
@@ -119,8 +257,8 @@ def other_calls() -> None:
     inside an updated one's rectangle, ``absorb_overlapping``'s screen along the road and in Cartesian
     axes), the report-range centres of the extraction."""
     from tracker.clustering import SPLIT_MAX_CUTS, distance_partition, points_in_rectangles
-    from tracker.compiled.clustering import ordered_clusters_kernel
-    from tracker.compiled.reduction import inside_updated_kernel
+    from tracker.clustering import ordered_clusters_kernel
+    from tracker.reduction import inside_updated_kernel
     from tracker.detection import occluded_fraction
     from tracker.frame import EgoState
     from tracker.measurement import Rectangles

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from tracker.compiled import njit
+from tracker.jit import njit
 
 TWO_PI = 2.0 * math.pi
 

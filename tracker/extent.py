@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from tracker.compiled import njit
-from tracker.compiled.structure import FULL
+from tracker.jit import njit
+from tracker.structure import FULL
 from tracker.motion import LENGTH, WIDTH, XI
 
 

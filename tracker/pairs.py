@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker.compiled import njit
-from tracker.compiled.centerline import sigma_rectangles_kernel
-from tracker.compiled.extent import extent_rules_kernel, grow_extent_kernel
-from tracker.compiled.kalman import measurement_update_kernel
-from tracker.compiled.preparation import scanned_batch_kernel
-from tracker.compiled.structure import structure_kernel
+from tracker.jit import njit
+from tracker.centerline import sigma_rectangles_kernel
+from tracker.extent import extent_rules_kernel, grow_extent_kernel
+from tracker.kalman import measurement_update_kernel
+from tracker.preparation import scanned_batch_kernel
+from tracker.structure import structure_kernel
 from tracker.motion import LENGTH, WIDTH
 
 #: ``update_pairs_kernel`` statuses: done; the staged path is needed (see the module docstring).

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from tracker.compiled import njit
+from tracker.jit import njit
 
 FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)  # as tracker.measurement
 _SX = np.array([1.0, 1.0, -1.0, -1.0])
