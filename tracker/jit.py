@@ -75,14 +75,13 @@ def _direct_imports(py_file: str) -> tuple[str, ...]:
     if key not in _IMPORTS:
         found: set[str] = set()
         for node in ast.parse(Path(py_file).read_bytes()).body:
-            names: list[str] = []
+            paths: list[str | None] = []
             if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
+                paths = [_module_file(a.name) for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
-            for name in names:
-                if name.split(".")[0] in PROJECT_PACKAGES and (path := _module_file(name)) is not None:
-                    found.add(path)
+                # ``from a.b import c``: the module ``a.b.c`` where it is one, else ``a.b`` (where ``c`` is defined)
+                paths = [_module_file(f"{node.module}.{a.name}") or _module_file(node.module) for a in node.names]
+            found.update(path for path in paths if path is not None)
         _IMPORTS[key] = tuple(sorted(found - {py_file}))
     return _IMPORTS[key]
 
