@@ -174,17 +174,6 @@ def _check_variants(names: list[str]) -> list[str]:
         raise UsageError(str(exc)) from None
 
 
-def _kernels_note() -> str:
-    """Which code path the tracker ran: its compiled kernels, or numpy (with how to get the kernels)."""
-    from tracker import compiled
-
-    if compiled.enabled():
-        return "compiled kernels"
-    if compiled.available():
-        return "numpy code: EOT_NUMBA=0"
-    return "numpy code; numba could not be imported (pip install numba) for the compiled kernels"
-
-
 def _fmt_value(value: object, digits: int = 3) -> str:
     if value is None:
         return "-"
@@ -214,7 +203,7 @@ def summary_table(metrics: dict) -> str:
         ("length / width RMSE (m)", f"{_fmt_value(m.get('length_rmse_m'))} / {_fmt_value(m.get('width_rmse_m'))}"),
         ("ID switches", _fmt_value(m.get("id_switches"))),
         ("tracker ms per frame (median / p95)",
-         f"{_fmt_value(m.get('tracker_ms_median'), 1)} / {_fmt_value(m.get('tracker_ms_p95'), 1)} ({_kernels_note()})"),
+         f"{_fmt_value(m.get('tracker_ms_median'), 1)} / {_fmt_value(m.get('tracker_ms_p95'), 1)}"),
     ]
     width = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)

@@ -80,14 +80,8 @@ def test_quick_run_numbers_are_finite(quick):
 def test_quick_run_tracker_rows(quick):
     result = json.loads(quick[1].read_text(encoding="utf-8"))
     rows = result["tracker"]["results"]
-    from tracker import compiled
-
-    both = compiled.available()  # the compiled kernels and the numpy code, side by side
-    assert result["tracker"]["kernels"] == (["compiled", "numpy"] if both else ["numpy"])
-    expected = {"curvilinear-fused", "curvilinear-lidar"}
-    assert set(rows) == (expected | {f"{v}/numpy" for v in expected} if both else expected)
-    assert result["kernels"]["compiled"] == compiled.enabled()
-    assert result["machine"]["tracker_kernels"] == ("compiled" if compiled.enabled() else "numpy")
+    assert list(rows) == ["curvilinear-fused", "curvilinear-lidar"]
+    assert result["kernels"]["warm_up_s"] >= 0.0
     for variant, by_count in rows.items():
         assert list(by_count) == [str(c) for c in Settings.make(True).tracker_counts]
         for count, row in by_count.items():
@@ -163,7 +157,7 @@ def test_repeated_timings_keep_each_rows_fastest_round(tmp_path):
     rounds (``best_of``), with both rounds' medians beside them, and the ratio is of the fastest ones."""
     out = tmp_path / "tracker.json"
     status = main(["bench", "tracker", "--targets", "1", "5", "--frames", "3", "--variants", "curvilinear-fused",
-                   "--kernels", "auto", "--repeat", "2", "--compare-stonesoup", "--stonesoup-frames", "4",
+                   "--repeat", "2", "--compare-stonesoup", "--stonesoup-frames", "4",
                    "--json", str(out)])
     assert status == 0
     result = json.loads(out.read_text(encoding="utf-8"))
@@ -179,7 +173,7 @@ def test_repeated_timings_keep_each_rows_fastest_round(tmp_path):
     with pytest.raises(ValueError, match="repeat"):
         from sim.benchmarks.tracker import measure
 
-        measure([1], ["curvilinear-fused"], 2, modes=("numpy",), repeat=0)
+        measure([1], ["curvilinear-fused"], 2, repeat=0)
 
 
 def test_compare_stonesoup_without_stonesoup_exits_2(monkeypatch, capsys):
@@ -226,24 +220,3 @@ def test_one_core_pins_and_restores():
     assert os.sched_getaffinity(0) == before
     with one_core(False) as cpu:
         assert cpu is None and os.sched_getaffinity(0) == before
-
-
-def test_kernel_modes_and_keys(monkeypatch):
-    from sim.benchmarks._tracking import kernel_modes, kernels
-    from sim.benchmarks.tracker import measure
-    from tracker import compiled
-
-    assert kernel_modes("numpy") == ("numpy",)
-    with pytest.raises(ValueError, match="kernels must be"):
-        kernel_modes("fast")
-    monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-    assert kernel_modes("auto") == ("numpy",)
-    with kernels("compiled" if compiled.available() else "numpy"):
-        assert compiled.enabled() == compiled.available()
-    assert os.environ[compiled.ENV_SWITCH] == "0"  # restored
-    rows = measure([1], ["curvilinear-lidar"], 3, modes=("numpy",))
-    assert list(rows) == ["curvilinear-lidar"]
-    if compiled.available():
-        both = measure([1], ["curvilinear-lidar"], 3, modes=("compiled", "numpy"))
-        assert list(both) == ["curvilinear-lidar", "curvilinear-lidar/numpy"]
-        assert both["curvilinear-lidar"]["1"]["tracks_mean"] == both["curvilinear-lidar/numpy"]["1"]["tracks_mean"]

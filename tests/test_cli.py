@@ -159,8 +159,6 @@ def test_run_default_output_folder(monkeypatch):
 def test_default_outputs_are_untracked():
     """Every command's default output lies under ``eot-output/``, which git ignores: running the README's
     commands in a checkout never modifies the committed reference outputs in ``results/``."""
-    import argparse
-
     parser = cli.build_parser()
     defaults = {}
     for action in parser._subparsers._group_actions:

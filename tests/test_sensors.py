@@ -1,4 +1,5 @@
-"""sim.sensors: ray casting (numpy vs the pymunk oracle), lidar, radar, roadside clutter, the rig."""
+"""sim.sensors: ray casting (against the pymunk oracle and the numpy oracle), the scene, lidar, radar,
+roadside clutter, the rig."""
 
 from __future__ import annotations
 
@@ -7,6 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from oracles.radar import visible as visible_oracle
+from oracles.raycast import cast_numpy
+from oracles.scene import scene_segments as scene_oracle
 
 from sim.sensors import (
     FRONT_RADAR,
@@ -22,10 +26,11 @@ from sim.sensors import (
     RoadsideObjects,
     Segments,
     SensorRig,
-    cast_numpy,
+    cast,
     cast_pymunk,
     generate_roadside,
 )
+from sim.sensors.raycast import ray_returns
 from sim.sensors.scene import scene_segments
 from sim.world.truth import EgoPose, Snapshot
 from tracker.frame import Frame
@@ -124,7 +129,7 @@ def random_scene(seed: int, vehicles: int = 25):
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_numpy_caster_matches_pymunk_oracle(seed):
+def test_caster_matches_pymunk_oracle(seed):
     snap, objects = random_scene(seed)
     segments = scene_segments(snap, objects, (0.0, 0.0), snap.ego.yaw)
     assert len(segments) > 300
@@ -136,7 +141,7 @@ def test_numpy_caster_matches_pymunk_oracle(seed):
         RayGrid.fan(fan_centre, math.radians(150), RES),  # wider than a half turn
     ]
     for grid in grids:
-        fast = cast_numpy(segments, grid, 100.0)
+        fast = cast(segments, grid, 100.0)
         oracle = cast_pymunk(segments, grid, 100.0)
         both = fast.hit & oracle.hit
         assert both.sum() > 0.3 * grid.count
@@ -144,17 +149,15 @@ def test_numpy_caster_matches_pymunk_oracle(seed):
         np.testing.assert_allclose(fast.range[both], oracle.range[both], rtol=0.0, atol=1e-9)
         assert np.array_equal(fast.owner[both], oracle.owner[both])
         # culling back faces changes nothing for closed polygons seen from outside
-        assert np.array_equal(cast_numpy(segments, grid, 100.0, cull_back_faces=False).range, fast.range)
+        assert np.array_equal(cast(segments, grid, 100.0, cull_back_faces=False).range, fast.range)
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_compiled_caster_matches_the_numpy_caster(seed):
-    """``sim.sensors.cast_kernel`` (numba) against ``cast_numpy``: the same owners and ranges, on full
-    circles and fans (narrow and wider than a half turn), with and without back-face culling, for a
-    loose segment set too, and for segments wholly or partly beyond ``max_range``."""
-    pytest.importorskip("numba")
-    from sim.sensors.cast_kernel import cast_kernel
-
+def test_caster_matches_the_numpy_oracle(seed):
+    """``cast`` (``cast_kernel``) against the vectorised numpy caster (``oracles.raycast``): the same
+    owners and ranges bit for bit, on full circles and fans (narrow and wider than a half turn), with
+    and without back-face culling, for a loose segment set too, and for segments wholly or partly
+    beyond ``max_range``."""
     snap, objects = random_scene(seed)
     segments = scene_segments(snap, objects, (0.0, 0.0), snap.ego.yaw)
     rng = np.random.default_rng(100 + seed)
@@ -166,39 +169,33 @@ def test_compiled_caster_matches_the_numpy_caster(seed):
         for segs, cull in [(segments, True), (segments, False), (loose, False)]:
             for max_range in (100.0, 25.0):
                 ref = cast_numpy(segs, grid, max_range, cull_back_faces=cull)
-                ranges, owners = cast_kernel(segs.a, segs.b, segs.owner, math.remainder(grid.start, 2 * math.pi),
-                                             grid.resolution, grid.cos, grid.sin, grid.is_full_circle, max_range, cull)
+                got = cast(segs, grid, max_range, cull_back_faces=cull)
                 assert ref.hit.sum() > 0.05 * grid.count
-                assert np.array_equal(owners, ref.owner)
-                assert np.array_equal(ranges, ref.range)
+                assert np.array_equal(got.owner, ref.owner)
+                assert np.array_equal(got.range, ref.range)
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_compiled_scene_equals_numpy(seed, monkeypatch):
-    """``scene_segments`` through ``scene_kernel`` (numba) against numpy: the same edges in the same
-    order with the same owners, within 1e-9 m, with and without a range limit and roadside objects;
-    and a lidar scan of the scene the same either way."""
-    pytest.importorskip("numba")
-    from tracker import compiled
-
+def test_scene_matches_the_numpy_oracle(seed):
+    """``scene_segments`` (``scene_kernel``) against the numpy scene (``oracles.scene``): the same
+    edges in the same order with the same owners, within 1e-9 m, with and without a range limit and
+    roadside objects; and a lidar scan the same as the oracles' scene, cast and the lidar's returns."""
     snap, objects = random_scene(seed)
     for roadside in (objects, None):
         for max_range in (None, 60.0):
-            got = []
-            for flag in ("0", "1"):
-                monkeypatch.setenv(compiled.ENV_SWITCH, flag)
-                got.append(scene_segments(snap, roadside, (1.5, -0.5), snap.ego.yaw + 0.3, max_range))
-            ref, new = got
+            ref = scene_oracle(snap, roadside, (1.5, -0.5), snap.ego.yaw + 0.3, max_range)
+            new = scene_segments(snap, roadside, (1.5, -0.5), snap.ego.yaw + 0.3, max_range)
             assert np.array_equal(new.owner, ref.owner) and len(ref) >= 8
             np.testing.assert_allclose(new.a, ref.a, rtol=0.0, atol=1e-9)
             np.testing.assert_allclose(new.b, ref.b, rtol=0.0, atol=1e-9)
-    scans = []
-    for flag in ("0", "1"):
-        monkeypatch.setenv(compiled.ENV_SWITCH, flag)
-        scans.append(Lidar(LidarConfig()).scan(snap, objects, rng=np.random.default_rng(5)))
-    np.testing.assert_array_equal(scans[0].azimuth, scans[1].azimuth)
-    np.testing.assert_array_equal(scans[0].vehicle_id, scans[1].vehicle_id)
-    np.testing.assert_allclose(scans[0].points, scans[1].points, rtol=0.0, atol=1e-9)
+    lidar = Lidar(LidarConfig())
+    scan = lidar.scan(snap, objects, rng=np.random.default_rng(5))
+    ego, cfg, grid = snap.ego, lidar.config, lidar.grid
+    ref = cast_numpy(scene_oracle(snap, objects, (ego.x, ego.y), ego.yaw, cfg.max_range), grid, cfg.max_range)
+    idx, measured, vehicle_id, _ = ray_returns(ref.hit, ref.range, ref.owner, snap.ids, cfg, np.random.default_rng(5))
+    np.testing.assert_array_equal(scan.azimuth, grid.angles[idx])
+    np.testing.assert_array_equal(scan.vehicle_id, vehicle_id)
+    np.testing.assert_allclose(scan.points, grid.directions[idx] * measured[:, None], rtol=0.0, atol=1e-9)
 
 
 def test_lidar_with_pymunk_caster_gives_the_same_scan():
@@ -214,17 +211,17 @@ def test_ray_hits_exact_range_and_wraps_at_pi():
     # a wall across the +-pi seam, 10 m behind the origin: every ray within +-45 deg of pi hits it
     wall = Segments([[-10.0, -10.0]], [[-10.0, 10.0]], [0])  # interior on its left (x < -10): a x b < 0
     grid = RayGrid.full_circle(RES)
-    res = cast_numpy(wall, grid, 100.0)
+    res = cast(wall, grid, 100.0)
     behind = np.abs(np.abs(grid.angles) - math.pi) <= math.radians(45) - 1e-9
     assert np.array_equal(res.hit, behind)
     np.testing.assert_allclose(res.range[behind], 10.0 / np.abs(np.cos(grid.angles[behind])), rtol=1e-13)
     assert res.hit[np.argmax(grid.angles)]  # the ray at exactly pi
     # beyond max_range: nothing
-    assert not cast_numpy(wall, grid, 9.99).hit.any()
+    assert not cast(wall, grid, 9.99).hit.any()
     # a fan of +-150 deg leaves a 60 deg gap behind; a near wall spans the gap and both fan ends
     near_wall = Segments([[-5.0, -10.0]], [[-5.0, 10.0]], [0])  # bearings 180 -+ 63.4 deg
     fan = RayGrid.fan(0.0, math.radians(150), RES)
-    res = cast_numpy(near_wall, fan, 100.0)
+    res = cast(near_wall, fan, 100.0)
     expected = np.abs(fan.angles) >= math.pi - math.atan2(10.0, 5.0) + 1e-9
     assert (fan.angles[expected] > 0).sum() == (fan.angles[expected] < 0).sum() > 100  # both ends of the fan
     assert np.array_equal(res.hit, expected)
@@ -234,7 +231,7 @@ def test_ray_hits_exact_range_and_wraps_at_pi():
 def test_caster_input_errors():
     grid = RayGrid.full_circle(RES)
     with pytest.raises(ValueError, match="max_range"):
-        cast_numpy(Segments(np.zeros((0, 2)), np.zeros((0, 2)), []), grid, -1.0)
+        cast(Segments(np.zeros((0, 2)), np.zeros((0, 2)), []), grid, -1.0)
     with pytest.raises(ValueError, match="whole rays"):
         RayGrid.full_circle(math.radians(0.7))
     with pytest.raises(ValueError, match="same number of segments"):
@@ -459,22 +456,17 @@ def test_radar_field_of_view_and_range():
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_radar_visibility_compiled_equals_numpy(seed, monkeypatch):
-    """``RadarUnit.visible`` through ``visible_kernel`` (numba) against the numpy scene, cast and
-    nearest-hit code: the same vehicles, their nearest points within 1e-9 m; front and rear units,
+def test_radar_visibility_matches_the_numpy_oracle(seed):
+    """``RadarUnit.visible`` (``visible_kernel``) against the numpy scene, cast and nearest hits
+    (``oracles.radar``): the same vehicles, their nearest points within 1e-9 m; front and rear units,
     with and without roadside objects, near and beyond the range limit, and a wide fan."""
-    pytest.importorskip("numba")
-    from tracker import compiled
-
     snap, objects = random_scene(seed)
     units = [RadarUnit(PERFECT), RadarUnit(replace(REAR_RADAR, max_range=30.0)),
              RadarUnit(replace(PERFECT, half_fov_deg=120.0, min_range=3.0, visibility_resolution_deg=0.25))]
     seen = 0
     for unit in units:
         for roadside in (objects, None):
-            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-            rows_ref, near_ref = unit.visible(snap, roadside)
-            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+            rows_ref, near_ref = visible_oracle(unit, snap, roadside)
             rows, near = unit.visible(snap, roadside)
             assert np.array_equal(rows, rows_ref)
             np.testing.assert_allclose(near, near_ref, rtol=0.0, atol=1e-9)
@@ -701,7 +693,7 @@ def test_reusing_a_seed_sequence_gives_identical_output():
         np.testing.assert_array_equal(fa.frame.radar.as_array(), fb.frame.radar.as_array())
 
 
-# -- the 3-D lidar in the rig (issue 15) -----------------------------------------------------------
+# -- the 3-D lidar in the rig ----------------------------------------------------------------------
 VLP16 = LidarConfig(model="vlp16", range_noise_std=0.0, dropout_probability=0.0)
 
 

@@ -13,8 +13,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from tracker import jit as compiled_kernels
-
 #: The repository (or installed tree) holding ``sim/``.
 ROOT = Path(__file__).resolve().parents[2]
 #: Thread-count variables of the numeric libraries, recorded when set.
@@ -84,7 +82,6 @@ def machine() -> dict[str, Any]:
         "scipy": _version("scipy"),
         "stonesoup": _version("stonesoup"),
         "numba": _version("numba"),
-        "tracker_kernels": "compiled" if compiled_kernels.enabled() else "numpy",
         "threads_env": {k: os.environ[k] for k in THREAD_VARIABLES if k in os.environ},
         "load_average_at_start": load,
         "git": git_state(),

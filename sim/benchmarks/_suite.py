@@ -53,7 +53,6 @@ from pathlib import Path
 from typing import Any
 
 from sim.benchmarks._machine import machine, one_core, peak_memory_mb, usable_cpus
-from tracker import jit as compiled_kernels
 
 SECTIONS = ("tracker", "stonesoup", "lidar", "lidar3d", "world", "end_to_end", "montecarlo", "env")
 E2E_SCENARIOS = ("curvy-multi", "dense-highway")
@@ -106,12 +105,10 @@ def mc_worker_counts(cpus: int) -> list[int]:
 
 # -- the sections ---------------------------------------------------------------------------------
 def tracker_section(s: Settings) -> dict[str, Any]:
-    from sim.benchmarks._tracking import kernel_modes
     from sim.benchmarks.tracker import VARIANTS, measure
 
-    modes = kernel_modes("both")  # the compiled kernels and the numpy code (numpy only without numba)
-    return {"frames": s.tracker_frames, "kernels": list(modes), "repeat": s.tracker_repeat,
-            "results": measure(s.tracker_counts, VARIANTS, s.tracker_frames, modes=modes, repeat=s.tracker_repeat)}
+    return {"frames": s.tracker_frames, "repeat": s.tracker_repeat,
+            "results": measure(s.tracker_counts, VARIANTS, s.tracker_frames, repeat=s.tracker_repeat)}
 
 
 def stonesoup_section(s: Settings) -> dict[str, Any]:
@@ -231,6 +228,8 @@ UNPINNED = ("montecarlo",)
 def run_all(settings: Settings, sections: tuple[str, ...] = SECTIONS, *, pin: bool = True, command: str = "eot bench",
             log: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run ``sections`` with ``settings``; the JSON-ready result (module docstring)."""
+    from tracker.warmup import warm_up
+
     unknown = [x for x in sections if x not in RUNNERS]
     if unknown:
         raise ValueError(f"unknown bench section(s) {', '.join(unknown)}; choose from: {', '.join(SECTIONS)}")
@@ -247,7 +246,8 @@ def run_all(settings: Settings, sections: tuple[str, ...] = SECTIONS, *, pin: bo
     }
     total = time.perf_counter()
     t0 = time.perf_counter()  # compile (or load) the tracker's kernels before anything is timed
-    result["kernels"] = {"compiled": __import__("tracker.warmup", fromlist=["warm_up"]).warm_up() or True, "warm_up_s": round(time.perf_counter() - t0, 2)}
+    warm_up()
+    result["kernels"] = {"warm_up_s": round(time.perf_counter() - t0, 2)}
     for name in (x for x in SECTIONS if x in sections):
         if log is not None:
             log(f"eot bench: {name} ...")

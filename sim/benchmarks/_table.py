@@ -22,8 +22,7 @@ def _header(r: dict[str, Any]) -> list[str]:
         f"machine: {m['cores_usable']} of {m['cores']} cores, {m['cpu_model']}; Python {m['python']}, numpy {m['numpy']}, "
         f"scipy {m['scipy']}, numba {m.get('numba') or 'not installed'}; load {m['load_average_at_start']}; "
         f"{pinned} (all but the Monte Carlo)",
-        f"tracker kernels: {m.get('tracker_kernels', 'numpy')} (columns ending /numpy: the numpy code; "
-        f"compile/load before timing {_num((r.get('kernels') or {}).get('warm_up_s'))} s)",
+        f"compiled kernels: compile/load before timing {_num((r.get('kernels') or {}).get('warm_up_s'))} s",
     ]
 
 

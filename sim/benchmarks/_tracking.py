@@ -11,10 +11,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import os
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -102,46 +99,6 @@ def frame_stats(seconds: np.ndarray, tracks: np.ndarray, visible: np.ndarray) ->
         "in_view_mean": round(float(np.mean(steady(visible))), 2),
         "tracks_mean": round(float(np.mean(steady(tracks))), 2),
     }
-
-
-KERNELS = ("compiled", "numpy")
-
-
-def kernel_modes(choice: str) -> tuple[str, ...]:
-    """The tracker code paths a bench times: ``"auto"`` the one the tracker uses now (compiled when
-    numba is installed and ``EOT_NUMBA`` is not 0), ``"both"`` compiled and numpy (numpy only without
-    numba), or one of them (``"compiled"`` without numba is an error naming the extra)."""
-    from tracker import compiled
-
-    if choice == "auto":
-        return ("compiled",) if compiled.enabled() else ("numpy",)
-    if choice == "both":
-        return KERNELS if compiled.available() else ("numpy",)
-    if choice == "compiled":
-        compiled.require()
-        return ("compiled",)
-    if choice == "numpy":
-        return ("numpy",)
-    raise ValueError(f"kernels must be auto, both, compiled or numpy; got {choice!r}")
-
-
-@contextmanager
-def kernels(mode: str) -> Iterator[None]:
-    """The tracker's compiled kernels on (``"compiled"``, compiled first: no compilation in a timing)
-    or off (``"numpy"``) inside the block (``EOT_NUMBA``); the setting is restored after it."""
-    from tracker import compiled
-
-    before = os.environ.get(compiled.ENV_SWITCH)
-    os.environ[compiled.ENV_SWITCH] = "1" if mode == "compiled" else "0"
-    try:
-        if mode == "compiled":
-            compiled.warm_up()
-        yield
-    finally:
-        if before is None:
-            os.environ.pop(compiled.ENV_SWITCH, None)
-        else:
-            os.environ[compiled.ENV_SWITCH] = before
 
 
 def best_of(rounds: list[dict[str, Any]]) -> dict[str, Any]:

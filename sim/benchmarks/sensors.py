@@ -1,14 +1,12 @@
-"""Sensor models: lidar ray casting (numpy vs pymunk), radar cycles and rig frames.
+"""Sensor models: lidar ray casting (the compiled caster vs pymunk), radar cycles and rig frames.
 
 The scene: the ego in lane 1 of a straight 200 m, 4-lane road (3.5 m lanes) at its middle, 20 other
 vehicles in random lane slots within +-75 m, and 300 roadside objects (guard-rail posts every 4 m on
 both sides, trees and parked cars), seen by an 1800-ray (0.2 deg) lidar with a 100 m range. Reports the
 median wall-clock milliseconds of:
 
-- ``numpy_cast_ms``: ``cast_numpy`` on the scene already in E (the caster alone);
-- ``compiled_cast_ms``: its compiled twin (``sim.sensors.cast_kernel``; ``None`` when the compiled
-  kernels are off), which the "numpy" caster setting runs when they are on (``kernels``);
-- ``numpy_scan_ms``: ``Lidar.scan`` with the "numpy" caster setting (scene to E, cast, noise, points);
+- ``cast_ms``: ``sim.sensors.raycast.cast`` on the scene already in E (the caster alone);
+- ``scan_ms``: ``Lidar.scan`` with the default caster (scene to E, cast, noise, points);
 - ``pymunk_cast_ms``: ``cast_pymunk`` (build the pymunk space, then one query per ray);
 - ``pymunk_query_ms``: the pymunk queries alone on a prebuilt space;
 - ``pymunk_scan_ms``: ``Lidar.scan`` with the pymunk caster;
@@ -30,11 +28,10 @@ from sim.benchmarks._timing import median_seconds
 from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadside
 from sim.sensors.lidar import Lidar, LidarConfig
 from sim.sensors.radar import FRONT_RADAR, RadarUnit
-from sim.sensors.raycast import PymunkScene, RayGrid, cast, cast_numpy, cast_pymunk
+from sim.sensors.raycast import PymunkScene, RayGrid, cast, cast_pymunk
 from sim.sensors.rig import RigConfig, SensorRig
 from sim.sensors.scene import scene_segments
 from sim.world.truth import EgoPose, Snapshot
-from tracker import jit as compiled
 
 LANE_WIDTH = 3.5
 LANES = 4
@@ -88,7 +85,7 @@ def scene(seed: int = 0, vehicles: int = 20, roadside: int = 300) -> tuple[Snaps
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``eot bench sensors``."""
-    parser.add_argument("--repeats", type=int, default=200, help="timed repeats of the numpy casts (default 200)")
+    parser.add_argument("--repeats", type=int, default=200, help="timed repeats of the caster, scans, radar cycles and rig frames (default 200)")
     parser.add_argument("--pymunk-repeats", type=int, default=15, help="timed repeats of the pymunk casts (default 15)")
     parser.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
     parser.add_argument("--vehicles", type=int, default=20, help="other vehicles (default 20)")
@@ -109,20 +106,20 @@ def run(args: argparse.Namespace) -> dict:
 
     snapshot, objects = scene(seed, vehicles, roadside)
     ego = snapshot.ego
-    lidar_np = Lidar(LidarConfig(resolution_deg=resolution))
+    lidar = Lidar(LidarConfig(resolution_deg=resolution))
     lidar_pm = Lidar(LidarConfig(resolution_deg=resolution, caster="pymunk"))
     grid = RayGrid.full_circle(math.radians(resolution))
-    max_range = lidar_np.config.max_range
+    max_range = lidar.config.max_range
     segments = scene_segments(snapshot, objects, (ego.x, ego.y), ego.yaw)
     rng = np.random.default_rng(seed)
 
-    res_np = cast_numpy(segments, grid, max_range)
+    res = cast(segments, grid, max_range)
     res_pm = cast_pymunk(segments, grid, max_range)
-    both = res_np.hit & res_pm.hit
+    both = res.hit & res_pm.hit
     pm_scene = PymunkScene(segments)
 
     radar = RadarUnit(FRONT_RADAR)
-    rig = SensorRig(RigConfig(lidar=lidar_np.config), objects)
+    rig = SensorRig(RigConfig(lidar=lidar.config), objects)
     frames = rig.frames(lambda t: _moved(snapshot, t), None, seed=seed)
 
     result = {
@@ -131,14 +128,11 @@ def run(args: argparse.Namespace) -> dict:
             "vehicles": vehicles,
             "roadside_objects": len(objects),
             "segments": len(segments),
-            "rays_hit": int(res_np.hit.sum()),
+            "rays_hit": int(res.hit.sum()),
             "max_range_m": max_range,
         },
-        "numpy_cast_ms": 1e3 * median_seconds(lambda: cast_numpy(segments, grid, max_range), repeats),
-        "compiled_cast_ms": (1e3 * median_seconds(lambda: cast(segments, grid, max_range), repeats)
-                             if compiled.enabled() else None),
-        "kernels": compiled.enabled(),
-        "numpy_scan_ms": 1e3 * median_seconds(lambda: lidar_np.scan(snapshot, objects, rng=rng), repeats),
+        "cast_ms": 1e3 * median_seconds(lambda: cast(segments, grid, max_range), repeats),
+        "scan_ms": 1e3 * median_seconds(lambda: lidar.scan(snapshot, objects, rng=rng), repeats),
         "pymunk_cast_ms": 1e3 * median_seconds(lambda: cast_pymunk(segments, grid, max_range), pm_repeats),
         "pymunk_query_ms": 1e3 * median_seconds(lambda: pm_scene.cast(grid, max_range), pm_repeats),
         "pymunk_scan_ms": 1e3 * median_seconds(lambda: lidar_pm.scan(snapshot, objects, rng=rng), pm_repeats),
@@ -146,14 +140,14 @@ def run(args: argparse.Namespace) -> dict:
         "rig_frame_ms": 1e3 * median_seconds(lambda: next(frames), repeats),
         "agreement": {
             "rays_both_hit": int(both.sum()),
-            "hit_mismatches": int((res_np.hit != res_pm.hit).sum()),
-            "owner_mismatches": int((res_np.owner[both] != res_pm.owner[both]).sum()),
-            "max_range_diff_m": float(np.max(np.abs(res_np.range[both] - res_pm.range[both]), initial=0.0)),
+            "hit_mismatches": int((res.hit != res_pm.hit).sum()),
+            "owner_mismatches": int((res.owner[both] != res_pm.owner[both]).sum()),
+            "max_range_diff_m": float(np.max(np.abs(res.range[both] - res_pm.range[both]), initial=0.0)),
         },
-        "repeats": {"numpy": repeats, "pymunk": pm_repeats},
+        "repeats": {"cast": repeats, "pymunk": pm_repeats},
     }
     result["default_caster"] = LidarConfig().caster
-    result["speedup_numpy_over_pymunk"] = result["pymunk_cast_ms"] / result["numpy_cast_ms"]
+    result["speedup_over_pymunk"] = result["pymunk_cast_ms"] / result["cast_ms"]
     return result
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from sim.benchmarks._tracking import best_of, in_view, kernel_modes, kernels, sensor_frames, time_variant
+from sim.benchmarks._tracking import best_of, in_view, sensor_frames, time_variant
 
 COUNTS = (1, 5, 10, 20, 50)
 VARIANTS = ("curvilinear-fused", "curvilinear-lidar")
@@ -45,35 +45,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeat", type=int, default=1,
                         help="time every count and variant this many times, in rounds, and report the fastest "
                              "round (default 1)")
-    parser.add_argument("--kernels", choices=("both", "auto", "compiled", "numpy"), default="both",
-                        help="code paths to time: both (default; numpy only without numba), the one in use (auto), "
-                             "the compiled kernels or the numpy code")
     parser.add_argument("--compare-stonesoup", action="store_true",
                         help="also time Stone Soup's GM-PHD (UKF, 10 point targets) on the same frames and print the ratio")
     parser.add_argument("--stonesoup-frames", type=int, default=STONESOUP_FRAMES,
                         help=f"frames of the Stone Soup comparison (default {STONESOUP_FRAMES})")
 
 
-def result_key(variant: str, mode: str, modes: tuple[str, ...]) -> str:
-    """The result's key of a variant timed with ``mode``: the variant's name, with ``/numpy`` when
-    both code paths were timed and this is the numpy one."""
-    return f"{variant}/numpy" if mode == "numpy" and len(modes) > 1 else variant
-
-
 def measure(counts: list[int] | tuple[int, ...], variants: list[str] | tuple[str, ...], frames: int, *,
-            seed: int = 0, lanes: int | None = None, modes: tuple[str, ...] = ("compiled", "numpy"),
-            repeat: int = 1) -> dict[str, dict[str, dict[str, Any]]]:
-    """``{key: {str(count): row}}`` (``result_key``: per variant and code path in ``modes``, compiled
-    kernels or numpy): each row the ``frame_stats`` numbers plus ``lanes``. With ``repeat`` > 1 every
-    timing runs that many times, in rounds over all counts and variants (a busy minute of the machine
-    then slows one round of each, not every round of one), and each row is its fastest round
+            seed: int = 0, lanes: int | None = None, repeat: int = 1) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{variant: {str(count): row}}``: each row the ``frame_stats`` numbers plus ``lanes``. The
+    tracker's kernels are compiled (or loaded) first, so no timing includes that. With ``repeat`` > 1
+    every timing runs that many times, in rounds over all counts and variants (a busy minute of the
+    machine then slows one round of each, not every round of one), and each row is its fastest round
     (``best_of``: with ``rounds`` and ``ms_median_rounds``)."""
     from sim.evaluation.variants import check_variant
+    from tracker.warmup import warm_up
 
     for v in variants:
         check_variant(v)
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ValueError(f"repeat must be an integer >= 1; got {repeat!r}")
+    warm_up()
     streams = {}
     for count in counts:
         scene, stream = sensor_frames(int(count), frames, seed=seed, lanes=lanes)
@@ -81,12 +73,10 @@ def measure(counts: list[int] | tuple[int, ...], variants: list[str] | tuple[str
     rounds: dict[tuple[str, int], list[dict[str, Any]]] = {}
     for _ in range(repeat):
         for count, (scene, stream, visible) in streams.items():
-            for mode in modes:
-                with kernels(mode):
-                    for v in variants:
-                        rounds.setdefault((result_key(v, mode, modes), count), []).append(
-                            {"targets": int(count), "lanes": scene.lanes, **time_variant(v, scene, stream, visible)})
-    out: dict[str, dict[str, dict[str, Any]]] = {result_key(v, m, modes): {} for m in modes for v in variants}
+            for v in variants:
+                rounds.setdefault((v, count), []).append(
+                    {"targets": int(count), "lanes": scene.lanes, **time_variant(v, scene, stream, visible)})
+    out: dict[str, dict[str, dict[str, Any]]] = {v: {} for v in variants}
     for (key, count), rows in rounds.items():
         out[key][str(count)] = best_of(rows) if repeat > 1 else rows[0]
     return out
@@ -98,14 +88,12 @@ def run(args: argparse.Namespace) -> dict:
         from sim.benchmarks._stonesoup import require_stonesoup
 
         require_stonesoup()
-    modes = kernel_modes(getattr(args, "kernels", "both"))
     out: dict[str, Any] = {
         "scene": "ring road R 500 m, lanes 3.5 m, all cars in view (sim.benchmarks._traffic)",
         "frames": args.frames,
         "seed": args.seed,
-        "kernels": list(modes),
         "repeat": args.repeat,
-        "results": measure(args.targets, args.variants, args.frames, seed=args.seed, lanes=args.lanes, modes=modes,
+        "results": measure(args.targets, args.variants, args.frames, seed=args.seed, lanes=args.lanes,
                            repeat=args.repeat),
     }
     if compare:

@@ -3,8 +3,7 @@ roadside clutter, sensor faults, and the rig that turns truth over time into the
 
 Above ``sim.world`` (truth, ground, scenario settings); below ``sim.evaluation``. Modules:
 
-- ``sim.sensors.raycast``: 2-D ray casting (numpy caster + pymunk oracle); a lidar's returns of a cast;
-- ``sim.sensors.cast_kernel``: the compiled (numba) twin of the numpy caster and the scene kernels;
+- ``sim.sensors.raycast``: 2-D ray casting (the compiled caster + a pymunk oracle); a lidar's returns of a cast;
 - ``sim.sensors.lidar3d``: the 3-D ray-cast VLP-16 over upright prisms and the ground;
 - ``sim.sensors.scene``: vehicles and roadside objects as segments (2-D) or prisms (3-D) for a sensor;
 - ``sim.sensors.clutter``: roadside objects beside the road (posts, trees, parked cars);
@@ -20,7 +19,7 @@ E = ego frame, x forward, y left; angles wrapped to (-pi, pi]).
 from sim.sensors.clutter import ClutterConfig, RoadsideObjects, generate_roadside
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
 from sim.sensors.radar import FRONT_RADAR, REAR_RADAR, RadarConfig, RadarScan, RadarUnit, RadarUnitConfig
-from sim.sensors.raycast import CastResult, RayGrid, Segments, cast_numpy, cast_pymunk
+from sim.sensors.raycast import CastResult, RayGrid, Segments, cast, cast_pymunk
 from sim.sensors.rig import RigConfig, SensorFrame, SensorRig
 
 __all__ = [
@@ -41,7 +40,7 @@ __all__ = [
     "Segments",
     "SensorFrame",
     "SensorRig",
-    "cast_numpy",
+    "cast",
     "cast_pymunk",
     "generate_roadside",
 ]

@@ -47,7 +47,8 @@ class LidarConfig:
     - ``range_noise_std`` (0.03 m): Gaussian noise on each range, along the ray;
     - ``dropout_probability`` (0.01): chance that a ray which hits returns nothing;
     - ``rate_hz`` (10 Hz) and ``phase_s`` (0 s): scans at ``t0 + phase_s + k / rate_hz``;
-    - ``caster`` ("numpy"): ``"numpy"`` (vectorised, the fast one) or ``"pymunk"`` (the oracle);
+    - ``caster`` ("numpy"): ``"numpy"`` (``sim.sensors.raycast.cast``, the compiled caster) or
+      ``"pymunk"`` (pymunk's segment queries, the oracle);
     - ``model`` ("2d"): ``"2d"``, this planar scan at the E origin, or ``"vlp16"``, a 3-D Velodyne
       VLP-16 (``sim.sensors.lidar3d``) that shares the fields above (resolution, ranges, noise, dropout,
       rate, phase) and adds the fields below, which only it uses (setting them with ``"2d"`` is an error):

@@ -7,8 +7,9 @@ cycle (at ``t0 + phase_s + k / rate_hz``) it reports:
 - one detection per *visible* vehicle, kept with ``detection_probability``. Visibility is decided by
   ray casting from the mount over the field of view (rays every ``visibility_resolution_deg``) against
   the vehicles and the roadside objects: a vehicle is visible when at least one ray's first hit is on
-  it within ``[min_range, max_range]``, so a fully hidden vehicle (no line of sight to any part) is
-  never detected, and a vehicle outside the field of view or range is not either. The detection's
+  it within ``[min_range, max_range]`` (scene, cast and nearest hits in one compiled call,
+  ``visible_kernel``), so a fully hidden vehicle (no line of sight to any part) is never detected,
+  and a vehicle outside the field of view or range is not either. The detection's
   position is the nearest visible point of the vehicle (the nearest first-hit point) plus isotropic
   Gaussian noise ``position_noise_std`` (0.5 m) per axis; its velocity is the vehicle's absolute
   velocity in G rotated into E's axes plus Gaussian noise ``velocity_noise_std`` (0.2 m/s) per axis;
@@ -28,13 +29,13 @@ from functools import cached_property
 
 import numpy as np
 
-from sim.sensors.cast_kernel import visible_kernel
 from sim.sensors.clutter import RoadsideObjects
-from sim.sensors.raycast import RayGrid, cast as cast_rays
-from sim.sensors.scene import scene_segments, static_arrays
+from sim.sensors.raycast import RayGrid, cast_kernel
+from sim.sensors.scene import scene_kernel, static_arrays
 from sim.world.truth import Snapshot
-from tracker import jit as compiled
+from tracker.jit import njit
 from tracker.transforms import rotate, to_global
+from tracker.warmup import register_warm_up
 
 MOUNTS = ("front", "rear")
 
@@ -176,30 +177,14 @@ class RadarUnit:
         ego = snapshot.ego
         mount_e = cfg.mount_position(ego.length)
         mount_g = to_global(mount_e, (ego.x, ego.y), ego.yaw)
-        if compiled.enabled():  # the same scene, cast and nearest hits in one compiled call
-            grid = self.grid
-            static = static_arrays(roadside, len(snapshot))
-            rows, rays, ranges = visible_kernel(
-                snapshot.xy, snapshot.yaw, snapshot.length, snapshot.width, *static, float(mount_g[0]),
-                float(mount_g[1]), ego.yaw + cfg.boresight, float(cfg.max_range), float(cfg.min_range),
-                math.remainder(grid.start, 2.0 * math.pi), float(grid.resolution), grid.cos, grid.sin)
-            if rows.size == 0:
-                return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
-            return rows, rotate(grid.directions[rays] * ranges[:, None], cfg.boresight) + mount_e
-        segments = scene_segments(
-            snapshot, roadside, (float(mount_g[0]), float(mount_g[1])), ego.yaw + cfg.boresight, cfg.max_range
-        )
-        cast = cast_rays(segments, self.grid, cfg.max_range)
-        on_vehicle = np.flatnonzero((cast.owner >= 0) & (cast.owner < len(snapshot)) & (cast.range >= cfg.min_range))
-        if on_vehicle.size == 0:
+        grid = self.grid
+        rows, rays, ranges = visible_kernel(
+            snapshot.xy, snapshot.yaw, snapshot.length, snapshot.width, *static_arrays(roadside, len(snapshot)),
+            float(mount_g[0]), float(mount_g[1]), ego.yaw + cfg.boresight, float(cfg.max_range), float(cfg.min_range),
+            math.remainder(grid.start, 2.0 * math.pi), float(grid.resolution), grid.cos, grid.sin)
+        if rows.size == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
-        owner = cast.owner[on_vehicle]
-        rng_ = cast.range[on_vehicle]
-        order = np.lexsort((rng_, owner))
-        first = order[np.concatenate([[True], np.diff(owner[order]) != 0])]
-        rays = on_vehicle[first]
-        local = self.grid.directions[rays] * cast.range[rays][:, None]
-        return owner[first], rotate(local, cfg.boresight) + mount_e
+        return rows, rotate(grid.directions[rays] * ranges[:, None], cfg.boresight) + mount_e
 
     def detect(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> RadarScan:
         """One cycle at the snapshot time: detections of the visible vehicles (each kept with the
@@ -231,3 +216,54 @@ class RadarUnit:
             target_id=np.concatenate([snapshot.ids[rows], np.full(n_fa, -1, dtype=np.int64)]).astype(np.int64),
             unit=np.full(count, self.index, dtype=np.int64),
         )
+
+
+# --------------------------------------------------------------------------------------------------
+# The compiled kernels of this stage.
+
+
+@njit(error_model="numpy")
+def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy, sensor_yaw,
+                   max_range, min_range, start, resolution, cos, sin):  # pragma: no cover - compiled
+    """The radar's visibility test (``RadarUnit.visible``): the scene of ``scene_kernel`` seen from the
+    mount ``(ox, oy)`` with heading ``sensor_yaw``, cast on the fan (``cast_kernel``, culled: the
+    scene is closed polygons), then per vehicle the nearest ray that hits it at ``>= min_range`` (of
+    equal ranges, the lowest ray). Returns the visible vehicles' rows (ascending), their rays and
+    ranges (m)."""
+    count = xy.shape[0]
+    a, b, owner = scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid, static_half, ox, oy,
+                               sensor_yaw, max_range)
+    ranges, owners = cast_kernel(a, b, owner, start, resolution, cos, sin, False, max_range, True)
+    best = np.full(count, np.inf)
+    best_ray = np.full(count, -1, dtype=np.int64)
+    for r in range(ranges.shape[0]):  # rays ascending: the first of equal ranges wins
+        o = owners[r]
+        if 0 <= o < count and ranges[r] >= min_range and ranges[r] < best[o]:
+            best[o] = ranges[r]
+            best_ray[o] = r
+    k = 0
+    for v in range(count):
+        if best_ray[v] >= 0:
+            k += 1
+    rows = np.empty(k, dtype=np.int64)
+    rays = np.empty(k, dtype=np.int64)
+    hit = np.empty(k)
+    k = 0
+    for v in range(count):
+        if best_ray[v] >= 0:
+            rows[k] = v
+            rays[k] = best_ray[v]
+            hit[k] = best[v]
+            k += 1
+    return rows, rays, hit
+
+
+def _warm_up_visible() -> None:
+    fan = RayGrid.fan(0.0, 0.5, math.radians(1.0))
+    visible_kernel(np.array([[6.0, 0.0]]), np.zeros(1), np.full(1, 4.5), np.full(1, 1.9),
+                   np.zeros((1, 4)) + [9.0, 1.0, 9.0, -1.0], np.ones(1, dtype=np.int64), np.array([[9.0, 0.0]]),
+                   np.ones(1), 0.0, 0.0, 0.0, 50.0, 0.5, math.remainder(fan.start, 2.0 * math.pi), fan.resolution,
+                   fan.cos, fan.sin)
+
+
+register_warm_up(_warm_up_visible)

@@ -1,24 +1,27 @@
-"""2-D ray casting against line segments: a vectorised numpy caster and a pymunk oracle.
+"""2-D ray casting against line segments: the compiled caster and a pymunk oracle.
 
 Rays start at the origin of the caster's frame and fan out at bearings ``start + k * resolution``
 (``RayGrid``). The scene is a set of ``Segments`` (edges of convex polygons, in the same frame, m),
 each with an integer ``owner`` (the object it belongs to). Both casters return, per ray, the range
 (m) to the first hit (``inf`` when the ray hits nothing within ``max_range``) and the hit owner (-1).
 
-``cast_numpy`` (the default, see ``sim/benchmarks/sensors.py`` for the numbers):
+``cast`` (the default; ``cast_kernel``, one compiled call, see ``sim/benchmarks/sensors.py`` for the
+numbers), edge by edge:
 
-1. cull: drop edges facing away from the origin (edges of counter-clockwise polygons whose
+1. cull: skip edges facing away from the origin (edges of counter-clockwise polygons whose
    ``cross(a, b) >= 0``; the first hit on a closed convex polygon seen from outside is always on an
    edge facing the origin). Range culling is left to the caller (``sim.sensors.scene`` drops objects
    wholly out of range); edges beyond ``max_range`` only cost a few rejected pairs;
 2. angular broad phase: each edge subtends the bearing interval between its end points (less than pi
    for an edge not through the origin); the rays inside it are a contiguous index range of the grid,
    taken modulo the ray count on a full circle; on a fan, the interval and its copy one turn lower
-   are each clipped to the fan. One extra ray on each side guards rounding;
-3. narrow phase, batched over all (ray, edge) pairs: with ``d`` the ray direction,
-   ``ca = d x a`` and ``cb = d x b``, the ray's line crosses the edge iff ``ca * cb <= 0``, at range
+   are each clipped to the fan (every edge's interval first, then every edge's copy). One extra ray
+   on each side guards rounding;
+3. narrow phase, per (ray, edge) pair: with ``d`` the ray direction, ``ca = d x a`` and
+   ``cb = d x b``, the ray's line crosses the edge iff ``ca * cb <= 0``, at range
    ``t = (a x b) / (cb - ca)``; a hit needs ``0 < t <= max_range``;
-4. per ray, the smallest ``t`` wins (occlusion); ``np.minimum.at`` reduces the pairs.
+4. per ray, the smallest ``t`` wins (occlusion); of pairs at the same range, the one visited last
+   gives the owner.
 
 ``cast_pymunk`` builds a pymunk ``Space`` of radius-0 static ``Segment`` shapes from *all* edges (no
 culling, no broad phase of ours) and calls ``Space.segment_query_first`` once per ray; it is the
@@ -38,8 +41,7 @@ from typing import Protocol
 
 import numpy as np
 
-from sim.sensors.cast_kernel import cast_kernel, visible_kernel
-from tracker import jit as compiled
+from tracker.jit import njit
 
 TWO_PI = 2.0 * math.pi
 
@@ -189,69 +191,91 @@ def _check_range(max_range: float) -> float:
     return float(max_range)
 
 
-def cast_numpy(segments: Segments, grid: RayGrid, max_range: float, *, cull_back_faces: bool = True) -> CastResult:
-    """First hit of every ray of ``grid`` on ``segments`` within ``max_range`` (m), vectorised
-    (see the module docstring). ``cull_back_faces`` assumes the segments are edges of
-    counter-clockwise convex polygons not containing the origin; pass ``False`` for loose segments."""
-    max_range = _check_range(max_range)
-    count = grid.count
+# --------------------------------------------------------------------------------------------------
+# The compiled kernels of this stage.
+#
+# The caster of the module docstring in one numba call: the ranges are the floating-point
+# expressions of steps 3 and 4, computed pair by pair in the order of step 2.
+
+
+@njit(error_model="numpy", inline="always")
+def _narrow(k_from, k_to, count, wrap, ax, ay, bx, by, cr, owner, cos, sin, max_range, ranges, owners):  # pragma: no cover - compiled
+    """Narrow phase of one edge ``a -> b`` (``cr = a x b``) on the rays ``k_from .. k_to`` (modulo
+    ``count`` when ``wrap``): the ray's line crosses the edge iff ``ca * cb <= 0`` (``ca = d x a``,
+    ``cb = d x b``), at ``t = cr / (cb - ca)``; a hit in ``(0, max_range]`` no farther than the ray's
+    best so far takes the ray (``ranges``, ``owners``: updated in place)."""
+    for k in range(k_from, k_to + 1):
+        ray = k % count if wrap else k
+        dx, dy = cos[ray], sin[ray]
+        ca = dx * ay - dy * ax
+        cb = dx * by - dy * bx
+        t = cr / (cb - ca)
+        if ca * cb <= 0.0 and t > 0.0 and t <= max_range and t <= ranges[ray]:
+            ranges[ray] = t
+            owners[ray] = owner
+
+
+@njit(error_model="numpy")
+def cast_kernel(a, b, owner, start, resolution, cos, sin, full_circle, max_range, cull_back_faces):  # pragma: no cover - compiled
+    """Per ray: range (count,) to the first hit (``inf`` for none) and the hit edge's owner (-1), for
+    the edges ``a (M, 2) -> b (M, 2)`` with ``owner (M,)`` and the grid given by its start bearing
+    (wrapped to ``[-pi, pi]``), ``resolution`` and the rays' direction cosines and sines. Culling,
+    broad and narrow phase as the module docstring's steps 1-4: an edge subtends ``[lo, hi]`` (rad,
+    relative to the start, ``hi - lo < pi``; with ``a x b < 0`` the end ``b`` is clockwise of ``a``),
+    the rays ``floor(lo / res) .. floor(hi / res) + 1`` (a turn added on a full circle, so the
+    truncation is a floor; modulo the ray count), on a fan that interval and its copy one turn lower,
+    each clipped to the fan."""
+    count = cos.shape[0]
     ranges = np.full(count, np.inf)
     owners = np.full(count, -1, dtype=np.int64)
-    if len(segments) == 0:
-        return CastResult(ranges, owners)
-    a, b = segments.a, segments.b
-    cr = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]  # a x b: < 0 when the edge faces the origin (CCW polygon)
-    idx = np.flatnonzero(cr < 0.0 if cull_back_faces else cr != 0.0)  # cr == 0: edge on a line through the origin
-    if idx.size == 0:
-        return CastResult(ranges, owners)
-    a, b, cr = a[idx], b[idx], cr[idx]
-    ax, ay, bx, by = a[:, 0], a[:, 1], b[:, 0], b[:, 1]
-    # angular broad phase: the edge subtends [lo, hi] (rad, relative to the grid start), < pi wide;
-    # with cr < 0 the end b is clockwise of a, so the interval runs from b to a
-    start = math.remainder(grid.start, TWO_PI)  # in [-pi, pi]: the same rays modulo a turn
-    rel_a = np.arctan2(ay, ax) - start  # in (-2 pi, 2 pi]
-    rel_b = np.arctan2(by, bx) - start
-    if cull_back_faces:
-        lo, hi = rel_b, rel_a
-    else:
-        ccw = cr > 0.0
-        lo, hi = np.where(ccw, rel_a, rel_b), np.where(ccw, rel_b, rel_a)
-    hi[hi < lo] += TWO_PI
-    inv_res = 1.0 / grid.resolution
-    if grid.is_full_circle:
-        # lo + 2 pi > 0, so truncation is floor; the extra turn (count rays) goes with the modulo,
-        # and so does the shift of the start by whole turns. One extra ray each side guards rounding.
-        k0 = ((lo + TWO_PI) * inv_res).astype(np.int64)
-        k1 = ((hi + TWO_PI) * inv_res).astype(np.int64) + 1
-        owner_of_range = np.arange(idx.size)
-    else:  # a fan: the interval as is and one turn lower, each clipped to the fan's rays
-        span = hi - lo
-        lo = np.mod(lo, TWO_PI)
-        lo = np.concatenate([lo, lo - TWO_PI])
-        hi = lo + np.concatenate([span, span])
-        k0 = np.maximum(np.floor(lo * inv_res), 0.0).astype(np.int64)
-        k1 = np.minimum(np.floor(hi * inv_res) + 1.0, count - 1.0).astype(np.int64)
-        owner_of_range = np.tile(np.arange(idx.size), 2)
-    sizes = np.maximum(k1 - k0 + 1, 0)
-    seg = np.repeat(owner_of_range, sizes)
-    if seg.size == 0:
-        return CastResult(ranges, owners)
-    ray = np.arange(seg.size) + np.repeat(k0 - (np.cumsum(sizes) - sizes), sizes)
-    if grid.is_full_circle:
-        ray %= count
-    # narrow phase over all (ray, edge) pairs: the ray's line crosses the edge iff ca * cb <= 0
-    dx, dy = grid.cos[ray], grid.sin[ray]
-    sax, say, sbx, sby = ax[seg], ay[seg], bx[seg], by[seg]
-    ca = dx * say - dy * sax
-    cb = dx * sby - dy * sbx
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = cr[seg] / (cb - ca)
-    t[~((ca * cb <= 0.0) & (t > 0.0) & (t <= max_range))] = np.inf
-    # the nearest hit per ray wins
-    np.minimum.at(ranges, ray, t)
-    win = np.flatnonzero((t == ranges[ray]) & (t < np.inf))
-    owners[ray[win]] = segments.owner[idx[seg[win]]]
-    return CastResult(ranges, owners)
+    n = a.shape[0]
+    inv_res = 1.0 / resolution
+    keep = np.zeros(n, dtype=np.bool_)
+    crs = np.empty(n)
+    los = np.empty(n)
+    spans = np.empty(n)
+    for i in range(n):
+        ax, ay, bx, by = a[i, 0], a[i, 1], b[i, 0], b[i, 1]
+        cr = ax * by - ay * bx
+        if cull_back_faces:
+            if not cr < 0.0:
+                continue
+        elif cr == 0.0:  # an edge on a line through the origin
+            continue
+        rel_a = math.atan2(ay, ax) - start
+        rel_b = math.atan2(by, bx) - start
+        if cull_back_faces or not cr > 0.0:
+            lo, hi = rel_b, rel_a
+        else:
+            lo, hi = rel_a, rel_b
+        if hi < lo:
+            hi += TWO_PI
+        keep[i] = True
+        crs[i] = cr
+        los[i] = lo
+        spans[i] = hi - lo
+        if full_circle:
+            k0 = int((lo + TWO_PI) * inv_res)
+            k1 = int((hi + TWO_PI) * inv_res) + 1
+            _narrow(k0, k1, count, True, ax, ay, bx, by, cr, owner[i], cos, sin, max_range, ranges, owners)
+    if full_circle:
+        return ranges, owners
+    for turn in range(2):  # a fan: every edge's interval, then every edge's copy one turn lower
+        for i in range(n):
+            if not keep[i]:
+                continue
+            lo = los[i] % TWO_PI  # Python's float modulo: fmod, then the divisor's sign
+            if turn == 1:
+                lo -= TWO_PI
+            hi = lo + spans[i]
+            k0 = max(int(math.floor(lo * inv_res)), 0)
+            k1 = min(math.floor(hi * inv_res) + 1.0, count - 1.0)
+            _narrow(k0, int(k1), count, False, a[i, 0], a[i, 1], b[i, 0], b[i, 1], crs[i], owner[i], cos, sin,
+                    max_range, ranges, owners)
+    return ranges, owners
+
+
+# -- the casters ----------------------------------------------------------------------------------
 
 
 class PymunkScene:
@@ -292,7 +316,7 @@ class PymunkScene:
 
 def cast_pymunk(segments: Segments, grid: RayGrid, max_range: float) -> CastResult:
     """First hit of every ray of ``grid`` on ``segments`` within ``max_range`` (m), with pymunk:
-    builds a ``PymunkScene`` and casts (see there). Same contract as ``cast_numpy``."""
+    builds a ``PymunkScene`` and casts (see there). Same contract as ``cast``."""
     max_range = _check_range(max_range)
     if len(segments) == 0:
         return CastResult(np.full(grid.count, np.inf), np.full(grid.count, -1, dtype=np.int64))
@@ -300,11 +324,9 @@ def cast_pymunk(segments: Segments, grid: RayGrid, max_range: float) -> CastResu
 
 
 def cast(segments: Segments, grid: RayGrid, max_range: float, *, cull_back_faces: bool = True) -> CastResult:
-    """``cast_numpy``'s answer, from its compiled twin (``sim.sensors.cast_kernel``) when the compiled
-    kernels are on (numba installed, ``EOT_NUMBA`` not ``0``; see ``tracker.compiled``), else from
-    ``cast_numpy`` itself."""
-    if not compiled.enabled():
-        return cast_numpy(segments, grid, max_range, cull_back_faces=cull_back_faces)
+    """First hit of every ray of ``grid`` on ``segments`` within ``max_range`` (m), in one call of
+    ``cast_kernel`` (see the module docstring). ``cull_back_faces`` assumes the segments are edges of
+    counter-clockwise convex polygons not containing the origin; pass ``False`` for loose segments."""
     max_range = _check_range(max_range)
     ranges, owners = cast_kernel(
         np.ascontiguousarray(segments.a, dtype=float), np.ascontiguousarray(segments.b, dtype=float),
@@ -318,20 +340,15 @@ def _warm_up_cast() -> None:
     square = Segments.from_polygons(np.array([[5.0, -1.0], [7.0, -1.0], [7.0, 1.0], [5.0, 1.0]]), np.array([0, 4]),
                                     np.array([0]))
     cast(square, RayGrid.full_circle(math.radians(1.0)), 50.0)
-    fan = RayGrid.fan(0.0, 0.5, math.radians(1.0))
-    cast(square, fan, 50.0)
-    one = np.array([[6.0, 0.0]])
-    visible_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), np.zeros((1, 4)) + [9.0, 1.0, 9.0, -1.0],
-                   np.ones(1, dtype=np.int64), np.array([[9.0, 0.0]]), np.ones(1), 0.0, 0.0, 0.0, 50.0, 0.5,
-                   math.remainder(fan.start, TWO_PI), fan.resolution, fan.cos, fan.sin)
+    cast(square, RayGrid.fan(0.0, 0.5, math.radians(1.0)), 50.0)
 
 
 from tracker.warmup import register_warm_up  # noqa: E402
 
 register_warm_up(_warm_up_cast)
 
-#: The casters by name (``LidarConfig.caster``): "numpy" is the vectorised caster (``cast``: compiled
-#: when the kernels are on), "pymunk" the oracle.
+#: The casters by name (``LidarConfig.caster``): "numpy" is ``cast`` (the compiled caster, the
+#: default), "pymunk" the oracle.
 CASTERS = {"numpy": cast, "pymunk": cast_pymunk}
 
 
