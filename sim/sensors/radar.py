@@ -35,7 +35,6 @@ from sim.sensors.scene import scene_kernel, static_arrays
 from sim.world.truth import Snapshot
 from tracker.jit import njit
 from tracker.transforms import rotate, to_global
-from tracker.warmup import register_warm_up
 
 MOUNTS = ("front", "rear")
 
@@ -266,4 +265,12 @@ def _warm_up_visible() -> None:
                    fan.cos, fan.sin)
 
 
-register_warm_up(_warm_up_visible)
+
+def _register_warm_up() -> None:
+    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
+    from tracker.warmup import register_warm_up
+
+    register_warm_up(_warm_up_visible)
+
+
+_register_warm_up()

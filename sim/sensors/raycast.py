@@ -343,9 +343,14 @@ def _warm_up_cast() -> None:
     cast(square, RayGrid.fan(0.0, 0.5, math.radians(1.0)), 50.0)
 
 
-from tracker.warmup import register_warm_up  # noqa: E402
+def _register_warm_up() -> None:
+    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
+    from tracker.warmup import register_warm_up
 
-register_warm_up(_warm_up_cast)
+    register_warm_up(_warm_up_cast)
+
+
+_register_warm_up()
 
 #: The casters by name (``LidarConfig.caster``): "numpy" is ``cast`` (the compiled caster, the
 #: default), "pymunk" the oracle.

@@ -131,3 +131,19 @@ def scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid,
         owner[m] = static_owner[e]
         m += 1
     return a[:m].copy(), b[:m].copy(), owner[:m].copy()
+
+
+def _warm_up_scene() -> None:
+    one = np.array([[6.0, 0.0]])
+    scene_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), *static_arrays(None, 1), 0.0, 0.0, 0.0, 50.0)
+    scene_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), *static_arrays(None, 1), 0.0, 0.0, 0.0, math.inf)
+
+
+def _register_warm_up() -> None:
+    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
+    from tracker.warmup import register_warm_up
+
+    register_warm_up(_warm_up_scene)
+
+
+_register_warm_up()
