@@ -1,5 +1,5 @@
 """Tests of tracker/angles.py: ``wrap_angle`` maps to (-pi, pi], and its float, numpy-scalar, 0-d and
-array paths give the same numbers bit for bit."""
+array paths give the same numbers bit for bit, as does the kernels' scalar wrap (tracker/geometry.py)."""
 
 from __future__ import annotations
 
@@ -27,3 +27,12 @@ def test_wrap_angle_range_and_paths_agree():
     assert isinstance(wrap_angle([0.0, 7.0]), np.ndarray) and wrap_angle(np.array([1, 8])).dtype == float
     small = np.abs(x) < 100.0  # the same direction (far from 0, cos(x) itself has lost its digits)
     np.testing.assert_allclose(np.cos(arr[small]), np.cos(x[small]), atol=1e-9)
+
+
+def test_the_kernels_scalar_wrap_is_wrap_angle_bit_for_bit():
+    """``tracker.geometry.wrap_angle`` (the kernels' scalar wrap) gives ``wrap_angle``'s numbers."""
+    from tracker.geometry import wrap_angle as kernel_wrap
+
+    rng = np.random.default_rng(1)
+    x = np.concatenate([rng.uniform(-60.0, 60.0, 2000), [math.pi, -math.pi, 0.0, -0.0, 3 * math.pi, 1e-17, 1e12]])
+    np.testing.assert_array_equal(np.array([kernel_wrap(v) for v in x]), wrap_angle(x))

@@ -7,8 +7,8 @@ import pytest
 
 from tracker import Road
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
+from oracles.motion import slip_angle
 from tracker.motion import (
-    slip_angle,
     CartesianMotion,
     FrenetMotion,
     PaperMotion,
@@ -303,3 +303,127 @@ def test_predict_refuses_relax_and_floor_of_the_wrong_shape():
         cov = np.tile(np.eye(dim) * 0.1, (2, 1, 1))
         with pytest.raises(ValueError, match="relax and floor"):
             predict(UnscentedTransform(n=dim), model, mean, cov, 0.1, relax=relax)
+
+
+# -- the Frenet motion and UKF prediction kernels against the numpy oracles -----------------------------
+def _kernel_roads() -> dict[str, Road]:
+    """An open clothoid road (straight, arc, ramp to the other side) and a closed Hermite ellipse."""
+    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
+                                    lanes=3, lane_width=3.5)
+    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
+    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
+                               lane_width=3.5)
+    return {"clothoid-open": open_road, "hermite-closed": ring}
+
+
+KERNEL_ROADS = _kernel_roads()
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+@pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True), MotionConfig(slip_lever=0.0)],
+                         ids=["default", "acceleration", "no-slip"])
+def test_frenet_propagation_kernel_against_the_oracle(name, motion):
+    """``FrenetMotion.propagate`` (``rk4_propagate``) against the oracle's numpy RK4: states on and
+    beyond the road (open ends extrapolate straight), backwards and standing, over one frame and over
+    several RK4 sub-steps, in a (16, 15) batch; within 1e-9."""
+    from oracles.motion import propagate
+
+    road = KERNEL_ROADS[name]
+    model = FrenetMotion(road, motion)
+    rng = np.random.default_rng(1)
+    count = 240
+    cols = [rng.uniform(-30.0, road.length + 30.0, count), rng.uniform(-6.0, 6.0, count),
+            rng.uniform(-3.0, 35.0, count), rng.normal(0.0, 0.4, count), rng.normal(0.0, 0.3, count),
+            rng.uniform(3.0, 16.0, count), rng.uniform(1.5, 2.6, count)]
+    if model.dim == 8:
+        cols.append(rng.normal(0.0, 2.0, count))
+    x = np.column_stack(cols).reshape(16, 15, -1)
+    for dt in (0.1, 1.0 / 14.0, 1.3):
+        got = model.propagate(x, dt)
+        assert got.shape == x.shape
+        np.testing.assert_allclose(got, propagate(model, x, dt), rtol=0.0, atol=1e-9)
+    np.testing.assert_array_equal(model.propagate(x[0, 0], 0.1), model.propagate(x[:1, :1], 0.1)[0, 0])  # one state
+    with pytest.raises(ValueError, match="7\\) or"):
+        model.propagate(np.zeros((3, 6)), 0.1)
+
+
+def test_curvature_interpolation_kernel_equals_numpy_interp():
+    """The RK4 kernel's table lookup (the interval from ``s / step``, corrected at knots) gives
+    ``numpy.interp``'s numbers exactly: random ``s``, every knot and its neighbouring floats."""
+    from tracker.motion import _interp
+
+    xp = np.linspace(0.0, 1234.567, 4939)
+    fp = np.random.default_rng(0).normal(size=xp.size)
+    knots = xp[::7]
+    x = np.concatenate([np.random.default_rng(1).uniform(0.0, xp[-1], 3000), knots, np.nextafter(knots, -1.0),
+                        np.nextafter(knots, 2000.0)])
+    x = x[(x >= 0.0) & (x <= xp[-1])]
+    assert np.array_equal(np.array([_interp(v, xp, fp) for v in x]), np.interp(x, xp, fp))
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+@pytest.mark.parametrize("motion", [MotionConfig(), MotionConfig(acceleration=True)], ids=["default", "acceleration"])
+def test_ukf_prediction_kernel_against_the_oracle(name, motion, monkeypatch):
+    """``predict`` with ``FrenetMotion`` (one call of ``ukf_predict_kernel``) against the oracle's numpy
+    prediction: headings near +-pi (wrapped sigma points), ``s`` near a closed road's seam or an open
+    road's ends, wide and narrow covariances, per-state jerks; the sigma points within 1e-12, the moments
+    within 1e-10. The one call gives exactly the numbers of its steps one by one (``sigma_kernel``,
+    ``rk4_propagate``, ``moments_kernel``), also with the acceleration relaxed and floored first
+    (``relax``, ``floor``: the same as predicting the relaxed Gaussians); a NaN is refused; a
+    covariance that is not positive definite is repaired and counted."""
+    from oracles.motion import predict as oracle_predict
+    from oracles.ukf import sigma_points
+    from tracker.motion import relax_acceleration
+
+    road = KERNEL_ROADS[name]
+    model = FrenetMotion(road, motion)
+    ut = UnscentedTransform(n=model.dim)
+    rng = np.random.default_rng(3)
+    count = 30
+    cols = [rng.uniform(0.0, road.length, count), rng.uniform(-6.0, 6.0, count), rng.uniform(0.0, 30.0, count),
+            rng.normal(0.0, 0.3, count), rng.normal(0.0, 0.2, count), rng.uniform(3.0, 16.0, count),
+            rng.uniform(1.5, 2.6, count)]
+    if model.dim == 8:
+        cols.append(rng.normal(0.0, 1.0, count))
+    mean = np.column_stack(cols)
+    mean[:5, 3] = np.pi - 0.01  # sigma points across +-pi
+    mean[5:10, 0] = [0.0, 0.05, road.length - 0.05, 1e-9, road.length - 1e-9]  # across the seam or the open ends
+    root = rng.normal(0.0, 1.0, (count, model.dim, model.dim)) * rng.uniform(0.01, 2.0, (count, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(model.dim)
+    np.testing.assert_allclose(ut.sigma_points(mean, cov, model.wrapping),
+                               sigma_points(mean, cov, ut.scale, model.wrapping), rtol=0.0, atol=1e-12)
+    jerks = (None, rng.uniform(0.5, 3.0, count)) if model.dim == 8 else (None,)
+    for dt in (0.1, 1.0 / 14.0):
+        for jerk in jerks:
+            got = predict(ut, model, mean, cov, dt, jerk)  # one call (FrenetMotion.predict_compiled)
+            ref = oracle_predict(ut, model, mean, cov, dt, jerk)
+            assert got[0].shape == ref[0].shape and got[1].shape == ref[1].shape
+            d = got[0] - ref[0]
+            if road.closed:  # s across the seam: the shortest difference
+                d[:, 0] = (d[:, 0] + 0.5 * road.length) % road.length - 0.5 * road.length
+            assert np.all(np.abs(d) <= 1e-10 + 1e-10 * np.abs(ref[0]))
+            np.testing.assert_allclose(got[1], ref[1], rtol=1e-10, atol=1e-10)
+            with monkeypatch.context() as m:  # the steps one by one: the very same numbers
+                m.setattr(FrenetMotion, "predict_compiled", None)
+                steps = predict(ut, model, mean, cov, dt, jerk)
+            assert all(np.array_equal(a, b) for a, b in zip(steps, got))
+            if model.dim == 8:  # the tracker's coasting relaxation and a manoeuvre onset's floor, first
+                relax = np.where(rng.random(count) < 0.5, rng.uniform(0.5, 1.0, count), 1.0)
+                floor = np.where(rng.random(count) < 0.3, rng.uniform(0.0, 3.0, count), -np.inf)
+                got = predict(ut, model, mean, cov, dt, jerk, relax, floor)
+                with monkeypatch.context() as m:
+                    m.setattr(FrenetMotion, "predict_compiled", None)
+                    steps = predict(ut, model, mean, cov, dt, jerk, relax, floor)
+                assert all(np.array_equal(a, b) for a, b in zip(steps, got))
+                m2, p2 = relax_acceleration(mean, cov, relax, floor)
+                assert not np.array_equal(m2, mean) and np.array_equal(m2[relax == 1.0], mean[relax == 1.0])
+                assert all(np.array_equal(a, b) for a, b in zip(predict(ut, model, m2, p2, dt, jerk), got))
+    nan = mean.copy()
+    nan[2, 1] = np.nan
+    with pytest.raises(ValueError, match="must be finite"):
+        predict(ut, model, nan, cov, 0.1)
+    bad = cov.copy()
+    bad[3] = -np.eye(model.dim)  # not positive definite
+    before = ut.repairs
+    got = predict(ut, model, mean, bad, 0.1)
+    assert ut.repairs > before and np.isfinite(got[1]).all()

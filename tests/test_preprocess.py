@@ -93,9 +93,7 @@ def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     bit for bit what its steps give one by one (``to_global``, ``Road.to_frenet``, ``within_bounds``,
     ``bearing_filter``): returns on and off the road, beyond an open road's ends, a wall behind a car in
     the same bearings; and returns off the seed grid (seeded from the k-d tree, then a second call)."""
-    pytest.importorskip("numba")
     import tracker.preprocess as pre
-    from tracker import compiled
     from tracker.frame import EgoState
 
     if closed:
@@ -112,7 +110,6 @@ def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     box = rng.uniform([-40.0, -15.0], [40.0, 15.0], size=(600, 2)) if closed else rng.uniform([-15.0, -15.0], [70.0, 15.0], size=(600, 2))
     scan = np.concatenate([box, car, 1.6 * car,
                            np.array([[-10.0, 0.0], [0.5, 0.0], [0.0, 0.5]])])
-    monkeypatch.setenv(compiled.ENV_SWITCH, "1")
     staged = pre._filter_compiled
 
     def fused_and_staged(points):
@@ -135,16 +132,34 @@ def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     fused_and_staged(far)
 
 
-def test_filter_points_names_a_non_finite_return_with_the_kernels_on_and_off(monkeypatch):
-    """A NaN return reaches ``filter_points`` only from a caller that skipped ``drop_nonfinite``: the
-    same clear error either way (the fused call hands it to the staged path)."""
-    from tracker import compiled
+def test_filter_points_names_a_non_finite_return():
+    """A NaN return reaches ``filter_points`` only from a caller that skipped ``drop_nonfinite``: a
+    clear error (the fused call hands it to the steps one by one, whose projection names it)."""
     from tracker.frame import EgoState
     from tracker.preprocess import filter_points
 
     road = Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
     scan = np.array([[10.0, 0.0], [np.nan, 1.0], [20.0, 1.0]])
-    for switch in ("0", "1"):
-        monkeypatch.setenv(compiled.ENV_SWITCH, switch)
-        with pytest.raises(ValueError, match="finite"):
-            filter_points(scan, EgoState(5.0, 0.0, 0.0, 10.0, 0.0), road, TrackerConfig().clustering)
+    with pytest.raises(ValueError, match="finite"):
+        filter_points(scan, EgoState(5.0, 0.0, 0.0, 10.0, 0.0), road, TrackerConfig().clustering)
+
+
+@pytest.mark.parametrize("bin_deg", [0.2, 0.37])
+def test_bearing_filter_kernel_against_the_oracle(bin_deg):
+    """``bearing_filter`` (``bearing_filter_kernel``) against the oracle's sort: a scan of rays on the
+    bins' centres, points sharing a bin at equal ranges (the first index wins), points across +-pi (one
+    bin when the bins tile the circle, 0.2 deg; not for 0.37 deg); the same indices in the same order."""
+    from oracles.preprocess import bearing_filter as oracle_bearing_filter
+
+    rng = np.random.default_rng(13)
+    width = np.deg2rad(bin_deg)
+    rays = np.arange(-np.pi, np.pi, width)
+    ranges = rng.uniform(2.0, 90.0, len(rays))
+    pts = [np.column_stack([ranges * np.cos(rays), ranges * np.sin(rays)])]
+    pts.append(rng.normal(0.0, 30.0, (500, 2)))
+    pts.append(pts[0][::7] * 1.0)  # the same points again: equal ranges in one bin
+    pts.append(np.array([[-10.0, 1e-12], [-10.0, -1e-12], [-12.0, 0.0]]))  # across +-pi
+    pts = np.concatenate(pts)
+    rng.shuffle(pts)
+    got = bearing_filter(pts, width)
+    assert np.array_equal(got, oracle_bearing_filter(pts, width)) and len(got) >= len(rays) // 2

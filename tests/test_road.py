@@ -386,3 +386,116 @@ def test_one_point_in_any_shape_takes_the_fast_path_and_agrees_with_the_batch():
         road.to_frenet(np.array([[np.nan, 1.0]]))
     with pytest.raises(ValueError, match="xy must be finite"):
         road.to_frenet((np.inf, 1.0))
+
+
+# -- the curve and projection kernels against the numpy oracles ---------------------------------------
+def _kernel_roads() -> dict[str, Road]:
+    """An open clothoid road (straight, arc, ramp to the other side) and a closed Hermite ellipse."""
+    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
+                                    lanes=3, lane_width=3.5)
+    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
+    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
+                               lane_width=3.5)
+    return {"clothoid-open": open_road, "hermite-closed": ring}
+
+
+KERNEL_ROADS = _kernel_roads()
+
+
+def _seam_difference(road: Road, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a - b`` of arc lengths; on a closed road the shortest (just below the length and just above 0
+    are the same place)."""
+    d = a - b
+    return (d + 0.5 * road.length) % road.length - 0.5 * road.length if road.closed else d
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_curve_frame_kernel_against_the_oracle(name):
+    """``frame`` (``curve_frame``: bucket lookup, Taylor cos/sin, 4-point rule) against the oracle's
+    binary search, exact trigonometry and 8-point rule: random ``s``, both ends, every cell start and
+    the float just below it."""
+    from oracles.centerline import frame
+
+    curve = KERNEL_ROADS[name]._curve
+    s = np.concatenate([np.random.default_rng(0).uniform(0.0, curve.length, 3000), [0.0, curve.length],
+                        curve.starts[:-1], np.nextafter(curve.starts[1:], 0.0)])
+    for got, ref in zip(curve.frame(s), frame(curve, s)):
+        assert got.shape == ref.shape
+        np.testing.assert_allclose(got, ref, rtol=0.0, atol=1e-9)
+
+
+def _projection_points(road: Road, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Points on and off the road (up to 30 m beyond its edges) with their true ``s``; on an open road
+    also beyond both ends, along and beside the end tangents."""
+    s = np.concatenate([rng.uniform(0.0, road.length, 2000), [0.0, road.length, 1e-9, road.length - 1e-9]])
+    n = rng.uniform(road.right_edge - 30.0, road.left_edge + 30.0, s.size)
+    xy = road.to_cartesian(s, n)
+    if not road.closed:
+        x0, y0, c0, s0 = road._ends[0]
+        x1, y1, c1, s1 = road._ends[1]
+        xy = np.concatenate([xy, [[x0 - 25.0 * c0, y0 - 25.0 * s0], [x1 + 40.0 * c1 - 3.0 * s1, y1 + 40.0 * s1 + 3.0 * c1]]])
+        s = np.concatenate([s, [0.0, road.length]])
+    return xy, s
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_projection_kernels_against_the_oracle(name):
+    """``project_kernel``'s Newton iterations against the oracle's from the same starts (good hints and
+    bad ones, half a road away): the same points left pending, ``(s, n)`` of the others within 1e-9. ``to_frenet``
+    (seeded by the kernels, its fallbacks for what Newton leaves) against the oracle's projection where
+    that converges, and elsewhere a true foot of the perpendicular at distance ``|n|``."""
+    from oracles.road import newton, road_frame, to_frenet
+    from tracker.centerline import project_kernel
+    from tracker.road import PROJECTION_MAX_ITERATIONS, PROJECTION_MAX_STEP, PROJECTION_MIN_DENOMINATOR, PROJECTION_TOLERANCE
+
+    road = KERNEL_ROADS[name]
+    rng = np.random.default_rng(1)
+    xy, s = _projection_points(road, rng)
+    kind, *curve = road._curve.kernel_args()
+    for start in (s + rng.normal(0.0, 2.0, s.size), (s + 0.5 * road.length) % road.length):
+        got = project_kernel(kind, np.ascontiguousarray(xy), start.copy(), road.closed, road.length, road._ends_array,
+                             *curve, PROJECTION_MAX_ITERATIONS, PROJECTION_TOLERANCE, PROJECTION_MAX_STEP,
+                             PROJECTION_MIN_DENOMINATOR)
+        ref = newton(road, xy, start)
+        np.testing.assert_array_equal(got[2], ref[2])
+        done = ~ref[2]  # (a pending point's last iterate is discarded: near the far side's distance maximum
+        # its steps amplify rounding)
+        np.testing.assert_allclose(_seam_difference(road, got[0][done], ref[0][done]), 0.0, rtol=0.0, atol=1e-9)
+        np.testing.assert_allclose(got[1][done], ref[1][done], rtol=0.0, atol=1e-9)
+    assert ref[2].any()  # the bad hints exercise to_frenet's retry from the global search
+    for hint in (None, s + rng.normal(0.0, 2.0, s.size), (s + 0.5 * road.length) % road.length):
+        got_s, got_n = road.to_frenet(xy, s_hint=hint)
+        ref_s, ref_n, pending = to_frenet(road, xy, hint)
+        done = ~pending
+        np.testing.assert_allclose(_seam_difference(road, got_s[done], ref_s[done]), 0.0, rtol=0.0, atol=1e-9)
+        np.testing.assert_allclose(got_n[done], ref_n[done], rtol=0.0, atol=1e-9)
+        foot, tangent, _ = road_frame(road, got_s)
+        d = xy - foot
+        np.testing.assert_allclose(d[:, 0] * tangent[:, 0] + d[:, 1] * tangent[:, 1], 0.0, atol=1e-6)
+        np.testing.assert_allclose(d[:, 1] * tangent[:, 0] - d[:, 0] * tangent[:, 1], got_n, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_projection_seed_kernels_against_the_oracle(name):
+    """The projection's starts without a hint: ``seed_kernel`` (the seed grid's curve sample, one Newton
+    step) exactly the oracle's for points on the grid and ``missing`` off it (points far from the road);
+    ``node_seed_kernel`` exactly the oracle's step from the nearest sample of all (brute force)."""
+    from oracles.road import nearest_node, node_start
+    from tracker.centerline import node_seed_kernel, seed_kernel
+    from tracker.road import PROJECTION_MIN_DENOMINATOR, SEED_GRID_RESOLUTION
+
+    road = KERNEL_ROADS[name]
+    rng = np.random.default_rng(17)
+    near = road.to_cartesian(rng.uniform(0.0, road.length, 400), rng.uniform(-10.0, 10.0, 400))
+    far = near + rng.normal(0.0, 200.0, (400, 2))
+    pts = np.ascontiguousarray(np.concatenate([near, far]))
+    got, missing = seed_kernel(pts, road._grid_origin, 1.0 / SEED_GRID_RESOLUTION, road._grid, road._node_frame,
+                               road._nodes, PROJECTION_MIN_DENOMINATOR)
+    assert missing.any() and (~missing).any()
+    node = nearest_node(road, pts)
+    assert np.array_equal(got[~missing], node_start(road, pts, node)[~missing])
+    off = np.ascontiguousarray(pts[missing])
+    tree_node = road._tree.query(off)[1]
+    np.testing.assert_array_equal(tree_node, node[missing])  # the k-d tree's nearest sample: brute force's
+    assert np.array_equal(node_seed_kernel(off, tree_node, road._node_frame, road._nodes, PROJECTION_MIN_DENOMINATOR),
+                          node_start(road, off, tree_node))

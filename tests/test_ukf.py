@@ -128,16 +128,14 @@ def test_coordinate_residual_is_residuals_column():
     assert wrapping.coordinate_residual(x[:, 1], 1) is not x[:, 1]
 
 
-def test_certainly_positive_definite_never_disagrees_with_lapack(monkeypatch):
-    """``ensure_spd``'s compiled test (``tracker.ukf.certainly_positive_definite``, the scaled
-    matrix less ``CERTAIN_SHIFT`` I factorised): True only for matrices LAPACK's Cholesky factorises --
-    near-singular ones (eigenvalues down to 1e-16 of the rest) with diagonals spread over eight orders of
-    magnitude, indefinite ones, NaN -- and ``ensure_spd`` gives the same matrices and counts with it as
-    without."""
-    pytest.importorskip("numba")
-    from tracker import compiled
-    from tracker.ukf import certainly_positive_definite
-    from tracker.ukf import CERTAIN_SHIFT, ensure_spd
+def test_certainly_positive_definite_never_disagrees_with_lapack():
+    """``ensure_spd``'s first test (``tracker.ukf.certainly_positive_definite``, the scaled matrix less
+    ``CERTAIN_SHIFT`` I factorised): True only for matrices LAPACK's Cholesky factorises -- near-singular
+    ones (eigenvalues down to 1e-16 of the rest) with diagonals spread over eight orders of magnitude,
+    indefinite ones, NaN -- and ``ensure_spd`` gives the oracle's matrices and counts (numpy's
+    Cholesky factorisation and eigenvalues alone)."""
+    from oracles.ukf import ensure_spd as oracle_ensure_spd
+    from tracker.ukf import CERTAIN_SHIFT, certainly_positive_definite, ensure_spd
 
     rng = np.random.default_rng(4)
     answers = []
@@ -156,12 +154,13 @@ def test_certainly_positive_definite_never_disagrees_with_lapack(monkeypatch):
         if sure:
             np.linalg.cholesky(cov)  # never raises where the test is sure
         if trial % 10 == 0:
-            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
             got = ensure_spd(cov[None], 1e-9)
-            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-            ref = ensure_spd(cov[None], 1e-9)
-            np.testing.assert_array_equal(got[0], ref[0])
+            ref = oracle_ensure_spd(cov[None], 1e-9)
             assert got[1] == ref[1]
+            if ref[1]:
+                np.testing.assert_allclose(got[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(cov).max())
+            else:
+                np.testing.assert_array_equal(got[0], cov[None])
     assert 0.1 < np.mean(answers) < 0.9  # both answers, often
     assert not certainly_positive_definite(np.full((1, 2, 2), np.nan), CERTAIN_SHIFT)
     assert not certainly_positive_definite(np.array([[[1.0, 1.0 - 1e-10], [1.0 - 1e-10, 1.0]]]), CERTAIN_SHIFT)

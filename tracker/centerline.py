@@ -12,9 +12,14 @@ trigonometric evaluations:
   Heading is the exact quadratic, curvature the exact linear function of ``s``; the position inside
   a cell is the Gauss-Legendre integral of ``(cos theta, sin theta)``.
 
-Every curve offers a vectorised ``frame(s)`` and a pure-Python ``frame1(s)`` for one point (numpy's
-per-call overhead would dominate single queries, which highway-env makes ~170 times per frame).
-``s`` must already lie in ``[0, length]``: wrapping and extrapolation are the Road's job.
+Every curve offers ``frame(s)`` for an array of ``s`` (one call of the compiled kernel ``curve_frame``)
+and a pure-Python ``frame1(s)`` for one point (a call's overhead would dominate single queries, which
+highway-env makes ~170 times per frame). ``s`` must already lie in ``[0, length]``: wrapping and
+extrapolation are the Road's job.
+
+The module also holds the compiled kernels that evaluate the road on these curves: its frame beyond
+an open road's ends, the projection of points on the centerline (``Road.to_frenet``) and a state's
+rectangle in the ego's frame (``tracker.measurement``).
 """
 
 from __future__ import annotations
@@ -25,7 +30,6 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from tracker import jit as compiled_kernels
 from tracker.jit import njit
 from tracker.geometry import corner_offset
 from tracker.ukf import all_finite, sigma_kernel
@@ -89,7 +93,9 @@ class _Cells:
             args = self.__dict__["_kernel_args"] = (kind, self._table, *self._lookup(), GL4_NODES, GL4_WEIGHTS)
         return args
 
-    def _frame_compiled(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]
+        (``curve_frame``: per ``s`` its cell's closed form)."""
         kind, *rest = self.kernel_args()
         return curve_frame(kind, np.ascontiguousarray(s, dtype=float), *rest)
 
@@ -197,23 +203,6 @@ class HermiteCenterline(_Cells):
         return self.segment_of_cell[cell], ((q[:, 3] * d + q[:, 2]) * d + q[:, 1]) * d + q[:, 0]
 
     # -- evaluation -----------------------------------------------------------------------------
-    def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length]
-        (by ``tracker.centerline`` when the compiled kernels are on)."""
-        if compiled_kernels.enabled():
-            return self._frame_compiled(s)
-        row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
-        d = s - row[:, 0]
-        tau = ((row[:, 4] * d + row[:, 3]) * d + row[:, 2]) * d + row[:, 1]
-        x0, y0, x1, y1, x2, y2, x3, y3 = row[:, 5:].T
-        p = np.column_stack([((x3 * tau + x2) * tau + x1) * tau + x0, ((y3 * tau + y2) * tau + y1) * tau + y0])
-        dx, dy = (3.0 * x3 * tau + 2.0 * x2) * tau + x1, (3.0 * y3 * tau + 2.0 * y2) * tau + y1
-        ddx, ddy = 6.0 * x3 * tau + 2.0 * x2, 6.0 * y3 * tau + 2.0 * y2
-        speed = np.hypot(dx, dy)
-        kappa = (dx * ddy - dy * ddx) / speed**3
-        d1 = np.column_stack([dx, dy])
-        return p, d1 / speed[:, None], kappa
-
     def frame1(self, s: float) -> tuple[float, float, float, float, float]:
         """One point: ``(x, y, cos theta, sin theta, kappa)`` at ``s`` (pure Python)."""
         cell = self.locate1(s)
@@ -353,28 +342,6 @@ class ClothoidCenterline(_Cells):
         self._cell_list = np.column_stack([self.cell_xy, theta, kap, kr]).tolist()
         self._table = np.column_stack([self.starts[:-1], self.cell_xy, self.cell_cos, self.cell_sin, kap, kr])
 
-    def frame(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (N, 2) m, unit tangent (N, 2) and curvature (N,) 1/m at ``s`` in [0, length].
-
-        In the cell's own frame the heading change ``phi(u) = kappa0 u + rate u^2 / 2`` is small
-        (cells are short enough that ``|phi| <= CLOTHOID_MAX_TURN``), so ``cos phi`` and ``sin phi``
-        are evaluated by their Taylor series (error < 1e-14) instead of trigonometric calls
-        (by ``tracker.centerline`` when the compiled kernels are on).
-        """
-        if compiled_kernels.enabled():
-            return self._frame_compiled(s)
-        row = np.take(self._table, self.locate(s), axis=0)  # one gather of every per-cell number
-        d = s - row[:, 0]
-        cell_xy, cos0, sin0, k0, kr = row[:, 1:3], row[:, 3], row[:, 4], row[:, 5], row[:, 6]
-        dd = d[:, None] * GL4_NODES[None, :]
-        phi = (k0[:, None] + 0.5 * kr[:, None] * dd) * dd
-        cphi, sphi = _cos_sin_small(phi)
-        ic, is_ = cphi @ GL4_WEIGHTS, sphi @ GL4_WEIGHTS  # mean of (cos, sin) over the cell so far
-        p = cell_xy + d[:, None] * np.column_stack([cos0 * ic - sin0 * is_, sin0 * ic + cos0 * is_])
-        ce, se = _cos_sin_small((k0 + 0.5 * kr * d) * d)
-        tangent = np.column_stack([cos0 * ce - sin0 * se, sin0 * ce + cos0 * se])
-        return p, tangent, k0 + kr * d
-
     def frame1(self, s: float) -> tuple[float, float, float, float, float]:
         """One point: ``(x, y, cos theta, sin theta, kappa)`` at ``s`` (pure Python)."""
         cell = self.locate1(s)
@@ -390,25 +357,23 @@ class ClothoidCenterline(_Cells):
         return x + d * cx, y + d * sx, math.cos(th), math.sin(th), k0 + kr * d
 
 
-def _cos_sin_small(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``cos`` and ``sin`` of small angles (|phi| <= 0.3 rad) by Taylor series; error < 1e-14."""
-    p2 = phi * phi
-    cos = 1.0 + p2 * (-1 / 2 + p2 * (1 / 24 + p2 * (-1 / 720 + p2 * (1 / 40320 - p2 / 3628800))))
-    sin = phi * (1.0 + p2 * (-1 / 6 + p2 * (1 / 120 + p2 * (-1 / 5040 + p2 * (1 / 362880 - p2 / 39916800)))))
-    return cos, sin
-
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled centerline evaluation: ``ClothoidCenterline.frame`` and ``HermiteCenterline.frame``
-# (``tracker.centerline``) as one numba call each, with the same bucket lookup of the cell, the same
-# per-cell closed forms (the clothoid's Taylor cos/sin and 4-point Gauss-Legendre position integral; the
-# Hermite cell's cubic ``tau(s)`` and the spline's derivatives).
+# The curve at arc length ``s``: its cell by the bucket lookup, then the cell's closed form (a
+# clothoid cell's heading quadratic, curvature line and Gauss-Legendre position integral; a Hermite
+# cell's cubic ``tau(s)`` and the spline's derivatives): ``curve_frame`` for ``frame``. The road's
+# frame beyond an open road's ends and across a closed road's seam (``road_frame_at``); the projection
+# of points on the centerline (``seed_kernel``, ``node_seed_kernel``, ``project_kernel``); a state's
+# rectangle in the ego's frame E (``to_vehicle_kernel``, ``rectangles_kernel``,
+# ``sigma_rectangles_kernel``).
 # --------------------------------------------------------------------------------------------------
 
 
 @njit(inline="always")
 def _locate(s, bucket_cell, starts_next, inv_bucket, hops, last):
+    """Index of the cell holding ``s``: the cell of ``s``'s bucket, then at most ``hops`` cells on
+    while ``s`` lies at or beyond the next cell's start; at most ``last``."""
     k = min(int(s * inv_bucket), len(bucket_cell) - 1)
     idx = bucket_cell[max(k, 0)]
     for _ in range(hops):
@@ -419,6 +384,8 @@ def _locate(s, bucket_cell, starts_next, inv_bucket, hops, last):
 
 @njit(inline="always")
 def _cos_sin_small_scalar(phi):
+    """``cos`` and ``sin`` of a small angle (``|phi| <= CLOTHOID_MAX_TURN`` plus rounding) by their
+    Taylor series to ``phi^10`` and ``phi^11``: error below 1e-14 for ``|phi| <= 0.3`` rad."""
     p2 = phi * phi
     cos = 1.0 + p2 * (-1 / 2 + p2 * (1 / 24 + p2 * (-1 / 720 + p2 * (1 / 40320 - p2 / 3628800))))
     sin = phi * (1.0 + p2 * (-1 / 6 + p2 * (1 / 120 + p2 * (-1 / 5040 + p2 * (1 / 362880 - p2 / 39916800)))))
@@ -433,8 +400,14 @@ def _frame_arrays(count):
 
 @njit(inline="always")
 def clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
-    """Position, unit tangent and curvature ``(x, y, tx, ty, kappa)`` at one ``s`` in [0, length];
-    ``table`` rows ``(start, x, y, cos0, sin0, kappa0, rate)`` per cell."""
+    """Position, unit tangent and curvature ``(x, y, tx, ty, kappa)`` of a clothoid centerline at one
+    ``s`` in [0, length]; ``table`` rows ``(start, x, y, cos0, sin0, kappa0, rate)`` per cell.
+
+    At ``d = s - start`` into the cell the heading is ``theta0 + phi(d)``, ``phi(u) = kappa0 u + rate u^2
+    / 2``, the curvature ``kappa0 + rate d``, and the position ``(x, y) + d * R(theta0) mean_u (cos phi,
+    sin phi)`` over ``[0, d]`` (the Gauss-Legendre rule ``nodes``, ``weights`` on [0, 1]). Cells are
+    short enough that ``|phi| <= CLOTHOID_MAX_TURN``: ``cos phi`` and ``sin phi`` come from their Taylor
+    series (``_cos_sin_small_scalar``), rotated by ``theta0``."""
     row = table[_locate(s, bucket_cell, starts_next, inv_bucket, hops, len(table) - 1)]
     d = s - row[0]
     cos0, sin0, k0, kr = row[3], row[4], row[5], row[6]
@@ -452,8 +425,11 @@ def clothoid_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, wei
 
 @njit(inline="always")
 def hermite_at(s, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
-    """As ``clothoid_at``; ``table`` rows ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)``
-    (``nodes`` and ``weights`` unused: the same signature as ``clothoid_at``)."""
+    """``(x, y, tx, ty, kappa)`` of a Hermite centerline at one ``s`` in [0, length]; ``table`` rows
+    ``(start, q0..q3, x0, y0, x1, y1, x2, y2, x3, y3)`` per cell. The spline parameter is the cell's
+    cubic ``tau(d) = q0 + q1 d + q2 d^2 + q3 d^3`` at ``d = s - start``; the position is the segment's
+    cubic ``r(tau)``, the tangent ``r'/|r'|``, the curvature ``(r' x r'') / |r'|^3``. (``nodes`` and
+    ``weights`` unused: the signature of ``clothoid_at``.)"""
     row = table[_locate(s, bucket_cell, starts_next, inv_bucket, hops, len(table) - 1)]
     d = s - row[0]
     tau = ((row[4] * d + row[3]) * d + row[2]) * d + row[1]
@@ -492,9 +468,10 @@ def curve_frame(kind, s, table, bucket_cell, starts_next, inv_bucket, hops, node
 
 @njit(inline="always")
 def road_frame_at(kind, s, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights):
-    """``Road._frame_flat(s, extrapolate=True)`` at one ``s``: wrapped on a closed road; on an open
-    one the frame at ``s`` clipped to [0, length], its position moved along the end tangent
-    (``ends`` rows ``(x, y, cos, sin)`` at 0 and at ``length``) and its curvature 0 beyond an end."""
+    """The road's frame ``(x, y, tx, ty, kappa)`` at one ``s`` (``Road.frame(..., extrapolate=True)``):
+    wrapped on a closed road; on an open one the frame at ``s`` clipped to [0, length], its position
+    moved along the end tangent (``ends`` rows ``(x, y, cos, sin)`` at 0 and at ``length``) and its
+    curvature 0 beyond an end."""
     at = s % length if closed else min(max(s, 0.0), length)
     x, y, tx, ty, kappa = curve_at(kind, at, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights)
     if closed:
@@ -510,9 +487,14 @@ def road_frame_at(kind, s, closed, length, ends, table, bucket_cell, starts_next
 @njit
 def project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
                    max_iterations, tolerance, max_step, min_denominator):
-    """``Road._project``'s Newton iterations from the starts ``s (N,)`` (changed in place), in its order:
-    every point takes a step while any is pending (numpy's lock-step). Returns ``(s, lateral, pending)``;
-    the pending points (not converged) go to the caller's fallback."""
+    """The projection of points ``pts (N, 2)`` in G on the centerline: Newton's iterations on
+    ``g(s) = (p - c(s)) . t(s) = 0`` from the starts ``s (N,)`` (changed in place). A step is
+    ``ds = (d . t) / max(1 - kappa (d x t), min_denominator)`` (``d = p - c(s)``; ``d x t`` is the
+    lateral offset ``n``), clipped to ``+-max_step``; ``s`` wraps on a closed road and follows the end
+    tangents beyond an open road's ends (``road_frame_at``). Every point takes a step while any point's
+    last step was at least ``tolerance`` (lock-step), at most ``max_iterations`` times. Returns ``(s,
+    lateral, pending)``: ``lateral`` the ``n`` of the last step's start, ``pending`` the points whose
+    last step was not below ``tolerance`` (not converged: the caller's fallback)."""
     count = len(s)
     lateral = np.zeros(count)
     pending = np.ones(count, dtype=np.bool_)
@@ -572,7 +554,7 @@ def to_vehicle_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends,
 @njit
 def rectangles_kernel(kind, states, ego_x, ego_y, ego_yaw, closed, length, ends, table, bucket_cell, starts_next,
                       inv_bucket, hops, nodes, weights, min_extent):  # pragma: no cover - compiled
-    """``to_vehicle_kernel`` with the rest of ``tracker.measurement.to_vehicle``'s compiled path: the
+    """``to_vehicle_kernel`` with the rest of ``tracker.measurement.to_vehicle``'s conversion: the
     extent floored at ``min_extent`` (``numpy.maximum``: a NaN stays NaN) and whether every ``s`` is
     finite (checked first; nothing else computed when one is not). Returns ``(center, psi, corners,
     length, width, finite)``."""
@@ -611,12 +593,25 @@ def sigma_rectangles_kernel(means, covs, scale, angles, period_index, period, ki
             corners.reshape(count, points, 4, 2), True)
 
 
+@njit(inline="always")
+def _node_start(x, y, node, node_frame, nodes, min_denominator):  # pragma: no cover - compiled
+    """The projection's start for the point ``(x, y)`` from the curve sample ``node``: one Newton step
+    from the sample's stored frame (``node_frame`` rows ``(x, y, tx, ty, kappa)``), ``s = s_node + (d .
+    t) / max(1 - kappa (d x t), min_denominator)``, ``d`` the point less the sample."""
+    dx = x - node_frame[node, 0]
+    dy = y - node_frame[node, 1]
+    tx, ty, kappa = node_frame[node, 2], node_frame[node, 3], node_frame[node, 4]
+    denom = max(1.0 - kappa * (dy * tx - dx * ty), min_denominator)
+    return nodes[node] + (dx * tx + dy * ty) / denom
+
+
 @njit
 def seed_kernel(pts, origin, inv_resolution, grid, node_frame, nodes, min_denominator):  # pragma: no cover - compiled
-    """``Road._project``'s start without a hint: per point the curve sample its seed-grid cell stores
-    (``Road._nearest_node``) and one Newton step from that sample's stored frame, ``s = s_node + (d . t)
-    / max(1 - kappa (d x t), min_denominator)``. Returns ``(s, missing)``: ``missing`` where the point
-    is off the grid or its cell holds no sample (the caller seeds those from the k-d tree)."""
+    """The projection's starts of points ``pts (N, 2)`` in G without a hint: per point the curve sample
+    its seed-grid cell stores (the sample nearest to the cell's centre; ``grid`` cells of ``1 /
+    inv_resolution`` m from ``origin``) and one Newton step from it (``_node_start``). Returns ``(s,
+    missing)``: ``missing`` where the point is off the grid or its cell holds no sample (the caller
+    seeds those from the k-d tree: ``node_seed_kernel``)."""
     count = pts.shape[0]
     s = np.zeros(count)
     missing = np.zeros(count, dtype=np.bool_)
@@ -629,9 +624,17 @@ def seed_kernel(pts, origin, inv_resolution, grid, node_frame, nodes, min_denomi
         if node < 0:
             missing[i] = True
             continue
-        dx = pts[i, 0] - node_frame[node, 0]
-        dy = pts[i, 1] - node_frame[node, 1]
-        tx, ty, kappa = node_frame[node, 2], node_frame[node, 3], node_frame[node, 4]
-        denom = max(1.0 - kappa * (dy * tx - dx * ty), min_denominator)
-        s[i] = nodes[node] + (dx * tx + dy * ty) / denom
+        s[i] = _node_start(pts[i, 0], pts[i, 1], node, node_frame, nodes, min_denominator)
     return s, missing
+
+
+@njit
+def node_seed_kernel(pts, node, node_frame, nodes, min_denominator):  # pragma: no cover - compiled
+    """The projection's starts ``(N,)`` of points ``pts (N, 2)`` in G from given curve samples
+    ``node (N,)`` (the k-d tree's nearest, for points ``seed_kernel`` leaves ``missing``): one Newton
+    step from each (``_node_start``)."""
+    count = pts.shape[0]
+    s = np.empty(count)
+    for i in range(count):
+        s[i] = _node_start(pts[i, 0], pts[i, 1], node[i], node_frame, nodes, min_denominator)
+    return s

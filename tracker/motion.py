@@ -13,9 +13,11 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
   plus the road-following prior (``MotionConfig.heading_decay``, ``yaw_rate_decay``): ``xi' = xi_dot -
   heading_decay (xi + beta)``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0 give the constant turn above),
   integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps (with ``MotionConfig.slip_lever > 0``
-  the centre moves along ``xi + beta`` instead of ``xi``, ``beta`` the kinematic slip angle of
-  ``slip_angle``: ``psi`` is the body axis, the rectangle's, and a car holding its lane on a curve has
-  ``xi = -beta``), evaluating the road's
+  the centre moves along ``xi + beta`` instead of ``xi``, ``beta`` the kinematic slip angle of a
+  kinematic bicycle whose rear axle lies ``slip_lever * L`` behind the centre, ``sin beta = yaw_rate
+  slip_lever L / v`` (``|sin beta| <= MAX_SIN_SLIP``, ``|v|`` floored at ``SLIP_MIN_SPEED``): ``psi``
+  is the body axis, the rectangle's, and a car holding its lane on a curve has ``xi = -beta``),
+  evaluating the road's
   ``kappa(s)`` at every stage -- from a table of the road's curvature every ``CURVATURE_TABLE_STEP``
   metres, interpolated linearly (exact on a curvature profile's straights, arcs and clothoid ramps
   between joints; error ``<= h^2/8 max|kappa''|`` on a spline road; a table lookup costs microseconds
@@ -45,12 +47,10 @@ from typing import Protocol
 import numpy as np
 from scipy.linalg import expm
 
-from tracker import jit as compiled_kernels
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
 from tracker.road import Road
-from tracker.ukf import UnscentedTransform, Wrapping
 from tracker.jit import njit
-from tracker.ukf import _wrap, all_finite, moments_kernel, sigma_kernel
+from tracker.ukf import UnscentedTransform, Wrapping, _wrap, all_finite, moments_kernel, sigma_kernel
 
 # state indices (curvilinear names; the Cartesian state uses the same slots for x, y, psi, psi_dot);
 # ACCEL: the internal acceleration state of ``FrenetMotion`` with ``MotionConfig.acceleration``
@@ -95,19 +95,9 @@ def _constant_turn(x: np.ndarray, dt: float) -> np.ndarray:
 
 
 #: Largest slip angle (rad) the motion model assumes (|sin beta| <= 0.5); speeds below ``SLIP_MIN_SPEED``
-#: (m/s) count as that speed in ``slip_angle`` (a standing vehicle has no defined slip).
+#: (m/s) count as that speed in the slip angle (a standing vehicle has no defined slip).
 MAX_SIN_SLIP = 0.5
 SLIP_MIN_SPEED = 1.0
-
-
-def slip_angle(yaw_rate: np.ndarray, v: np.ndarray, length: np.ndarray, lever: float) -> np.ndarray:
-    """Kinematic slip angle ``beta`` (rad) between a vehicle's body axis and its centre's velocity:
-    ``sin beta = yaw_rate * lever * L / v`` (a kinematic bicycle whose rear axle lies ``lever * L`` behind
-    the centre), clipped to ``|sin beta| <= MAX_SIN_SLIP``, ``|v|`` floored at ``SLIP_MIN_SPEED``."""
-    v = np.asarray(v, dtype=float)
-    speed = np.where(v < 0.0, -1.0, 1.0) * np.maximum(np.abs(v), SLIP_MIN_SPEED)
-    sin_b = yaw_rate * lever * np.maximum(length, 0.0) / speed
-    return np.arcsin(np.clip(sin_b, -MAX_SIN_SLIP, MAX_SIN_SLIP))
 
 
 def process_noise(mean: np.ndarray, dt: float, noise: ProcessNoise) -> np.ndarray:
@@ -197,36 +187,6 @@ class FrenetMotion:
         self._noise_cache: dict[float, tuple] = {}  # _noise_parts by dt
         self._step_cache: dict[float, tuple] = {}  # _step_args by dt
 
-    def curvature(self, s: np.ndarray) -> np.ndarray:
-        """The road's curvature (1/m) at ``s`` from the table: wrapped on a closed road, 0 beyond the
-        ends of an open one (the road's straight extrapolation)."""
-        s = np.asarray(s, dtype=float)
-        if self.road.closed:
-            return np.interp(np.mod(s, self.road.length), self._table_s, self._table_k)
-        return np.interp(s, self._table_s, self._table_k, left=0.0, right=0.0)
-
-    def derivative(self, x: np.ndarray) -> np.ndarray:
-        """``dx/dt`` of states ``x (..., 7)``: ``[v cos(xi + beta) / (1 - kappa n), v sin(xi + beta), 0,
-        xi_dot - a (xi + beta), -b xi_dot, 0, 0]`` with the slip angle ``beta`` of ``slip_angle`` (0 when
-        ``slip_lever = 0``) and the road-following prior's rates ``a = heading_decay``, ``b =
-        yaw_rate_decay`` (``MotionConfig``): the heading relaxes to lane keeping, a course ``xi + beta = 0``
-        (``xi = -beta`` on a curve with slip)."""
-        kappa = self.curvature(x[..., S])
-        denom = np.maximum(1.0 - kappa * x[..., N], self.config.min_denominator)
-        d = np.zeros_like(x)
-        course = x[..., XI]
-        if self.config.slip_lever > 0.0:
-            yaw_rate = kappa * x[..., V] * np.cos(x[..., XI]) / denom + x[..., XI_DOT]
-            course = course + slip_angle(yaw_rate, x[..., V], x[..., LENGTH], self.config.slip_lever)
-        d[..., S] = x[..., V] * np.cos(course) / denom
-        d[..., N] = x[..., V] * np.sin(course)
-        d[..., XI] = x[..., XI_DOT] - self.config.heading_decay * course  # relaxes to lane keeping: course 0
-        d[..., XI_DOT] = -self.config.yaw_rate_decay * x[..., XI_DOT]
-        if x.shape[-1] == 8:  # the acceleration state: v' = a, a' = -a / acceleration_time
-            d[..., V] = x[..., ACCEL]
-            d[..., ACCEL] = -x[..., ACCEL] / self.config.acceleration_time
-        return d
-
     @property
     def step_limit(self) -> float:
         """Largest RK4 sub-step (s): ``max_step``, and at most ``MAX_DECAY_STEP / rate`` for the
@@ -237,28 +197,18 @@ class FrenetMotion:
         return min(self.config.max_step, MAX_DECAY_STEP / rate) if rate > 0.0 else self.config.max_step
 
     def propagate(self, x: np.ndarray, dt: float) -> np.ndarray:
-        """RK4 integration of ``derivative`` over ``dt`` seconds in sub-steps of at most ``step_limit``;
-        ``s`` wrapped on a closed road and ``xi`` to (-pi, pi]."""
+        """States ``x (..., 7 or 8)`` after ``dt`` seconds: classic RK4 of the Frenet kinematics (the
+        module docstring; ``rk4_propagate``) in ``ceil(dt / step_limit)`` equal sub-steps; ``s`` wrapped
+        on a closed road and ``xi`` to (-pi, pi]."""
         dt = _check_dt(dt)
         x = np.array(x, dtype=float, copy=True)
         if dt == 0.0:
             return x
-        steps = max(1, int(math.ceil(dt / self.step_limit - 1e-9)))
-        h = dt / steps
-        if compiled_kernels.enabled() and x.ndim >= 1 and x.shape[-1] in (7, 8):
-            cfg = self.config
-            flat = rk4_propagate(np.ascontiguousarray(x.reshape(-1, x.shape[-1])), steps, h, self._table_s,
-                                 self._table_k, bool(self.road.closed), float(self.road.length), float(cfg.min_denominator),
-                                 float(cfg.slip_lever), float(cfg.heading_decay), float(cfg.yaw_rate_decay),
-                                 float(cfg.acceleration_time), MAX_SIN_SLIP, SLIP_MIN_SPEED)
-            return self.wrapping.wrap(flat.reshape(x.shape))
-        for _ in range(steps):
-            k1 = self.derivative(x)
-            k2 = self.derivative(x + 0.5 * h * k1)
-            k3 = self.derivative(x + 0.5 * h * k2)
-            k4 = self.derivative(x + h * k3)
-            x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        return self.wrapping.wrap(x)
+        if x.ndim == 0 or x.shape[-1] not in (7, 8):
+            raise ValueError(f"FrenetMotion.propagate needs states (..., 7) or (..., 8); got shape {x.shape}")
+        steps, h, motion_args = self._step_args(dt)
+        flat = rk4_propagate(np.ascontiguousarray(x.reshape(-1, x.shape[-1])), steps, h, *motion_args)
+        return self.wrapping.wrap(flat.reshape(x.shape))
 
     def process_noise(self, mean: np.ndarray, dt: float, jerk: np.ndarray | None = None) -> np.ndarray:
         """See ``process_noise``; with the road-following prior (``heading_decay`` or
@@ -290,11 +240,10 @@ class FrenetMotion:
     def predict_compiled(self, ut: UnscentedTransform, mean: np.ndarray, cov: np.ndarray, dt: float,
                          jerk: np.ndarray | None = None, relax: np.ndarray | None = None,
                          floor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
-        """``predict`` of a batch ``mean (C, D)``, ``cov (C, D, D)`` in one compiled call
-        (``tracker.motion.ukf_predict_kernel``: the same steps as ``predict``'s compiled path,
-        the same numbers); ``None`` where that path does not apply (``dt = 0``, another shape, or a
-        covariance that is not positive definite: ``predict`` then takes its own path, which repairs
-        and counts it)."""
+        """``predict`` of a batch ``mean (C, D)``, ``cov (C, D, D)`` in one call of
+        ``ukf_predict_kernel`` (the same numbers as ``predict``'s steps one by one); ``None`` where it
+        does not apply (``dt = 0``, another shape, or a covariance that is not positive definite:
+        ``predict`` then takes its steps one by one, and the sigma points' repair counts it)."""
         if mean.ndim != 2 or mean.shape[1] != self.dim or cov.shape != mean.shape + (self.dim,) or len(mean) == 0:
             return None
         dt = _check_dt(dt)
@@ -344,7 +293,7 @@ class FrenetMotion:
         return hit
 
     def _noise_parts(self, dt: float) -> tuple[np.ndarray, float, float, float, np.ndarray]:
-        """``process_noise``'s parts for the compiled prediction over ``dt`` (cached: a tracker's frames
+        """``process_noise``'s parts for ``ukf_predict_kernel`` over ``dt`` (cached: a tracker's frames
         mostly share one ``dt``): the direction-free entries ``(D, D)`` (the road-following prior's
         heading block in place; without the jerk's Singer block), ``k_u``, ``k_p``, ``accel^2 dt^2/2``
         (``noise_coefficients``), and the unit jerk's Singer block ``(2, 2)`` of ``(v, a)`` (zeros
@@ -487,7 +436,7 @@ def predict(
         raise ValueError(f"predict: relax and floor need Gaussians of the acceleration state (C, 8), one value per "
                          f"Gaussian; got means {np.shape(mean)}, relax {np.shape(relax)}, floor {np.shape(floor)}")
     fused = getattr(model, "predict_compiled", None)
-    if fused is not None and compiled_kernels.enabled() and np.ndim(mean) == 2:
+    if fused is not None and np.ndim(mean) == 2:
         out = fused(ut, np.asarray(mean, dtype=float), np.asarray(cov, dtype=float), dt, jerk, relax, floor)
         if out is not None:
             return out
@@ -496,12 +445,12 @@ def predict(
     pts = ut.sigma_points(mean, cov, model.wrapping)
     moved = model.propagate(pts, dt)
     noise = (lambda m: model.process_noise(m, dt)) if jerk is None else (lambda m: model.process_noise(m, dt, jerk))
-    if moved.ndim == 3 and compiled_kernels.enabled():  # the same moments, one compiled call
-        from tracker.ukf import moments_kernel
-
+    if moved.ndim == 3:  # a batch: the moments in one call
         m, p = moments_kernel(np.ascontiguousarray(moved), ut.wm, ut.wc, *model.wrapping.kernel_args())
         p += noise(m)
         return m, 0.5 * (p + np.swapaxes(p, -1, -2))
+    # one Gaussian (or another batch shape): the unscented transform's own moments (numpy's sums, whose
+    # order can differ from the kernel's in the last bits)
     m = ut.mean(moved, model.wrapping)
     dev = ut.deviations(moved, m, model.wrapping)
     p = ut.covariance(dev) + noise(m)
@@ -510,12 +459,12 @@ def predict(
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled Frenet motion: ``FrenetMotion.propagate``'s RK4 sub-steps of ``FrenetMotion.derivative``
-# (``tracker.motion``) over all states in one numba call: the curvature by linear interpolation of the
-# same table (wrapped on a closed road, 0 beyond an open road's ends), the kinematic slip, the
-# road-following prior's decays and the optional acceleration state (``rk4_propagate``; wrapping stays
-# with the caller). ``ukf_predict_kernel``: the whole UKF prediction of a batch (sigma points, RK4,
-# moments, process noise) in one call, the same steps as ``tracker.motion.predict``'s compiled path.
+# The Frenet kinematics (the module docstring) integrated by classic RK4 over all states in one call
+# (``rk4_propagate``, for ``FrenetMotion.propagate``; the wrapping stays with the caller): the road's
+# curvature by linear interpolation of ``FrenetMotion``'s table (wrapped on a closed road, 0 beyond an
+# open road's ends), the kinematic slip, the road-following prior's decays and the optional
+# acceleration state. ``ukf_predict_kernel``: the whole UKF prediction of a batch (sigma points, RK4,
+# moments, process noise) in one call, ``predict``'s steps for ``FrenetMotion``.
 # --------------------------------------------------------------------------------------------------
 
 
@@ -540,6 +489,9 @@ def _interp(x, xp, fp):
 
 @njit(inline="always")
 def _curvature(s, table_s, table_k, closed, length):
+    """The road's curvature (1/m) at ``s`` from ``FrenetMotion``'s table ``(table_s, table_k)``,
+    interpolated linearly: wrapped on a closed road, 0 beyond the ends of an open one (the road's
+    straight extrapolation)."""
     if not closed and (s < table_s[0] or s > table_s[-1]):
         return 0.0
     return _interp(s % length if closed else s, table_s, table_k)  # Python's float modulo: numpy's np.mod
@@ -547,7 +499,15 @@ def _curvature(s, table_s, table_k, closed, length):
 
 @njit(inline="always")
 def _derivative(x, out, params):
-    """``FrenetMotion.derivative`` of one state ``x`` into ``out``; ``params`` as ``rk4_propagate``'s."""
+    """``dx/dt`` of one state ``x`` into ``out`` (``params`` as ``rk4_propagate``'s)::
+
+        [v cos(xi + beta) / max(1 - kappa(s) n, min_denominator), v sin(xi + beta), a,
+         xi_dot - heading_decay (xi + beta), -yaw_rate_decay xi_dot, 0, 0, -a / acceleration_time]
+
+    with ``a`` the acceleration state (8 coordinates; else ``v`` constant) and the kinematic slip angle
+    ``beta`` (0 when ``slip_lever = 0``): ``sin beta = yaw_rate slip_lever L / v``, clipped to
+    ``+-max_sin_slip``, ``|v|`` floored at ``slip_min_speed``, for the yaw rate ``kappa v cos(xi) / (1 -
+    kappa n) + xi_dot``. The curvature ``kappa(s)`` is ``_curvature``'s."""
     (table_s, table_k, closed, length, min_denominator, slip_lever, heading_decay, yaw_rate_decay,
      acceleration_time, max_sin_slip, slip_min_speed) = params
     s, n, v, xi, xi_dot = x[0], x[1], x[2], x[3], x[4]
@@ -601,8 +561,8 @@ def rk4_propagate(x, steps, h, table_s, table_k, closed, length, min_denominator
 @njit(inline="always")
 def _relaxed(means, covs, relax, floor):  # pragma: no cover - compiled
     """Copies of ``means (C, 8)``, ``covs (C, 8, 8)`` with each acceleration (state 7) scaled by
-    ``relax[c]`` (the mean, then the covariance's row, then its column: ``tracker.motion.predict``'s
-    numpy order) and its variance then raised to at least ``floor[c]`` (``numpy.maximum``'s rule: a NaN
+    ``relax[c]`` (the mean, then the covariance's row, then its column, in ``relax_acceleration``'s
+    order) and its variance then raised to at least ``floor[c]`` (``numpy.maximum``'s rule: a NaN
     stays)."""
     means = means.copy()
     covs = covs.copy()

@@ -9,13 +9,15 @@ ground removal, the height ceiling and the projection to the road plane, ``lidar
    Road's projection (roadside clutter: guard rails, trees, parked cars).
 3. ``bearing_filter``: the paper's filter keeping the closest point per bearing bin, which removes
    points seen "through" an object (returns from inside a vehicle or from behind a gap).
+
+``filter_points`` runs steps 2 and 3 on a frame's returns in one call of the compiled kernel
+``road_filter_kernel`` (this module's), or one by one where it does not apply.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
 from tracker.cloud import CloudConfig, CloudResult, process_cloud
 from tracker.config import ClusteringConfig
 from tracker.frame import EgoState, Frame
@@ -79,20 +81,7 @@ def bearing_filter(points_e: np.ndarray, bin_width: float = np.deg2rad(0.2)) -> 
         return np.zeros(0, dtype=int)
     count = round(2.0 * np.pi / bin_width)
     tiles = abs(count * bin_width - 2.0 * np.pi) <= 1e-9  # the bins tile the circle: -pi and pi are one bin
-    if compiled_kernels.enabled():  # the same selection, one compiled call
-        from tracker.clustering import bearing_filter_kernel
-
-        return bearing_filter_kernel(np.ascontiguousarray(pts), float(bin_width), int(max(count, 1)), bool(tiles))
-    bearing = np.arctan2(pts[:, 1], pts[:, 0])
-    rng = np.hypot(pts[:, 0], pts[:, 1])
-    bins = np.floor(bearing / bin_width + 0.5).astype(np.int64)
-    if tiles:
-        bins = np.mod(bins, count)
-    order = np.lexsort((rng, bins))  # by bin, then by range
-    first = np.ones(len(order), dtype=bool)
-    first[1:] = bins[order][1:] != bins[order][:-1]
-    kept = order[first]
-    return kept[np.argsort(bearing[kept], kind="stable")]
+    return bearing_filter_kernel(np.ascontiguousarray(pts), float(bin_width), int(max(count, 1)), bool(tiles))
 
 
 def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig,
@@ -115,8 +104,8 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
     counts = {"points_off_road": 0, "points_bearing_filtered": 0}
     if len(scan) == 0:
         return scan, counts, np.zeros(0)
-    # (one return takes the staged path: Road.to_frenet's pure-Python path for one point gives other numbers)
-    fused = _filter_compiled(scan, ego, road, config) if len(scan) > 1 and compiled_kernels.enabled() else None
+    # one return takes the steps one by one: Road.to_frenet's pure-Python path for one point gives other numbers
+    fused = _filter_compiled(scan, ego, road, config) if len(scan) > 1 else None
     if fused is not None:
         kept, n, on_road = fused
         counts["points_off_road"] = len(scan) - on_road
@@ -133,11 +122,13 @@ def filter_points(scan: np.ndarray, ego: EgoState, road: Road,
 
 def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
                      config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """``filter_points``' steps in one compiled call (``tracker.preprocess.road_filter_kernel``:
-    the same formulas, the same numbers): the kept returns' indices into ``scan`` (bearing order), every
-    return's lateral offset ``n`` (m) and how many lie on the road; None where the kernel does not apply
-    (no seed grid, a bearing bin <= 0, a projection that did not converge): the staged path then runs.
-    Returns off the seed grid take their starts from the k-d tree (``Road.seed_missing``) and a second call."""
+    """``filter_points``' steps in one call of ``road_filter_kernel`` (the same kernels in the same
+    order as the steps one by one: the same numbers): the kept returns' indices into ``scan`` (bearing
+    order), every return's lateral offset ``n`` (m) and how many lie on the road; None where the kernel
+    does not apply (no seed grid, a bearing bin <= 0, a non-finite return, a projection that did not
+    converge): ``filter_points`` then takes the steps one by one (``Road.to_frenet``, whose fallbacks
+    handle the projection, ``Road.within_bounds``, ``bearing_filter``). Returns off the seed grid take
+    their starts from the k-d tree (``Road.seed_missing``) and a second call."""
     args = road.projection_kernel_args()
     if args is None or not config.bearing_bin > 0:
         return None
@@ -151,7 +142,7 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
     if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
         if not np.isfinite(pts[missing]).all():
-            return None  # a non-finite return: the staged path's error names it
+            return None  # a non-finite return: Road.to_frenet's error names it
         road.seed_missing(pts, s, missing)
         status, kept, n, on_road, *_ = road_filter_kernel(*head, s, True, *tail)
     return (kept, n, int(on_road)) if status == DONE else None
@@ -159,18 +150,19 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled lidar preprocessing: ``tracker.preprocess.filter_points``' steps 2 and 3 on a frame's
-# returns in one numba call (``road_filter_kernel``): the returns to G (``tracker.transforms.to_global``'s
-# formula), their projection on the centerline (``Road._project`` without a hint: the seed grid's start,
-# then the lock-step Newton iterations of ``project_kernel``), the road-bound test (``Road.within_bounds``)
-# and the closest return per bearing bin (``bearing_filter_kernel``). The same kernels and formulas in
-# the same order: the same numbers. Where a return is off the seed grid the caller seeds it from the
-# k-d tree and calls again; where Newton does not converge it takes the staged path (the bracketed search).
+# Steps 2 and 3 of ``filter_points`` on a frame's returns in one call (``road_filter_kernel``): the
+# returns to G (``tracker.transforms.to_global``'s formula), their projection on the centerline
+# (``Road.to_frenet`` without a hint: ``seed_kernel``'s start, then the lock-step Newton iterations of
+# ``project_kernel``), the road-bound test (``Road.within_bounds``) and the closest return per bearing
+# bin (``bearing_filter_kernel``). Where a return is off the seed grid the caller seeds it from the k-d
+# tree and calls again; where Newton does not converge the caller takes the steps one by one (the
+# projection's bisection).
 # --------------------------------------------------------------------------------------------------
 
 
 #: ``road_filter_kernel``'s status: done; some returns off the seed grid (the caller seeds them from the
-#: k-d tree and calls again with the seeds); hand back to the staged path.
+#: k-d tree and calls again with the seeds); a projection did not converge (the caller takes the steps
+#: one by one).
 DONE, SEED, STAGED = 0, 1, 2
 
 

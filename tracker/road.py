@@ -23,9 +23,8 @@ from typing import Literal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
-from tracker.centerline import ClothoidCenterline, HermiteCenterline
+from tracker.centerline import ClothoidCenterline, HermiteCenterline, node_seed_kernel, project_kernel, seed_kernel
 
 ArrayLike = float | Sequence[float] | np.ndarray
 
@@ -107,7 +106,7 @@ class Road:
         x0, y0, c0, s0, _ = centerline.frame1(0.0)
         x1, y1, c1, s1, _ = centerline.frame1(self.length)
         self._ends = ((x0, y0, c0, s0), (x1, y1, c1, s1))
-        self._ends_array = np.array(self._ends, dtype=float)  # the same, for the compiled projection
+        self._ends_array = np.array(self._ends, dtype=float)  # the same, for the projection's kernels
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -445,32 +444,11 @@ class Road:
         idx = np.where(dist <= margin, idx, -1)  # far from the road: defer to the tree
         self._grid = idx.reshape(shape).astype(np.int32)
 
-    def _nearest_node(self, pts: np.ndarray) -> np.ndarray:
-        """Index of a curve sample near each point (the nearest within the seed grid's resolution)."""
-        if self._grid is None:
-            return self._tree.query(pts, workers=-1 if len(pts) > 2000 else 1)[1]
-        cell = np.floor((pts - self._grid_origin) * (1.0 / SEED_GRID_RESOLUTION)).astype(np.intp)
-        inside = (cell >= 0).all(axis=1) & (cell[:, 0] < self._grid.shape[0]) & (cell[:, 1] < self._grid.shape[1])
-        idx = np.full(len(pts), -1, dtype=np.intp)
-        idx[inside] = self._grid[cell[inside, 0], cell[inside, 1]]
-        missing = idx < 0
-        if missing.any():
-            idx[missing] = self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1]
-        return idx
-
-    def _seed(self, pts: np.ndarray, node: np.ndarray) -> np.ndarray:
-        """The first Newton step from the curve samples ``node`` (one per point), whose frames are
-        stored: no curve evaluation."""
-        x, y, tx, ty, kappa = np.take(self._node_frame, node, axis=0).T
-        dx, dy = pts[:, 0] - x, pts[:, 1] - y
-        denom = np.maximum(1.0 - kappa * (dy * tx - dx * ty), PROJECTION_MIN_DENOMINATOR)
-        return self._nodes[node] + (dx * tx + dy * ty) / denom
-
     def projection_kernel_args(self) -> tuple | None:
         """The arguments of ``tracker.preprocess.road_filter_kernel`` that describe this road's
-        projection without a hint (``_project``'s compiled path: the seed grid, the stored curve
-        samples, the curve kernels' arrays, Newton's constants), from the seed grid's origin to
-        ``min_denominator``; None when the road has no seed grid (the k-d tree seeds every point)."""
+        projection without a hint (as ``_project``'s: the seed grid, the stored curve samples, the curve
+        kernels' arrays, Newton's constants), from the seed grid's origin to ``min_denominator``; None
+        when the road has no seed grid (the k-d tree seeds every point)."""
         if self._grid is None:
             return None
         args = self.__dict__.get("_projection_kernel_args")
@@ -486,42 +464,31 @@ class Road:
         """Newton's starts ``s`` (in place) of the points ``pts (N, 2)`` in G that the seed grid does not
         cover (``missing``): the first step from the k-d tree's nearest curve sample."""
         if missing.any():
-            s[missing] = self._seed(pts[missing], self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1])
+            node = self._tree.query(pts[missing], workers=-1 if missing.sum() > 2000 else 1)[1]
+            s[missing] = node_seed_kernel(np.ascontiguousarray(pts[missing]), node, self._node_frame, self._nodes,
+                                          PROJECTION_MIN_DENOMINATOR)
 
     def _project(self, pts: np.ndarray, s_start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        if s_start is None and self._grid is not None and compiled_kernels.enabled():
-            from tracker.centerline import seed_kernel  # _nearest_node and _seed in one call
-
-            pts = np.ascontiguousarray(pts, dtype=float)
+        """``(s, n)`` of points ``pts (N, 2)`` in G: Newton's iterations (``project_kernel``) from the
+        starts ``s_start``, or without them from the seed grid's curve sample (``seed_kernel``; the k-d
+        tree's off the grid). Points where Newton does not converge are retried from the global search
+        (a bad hint) or found by bisection (``_project_bracketed``)."""
+        pts = np.ascontiguousarray(pts, dtype=float)
+        if s_start is not None:
+            s = np.array(s_start, dtype=float)
+        elif self._grid is not None:
             s, missing = seed_kernel(pts, self._grid_origin, 1.0 / SEED_GRID_RESOLUTION, self._grid, self._node_frame,
                                      self._nodes, PROJECTION_MIN_DENOMINATOR)
             self.seed_missing(pts, s, missing)
-        elif s_start is None:
-            s = self._seed(pts, self._nearest_node(pts))
         else:
-            s = s_start
-        if compiled_kernels.enabled():  # the same iterations, one compiled call
-            from tracker.centerline import project_kernel
-
-            kind, *curve = self._curve.kernel_args()
-            s, lateral, pending = project_kernel(
-                kind, np.ascontiguousarray(pts, dtype=float), np.array(s, dtype=float), self.closed, self.length,
-                self._ends_array, *curve, PROJECTION_MAX_ITERATIONS, PROJECTION_TOLERANCE, PROJECTION_MAX_STEP,
-                PROJECTION_MIN_DENOMINATOR)
-            if not pending.any():
-                return s, lateral
-        else:
-            for _ in range(PROJECTION_MAX_ITERATIONS):
-                xy, tangent, kappa = self._frame_flat(self.wrap_s(s), extrapolate=True)
-                dx, dy = pts[:, 0] - xy[:, 0], pts[:, 1] - xy[:, 1]
-                along = dx * tangent[:, 0] + dy * tangent[:, 1]
-                lateral = dy * tangent[:, 0] - dx * tangent[:, 1]
-                denom = np.maximum(1.0 - kappa * lateral, PROJECTION_MIN_DENOMINATOR)
-                ds = np.clip(along / denom, -PROJECTION_MAX_STEP, PROJECTION_MAX_STEP)
-                s = self.wrap_s(s + ds)
-                pending = np.abs(ds) >= PROJECTION_TOLERANCE
-                if not pending.any():
-                    return s, lateral
+            s = np.empty(len(pts))
+            self.seed_missing(pts, s, np.ones(len(pts), dtype=bool))
+        kind, *curve = self._curve.kernel_args()
+        s, lateral, pending = project_kernel(
+            kind, pts, s, self.closed, self.length, self._ends_array, *curve, PROJECTION_MAX_ITERATIONS,
+            PROJECTION_TOLERANCE, PROJECTION_MAX_STEP, PROJECTION_MIN_DENOMINATOR)
+        if not pending.any():
+            return s, lateral
         if s_start is not None:  # a bad hint: retry these points from the global search
             s[pending], lateral[pending] = self._project(pts[pending], None)
         else:  # near a centre of curvature Newton may wander: bracket the nearest sample instead

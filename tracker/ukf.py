@@ -18,15 +18,14 @@ counts the repaired matrices.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import STATE_DIM, UKFParams
-import math
 from tracker.jit import njit
 from tracker.geometry import wrap_angle as wrap_angle_scalar
 
@@ -45,10 +44,11 @@ class Wrapping:
         return not self.angles and not self.periods
 
     def kernel_args(self) -> tuple[np.ndarray, int, float]:
-        """``(angles, period_index, period)`` for the compiled kernels (``tracker.ukf``): the
-        angle indices as an array, and the one periodic coordinate (index -1 when there is none)."""
+        """``(angles, period_index, period)``, the wrapping arguments of the kernels (``sigma_kernel``,
+        ``moments_kernel``, ...): the angle indices as an array, and the one periodic coordinate (index
+        -1 when there is none)."""
         if len(self.periods) > 1:
-            raise ValueError("the compiled kernels handle at most one periodic coordinate")
+            raise ValueError("the kernels handle at most one periodic coordinate")
         index, period = self.periods[0] if self.periods else (-1, 1.0)
         return np.array(self.angles, dtype=np.int64), int(index), float(period)
 
@@ -102,8 +102,8 @@ def make_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     return flat.reshape(sym.shape), count
 
 
-#: Shift of the unit-diagonal scaled matrix for which ``ensure_spd``'s compiled test
-#: (``tracker.ukf.certainly_positive_definite``) still finds a Cholesky factorisation before it
+#: Shift of the unit-diagonal scaled matrix for which ``ensure_spd``'s first test
+#: (``certainly_positive_definite``) still finds a Cholesky factorisation before it
 #: takes a matrix as positive definite without LAPACK: far above the ~1e-14 at which rounding could make
 #: any Cholesky factorisation of an 8 x 8 matrix fail.
 CERTAIN_SHIFT = 1e-8
@@ -112,15 +112,16 @@ CERTAIN_SHIFT = 1e-8
 def ensure_spd(cov: np.ndarray, floor: float) -> tuple[np.ndarray, int]:
     """``cov`` (..., n, n) with the matrices that are not positive semi-definite (smallest eigenvalue
     below 0) repaired: symmetrised, eigenvalues lifted to ``floor``. Whether a matrix is repaired does
-    not depend on the others in the batch. One batched Cholesky factorisation decides the common case
-    (all positive definite: returned unchanged; with the compiled kernels a test that proves it with
-    room to spare, ``CERTAIN_SHIFT``, decides first); only when it fails are the eigenvalues computed.
+    not depend on the others in the batch. The common case (all positive definite: returned unchanged)
+    is decided by a test that proves it with room to spare (``certainly_positive_definite``,
+    ``CERTAIN_SHIFT``) for a batch ``(N, n, n)``, else by one batched Cholesky factorisation; only when
+    that fails are the eigenvalues computed.
     Non-finite entries are not repaired here (``UnscentedTransform.sigma_points`` refuses them).
     Returns the matrices and how many were repaired."""
     cov = np.asarray(cov, dtype=float)
     if cov.size == 0:
         return cov, 0
-    if (compiled_kernels.enabled() and cov.ndim == 3 and cov.shape[1] == cov.shape[2]
+    if (cov.ndim == 3 and cov.shape[1] == cov.shape[2]
             and certainly_positive_definite(np.ascontiguousarray(cov), CERTAIN_SHIFT)):
         return cov, 0  # the usual batch: positive definite beyond doubt, no LAPACK call
     try:
@@ -181,7 +182,13 @@ class UnscentedTransform:
 
     def sigma_points(self, mean: np.ndarray, cov: np.ndarray, wrapping: Wrapping = NO_WRAP) -> np.ndarray:
         """Sigma points ``(..., 2n + 1, n)`` of ``N(mean (..., n), cov (..., n, n))``; wrapped
-        coordinates of the result are brought into range."""
+        coordinates of the result are brought into range.
+
+        A batch ``(C, n)`` takes ``sigma_kernel``. A covariance that is not positive definite is
+        repaired and counted (``cholesky``), and the points are built from numpy's Cholesky factor,
+        as they are for a single Gaussian or a batch of other shape: numba's LAPACK call (the kernel's)
+        and numpy's give factors that can differ in their last bits, and these callers' numbers stay
+        numpy's."""
         mean = np.asarray(mean, dtype=float)
         cov = np.asarray(cov, dtype=float)
         if mean.shape[-1] != self.n or cov.shape[-2:] != (self.n, self.n) or cov.shape[:-2] != mean.shape[:-1]:
@@ -191,11 +198,11 @@ class UnscentedTransform:
             )
         if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
             raise ValueError("sigma_points: mean and cov must be finite (a NaN/inf entered the filter)")
-        if mean.ndim == 2 and compiled_kernels.enabled():
+        if mean.ndim == 2:
             try:
                 return sigma_kernel(np.ascontiguousarray(mean), np.ascontiguousarray(cov), self.scale,
                                     *wrapping.kernel_args())
-            except np.linalg.LinAlgError:  # not positive definite: the numpy path repairs and counts it
+            except np.linalg.LinAlgError:  # not positive definite: repaired and counted below
                 pass
         chol = self.cholesky(cov)
         spread = self.scale * np.swapaxes(chol, -1, -2)  # rows = scaled columns of chol
@@ -243,19 +250,20 @@ class UnscentedTransform:
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled unscented-transform steps of the UKF prediction (``tracker.motion.predict``): the sigma
-# points of a batch of Gaussians and the weighted mean and covariance of propagated points, with the
-# state's wrapped coordinates (an angle wrapped to (-pi, pi], a periodic ``s`` to ``[0, period)``)
-# handled as ``tracker.ukf.Wrapping`` does. The Cholesky factors are LAPACK's, as numpy's; sums over
-# sigma points run in index order (numpy's matmul may sum in another order: the results agree to
-# rounding). A matrix that is not positive definite raises ``numpy.linalg.LinAlgError``; the caller
-# then takes the numpy path, which repairs and counts it.
+# The unscented transform of a batch of Gaussians: their sigma points (``sigma_kernel``) and the
+# weighted mean and covariance of propagated points (``moments_kernel``), with the state's wrapped
+# coordinates (angles wrapped to (-pi, pi], one periodic ``s`` to ``[0, period)``) as ``Wrapping``
+# defines them. The Cholesky factor is LAPACK's (through numba); sums over sigma points run in index
+# order. A matrix that is not positive definite raises ``numpy.linalg.LinAlgError``: the caller repairs
+# and counts it (``UnscentedTransform.sigma_points``). Whether a batch is positive definite beyond doubt
+# (``certainly_positive_definite``, ``ensure_spd``'s first test).
 # --------------------------------------------------------------------------------------------------
 
 
 @njit(inline="always")
 def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
-    """``Wrapping.wrap`` of one vector in place."""
+    """One vector's wrapped coordinates brought into range, in place: ``angles`` to (-pi, pi], the
+    coordinate ``period_index`` (none when -1) to ``[0, period)``."""
     for a in angles:
         x[a] = wrap_angle_scalar(x[a])
     if period_index >= 0:
@@ -264,7 +272,8 @@ def _wrap(x, angles, period_index, period):  # pragma: no cover - compiled
 
 @njit(inline="always")
 def _residual(x, angles, period_index, period):  # pragma: no cover - compiled
-    """``Wrapping.residual`` of one difference vector in place."""
+    """One difference vector's wrapped coordinates brought to their shortest representative, in place:
+    ``angles`` to (-pi, pi], the coordinate ``period_index`` (none when -1) to ``[-period/2, period/2)``."""
     for a in angles:
         x[a] = wrap_angle_scalar(x[a])
     if period_index >= 0:
