@@ -166,6 +166,7 @@ CALLED_FROM_PYTHON = [
     "clustering.occluded_ends_kernel", "kalman.measurement_update_kernel", "extent.grow_extent_kernel",
     "extent.extent_rules_kernel", "pairs.update_pairs_kernel", "preparation.scanned_batch_kernel",
     "reduction.overlapping_pairs_kernel", "preprocess.road_filter_kernel", "centerline.seed_kernel",
+    "centerline.node_seed_kernel",
     "gating.candidate_pairs_kernel", "pairs.prepared_pairs_kernel", "birth.road_births_kernel",
     "ukf.certainly_positive_definite", "reduction.inside_updated_kernel", "reduction.absorb_candidates_kernel",
     "reduction.overlapping_candidates_kernel", "extraction.report_centres_kernel",

@@ -270,6 +270,7 @@ def other_calls() -> None:
     ring.frame(np.array([1.0, 2.0]))
     tracker = _tracker()
     road = tracker.road
+    road.to_frenet(np.array([[10.0, 1.0], [150.0, 400.0]]))  # a point off the seed grid: its start from the k-d tree
     rect = Rectangles(np.array([[10.0, 0.0], [11.0, 0.5]]), np.zeros(2), np.zeros(2), np.full(2, 4.5), np.full(2, 1.9))
     _duplicate_groups(rect)
     occluded_fraction(rect, np.array([1, 2]), rect, np.array([3, 4]))
