@@ -276,14 +276,13 @@ def test_a_rear_whose_near_end_borders_a_shadow_is_born_as_before():
 
 
 @pytest.mark.parametrize("closed", [False, True])
-def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch):
-    """``visible_road_births``' one compiled call (``tracker.birth.road_births_kernel``) gives
-    bit for bit what its steps give with the compiled kernels (``road_births``, the acceleration state,
-    ``to_vehicle``, ``entering_view``): no tracks, tracks hiding some births, tracks beside some births,
-    7 and 8 state coordinates, an open road's ends (births beyond them left out); and the numpy path
-    keeps the same components."""
-    pytest.importorskip("numba")
-    from tracker import compiled
+def test_visible_road_births_equal_their_steps_and_the_oracle(closed):
+    """``visible_road_births``' one compiled call (``tracker.birth.road_births_kernel``) gives bit for
+    bit what its steps give (``road_births``, the acceleration state, ``to_vehicle``, ``entering_view``):
+    no tracks, tracks hiding some births, tracks beside some births, 7 and 8 state coordinates, an open
+    road's ends (births beyond them left out); and the oracle (its occlusion in numpy) keeps the same
+    components."""
+    from oracles import birth as oracle
     from tracker.birth import entering_view, visible_road_births
     from tracker.measurement import to_vehicle
 
@@ -308,7 +307,6 @@ def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch
         tracks = to_vehicle(tracks_state, ego, road)
         labels = np.arange(count)
         for accel in (None, 0.25):
-            monkeypatch.setenv(compiled.ENV_SWITCH, "1")
             got = visible_road_births(road, s_ego, ego, 60.0, config, accel, tracks, labels, 3.0)
             means, covs = road_births(road, s_ego, ego.v, 60.0, config)
             if accel is not None:
@@ -320,9 +318,9 @@ def test_visible_road_births_compiled_equal_the_staged_steps(closed, monkeypatch
                 means, covs = means[keep], covs[keep]
             np.testing.assert_array_equal(got[0], means)
             np.testing.assert_array_equal(got[1], covs)
-            monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-            ref = visible_road_births(road, s_ego, ego, 60.0, config, accel, tracks, labels, 3.0)
+            ref = oracle.visible_road_births(road, s_ego, ego, 60.0, config, accel, tracks, labels, 3.0)
             np.testing.assert_array_equal(ref[0], got[0])
+            np.testing.assert_array_equal(ref[1], got[1])
             kept.append(len(got[0]) / max(len(road_births(road, s_ego, ego.v, 60.0, config)[0]), 1))
     assert min(kept) < 1.0 and max(kept) == 1.0  # some births dropped, and frames with all of them
 

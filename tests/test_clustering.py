@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker import compiled
-from tracker.clustering import (associate_radar, continued_ends, distance_partition, fragment_owners, occluded_ends,
-                                points_in_rectangles, split_across)
+from oracles import clustering as oracle
+from tracker.clustering import (SPLIT_MAX_CUTS, associate_radar, continued_ends, distance_partition, fragment_owners,
+                                occluded_ends, ordered_clusters_kernel, points_in_rectangles)
 from tracker.preparation import prepare_batch
 
 
@@ -33,6 +33,8 @@ def test_distance_partition_components():
     assert distance_partition(np.zeros((0, 2)), 1.0).shape == (0,)
     with pytest.raises(ValueError, match="threshold"):
         distance_partition(a, -1.0)
+    with pytest.raises(ValueError, match="finite"):  # a point the grid cannot hold, which the whole graph rejects
+        distance_partition(np.array([[0.0, 0.0], [np.nan, 1.0]]), 1.0)
 
 
 def test_associate_radar_greedy_within_gate():
@@ -44,43 +46,11 @@ def test_associate_radar_greedy_within_gate():
     np.testing.assert_array_equal(associate_radar(clusters, np.zeros((0, 2))), [-1, -1, -1])
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_dense_components_equal_scipys(seed):
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    from tracker.clustering import dense_components
-
-    rng = np.random.default_rng(seed)
-    count = int(rng.integers(1, 60))
-    adj = rng.random((count, count)) < 1.5 / count
-    _, want = connected_components(csr_matrix(adj), directed=False)
-    np.testing.assert_array_equal(dense_components(adj), want)
-    assert dense_components(np.zeros((0, 0), dtype=bool)).shape == (0,)
-
-
-def _oracle_partition(points: np.ndarray, threshold: float) -> np.ndarray:
-    """Connected components of the whole threshold graph (scipy), relabelled by first point."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    pairs = cKDTree(points).query_pairs(threshold, output_type="ndarray")
-    n = len(points)
-    labels = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
-                                  directed=False)[1]
-    _, first = np.unique(labels, return_index=True)
-    rank = np.empty(len(first), dtype=int)
-    rank[np.argsort(first)] = np.arange(len(first))
-    return rank[labels]
-
-
 @pytest.mark.parametrize("seed", range(4))
 @pytest.mark.parametrize("order", ["scan", "shuffled"])
 def test_distance_partition_equals_the_whole_graph_components(seed, order):
-    # a scan-like cloud (objects as dense arcs, clutter) in scan order, and the same shuffled: the run
-    # decomposition must give exactly the components of the full graph (shuffled: hundreds of runs,
-    # the sparse path; scan order: few runs, the dense path)
+    # a scan-like cloud (objects as dense arcs, clutter) in scan order, and the same shuffled: exactly
+    # the components of the whole graph
     rng = np.random.default_rng(seed)
     parts = []
     for _ in range(12):
@@ -91,26 +61,64 @@ def test_distance_partition_equals_the_whole_graph_components(seed, order):
     pts = np.vstack(parts)
     pts = pts[np.argsort(np.arctan2(pts[:, 1], pts[:, 0]))] if order == "scan" else pts[rng.permutation(len(pts))]
     for threshold in (0.3, 1.0, 3.0):
-        np.testing.assert_array_equal(distance_partition(pts, threshold), _oracle_partition(pts, threshold))
+        np.testing.assert_array_equal(distance_partition(pts, threshold), oracle.distance_partition(pts, threshold))
 
 
-def test_split_across_cuts_wide_groups_at_their_largest_lateral_gap():
-    """A group wider than ``width`` across the road is cut at its largest gap in ``n`` (again while a
-    part is still wider); narrow groups, and wide ones without a gap of ``gap`` (one vehicle at an
-    angle, its side continuous), stay whole."""
+@pytest.mark.parametrize("seed", range(4))
+def test_distance_partition_equals_the_oracle_on_the_grids_edges(seed):
+    """Scattered points, a dense random walk (cells holding many points), points exactly on the
+    grid's cell boundaries, a few points spread over kilometres (more grid columns than the counting
+    sort takes: the cells sorted by argsort) and points too far apart for the grid's keys (the whole
+    graph then); thresholds from 0.2 to 3 m."""
+    rng = np.random.default_rng(seed)
+    clouds = [rng.uniform(-80.0, 80.0, (600, 2)), np.cumsum(rng.normal(0.0, 0.4, (700, 2)), axis=0),
+              np.round(rng.uniform(-5.0, 5.0, (300, 2)) / 0.25) * 0.25, rng.uniform(-1.0, 1.0, (1, 2)),
+              np.concatenate([rng.uniform(-2000.0, 2000.0, (40, 2)), rng.uniform(0.0, 3.0, (20, 2))]),
+              np.array([[0.0, 0.0], [1e18, -1e18], [0.5, 0.0]])]
+    for pts in clouds:
+        for threshold in (0.2, 0.5 * np.sqrt(2.0), 1.0, 3.0):
+            np.testing.assert_array_equal(distance_partition(pts, threshold), oracle.distance_partition(pts, threshold))
+
+
+def _cut_across(n: np.ndarray, group: np.ndarray, width: float, gap: float) -> tuple[list[list[int]], int]:
+    """The clustering's cuts across the road (``ordered_clusters_kernel``) of free points, one connected
+    component per ``group``: the clusters as sorted lists of point indices (sorted), and the parts added."""
+    count = len(n)
+    pts = np.column_stack([np.arange(count, dtype=float), np.zeros(count)])  # x tells each point's index
+    component = np.unique(group, return_inverse=True)[1].reshape(-1).astype(np.int64)
+    ordered, edges, _, added = ordered_clusters_kernel(pts, np.full(count, -1, dtype=np.int64), np.zeros(count, dtype=bool),
+                                                       component, 0, np.asarray(n, dtype=float), True, width, gap,
+                                                       SPLIT_MAX_CUTS)
+    return sorted(sorted(ordered[a:b, 0].astype(int).tolist()) for a, b in zip(edges[:-1], edges[1:])), int(added)
+
+
+def _parts(part: np.ndarray) -> list[list[int]]:
+    """A part index per point as sorted lists of point indices (sorted)."""
+    return sorted(np.flatnonzero(part == p).tolist() for p in np.unique(part))
+
+
+def test_clusters_wide_across_the_road_are_cut_at_their_largest_lateral_gap():
+    """A cluster wider than ``width`` across the road is cut at its largest gap in ``n`` (again while a
+    part is still wider); narrow clusters, and wide ones without a gap of ``gap`` (one vehicle at an
+    angle, its side continuous), stay whole; the same parts as ``oracles.clustering.split_across``."""
     n = np.array([0.0, 0.2, 0.4, 1.2, 1.5, 3.0, 3.1, 5.0, 5.2, 5.3])
     one = np.zeros(len(n), dtype=int)
-    assert split_across(n, one, 3.5, 0.5).tolist() == [0] * 7 + [1] * 3  # cut at 3.1 | 5.0
-    assert split_across(n, one, 2.0, 0.5).tolist() == [0] * 5 + [1] * 2 + [2] * 3  # and at 1.5 | 3.0
-    assert split_across(n, one, 6.0, 0.5).tolist() == [0] * 10  # narrow enough
+    assert _cut_across(n, one, 3.5, 0.5) == ([list(range(7)), [7, 8, 9]], 1)  # cut at 3.1 | 5.0
+    assert _cut_across(n, one, 2.0, 0.5) == ([[0, 1, 2, 3, 4], [5, 6], [7, 8, 9]], 2)  # and at 1.5 | 3.0
+    assert _cut_across(n, one, 6.0, 0.5) == ([list(range(10))], 0)  # narrow enough
     side = np.linspace(-1.0, 4.0, 60)  # a bus at an angle: 5 m across, no gap
-    assert split_across(side, np.zeros(60, dtype=int), 3.0, 0.5).tolist() == [0] * 60
-    # two groups, in any order of the points: each is cut on its own; parts numbered by group, then n
+    assert _cut_across(side, np.zeros(60, dtype=int), 3.0, 0.5) == ([list(range(60))], 0)
+    # two clusters, in any order of the points: each is cut on its own
     rng = np.random.default_rng(1)
     order = rng.permutation(20)
-    both = split_across(np.r_[n, n][order], np.r_[one + 7, one + 3][order], 3.5, 0.5)
-    assert both.tolist() == np.r_[[2] * 7 + [3] * 3, [0] * 7 + [1] * 3][order].tolist()
-    assert split_across(np.zeros(0), np.zeros(0, dtype=int), 3.0, 0.5).tolist() == []
+    both_n, both_group = np.r_[n, n][order], np.r_[one + 7, one + 3][order]
+    got, added = _cut_across(both_n, both_group, 3.5, 0.5)
+    assert added == 2 and got == _parts(oracle.split_across(both_n, both_group, 3.5, 0.5))
+    for trial in range(30):  # random clusters: the oracle's parts
+        count = int(rng.integers(1, 40))
+        offsets, group = np.cumsum(rng.uniform(0.0, 1.2, count)), rng.integers(0, 4, count)
+        got, _ = _cut_across(offsets, group, 2.5, 0.6)
+        assert got == _parts(oracle.split_across(offsets, group, 2.5, 0.6)), trial
 
 
 def _bearing_ends(cluster: np.ndarray) -> np.ndarray:
@@ -147,17 +155,13 @@ def test_occluded_ends_flags_the_end_next_to_a_nearer_return():
     assert not occluded_ends(_bearing_ends(rear), np.zeros((0, 2)), 2.5 * res, 0.5).any()
 
 
-@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
-def test_continued_ends_flags_a_side_that_goes_on_in_another_cluster(kernels, monkeypatch):
+def test_continued_ends_flags_a_side_that_goes_on_in_another_cluster():
     """A truck's left side 2 m to the right of the lidar, seen from 15 to 30 m ahead with rays every
     0.2 deg (gaps 0.4-1.6 m along it: grazing). One return is missing (at 22 m ahead), and the side
     falls apart into two clusters. The near part's far end and the far part's near end go on in the
     other part: continued; the far part's far end and the near part's near end are free. A return
     1 m beside the side's line beyond the far end (another car's corner) does not continue it; nor
     does the next ray's return farther than ``rays`` ray gaps along it."""
-    if kernels == "compiled" and not compiled.available():
-        pytest.skip("numba not installed")
-    monkeypatch.setenv(compiled.ENV_SWITCH, "1" if kernels == "compiled" else "0")
     x = 2.0 / np.tan(np.arange(np.arctan2(2.0, 30.0), np.arctan2(2.0, 15.0), np.radians(0.2)))  # far to near
     x = x[::-1]  # near to far along the side
     side = np.column_stack([x, np.full(len(x), -2.0)])
@@ -244,3 +248,114 @@ def test_segment_crosses_box_by_the_slab_test() -> None:
     half_w = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0])
     assert segment_crosses_box(start, end, half_l, half_w).tolist() == [True, False, False, True, True, False, False,
                                                                          False]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_points_in_rectangles_equal_the_oracle(seed):
+    """Overlapping and disjoint rectangles of every heading (duplicate hypotheses of one vehicle, trucks
+    beside cars), points inside, between and outside them, and on the widened rectangles' corners
+    (where the kernel's skip of a rectangle beyond its circumscribed circle is at its boundary)."""
+    from tracker.measurement import rectangle_corners
+
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        t = int(rng.integers(1, 16))
+        centre = rng.uniform(-15.0, 15.0, (t, 2))
+        psi, length, width = rng.uniform(-np.pi, np.pi, t), rng.uniform(2.0, 14.0, t), rng.uniform(0.8, 2.6, t)
+        corners = rectangle_corners(centre, psi, length + 1.4, width + 1.4).reshape(-1, 2)
+        pts = np.concatenate([rng.uniform(-20.0, 20.0, (300, 2)), centre + rng.normal(0.0, 1.0, (t, 2)), corners])
+        np.testing.assert_array_equal(points_in_rectangles(pts, centre, psi, length, width, 0.7),
+                                      oracle.points_in_rectangles(pts, centre, psi, length, width, 0.7))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_occluded_ends_equal_the_oracle(seed):
+    """The bearing ends of clusters of 1-40 points scattered around the sensor (some behind it, across
+    the bearing seam, some near the range limit) in a scan of their own points and a few hundred others;
+    windows of 1-5 rays, and the range cut on and off: the same flags, and some of each."""
+    rng = np.random.default_rng(seed)
+    flags = []
+    for _ in range(60):
+        clusters = []
+        for _ in range(int(rng.integers(1, 12))):
+            r, b = rng.uniform(5.0, 100.0), rng.uniform(-np.pi, np.pi)
+            centre = r * np.array([np.cos(b), np.sin(b)])
+            clusters.append(centre + rng.normal(0.0, 1.0, (int(rng.integers(1, 40)), 2)))
+        scan = np.concatenate(clusters + [rng.uniform(-100.0, 100.0, (int(rng.integers(0, 400)), 2))])
+        ends = prepare_batch(clusters).bearing_ends()
+        for window in np.radians([0.2, 0.5, 1.0]):
+            for max_range, range_margin in ((np.inf, 0.0), (100.0, 5.0)):
+                want = oracle.occluded_ends(ends, scan, window, 0.5, max_range, range_margin)
+                np.testing.assert_array_equal(occluded_ends(ends, scan, window, 0.5, max_range, range_margin), want)
+                flags.append(want)
+    flags = np.concatenate(flags)
+    assert flags.any() and (~flags).any() and (flags[:, 0] != flags[:, 1]).any()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_continued_ends_equal_the_oracle(seed):
+    """``continued_ends`` (the scan sorted by bearing, each end searching the bearing window of the disc
+    its test can reach) against the oracle's test of every return: ends all around the sensor (across
+    the seam behind it, and within a few metres of it, where the disc holds the lidar), returns
+    scattered and returns placed on the ends' continuations; the same flags, and some of each."""
+    rng = np.random.default_rng(seed)
+    flags = []
+    for _ in range(40):
+        k = int(rng.integers(1, 12))
+        r = np.concatenate([rng.uniform(0.5, 4.0, 2), rng.uniform(4.0, 90.0, 2 * k - 2)])
+        b = rng.uniform(-np.pi, np.pi, 2 * k)
+        b[:2] = np.pi - rng.uniform(0.0, 0.01, 2)
+        ends = np.column_stack([r * np.cos(b), r * np.sin(b)]).reshape(k, 2, 2)
+        angle = rng.uniform(-np.pi, np.pi, (k, 2))
+        outward = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+        half_gap = rng.uniform(0.05, 1.0, (k, 2))
+        on_line = ends + outward * rng.uniform(0.0, 3.0, (k, 2, 1)) + rng.normal(0.0, 0.2, (k, 2, 2))
+        scan = np.concatenate([rng.uniform(-90.0, 90.0, (300, 2)), on_line.reshape(-1, 2)])
+        want = oracle.continued_ends(ends, outward, half_gap, scan, 2.0, 0.3)
+        np.testing.assert_array_equal(continued_ends(ends, outward, half_gap, scan, 2.0, 0.3), want)
+        flags.append(want.ravel())
+    flags = np.concatenate(flags)
+    assert flags.any() and not flags.all()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_radar_association_equals_the_oracle(seed):
+    """Clusters (some empty) and detections scattered so that gates overlap and many pairs compete."""
+    rng = np.random.default_rng(seed)
+    taken = 0
+    for _ in range(100):
+        clusters = [rng.normal(rng.uniform(-20.0, 20.0, 2), 1.0, (int(rng.integers(0, 30)), 2))
+                    for _ in range(int(rng.integers(1, 12)))]
+        radar = rng.uniform(-20.0, 20.0, (int(rng.integers(0, 15)), 2))
+        got = associate_radar(clusters, radar, 3.0)
+        assert got.dtype == np.int64
+        np.testing.assert_array_equal(got, oracle.associate_radar(clusters, radar, 3.0))
+        taken += int((got >= 0).sum())
+    assert taken > 0
+
+
+def test_cluster_radar_ranges_equals_cluster_radar():
+    """``cluster_radar_ranges`` (one compiled call) against ``cluster_radar`` on the clusters' views: the
+    same detection per cluster (its velocity row, read-only) and free detections, for clusters of one
+    point, more detections than clusters, detections exactly at the gate and none."""
+    from tracker.clustering import cluster_radar, cluster_radar_ranges
+    from tracker.frame import RadarDetections
+
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        sizes = rng.integers(1, 6, int(rng.integers(1, 8)))
+        edges = np.concatenate([[0], np.cumsum(sizes)])
+        points = rng.uniform(0.0, 20.0, (int(edges[-1]), 2))
+        count = int(rng.integers(0, 12))
+        hits = points[rng.integers(0, len(points), count)] + rng.normal(0.0, 2.0, (count, 2))
+        if count and trial % 3 == 0:
+            hits[0] = points[0] + [3.0, 0.0]  # exactly at the gate
+        radar = RadarDetections(t=np.full(count, 1.0), x=hits[:, 0], y=hits[:, 1], vx=rng.normal(size=count),
+                                vy=rng.normal(size=count))
+        keep = rng.random(len(sizes)) < 0.8
+        lo, hi = edges[:-1][keep], edges[1:][keep]
+        velocities, index = cluster_radar([points[a:b] for a, b in zip(lo, hi)], radar, 1.0, 3.0)
+        got, got_free = cluster_radar_ranges(points, lo, hi, radar, 1.0, 3.0)
+        assert [v is None for v in got] == [v is None for v in velocities]
+        assert all(a is None or (np.array_equal(a, b) and not b.flags.writeable) for a, b in zip(velocities, got))
+        assert got_free.dtype == np.int64 and np.array_equal(got_free, np.setdiff1d(np.arange(count), index))

@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+import pytest
+
+from oracles import detection as oracle
+from oracles.detection import bearing_spans
 from tracker.config import DetectionConfig
-from tracker.detection import SCAN_OCCLUSION_MARGIN, bearing_spans, cap_missed_weights, detection_model, scan_occluded_fraction
+from tracker.detection import (SCAN_OCCLUSION_MARGIN, cap_missed_weights, detection_model, occluded_fraction,
+                               scan_occluded_fraction)
 from tracker.measurement import Rectangles
 
 RES = np.radians(0.2)
@@ -81,3 +86,52 @@ def test_cap_missed_weights_leaves_each_updated_label_at_most_the_rest_of_one() 
     out = cap_missed_weights(missed, labels, updated, updated_labels)
     np.testing.assert_allclose(out, [0.15, 0.05, 0.0, 0.1, 2.5], atol=1e-12)
     np.testing.assert_array_equal(cap_missed_weights(missed, labels, np.zeros(0), np.zeros(0, dtype=int)), missed)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_detection_model_equals_the_oracle(seed):
+    """``detection_model`` (one compiled call) against the oracle's vectorised model: rectangles all
+    around the sensor (across the +-pi seam behind it), near and beyond the lidar range, hidden by nearer
+    tracks of other labels and by scan returns (several beams on one ray); without occluders, without a
+    scan, with occlusion off, and for no components; ``occluded_fraction`` and ``scan_occluded_fraction``
+    on their own."""
+    rng = np.random.default_rng(seed)
+
+    def rects(count):
+        r, b = rng.uniform(3.0, 110.0, count), rng.uniform(-np.pi, np.pi, count)
+        b[:3] = np.pi - rng.uniform(0.0, 0.02, 3)  # straddling the seam behind the sensor
+        return Rectangles(np.column_stack([r * np.cos(b), r * np.sin(b)]), rng.uniform(-np.pi, np.pi, count),
+                          rng.uniform(0.0, 30.0, count), rng.uniform(2.0, 14.0, count), rng.uniform(1.5, 2.6, count))
+
+    comps, tracks = rects(60), rects(12)
+    labels = rng.integers(0, 15, 60)
+    track_labels = rng.integers(0, 15, 12)
+    scan = np.concatenate([tracks.corners().reshape(-1, 2), rng.uniform(-60.0, 60.0, (400, 2))])
+    scan = np.concatenate([scan, scan[:200] * rng.uniform(0.97, 1.03, (200, 1))])  # several beams on one ray
+    cases = [(DetectionConfig(), tracks, track_labels, scan), (DetectionConfig(), None, None, scan),
+             (DetectionConfig(), tracks, track_labels, None), (DetectionConfig(occlusion=False), tracks, track_labels, scan),
+             (DetectionConfig(), tracks.take(np.arange(0)), track_labels[:0], scan[:0])]
+    for config, occ, occ_labels, sc in cases:
+        got = detection_model(comps, labels, config, occ, occ_labels, scan=sc)
+        for a, b in zip(got, oracle.detection_model(comps, labels, config, occ, occ_labels, scan=sc)):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    hidden = occluded_fraction(comps, labels, tracks, track_labels)
+    np.testing.assert_allclose(hidden, oracle.occluded_fraction(comps, labels, tracks, track_labels), rtol=1e-12, atol=1e-12)
+    assert (hidden > 0.0).any()
+    by_scan = scan_occluded_fraction(comps, scan, RES)
+    np.testing.assert_allclose(by_scan, oracle.scan_occluded_fraction(comps, scan, RES), rtol=1e-12, atol=1e-12)
+    assert (by_scan > 0.0).any()
+    p_d = detection_model(comps, labels, DetectionConfig(), tracks, track_labels, scan=scan)[1]
+    # occlusion lowers some P_D part-way, range cuts others to 0
+    assert ((p_d > 0.0) & (p_d < DetectionConfig().p_detection)).any() and (p_d == 0.0).any()
+    empty = detection_model(comps.take(np.arange(0)), labels[:0], DetectionConfig(), tracks, track_labels, scan=scan)
+    assert empty[0].shape == (0,) and empty[1].shape == (0,)
+
+
+def test_the_detection_model_takes_one_batch_of_rectangles():
+    """One rectangle's fields without the batch axis (centre ``(2,)``) are no batch: a ValueError."""
+    one = Rectangles(np.array([40.0, 0.0]), np.array(0.0), np.array(20.0), np.array(4.8), np.array(2.0))
+    with pytest.raises(ValueError, match="batch of rectangles"):
+        detection_model(one, np.array(1), DetectionConfig())
+    with pytest.raises(ValueError, match="batch of rectangles"):
+        occluded_fraction(one, np.array([1]), car_ahead(20.0), np.array([2]))

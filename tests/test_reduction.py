@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from oracles import reduction as oracle
 from tracker.reduction import UNION_LENGTH_STD, Mixture, absorb_overlapping, cap, merge, prune, reduce
 from tracker.ukf import Wrapping
 
@@ -99,32 +100,8 @@ def test_merge_across_the_start_of_a_closed_road():
     assert len(merge(mix, gate=4.0)) == 2  # without the period they are 499.9 m apart
 
 
-def greedy_merge_oracle(mix: Mixture, gate: float, wrapping: Wrapping) -> Mixture:
-    """Vo & Ma's merge written plainly, one component at a time (the former implementation)."""
-    inv = np.linalg.inv(mix.covs)
-    remaining = np.ones(len(mix), dtype=bool)
-    out_w, out_m, out_p, out_l = [], [], [], []
-    for j in np.argsort(-mix.weights, kind="stable"):
-        if not remaining[j]:
-            continue
-        idx = np.flatnonzero(remaining)
-        d = wrapping.residual(mix.means[idx] - mix.means[j])
-        group = idx[np.einsum("ni,nij,nj->n", d, inv[idx], d) <= gate]
-        w = mix.weights[group]
-        dev = wrapping.residual(mix.means[group] - mix.means[j])
-        mean_dev = (w[:, None] * dev).sum(axis=0) / w.sum()
-        spread = dev - mean_dev
-        cov = (w[:, None, None] * (mix.covs[group] + spread[:, :, None] * spread[:, None, :])).sum(axis=0) / w.sum()
-        out_w.append(w.sum())
-        out_m.append(wrapping.wrap(mix.means[j] + mean_dev))
-        out_p.append(cov)
-        out_l.append(mix.labels[j])
-        remaining[group] = False
-    return Mixture(np.array(out_w), np.array(out_m), np.array(out_p), np.array(out_l))
-
-
 @pytest.mark.parametrize("seed", range(5))
-def test_batched_merge_equals_the_one_at_a_time_greedy_merge(seed):
+def test_merge_equals_the_one_at_a_time_greedy_merge(seed):
     rng = np.random.default_rng(seed)
     n = 40
     centres = rng.uniform([0, -5, 10, -0.2, -0.1, 4, 1.8], [50, 5, 20, 0.2, 0.1, 5, 2.0], (6, 7))
@@ -135,7 +112,7 @@ def test_batched_merge_equals_the_one_at_a_time_greedy_merge(seed):
     covs = a @ np.swapaxes(a, 1, 2) + np.diag([0.5, 0.1, 0.3, 0.01, 0.01, 0.2, 0.05])
     mix = Mixture(rng.uniform(0.01, 1.0, n), means, covs, np.arange(n))
     wrap = Wrapping(angles=(3,), periods=((0, 60.0),))
-    got, want = merge(mix, 4.0, wrap), greedy_merge_oracle(mix, 4.0, wrap)
+    got, want = merge(mix, 4.0, wrap), oracle.merge(mix, 4.0, wrap)
     assert len(want) < n  # something merged
     np.testing.assert_array_equal(got.labels, want.labels)
     for name in ("weights", "means", "covs"):
@@ -240,3 +217,240 @@ def test_a_coasting_tracks_prediction_is_no_fragment_of_the_newcomers_vehicle():
     # both seen (two fragments of one long vehicle): their union
     out, _ = absorb_overlapping(mix, 0.5, 0.5, keep_labels={3}, updated={3, 8})
     assert out.means[0, 5] == pytest.approx(7.3)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_merge_equals_the_oracle(seed):
+    """Mixtures of clumps of components (so that groups form), headings across +-pi and arc lengths
+    across a closed road's seam, with and without wrapping, gates of 4 and 30: the same groups (labels)
+    and the same moments to 1e-9."""
+    rng = np.random.default_rng(seed)
+    wrappings = [Wrapping(), Wrapping(angles=(3,), periods=((0, 500.0),))]
+    merged = 0
+    for _ in range(60):
+        n = int(rng.integers(2, 40))
+        centre = rng.choice([0.5, 250.0, 499.6], size=n)
+        means = np.column_stack([centre + rng.normal(0, 1.0, n), rng.normal(0, 1.0, n), rng.uniform(5, 30, n),
+                                 rng.choice([-3.1, 0.0, 3.1], size=n) + rng.normal(0, 0.05, n), rng.normal(0, 0.1, n),
+                                 rng.uniform(3, 12, n), rng.uniform(1.5, 2.6, n)])
+        a = rng.normal(size=(n, 7, 7)) * rng.uniform(0.1, 1.0, (n, 1, 1))
+        covs = a @ np.swapaxes(a, 1, 2) + 0.05 * np.eye(7)
+        mix = Mixture(rng.uniform(0.01, 1.0, n), np.mod(means, [500.0, 1e9, 1e9, 1e9, 1e9, 1e9, 1e9]), covs,
+                      rng.integers(0, 50, n))
+        for wrapping in wrappings:
+            for gate in (4.0, 30.0):
+                got, want = merge(mix, gate, wrapping), oracle.merge(mix, gate, wrapping)
+                np.testing.assert_array_equal(got.labels, want.labels)
+                for name in ("weights", "means", "covs"):
+                    np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9)
+                merged += len(got) < n
+    assert merged > 0
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_merge_of_low_dimensional_mixtures_equals_the_oracle(dim):
+    """Merging states of one to three coordinates (the position bound reads the first two only where
+    they exist): the same groups and moments as the oracle."""
+    rng = np.random.default_rng(dim)
+    for _ in range(50):
+        n = int(rng.integers(2, 12))
+        root = rng.normal(0.0, 1.0, (n, dim, dim)) * rng.uniform(0.2, 1.5, (n, 1, 1))
+        mix = Mixture(rng.uniform(0.05, 1.0, n), rng.choice([0.0, 3.0, 40.0], (n, 1)) + rng.normal(0.0, 1.0, (n, dim)),
+                      root @ np.swapaxes(root, 1, 2) + 0.05 * np.eye(dim), rng.integers(0, 9, n))
+        got, want = merge(mix, 4.0), oracle.merge(mix, 4.0)
+        np.testing.assert_array_equal(got.labels, want.labels)
+        for name in ("weights", "means", "covs"):
+            np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9)
+
+
+def test_merge_at_the_gate():
+    """Pairs whose distance lies just inside and just outside the gate along one axis of a diagonal
+    covariance (where the position bound that lets the merge skip a pair equals the distance itself):
+    merged only inside, as the oracle."""
+    gate = 4.0
+    for axis in (0, 1):
+        for factor in (1.0 - 1e-7, 1.0 + 1e-7, 1.0 + 1e-5, 1.0 - 1e-5):
+            covs = np.broadcast_to(np.diag([2.0, 0.5, 1.0, 0.01, 0.01, 0.3, 0.05]), (2, 7, 7)).copy()
+            means = np.zeros((2, 7))
+            means[1, axis] = np.sqrt(gate * covs[0, axis, axis] * factor)
+            mix = Mixture(np.array([0.9, 0.6]), means, covs, np.array([1, 2]))
+            got, want = merge(mix, gate), oracle.merge(mix, gate)
+            assert len(got) == len(want) == (1 if factor < 1.0 else 2), (axis, factor)
+            np.testing.assert_array_equal(got.labels, want.labels)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_screen_of_absorb_overlapping_equals_the_oracle(seed):
+    """``absorb_overlapping``'s compiled screen (``_screened_candidates``: the candidates and whether two
+    of them may overlap) against the oracle's candidates and pair test: random heavy components of a few
+    labels, apart and overlapping, curvilinear (across a closed road's seam too) and Cartesian; a periodic
+    lateral position (which the screen leaves to the pair test). A label is absorbed exactly where the
+    oracle finds a pair ``i < j`` that overlaps (along ``i``'s heading), and both outcomes are reached."""
+    from tracker.reduction import _position_periods, _screened_candidates
+
+    rng = np.random.default_rng(seed)
+    outcomes = set()
+    for _ in range(80):
+        n = int(rng.integers(2, 14))
+        means = np.column_stack([rng.choice([1.0, 150.0, 499.0], n) + rng.normal(0.0, 6.0, n), rng.normal(0.0, 2.0, n),
+                                 rng.uniform(5, 30, n), rng.normal(0.0, 0.3, n), np.zeros(n),
+                                 rng.uniform(3.0, 14.0, n), rng.uniform(1.6, 2.6, n)])
+        covs = np.broadcast_to(np.diag([1.0, 0.1, 1.0, 0.01, 0.01, rng.uniform(0.1, 2.0), 0.05]), (n, 7, 7)).copy()
+        mix = Mixture(rng.uniform(0.3, 1.0, n), np.mod(means, [500.0, *[1e9] * 6]), covs, rng.integers(1, 6, n))
+        for wrapping, cartesian in ((Wrapping(angles=(3,)), False), (Wrapping(angles=(3,), periods=((0, 500.0),)), False),
+                                    (Wrapping(angles=(3,)), True), (Wrapping(angles=(3,), periods=((1, 7.0),)), False)):
+            periods, s_period = _position_periods(wrapping)
+            cand, may_overlap = _screened_candidates(mix, 0.5, 0.3, cartesian, bool(periods), s_period)
+            want = oracle.absorb_candidates(mix, 0.5)
+            np.testing.assert_array_equal(cand, want)
+            over = oracle.overlapping(mix.means[want], 0.3, cartesian, periods) if len(want) >= 2 else np.zeros((0, 0))
+            assert may_overlap == (len(want) >= 2 if periods and s_period is None else bool(over.any()))
+            _, count = absorb_overlapping(mix, 0.5, 0.3, wrapping, cartesian, {1, 2}, {2, 3})
+            assert (count > 0) == bool(np.triu(over).any())  # the pairs taken in order (i < j)
+            outcomes.add(count > 0)
+    assert outcomes == {True, False}
+
+
+def test_overlapping_pairs_kernel_against_the_rule():
+    """``overlapping_pairs_kernel`` against the rule written out here: ``i`` and ``j`` overlap when the
+    centres are closer along the road (along ``i``'s heading, Cartesian) than half the lengths' sum
+    less ``overlap``, and across it than half the narrower width; ``s`` wraps on a closed road."""
+    from tracker.reduction import overlapping_pairs_kernel
+
+    rng = np.random.default_rng(7)
+    hits = 0
+    for cartesian, period in ((False, 0.0), (False, 300.0), (True, 0.0)):
+        for _ in range(30):
+            n = int(rng.integers(2, 12))
+            m = np.column_stack([rng.choice([2.0, 150.0, 298.0], n) + rng.normal(0.0, 5.0, n), rng.normal(0.0, 2.0, n),
+                                 np.zeros(n), rng.normal(0.0, 0.4, n), np.zeros(n), rng.uniform(3.0, 14.0, n),
+                                 rng.uniform(1.6, 2.6, n)])
+            heading = m[:, 3] if cartesian else np.zeros(n)
+            got = overlapping_pairs_kernel(m, np.cos(heading), np.sin(heading), cartesian, 0.3, period)
+            for i in range(n):
+                for j in range(n):
+                    d = m[j, :2] - m[i, :2]
+                    if period:
+                        d[0] -= period * np.floor(d[0] / period + 0.5)
+                    c, s = np.cos(heading[i]), np.sin(heading[i])
+                    along, across = (d[0] * c + d[1] * s, -d[0] * s + d[1] * c) if cartesian else (d[0], d[1])
+                    rule = (i != j and abs(along) < 0.5 * (m[i, 5] + m[j, 5]) - 0.3
+                            and abs(across) < 0.5 * min(m[i, 6], m[j, 6]))
+                    assert got[i, j] == rule, (cartesian, period, i, j)
+                    hits += rule
+    assert hits > 0
+
+
+def test_absorb_candidates_kernel_equals_the_oracle():
+    """``absorb_candidates_kernel`` against the oracle's candidates of ``absorb_overlapping``: the
+    heaviest component of each label among those of weight >= the threshold (weights at it, and ties of
+    weight, which go in index order), heaviest first; none and one too."""
+    from tracker.reduction import absorb_candidates_kernel
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        n = int(rng.integers(0, 16))
+        weights = rng.choice([0.2, 0.5, np.nextafter(0.5, 0.0), 0.7, 0.9], n)
+        labels = rng.integers(1, 6, n)
+        mix = Mixture(weights, np.zeros((n, 7)), np.zeros((n, 7, 7)), labels)
+        np.testing.assert_array_equal(absorb_candidates_kernel(weights, labels.astype(np.int64), 0.5),
+                                      oracle.absorb_candidates(mix, 0.5))
+
+
+def _random_mixture(rng, n: int, dim: int, road_length: float):
+    """``n`` random components of ``dim`` (7 or 8) state entries in a few groups of near-duplicates
+    (merged by a gate of 4), some across a closed road's start (``s`` below 0 and at or beyond
+    ``road_length``), weights partly at 1e-4 (the prune threshold) and 0.5, labels of a few values."""
+    centre = rng.choice([-0.4, 0.0, 30.0, road_length - 0.3, road_length, 0.5 * road_length], n)
+    means = np.column_stack([centre + rng.choice([0.0, 1.0], n) * rng.normal(0.0, 0.8, n), rng.normal(0.0, 1.5, n),
+                             rng.uniform(5, 30, n), rng.normal(0.0, 0.2, n) + rng.choice([0.0, np.pi], n),
+                             rng.normal(0.0, 0.05, n), rng.uniform(3.0, 14.0, n), rng.uniform(1.6, 2.6, n),
+                             rng.normal(0.0, 0.5, n)])[:, :dim]
+    root = rng.normal(0.0, 0.3, (n, dim, dim))
+    covs = root @ np.swapaxes(root, 1, 2) + np.diag(rng.uniform(0.05, 2.0, dim))
+    weights = np.where(rng.random(n) < 0.2, rng.choice([1e-4, np.nextafter(1e-4, 0.0), 0.5], n), rng.uniform(0.0, 1.0, n))
+    return weights, means, covs, rng.integers(1, 5, n)
+
+
+def _staged_reduce_in_view(mix, near, limit, lateral, bounds, period, **settings):
+    """The reduce stage step by step with the product's ``reduce`` (its merge compiled): the mask of the
+    components in view and on the road, ``Mixture.take``, ``reduce`` and ``numpy.mod`` of ``s``."""
+    inside = near <= limit
+    on_road = (lateral >= bounds[0]) & (lateral <= bounds[1])
+    counts = int((~inside).sum()), int((inside & ~on_road).sum())
+    mix = reduce(mix.take(inside & on_road), **settings)
+    if period is not None and len(mix):
+        mix.means[:, 0] = np.mod(mix.means[:, 0], period)
+    return mix, counts
+
+
+@pytest.mark.parametrize("dim", [7, 8])
+@pytest.mark.parametrize("seed", range(2))
+def test_reduce_in_view_equals_the_staged_reduction_and_the_oracle(seed, dim):
+    """``tracker.reduction.reduce_in_view`` by one compiled call (``reduce_kernel``) against the staged
+    product steps, bit for bit (weights, means, covariances, labels, both counts): random mixtures of 0
+    to 25 components, 7 and 8 state entries, closed (``s`` wraps, before and after the merge) and open
+    roads, ranges and lateral offsets at their limits, weights at the prune threshold, heavy components
+    of one label left apart (``merge_same_label``'s frames), caps of 3 and 100; and the oracle's reduce
+    stage (the same labels and counts, numbers to 1e-9)."""
+    from tracker.reduction import reduce_in_view
+
+    rng = np.random.default_rng(seed)
+    length, limit, bounds = 400.0, 60.0, (-3.0, 2.5)
+    seen = {"pending": 0, "capped": 0, "merged": 0, "empty": 0}
+    for trial in range(120):
+        n = int(rng.integers(0, 26)) if trial % 10 else int(trial % 3)  # some empty and single mixtures
+        mix = Mixture(*_random_mixture(rng, n, dim, length))
+        near = np.where(rng.random(n) < 0.15, limit, rng.uniform(0.0, 1.3 * limit, n))
+        lateral = np.where(rng.random(n) < 0.15, rng.choice(bounds, n), mix.means[:, 1] if n else np.zeros(0))
+        closed = bool(trial % 2)
+        wrapping = Wrapping(angles=(3,), periods=((0, length),) if closed else ())
+        settings = dict(prune_threshold=1e-4, merge_gate=4.0, max_components=3 if trial % 4 == 0 else 100,
+                        wrapping=wrapping, same_label_distance=None if trial % 5 == 0 else 3.0,
+                        same_label_min_weight=0.5, same_label_along_length=bool(trial % 3))
+        period = length if closed else None
+        ref, ref_counts = _staged_reduce_in_view(mix, near, limit, lateral, bounds, period, **settings)
+        got, *counts = reduce_in_view(mix, near, limit, lateral, bounds, s_period=period, **settings)
+        assert tuple(counts) == ref_counts
+        for name in ("weights", "means", "covs", "labels"):
+            a, b = getattr(got, name), getattr(ref, name)
+            assert a.shape == b.shape and a.dtype == b.dtype, name
+            np.testing.assert_array_equal(a, b, err_msg=name)
+        want, *want_counts = oracle.reduce_in_view(mix, near, limit, lateral, bounds, s_period=period, **settings)
+        assert tuple(want_counts) == ref_counts
+        np.testing.assert_array_equal(want.labels, got.labels)
+        for name in ("weights", "means", "covs"):
+            np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9)
+        kept = int(((near <= limit) & (lateral >= bounds[0]) & (lateral <= bounds[1]) & (mix.weights >= 1e-4)).sum())
+        heavy = ref.labels[ref.weights >= 0.5]
+        seen["pending"] += settings["same_label_distance"] is not None and len(set(heavy.tolist())) < len(heavy)
+        seen["capped"] += len(ref) == 3 and settings["max_components"] == 3 and kept > 3
+        seen["merged"] += len(ref) < kept
+        seen["empty"] += n == 0
+    assert all(seen.values()), seen
+
+
+def test_reduce_in_view_at_the_limits():
+    """Exact limits: a range equal to the limit is in view, a lateral offset equal to a bound on the
+    road, a weight equal to the prune threshold kept (one below it dropped), a pair at the merge gate's
+    boundary (distance^2 = gate along one axis, times 1 -+ 1e-7) merged only inside it, and ``s`` of
+    a lone component beyond the road's length (or below 0) taken modulo it."""
+    from tracker.reduction import reduce_in_view
+
+    wrapping = Wrapping(angles=(3,), periods=((0, 300.0),))
+    settings = dict(prune_threshold=1e-4, merge_gate=4.0, max_components=100, wrapping=wrapping,
+                    same_label_distance=3.0, s_period=300.0)
+    for factor in (1.0 - 1e-7, 1.0 + 1e-7):
+        covs = np.broadcast_to(np.diag([2.0, 0.5, 1.0, 0.01, 0.01, 0.3, 0.05]), (6, 7, 7)).copy()
+        means = np.zeros((6, 7))
+        means[:, 5:] = 4.5, 1.9
+        means[1, 0] = np.sqrt(4.0 * 2.0 * factor)  # at the gate from component 0
+        means[2, 0], means[3, 0], means[4, 0], means[5, 0] = 450.0, -150.0, -200.0, 200.0
+        weights = np.array([0.9, 0.6, 1e-4, np.nextafter(1e-4, 0.0), 0.3, 0.3])
+        mix = Mixture(weights, means, covs, np.arange(6))
+        near = np.array([50.0, 50.0, 50.0, 50.0, 60.0, np.nextafter(60.0, 61.0)])
+        lateral = np.array([2.5, -3.0, 0.0, 0.0, 0.0, 0.0])
+        got, left_view, off_road = reduce_in_view(mix, near, 60.0, lateral, (-3.0, 2.5), **settings)
+        assert (left_view, off_road) == (1, 0)
+        assert sorted(got.labels.tolist()) == ([0, 2, 4] if factor < 1.0 else [0, 1, 2, 4])
+        assert got.means[got.labels == 2, 0] == 150.0 and got.means[got.labels == 4, 0] == 100.0

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scenes import Car, Scene
 
+from oracles import tracker as oracle
 from tracker import Frame, Road, Track, Tracker, TrackerConfig
 from tracker.frame import EgoState, RadarDetections
 from tracker.reduction import Mixture
@@ -1120,12 +1121,10 @@ def test_stage_seconds_time_every_stage_of_a_step(curve):
     assert sum(tracker.stage_seconds.values()) <= wall  # the stages lie inside the steps
 
 
-def test_candidate_pairs_compiled_equal_numpy(monkeypatch):
-    """The update's pre-gating (``tracker.tracker._candidate_pairs``): the compiled kernel gives the
-    numpy pairs exactly, in the same order, with clusters owned by tracks, components of no group,
-    ``p_d`` of 0 and NaN, and centres on the reach's boundary."""
-    pytest.importorskip("numba")
-    from tracker import compiled
+def test_candidate_pairs_equal_the_oracle():
+    """The update's pre-gating (``tracker.tracker._candidate_pairs``, one compiled call): the oracle's
+    pairs exactly, in the same order, with clusters owned by tracks, components of no group, ``p_d`` of
+    0 and NaN, and centres on the reach's boundary."""
     from tracker.tracker import _candidate_pairs
 
     rng = np.random.default_rng(5)
@@ -1139,16 +1138,14 @@ def test_candidate_pairs_compiled_equal_numpy(monkeypatch):
         reach = rng.uniform(1.0, 30.0, count)
         # centres exactly on their reach: numpy's own distance to some cluster's centroid as the reach
         centroid = np.add.reduceat(np.concatenate(clusters), np.cumsum(size) - size) / size[:, None]
-        dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)  # as _candidate_pairs takes it
+        dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)  # as the oracle takes it
         for i in range(min(count, 4)):
             reach[i] = dist[i, i % k]
         p_d = rng.choice([0.0, 0.5, 0.9, np.nan], size=count, p=[0.2, 0.3, 0.4, 0.1])
         owned = rng.choice([-1, 0, 1, 2], size=k)
         group = rng.choice([-1, 0, 1, 2], size=count)
         offsets = np.concatenate([[0], np.cumsum(size)])
-        monkeypatch.setenv(compiled.ENV_SWITCH, "0")
-        ref = _candidate_pairs(center, reach, np.concatenate(clusters), offsets, p_d, owned, group)
-        monkeypatch.setenv(compiled.ENV_SWITCH, "1")
+        ref = oracle.candidate_pairs(center, reach, np.concatenate(clusters), offsets, p_d, owned, group)
         got = _candidate_pairs(center, reach, np.concatenate(clusters), offsets, p_d, owned, group)
         for a, b in zip(got, ref):
             np.testing.assert_array_equal(a, b)
@@ -1182,3 +1179,247 @@ def test_extract_orders_by_weight_splits_a_second_component_and_holds_back_the_u
     assert tr.stats["tracks_beyond_report_range"] == 1
     assert np.array_equal(tracks[2].mean, means[2, :7]) and not tracks[2].mean.flags.writeable
     assert tr._lost.last_updated(20, -1.0) == 1.0 and tr._lost.lost == {}
+
+
+def _curved_roads():
+    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
+                                    lanes=3, lane_width=3.5)
+    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
+    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
+                               lane_width=3.5)
+    return {"clothoid-open": open_road, "hermite-closed": ring}
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_the_report_centres_equal_to_vehicle_exactly(name):
+    """``Tracker._extract``'s report-range centres (``tracker.tracker._centres``: one compiled call,
+    ``report_centres_kernel``) are ``to_vehicle(means[index]).center`` bit for bit: 7 and 8 columns,
+    beyond an open road's ends, a repeated index, one row, none, a non-C-contiguous mixture; a non-finite
+    ``s`` among the rows raises to_vehicle's error."""
+    from tracker.measurement import to_vehicle
+    from tracker.tracker import _centres
+
+    road = _curved_roads()[name]
+    rng = np.random.default_rng(7)
+    ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
+    for dim in (7, 8):
+        means = rng.normal(0.0, 1.0, (30, dim))
+        means[:, 0] = rng.uniform(-30.0, road.length + 30.0, 30) % (road.length if road.closed else np.inf)
+        means[:, 1] = rng.uniform(-8.0, 8.0, 30)
+        means[3, 0] = np.nan  # not among the rows asked for: no error
+        for index in (np.array([0, 5, 5, 29, 2]), np.array([11]), np.arange(4, 30), np.zeros(0, dtype=np.intp)):
+            index = index.astype(np.intp)
+            got = _centres(means, index, ego, road, "curvilinear")
+            ref = to_vehicle(means[index], ego, road).center
+            assert got.shape == ref.shape == (len(index), 2)
+            assert np.array_equal(got, ref)
+        strided = np.asfortranarray(means)
+        assert np.array_equal(_centres(strided, np.array([1, 2], dtype=np.intp), ego, road, "curvilinear"),
+                              to_vehicle(means[[1, 2]], ego, road).center)
+        with pytest.raises(ValueError, match="s must be finite"):
+            _centres(means, np.array([1, 3], dtype=np.intp), ego, road, "curvilinear")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_duplicate_groups_equal_the_oracle(seed):
+    """``_duplicate_groups`` (``overlap_groups_kernel``) against the oracle's separating-axis test:
+    overlapping and disjoint rectangles of every heading (duplicate hypotheses of one vehicle, trucks
+    beside cars); groups form."""
+    from tracker.measurement import Rectangles
+    from tracker.tracker import _duplicate_groups
+
+    rng = np.random.default_rng(seed)
+    shared = 0
+    for _ in range(60):
+        t = int(rng.integers(1, 16))
+        rect = Rectangles(rng.uniform(-15.0, 15.0, (t, 2)), rng.uniform(-np.pi, np.pi, t), np.zeros(t),
+                          rng.uniform(2.0, 14.0, t), rng.uniform(0.8, 2.6, t))
+        got = _duplicate_groups(rect)
+        np.testing.assert_array_equal(got, oracle.duplicate_groups(rect))
+        shared += got.max() < t - 1
+    assert shared > 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_drop_inside_updated_equals_the_oracle(seed):
+    """``Tracker._drop_inside_updated`` (one compiled call, ``inside_updated_kernel``) against the oracle
+    (``points_in_rectangles`` with margin 0): random components of updated and idle labels around a few
+    cars on a curved road, centres on the rectangles' edges too; the same mixture and counter (none
+    dropped, some dropped)."""
+    from tracker.measurement import to_vehicle
+
+    rng = np.random.default_rng(seed)
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    ego = EgoState(*road.frame(np.array(40.0))[0], float(road.frame(np.array(40.0))[1]), 15.0, 0.0)
+    outcomes = set()
+    for _ in range(40):
+        n = int(rng.integers(1, 14))
+        means = np.column_stack([rng.choice([60.0, 80.0, 170.0], n) + rng.normal(0.0, 2.0, n), rng.normal(0.0, 2.0, n),
+                                 rng.uniform(5, 20, n), rng.normal(0.0, 0.1, n), np.zeros(n), rng.uniform(3.0, 12.0, n),
+                                 rng.uniform(1.6, 2.6, n), np.zeros(n)])
+        edge = rng.random(n) < 0.3  # some centres on the heaviest one's front edge
+        means[edge, :2] = means[0, :2] + [0.5 * means[0, 5], 0.0]
+        labels = rng.integers(1, 7, n)
+        mix = Mixture(rng.uniform(0.2, 1.0, n), means, np.broadcast_to(np.eye(8) * 0.1, (n, 8, 8)).copy(), labels)
+        strong = set(rng.choice(np.arange(1, 7), 3, replace=False).tolist())
+        tracker = Tracker(road, TrackerConfig())
+        tracker.mixture, tracker._strong_labels = mix, strong
+        tracker._drop_inside_updated(ego)
+        updated = np.isin(labels, list(strong))
+        heavy = mix.weights > tracker.config.reduction.extraction_threshold
+        seen, idle = np.flatnonzero(updated & heavy), np.flatnonzero(~updated)
+        keep = np.ones(n, dtype=bool)
+        if len(seen) and len(idle):
+            rect = to_vehicle(means, ego, road)
+            keep[idle[oracle.inside_updated(rect.center, rect.psi, rect.length, rect.width, seen, idle)]] = False
+        assert tracker.stats["components_inside_updated_dropped"] == int((~keep).sum())
+        for name in ("weights", "means", "covs", "labels"):
+            np.testing.assert_array_equal(getattr(tracker.mixture, name), getattr(mix.take(keep), name))
+        outcomes.add(len(tracker.mixture) < n)
+    assert outcomes == {True, False}
+
+
+def _cluster_scene(seed: int, config: TrackerConfig, tracks: int | None = None):
+    """A tracker with a random mixture and reported tracks, and the points, frame and predicted track
+    rectangles its ``_cluster`` sees: overlapping track rectangles (duplicates of one vehicle), points in
+    several rectangles, strays just outside them, blobs wide across the road (their lateral offsets are
+    their y, with gaps to cut at), lone points (fragments) and radar detections older than the frame."""
+    from tracker.measurement import Rectangles
+    from tracker.motion import LENGTH
+
+    rng = np.random.default_rng(seed)
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tracker = Tracker(road, config)
+    count = int(rng.integers(0, 7)) if tracks is None else tracks
+    center = np.column_stack([rng.uniform(0.0, 60.0, count), rng.uniform(-5.0, 5.0, count)])
+    if count > 2:
+        center[1] = center[0] + rng.normal(0.0, 0.8, 2)  # a duplicate hypothesis of one vehicle
+    psi = rng.normal(0.0, 0.2, count)
+    length, width = rng.uniform(3.0, 12.0, count), rng.uniform(1.5, 2.6, count)
+    rect = Rectangles(center, psi, np.zeros(count), length, width)
+    parts = [rng.uniform([-5.0, -12.0], [70.0, 12.0], (int(rng.integers(1, 25)), 2))]  # clutter, lone points
+    for k in range(count):  # each track's points, some a little outside (strays) or past its front
+        u = rng.uniform(-0.5, 0.5 + rng.uniform(0.0, 0.6), int(rng.integers(1, 30))) * (length[k] + 2.0)
+        v = rng.choice([-0.5, 0.5]) * width[k] + rng.normal(0.0, 0.3, len(u))
+        parts.append(center[k] + np.column_stack([u * np.cos(psi[k]) - v * np.sin(psi[k]),
+                                                  u * np.sin(psi[k]) + v * np.cos(psi[k])]))
+    for _ in range(int(rng.integers(0, 5))):  # blobs up to 9 m across the road, their points 0.3-0.9 m apart
+        across = np.cumsum(rng.uniform(0.3, 0.95, int(rng.integers(2, 14))))
+        parts.append(np.column_stack([rng.uniform(0.0, 60.0) + rng.normal(0.0, 0.2, len(across)),
+                                      rng.uniform(-8.0, 0.0) + across]))
+    points = np.concatenate(parts)
+    points = points[rng.permutation(len(points))]
+    tracker._point_n = points[:, 1] + rng.normal(0.0, 0.05, len(points))
+    extra = int(rng.integers(0, 6))
+    labels = np.concatenate([rng.permutation(np.arange(1, count + 1)), rng.integers(1, count + 4, extra)])
+    covs = np.tile(np.eye(tracker.dim), (count + extra, 1, 1))
+    covs[:, LENGTH, LENGTH] = rng.uniform(0.0, 4.0, count + extra)
+    tracker.mixture = Mixture(np.full(count + extra, 0.9), np.zeros((count + extra, tracker.dim)), covs, labels)
+    tracker._reported = rng.permutation(count).astype(int)
+    radar_count = int(rng.integers(0, 15))
+    hits = points[rng.integers(0, len(points), radar_count)] + rng.normal(0.0, 1.0, (radar_count, 2))
+    radar = RadarDetections(t=rng.uniform(0.9, 1.0, radar_count), x=hits[:, 0], y=hits[:, 1],
+                            vx=rng.normal(10.0, 3.0, radar_count), vy=rng.normal(0.0, 1.0, radar_count))
+    return tracker, points, Frame(1.0, EgoState(0.0, 0.0, 0.0, 10.0, 0.0), np.zeros((0, 2)), radar), rect
+
+
+_COUNTS = ("clusters", "clusters_fused", "clusters_too_small", "clusters_split", "fragment_points_adopted")
+
+
+def _assert_clustered_as_the_oracle(tracker, points, frame, rect) -> dict:
+    """``tracker._cluster`` (on a copy of the tracker) against ``oracles.tracker.cluster``: the clusters'
+    points and order bit for bit, the velocities (read-only rows, or None), each cluster's owner, each
+    component's group, the free detections and the counts. Returns the counts."""
+    import copy
+    from collections import Counter
+
+    from tracker.motion import LENGTH
+
+    tracker = copy.copy(tracker)
+    tracker.stats = Counter()
+    clusters, velocities = tracker._cluster(points, frame, rect)
+    tracks = tracker._reported
+    want = oracle.cluster(points, rect, tracker.mixture.labels, tracks,
+                          np.sqrt(np.maximum(tracker.mixture.covs[tracks, LENGTH, LENGTH], 0.0)), tracker._point_n,
+                          frame.radar, frame.t, tracker.config.clustering)
+    assert len(clusters) == len(want[0])
+    for a, b in zip(clusters, want[0]):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    assert [v is None for v in velocities] == [v is None for v in want[1]]
+    for a, b in zip(velocities, want[1]):
+        assert a is None or (np.array_equal(a, b) and not a.flags.writeable)
+    for got, ref in zip((tracker._owned, tracker._component_group, tracker._free_radar), want[2:5]):
+        assert got.dtype == np.int64 and np.array_equal(got, ref)
+    counts = {name: tracker.stats[name] for name in _COUNTS}
+    assert counts == {name: want[5][name] for name in _COUNTS}
+    return counts
+
+
+_CLUSTER_CONFIGS = {
+    "default": {},
+    "lenient-fragments": {"fragment_points": 3, "fragment_side_tolerance": None, "fragment_sigmas": 20.0},
+    "min-points": {"min_points": 3, "split_gap": 0.2},
+    "no-split-no-fragments": {"split_width": None, "fragment_points": None},
+}
+
+
+@pytest.mark.parametrize("settings", list(_CLUSTER_CONFIGS), ids=list(_CLUSTER_CONFIGS))
+def test_clustering_equals_the_oracle(settings):
+    """``Tracker._cluster`` (``cluster_points_kernel``, ``ordered_clusters_kernel`` after the fragments,
+    ``cluster_radar_kernel``) against the oracle's grouping, on random scenes (no tracks, overlapping
+    track rectangles, strays, fragments, clusters cut across the road, more detections than clusters,
+    none)."""
+    from tracker.config import ClusteringConfig
+
+    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**_CLUSTER_CONFIGS[settings]))
+    seen = dict.fromkeys(_COUNTS, 0)
+    for seed in range(40):
+        counts = _assert_clustered_as_the_oracle(*_cluster_scene(seed, config, tracks=0 if seed < 3 else None))
+        for name in seen:
+            seen[name] += counts[name]
+    assert seen["clusters_fused"] > 0
+    assert (seen["clusters_split"] > 0) == (config.clustering.split_width is not None)
+    if settings == "lenient-fragments":
+        assert seen["fragment_points_adopted"] > 0
+    if settings == "min-points":
+        assert seen["clusters_too_small"] > 0
+
+
+@pytest.mark.parametrize("case", ["one-point", "no-radar", "no-tracks", "nan-offset", "infinite-offsets",
+                                  "infinite-gaps", "all-inside", "far-apart"])
+def test_clustering_equals_the_oracle_at_the_edges(case):
+    """The same on the edges: one point, no radar detections, no tracks, a non-finite lateral offset (a
+    NaN: its cluster has no span and is not cut; infinities: spans and gaps of infinity, and NaN gaps),
+    every point inside one rectangle, and points too far apart for the partition's grid (their
+    components from the whole graph)."""
+    from tracker.measurement import Rectangles
+
+    tracker, points, frame, rect = _cluster_scene(7, TrackerConfig(), tracks=0 if case == "no-tracks" else 3)
+    if case == "one-point":
+        points, tracker._point_n = points[:1], tracker._point_n[:1]
+    if case == "no-radar":
+        frame = Frame(frame.t, frame.ego, frame.lidar)
+    if case == "nan-offset":
+        tracker._point_n = tracker._point_n.copy()
+        tracker._point_n[0] = np.nan
+    if case in ("infinite-offsets", "infinite-gaps"):  # in the largest connected component
+        from tracker.clustering import distance_partition
+
+        component = distance_partition(points, tracker.config.clustering.distance)
+        largest = np.flatnonzero(component == np.bincount(component).argmax())
+        largest = largest[np.argsort(tracker._point_n[largest])]
+        tracker._point_n = tracker._point_n.copy()
+        if case == "infinite-offsets":  # gaps of infinity at both ends: cut there
+            tracker._point_n[largest[[0, -1]]] = -np.inf, np.inf
+        else:  # two offsets of infinity: a gap of inf - inf, NaN
+            tracker._point_n[largest[-2:]] = np.inf
+    if case == "all-inside":
+        rect = Rectangles(np.array([[0.0, 0.0], [0.5, 0.0], [80.0, 0.0]]), np.zeros(3), np.zeros(3),
+                          np.array([200.0, 3.0, 4.0]), np.array([40.0, 2.0, 2.0]))
+    if case == "far-apart":
+        points = points.copy()
+        points[0] = [3e18, -3e18]
+    counts = _assert_clustered_as_the_oracle(tracker, points, frame, rect)
+    assert counts["clusters"] >= 1
+    if case == "infinite-offsets":
+        assert counts["clusters_split"] > 0

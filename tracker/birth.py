@@ -21,12 +21,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.config import BirthConfig
 from tracker.detection import occluded_fraction
 from tracker.frame import EgoState
-from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
+from tracker.measurement import MIN_EXTENT, Rectangles
 from tracker.road import Road
 from tracker.shape_fit import fit_rectangle
 from tracker.track import curvilinear_to_cartesian
@@ -108,18 +107,10 @@ def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: fl
     """``road_births`` (curvilinear) with the acceleration state appended (``a = 0``, variance
     ``acceleration_var``; None: no acceleration state) and, where there are tracks (``track_labels``
     not empty; their rectangles ``tracks`` in E), only the components ``entering_view`` keeps. One
-    compiled call (``tracker.birth.road_births_kernel``: the same numbers) when the kernels are
-    on."""
+    compiled call (``road_births_kernel``)."""
     if len(track_labels) != len(tracks.center):
         raise ValueError(f"visible_road_births needs one label per track; got {len(track_labels)} labels and "
                          f"{len(tracks.center)} tracks")
-    if not compiled_kernels.enabled():
-        means, covs = road_births(road, s_ego, ego.v, lidar_range, config)
-        means, covs = with_acceleration(means, covs, acceleration_var)
-        if len(means) and len(track_labels):
-            keep = entering_view(to_vehicle(means, ego, road), tracks, track_labels, gate_distance)
-            means, covs = means[keep], covs[keep]
-        return means, covs
     kind, *curve = road._curve.kernel_args()
     return road_births_kernel(
         _birth_arc_lengths(road, s_ego, lidar_range, config), road.lane_centers,
@@ -303,13 +294,10 @@ def to_cartesian_gaussians(
     return mean, cov
 
 # --------------------------------------------------------------------------------------------------
-# The compiled kernels of this stage.
-#
-# Compiled road births: ``tracker.birth.road_births`` with the tracker's acceleration state and its
-# test of where a vehicle can enter the view (``tracker.tracker.Tracker._add_births``) in one numba call
-# (``road_births_kernel``): the same components, the same rectangles (``to_vehicle_kernel``), the same
-# occlusion (``detection._spans`` and ``_occluded``, as ``occluded_kernel``) and the same distance to the
-# nearest track (``sqrt(dx^2 + dy^2)``, as ``numpy.linalg.norm``).
+# The compiled kernels of this stage: the road births of a frame with the acceleration state and the
+# test of where a vehicle can enter the view (``visible_road_births``) in one call (``road_births_kernel``):
+# the components per lane, their rectangles in E (``to_vehicle_kernel``), the part of each hidden by the
+# tracks (``detection._spans``, ``detection._occluded``) and the distance to the nearest track's centre.
 # --------------------------------------------------------------------------------------------------
 
 

@@ -1,16 +1,22 @@
 """Clustering of lidar points and radar-to-cluster association (the paper's fusion and clustering).
 
 - ``points_in_rectangles``: points inside a predicted target's rectangle (plus a margin) form that
-  target's cluster (vectorised over points x rectangles);
+  target's cluster;
 - ``distance_partition``: the remaining points are split into connected components of the graph
-  linking points closer than a threshold (``scipy.spatial.cKDTree`` + ``scipy.sparse.csgraph``), the
-  distance partitioning of Granstrom et al. at one threshold;
-- ``split_across``: a cluster wider across the road than one vehicle can be (two long vehicles side by
-  side in adjacent lanes, whose points the lidar sees as one line, or a drifted track's rectangle owning
-  both) is cut at its largest gap in the lateral offset ``n``;
+  linking points at most a threshold apart, the distance partitioning of Granstrom et al. at one
+  threshold;
+- the tracker's grouping of a frame's points (``cluster_points_kernel``): overlapping track
+  rectangles are one group, a connected component a group owns in part joins it, lone fragments may
+  continue a track's side (``fragment_owners``), and a cluster wider across the road than one vehicle
+  can be (two long vehicles side by side in adjacent lanes, whose points the lidar sees as one line,
+  or a drifted track's rectangle owning both) is cut at its largest gap in the lateral offset ``n``;
 - ``associate_radar``: greedy nearest-neighbour association of radar detections to clusters within
   a gate; a cluster with a detection is "fused" and carries its absolute velocity. Radar positions
-  are used only for this association, as in the paper.
+  are used only for this association, as in the paper;
+- ``occluded_ends``, ``continued_ends``: whether a cluster's ends border another object's shadow, or
+  whether its side goes on in another cluster.
+
+The stage's numba kernels are at the end of the module.
 """
 
 from __future__ import annotations
@@ -20,14 +26,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from tracker import jit as compiled_kernels
 from tracker.angles import wrap_angle
 from tracker.frame import RadarDetections
 from tracker.jit import njit
-
-#: Up to this many runs of consecutive linked points, their graph's components are found densely.
-MAX_DENSE_RUNS = 64
-
 
 def points_in_rectangles(
     points: np.ndarray,
@@ -47,59 +48,35 @@ def points_in_rectangles(
     if len(pts) == 0 or len(ctr) == 0:
         return np.full(len(pts), -1, dtype=int)
     c, s = np.cos(yaw), np.sin(yaw)
-    if compiled_kernels.enabled():
-        half_l = np.broadcast_to(0.5 * np.asarray(length, dtype=float) + margin, (len(ctr),))
-        half_w = np.broadcast_to(0.5 * np.asarray(width, dtype=float) + margin, (len(ctr),))
-        return points_in_rectangles_kernel(np.ascontiguousarray(pts), np.ascontiguousarray(ctr),
-                                           np.ascontiguousarray(np.broadcast_to(c, (len(ctr),)), dtype=float),
-                                           np.ascontiguousarray(np.broadcast_to(s, (len(ctr),)), dtype=float),
-                                           np.ascontiguousarray(half_l), np.ascontiguousarray(half_w))
-    d = pts[:, None, :] - ctr[None, :, :]  # (N, M, 2)
-    u = (d[..., 0] * c + d[..., 1] * s) / (0.5 * np.asarray(length) + margin)
-    v = (-d[..., 0] * s + d[..., 1] * c) / (0.5 * np.asarray(width) + margin)
-    score = np.maximum(np.abs(u), np.abs(v))  # <= 1 inside the widened rectangle
-    best = np.argmin(score, axis=1)
-    inside = score[np.arange(len(pts)), best] <= 1.0
-    return np.where(inside, best, -1)
+    half_l = np.broadcast_to(0.5 * np.asarray(length, dtype=float) + margin, (len(ctr),))
+    half_w = np.broadcast_to(0.5 * np.asarray(width, dtype=float) + margin, (len(ctr),))
+    return points_in_rectangles_kernel(np.ascontiguousarray(pts), np.ascontiguousarray(ctr),
+                                       np.ascontiguousarray(np.broadcast_to(c, (len(ctr),)), dtype=float),
+                                       np.ascontiguousarray(np.broadcast_to(s, (len(ctr),)), dtype=float),
+                                       np.ascontiguousarray(half_l), np.ascontiguousarray(half_w))
 
 
 def distance_partition(points: np.ndarray, threshold: float) -> np.ndarray:
     """Cluster label (0..K-1) of each point: connected components of the graph whose edges join
-    points closer than ``threshold`` metres. Labels are ordered by each cluster's first point.
+    points at most ``threshold`` metres apart. Labels are ordered by each cluster's first point.
 
-    The edges come from ``cKDTree.query_pairs``. A lidar scan lists its points in scan order, so most
-    edges join consecutive points: those first cut the points into runs (connected by construction),
-    and only the few edges between runs go into a graph over the runs, whose components
-    (``dense_components``, or ``scipy.sparse.csgraph`` for many runs) are the clusters; any order of
-    the points gives the same partition, only more runs. The compiled kernel
-    (``tracker.clustering``, when on) finds the same components by union-find on a grid."""
+    One compiled call (``partition_points_kernel``: union-find on a grid of square cells of side
+    ``threshold / sqrt(2)``). Points the grid cannot hold (a non-finite point, or a spread so wide
+    that the cells' keys could overflow) take the whole graph instead: its edges from
+    ``cKDTree.query_pairs`` (which rejects a non-finite point with a ``ValueError``), its components
+    from ``scipy.sparse.csgraph``."""
     if not threshold > 0:
         raise ValueError(f"distance threshold must be > 0 m; got {threshold!r}")
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(pts)
     if n == 0:
         return np.zeros(0, dtype=int)
-    if compiled_kernels.enabled():
-        # cells of side threshold / sqrt(2) from 2 (the neighbours two cells away have keys >= 0); a
-        # non-finite point, or keys that could overflow, take the numpy path
-        labels, ok = partition_points_kernel(np.ascontiguousarray(pts), float(threshold))
-        if ok:
-            return labels
+    labels, ok = partition_points_kernel(np.ascontiguousarray(pts), float(threshold))
+    if ok:
+        return labels
     pairs = cKDTree(pts).query_pairs(threshold, output_type="ndarray")  # i < j
-    linked = np.zeros(n, dtype=bool)  # linked[i]: an edge joins point i - 1 and point i
-    linked[pairs[pairs[:, 1] - pairs[:, 0] == 1, 1]] = True
-    run = np.cumsum(~linked) - 1  # run index of every point (0..R-1)
-    a, b = run[pairs[:, 0]], run[pairs[:, 1]]
-    across = a != b
-    a, b, runs = a[across], b[across], int(run[-1]) + 1
-    if runs <= MAX_DENSE_RUNS:
-        adjacency = np.zeros((runs, runs), dtype=bool)
-        adjacency[a, b] = True
-        component = dense_components(adjacency)
-    else:
-        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(runs, runs))
-        component = connected_components(graph, directed=False)[1]
-    labels = component[run]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    labels = connected_components(graph, directed=False)[1]
     # relabel in order of first appearance so labels are deterministic and readable
     _, first = np.unique(labels, return_index=True)
     rank = np.empty(len(first), dtype=int)
@@ -203,70 +180,9 @@ def segment_crosses_box(start: np.ndarray, end: np.ndarray, half_length: np.ndar
     return ok & (lo < hi)
 
 
-#: Rounds of cuts ``split_across`` makes at most (a part still too wide after them stays whole).
+#: Rounds of cuts across the road the clustering makes at most (``_split_keys``: a part still too wide
+#: after them stays whole).
 SPLIT_MAX_CUTS = 8
-
-
-def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max_cuts: int = SPLIT_MAX_CUTS) -> np.ndarray:
-    """Part index (0..P-1) of each point: the points of each ``group`` (integer labels, any values)
-    whose extent in ``n`` (the lateral road offset, m) exceeds ``width`` are cut at their largest gap
-    between consecutive ``n`` values, if that gap is at least ``gap``; parts still wider are cut again
-    (up to ``max_cuts`` rounds). Groups narrower than ``width``, or without such a gap (one vehicle at
-    an angle to the road shows a continuous side), stay whole. Parts are numbered by group in sorted
-    order, then by ``n``. Vectorised: each round is a few sorts and ``reduceat``s over all points."""
-    n = np.asarray(n, dtype=float).reshape(-1)
-    group = np.asarray(group).reshape(-1)
-    if len(n) != len(group):
-        raise ValueError(f"split_across needs one group per point; got {len(n)} offsets and {len(group)} groups")
-    part = np.unique(group, return_inverse=True)[1].reshape(-1)
-    if len(n) == 0:
-        return part
-    order = np.lexsort((n, part))  # by part, then by n: fixed from here, as cuts keep that order
-    ns = n[order]
-    ps = part[order]
-    for _ in range(max_cuts):
-        first = np.ones(len(ns), dtype=bool)
-        first[1:] = ps[1:] != ps[:-1]
-        starts = np.flatnonzero(first)
-        ends = np.append(starts[1:], len(ns)) - 1
-        wide = (ns[ends] - ns[starts]) > width  # per part
-        step = np.empty(len(ns))
-        step[0] = -np.inf
-        step[1:] = ns[1:] - ns[:-1]
-        step[first] = -np.inf  # no gap across parts
-        largest = np.maximum.reduceat(step, starts)
-        index = np.cumsum(first) - 1  # part (0..P-1, in sorted order) of each sorted point
-        cut = wide[index] & (step == largest[index]) & (step >= gap)
-        if not cut.any():
-            break
-        # one cut per part: the first point at its largest gap
-        hits = np.flatnonzero(cut)
-        _, keep = np.unique(index[hits], return_index=True)
-        cut[:] = False
-        cut[hits[keep]] = True
-        ps = np.cumsum(first | cut) - 1
-    out = np.empty(len(n), dtype=int)
-    out[order] = ps
-    return out
-
-
-def dense_components(adjacency: np.ndarray) -> np.ndarray:
-    """Connected components of the small undirected graph given by a boolean ``adjacency (T, T)``:
-    component index per node, numbered in order of each component's first node (as scipy's
-    ``connected_components``). By boolean squaring of the reachability matrix (``log2 T`` products),
-    which for the tens of tracks of a frame is cheaper than building a sparse graph."""
-    adj = np.asarray(adjacency, dtype=bool)
-    count = len(adj)
-    if count == 0:
-        return np.zeros(0, dtype=int)
-    reach = (adj | adj.T | np.eye(count, dtype=bool)).astype(np.float32)
-    while True:
-        nxt = ((reach @ reach) > 0).astype(np.float32)
-        if np.array_equal(nxt, reach):
-            break
-        reach = nxt
-    first = np.argmax(reach > 0, axis=1)  # the lowest node of each node's component
-    return np.unique(first, return_inverse=True)[1].reshape(-1)
 
 
 def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate: float = 3.0) -> np.ndarray:
@@ -275,37 +191,21 @@ def associate_radar(cluster_points: list[np.ndarray], radar_xy: np.ndarray, gate
     The distance from a detection to a cluster is the distance to the cluster's nearest point (the
     radar reports a point near the target's visible surface). Pairs are taken in increasing distance;
     each cluster and each detection is used at most once; pairs farther than ``gate`` metres are
-    never taken. Returns, per cluster, the index of its detection or -1. (By
-    ``tracker.clustering`` when the compiled kernels are on.)
+    never taken. Returns, per cluster, the index of its detection or -1 (one compiled call,
+    ``radar_association_kernel``).
     """
     radar = np.asarray(radar_xy, dtype=float).reshape(-1, 2)
     out = np.full(len(cluster_points), -1, dtype=int)
     if len(radar) == 0 or len(cluster_points) == 0:
         return out
     sizes = np.array([len(p) for p in cluster_points])
-    if compiled_kernels.enabled():
-        offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
-        np.cumsum(sizes, out=offsets[1:])
-        if all(type(p) is np.ndarray and p.ndim == 2 and p.shape[1] == 2 and p.dtype == np.float64 for p in cluster_points):
-            pts = np.concatenate(cluster_points)  # the tracker's clusters: (n, 2) float arrays already
-        else:
-            pts = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in cluster_points])
-        return radar_association_kernel(pts, offsets, np.ascontiguousarray(radar), float(gate))
-    dist = np.full((len(cluster_points), len(radar)), np.inf)
-    if sizes.sum():
-        pts = np.concatenate([p for p in cluster_points if len(p)])
-        d = np.linalg.norm(pts[:, None, :] - radar[None, :, :], axis=2)  # (points, detections)
-        starts = np.concatenate([[0], np.cumsum(sizes[sizes > 0])[:-1]])
-        dist[sizes > 0] = np.minimum.reduceat(d, starts, axis=0)
-    flat = np.argsort(dist, axis=None)
-    rows, cols = np.unravel_index(flat, dist.shape)
-    ok = dist[rows, cols] <= gate
-    used_r = np.zeros(len(radar), dtype=bool)
-    for r, c in zip(rows[ok].tolist(), cols[ok].tolist()):  # greedy over gated pairs only
-        if out[r] < 0 and not used_r[c]:
-            out[r] = c
-            used_r[c] = True
-    return out
+    offsets = np.zeros(len(sizes) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    if all(type(p) is np.ndarray and p.ndim == 2 and p.shape[1] == 2 and p.dtype == np.float64 for p in cluster_points):
+        pts = np.concatenate(cluster_points)  # the tracker's clusters: (n, 2) float arrays already
+    else:
+        pts = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in cluster_points])
+    return radar_association_kernel(pts, offsets, np.ascontiguousarray(radar), float(gate))
 
 
 def cluster_velocities(clusters: list[np.ndarray], radar: RadarDetections, t: float, gate: float) -> list[np.ndarray | None]:
@@ -337,19 +237,16 @@ def cluster_radar_ranges(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, rad
     """``cluster_radar`` for the clusters ``points[lo[k]:hi[k]]`` (``points (N, 2)`` in E ordered by
     cluster, as the tracker groups them): per cluster the velocity ``(vx, vy)`` of its detection (a
     row of one read-only ``(R, 2)`` array) or None, and the indices of the detections that joined no
-    cluster. One compiled call (``tracker.clustering.cluster_radar_kernel``: the detections
-    moved to ``t`` as ``RadarDetections.positions_at``, then the association) when the kernels are on."""
+    cluster. One compiled call (``cluster_radar_kernel``: the detections moved to ``t`` as
+    ``RadarDetections.positions_at``, then the association)."""
     lo = np.asarray(lo, dtype=np.int64).reshape(-1)
     hi = np.asarray(hi, dtype=np.int64).reshape(-1)
     if len(lo) != len(hi):
         raise ValueError(f"cluster_radar_ranges needs one end per start; got {len(lo)} starts and {len(hi)} ends")
     if len(lo) and (lo.min() < 0 or (hi < lo).any() or hi.max() > len(points)):
         raise ValueError(f"cluster_radar_ranges: every range must lie within the {len(points)} points, 0 <= lo <= hi")
-    if len(radar) == 0 or len(lo) == 0 or not compiled_kernels.enabled():
-        velocities, index = cluster_radar([points[a:b] for a, b in zip(lo.tolist(), hi.tolist())], radar, t, gate)
-        free = np.ones(len(radar), dtype=bool)
-        free[index[index >= 0]] = False
-        return velocities, np.flatnonzero(free)
+    if len(radar) == 0 or len(lo) == 0:  # nothing to associate: every detection is free
+        return [None] * len(lo), np.arange(len(radar))
     index, velocity, free = cluster_radar_kernel(np.ascontiguousarray(points, dtype=float), lo, hi, radar.t, radar.x,
                                                  radar.y, radar.vx, radar.vy, float(t), float(gate))
     velocity.flags.writeable = False  # the clusters' velocities are rows of it: read-only, not aliased edits
@@ -389,24 +286,12 @@ def occluded_ends(ends: np.ndarray, scan: np.ndarray, window: float, margin: flo
     extreme point is not the side's end. An end whose neighbouring rays return nothing or something
     farther is the object's own boundary, unless it lies within ``range_margin`` of the lidar's
     ``max_range`` (m): there the side may go on beyond the range, and the end counts as occluded too.
-    One compiled call (``tracker.clustering.occluded_ends_kernel``) when the kernels are on."""
+    One compiled call (``occluded_ends_kernel``)."""
     ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
     if len(ends) == 0 or len(scan) == 0:
         return np.zeros((len(ends), 2), dtype=bool)
-    if compiled_kernels.enabled():
-        compiled_kernels.require()
-        return occluded_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(scan, dtype=float), float(window),
-                                    float(margin), float(max_range), float(range_margin))
-    bearing = np.arctan2(ends[..., 1], ends[..., 0]).ravel()  # (2K,) first and last end of each cluster
-    reach = np.hypot(ends[..., 0], ends[..., 1]).ravel()
-    scan_r = np.hypot(scan[:, 0], scan[:, 1])
-    near = scan_r < reach.max() - margin  # only returns nearer than some end can occlude it
-    scan_b, scan_r = np.arctan2(scan[near, 1], scan[near, 0]), scan_r[near]
-    beyond = np.tile([-1.0, 1.0], len(ends))  # the first end looks below its bearing, the last above
-    d = scan_b[None, :] - bearing[:, None]
-    d = beyond[:, None] * (d - 2.0 * np.pi * np.round(d / (2.0 * np.pi)))  # > 0: beyond the end
-    nearer = (d > 0.0) & (d <= window) & (scan_r[None, :] < reach[:, None] - margin)
-    return (nearer.any(axis=1) | (reach >= max_range - range_margin)).reshape(len(ends), 2)
+    return occluded_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(scan, dtype=float), float(window),
+                                float(margin), float(max_range), float(range_margin))
 
 
 def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, scan: np.ndarray, rays: float,
@@ -419,40 +304,32 @@ def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, 
     beyond; the cluster's own points lie at or before the end) and within ``rays`` ray gaps
     (``2 half_gap`` each), and at most ``offset`` m from that line: the next ray or two along the side
     found it again in another cluster (a dropped return split the side), so the extreme point is not
-    the side's end. One compiled call
-    (``tracker.clustering.continued_ends_kernel``) when the kernels are on."""
+    the side's end. One compiled call (``continued_ends_kernel``)."""
     ends = np.asarray(ends, dtype=float).reshape(-1, 2, 2)
     outward = np.asarray(outward, dtype=float).reshape(-1, 2, 2)
     half_gap = np.asarray(half_gap, dtype=float).reshape(-1, 2)
     reach = 2.0 * float(rays) * half_gap
     if len(ends) == 0 or len(scan) == 0:
         return np.zeros((len(ends), 2), dtype=bool)
-    if compiled_kernels.enabled():
-        compiled_kernels.require()
-        return continued_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(outward), np.ascontiguousarray(half_gap),
-                                     np.ascontiguousarray(reach), np.ascontiguousarray(scan, dtype=float), float(offset))
-    d = scan[None, None, :, :] - ends[:, :, None, :]  # (K, 2, R, 2)
-    along = np.einsum("kerd,ked->ker", d, outward)
-    across = np.abs(d[..., 0] * outward[..., None, 1] - d[..., 1] * outward[..., None, 0])
-    return ((along > half_gap[..., None]) & (along <= reach[..., None]) & (across <= offset)).any(axis=2)
+    return continued_ends_kernel(np.ascontiguousarray(ends), np.ascontiguousarray(outward), np.ascontiguousarray(half_gap),
+                                 np.ascontiguousarray(reach), np.ascontiguousarray(scan, dtype=float), float(offset))
+
 
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled distance partition: ``tracker.clustering.distance_partition`` in one numba call.
+# The distance partition (``partition_points_kernel``): the graph of points joined when at most
+# ``threshold`` apart and its connected components, found on a grid of square cells of side
+# ``threshold / sqrt(2)``: the points of one cell are all within ``threshold`` of each other (one
+# component), and two cells at most two apart along each axis are joined as soon as one pair of their
+# points is close enough (union-find; a pair of cells already in one component is skipped). Components
+# are labelled in order of their first point (so any order of the unions gives the same labels).
 #
-# The same graph (points joined when at most ``threshold`` apart, as ``cKDTree.query_pairs``) and its
-# connected components, found on a grid of square cells of side ``threshold / sqrt(2)``: the points of
-# one cell are all within ``threshold`` of each other (one component), and two cells at most two apart
-# along each axis are joined as soon as one pair of their points is close enough (union-find; a pair of
-# cells already in one component is skipped). Components are labelled in order of their first point (so
-# any order of the unions gives the same labels).
-#
-# Also the clustering's other kernels: the tracker's whole grouping of a frame's points into clusters
-# (``cluster_points_kernel``: track rectangles' overlap groups, points in rectangles, the partition, strays
-# adopted, clusters cut across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for
-# its second half), the radar association (``associate_ranges``, ``cluster_radar_kernel``), and the
-# scan's bearing searches (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``).
+# The tracker's grouping of a frame's points into clusters (``cluster_points_kernel``: the track
+# rectangles' overlap groups, the points in rectangles, the partition, strays adopted, clusters cut
+# across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for its second half), the
+# radar association (``associate_ranges``, ``cluster_radar_kernel``), and the scan's bearing searches
+# (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``).
 # --------------------------------------------------------------------------------------------------
 
 
@@ -490,10 +367,10 @@ def _labels_in_order(parent):
 
 @njit
 def partition_points_kernel(pts, threshold):
-    """``partition_kernel`` with the cells computed here as ``tracker.clustering.distance_partition``
-    computes them (``floor(p sqrt(2) / threshold)``, shifted to start at 2). Returns ``(labels, ok)``;
-    ``ok`` False (nothing computed) when a point is not finite or the cell keys could overflow (the
-    caller then takes the numpy path)."""
+    """The distance partition of ``pts (N, 2)`` at ``threshold`` (m): ``partition_kernel`` on the cells
+    ``floor(p sqrt(2) / threshold)``, shifted to start at 2. Returns ``(labels, ok)``; ``ok`` False
+    (nothing computed) when a point is not finite or the cell keys could overflow (``distance_partition``
+    then takes the whole graph)."""
     n = len(pts)
     scale = np.sqrt(2.0) / threshold
     cx = np.empty(n, dtype=np.int64)
@@ -795,31 +672,29 @@ def _grouped(key):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
+def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component,
                         max_points):  # pragma: no cover - compiled
-    """The first half of ``tracker.tracker.Tracker._cluster``'s grouping: per point the track group
-    owning it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine
-    and sine of their headings, widened by ``margin``: half extents ``0.5 length + margin``; mapped to
-    the rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every
-    rectangle then joins the group owning most points of its connected
-    component, ``tracker.tracker._adopt_strays``, the first such group on a tie), whether it lay inside
-    a rectangle, its connected component (``partition_points_kernel``), per mixture component the group
-    of the first track carrying its label (``labels`` against ``track_labels``; -1), and whether some
-    component of at most ``max_points`` points is wholly free (``tracker.clustering.fragment_owners``
-    has work; -1: never). Returns ``(ok, owner, inside, component, component_group, fragments)``; ``ok``
-    False when the partition hands back or a lateral offset ``n`` is not finite (the caller then takes
-    the numpy path)."""
+    """The first half of the tracker's grouping of a frame's points: per point the track group owning
+    it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine and
+    sine of their headings, widened by ``margin``: half extents ``0.5 length + margin``; mapped to the
+    rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every rectangle
+    then joins the group owning most points of its connected component, the first such group on a
+    tie), whether it lay inside a rectangle, its connected component (``component`` where the caller
+    has them, ``(N,)``; else, empty, ``partition_points_kernel`` at ``threshold``), per mixture component
+    the group of the first track carrying its label (``labels`` against ``track_labels``; -1), and
+    whether some component of at most ``max_points`` points is wholly free (``fragment_owners`` has
+    work; -1: never). Returns ``(ok, groups, owner, inside, component, component_group, fragments)``;
+    ``ok`` False when the partition's grid does not hold the points (the caller then passes the
+    components of ``distance_partition``)."""
     count = len(pts)
     owner = np.full(count, -1, dtype=np.int64)
     inside = np.zeros(count, dtype=np.bool_)
     component_group = np.full(len(labels), -1, dtype=np.int64)
     groups = overlap_groups_kernel(corners, c, s) if len(ctr) > 1 else np.zeros(len(ctr), dtype=np.int64)
-    for i in range(len(n)):
-        if not np.isfinite(n[i]):
+    if len(component) != count:
+        component, ok = partition_points_kernel(pts, threshold)
+        if not ok:
             return False, groups, owner, inside, owner, component_group, False
-    component, ok = partition_points_kernel(pts, threshold)
-    if not ok:
-        return False, groups, owner, inside, owner, component_group, False
     for c_ in range(len(labels)):
         for t in range(len(track_labels)):
             if labels[c_] == track_labels[t]:
@@ -875,23 +750,27 @@ def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, 
 
 @njit(inline="always")
 def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cover - compiled
-    """``tracker.tracker.Tracker._split_across`` on ``key`` and ``owner`` in place (with
-    ``tracker.clustering.split_across``'s rounds): a cluster (run of equal keys) spanning more than
-    ``width`` in ``n`` is cut at its largest gap (the first point after it, in ``n`` order; ties by
-    index) if at least ``gap``, again for up to ``max_cuts`` rounds; the parts of a cut cluster take
+    """The cuts across the road, on ``key`` and ``owner`` in place: a cluster (run of equal keys) whose
+    lateral offsets ``n`` (m) span more than ``width`` is cut at its largest gap between consecutive
+    offsets (the first point after it, in ``n`` order; ties by index) if that gap is at least ``gap``;
+    parts still wider are cut again, for up to ``max_cuts`` rounds. The parts of a cut cluster take
     the keys ``max(key) + 1 + part`` (parts numbered by cluster, then ``n``), and of a track's cluster
     only the parts with most points ``inside`` (plus 1e-6 per point: ties to the larger part) stay
-    owned. Returns the number of parts added."""
+    owned. A cluster with a NaN offset has no span and is never cut; a NaN gap (two infinite offsets)
+    is no part's largest. Returns the number of parts added."""
     order, edges = _grouped(key)
     clusters = len(edges) - 1
     wide = np.zeros(clusters, dtype=np.bool_)
     total = 0
     for g in range(clusters):
         lo = hi = n[order[edges[g]]]
+        unknown = False
         for j in range(edges[g], edges[g + 1]):
-            lo = min(lo, n[order[j]])
-            hi = max(hi, n[order[j]])
-        wide[g] = hi - lo > width
+            v = n[order[j]]
+            unknown |= v != v
+            lo = min(lo, v)
+            hi = max(hi, v)
+        wide[g] = not unknown and hi - lo > width
         if wide[g]:
             total += edges[g + 1] - edges[g]
     if total == 0:
@@ -931,7 +810,11 @@ def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cove
             if ns[b - 1] - ns[a] > width:
                 largest = -np.inf
                 for j in range(a + 1, b):
-                    largest = max(largest, ns[j] - ns[j - 1])
+                    step = ns[j] - ns[j - 1]
+                    if not step <= largest:  # a larger gap, or NaN: then no gap equals the largest
+                        largest = step
+                        if step != step:
+                            break
                 for j in range(a + 1, b):
                     step = ns[j] - ns[j - 1]
                     if step == largest and step >= gap:
@@ -981,7 +864,7 @@ def _split_keys(key, owner, inside, n, width, gap, max_cuts):  # pragma: no cove
 @njit
 def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, width, gap,
                             max_cuts):  # pragma: no cover - compiled
-    """The second half of ``tracker.tracker.Tracker._cluster``'s grouping: the key of each point (its
+    """The second half of the tracker's grouping of a frame's points: the key of each point (its
     owner group, else ``n_tracks`` plus its connected component), with ``split`` the clusters cut
     across the road (``_split_keys``), then the points ordered by key (ties by index): returns the
     ordered points, the clusters' edges ``(K + 1,)`` in them, each cluster's owner group (or -1) and
@@ -1004,14 +887,15 @@ def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, w
 
 
 @njit
-def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n,
-                          max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
-    """``track_owners_kernel`` then, unless a fragment needs ``tracker.clustering.fragment_owners``
-    (numpy, in between) or the kernel handed back, ``ordered_clusters_kernel``: returns ``(ok, done,
-    groups, owner, inside, component, component_group, ordered, edges, owned, added)`` (``done`` False:
-    the last four are empty and the caller finishes the grouping)."""
+def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component,
+                          n, max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
+    """The tracker's grouping of a frame's points into clusters: ``track_owners_kernel`` then, unless a
+    fragment needs ``fragment_owners`` (in Python, in between) or the partition's grid did not hold
+    the points, ``ordered_clusters_kernel``: returns ``(ok, done, groups, owner, inside, component,
+    component_group, ordered, edges, owned, added)`` (``done`` False: the last four are empty and the
+    caller finishes the grouping)."""
     ok, groups, owner, inside, component, component_group, fragments = track_owners_kernel(
-        pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, n, max_points)
+        pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component, max_points)
     if not ok or fragments:
         return (ok, False, groups, owner, inside, component, component_group, np.empty((0, 2)),
                 np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int64), 0)

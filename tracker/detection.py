@@ -11,8 +11,7 @@ For a component's predicted rectangle in E (the lidar at the origin):
   partly hidden car is still detected; only a (nearly) hidden one is not. A fully hidden target then keeps its weight through the missed-detection term
   ``w (1 - (1 - e^-gamma) P_D)`` instead of fading, so it keeps its label when it reappears.
 
-``f`` is the largest single overlap (not the union of several occluders), vectorised over
-(component, occluder) pairs.
+``f`` is the largest single overlap (not the union of several occluders) over the occluders.
 
 Occlusion by the scan itself (``scan_occluded_fraction``): objects the tracker does not track (roadside
 trees, posts, walls, a vehicle not yet confirmed) hide targets too. The fraction of a rectangle's bearing
@@ -24,14 +23,16 @@ returns would take a half-hidden car for a wholly hidden one. The detection mode
 the two fractions. Without the scan's occlusion a target passing behind untracked objects (a row of
 trees) would lose its weight at ``1 - P_D`` per frame, gone within two or three frames, and come back
 under a new label.
+
+The model is computed by the numba kernels at the end of the module: the spans and nearest corners
+(``_spans``), the occluders' overlap (``_occluded``), the scan's hiding rays (``_scan_hidden``), and all
+of it for a frame's components in one call (``detection_kernel``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
-from tracker.angles import wrap_angle
 from tracker.config import DetectionConfig
 from tracker.measurement import Rectangles
 from tracker.jit import njit
@@ -49,81 +50,35 @@ def nearest_range(rect: Rectangles) -> np.ndarray:
     return np.hypot(corners[..., 0], corners[..., 1]).min(axis=-1)
 
 
-def bearing_spans(rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bearing interval ``(lo, hi)`` (rad, ``hi - lo < pi``; around the centre's bearing, so ``lo`` may
-    be below -pi) of each rectangle seen from the E origin, and the range (m) of its centre."""
-    corners = rect.corners()  # (C, 4, 2)
-    centre_bearing = np.arctan2(rect.center[:, 1], rect.center[:, 0])
-    rel = wrap_angle(np.arctan2(corners[..., 1], corners[..., 0]) - centre_bearing[:, None])
-    lo = centre_bearing + rel.min(axis=1)
-    hi = centre_bearing + rel.max(axis=1)
-    return lo, hi, np.hypot(rect.center[:, 0], rect.center[:, 1])
+def _corners_and_centres(rect: Rectangles, caller: str) -> tuple[np.ndarray, np.ndarray]:
+    """The corners ``(C, 4, 2)`` and centres ``(C, 2)`` of a batch of rectangles, as the kernels take
+    them; a ``ValueError`` for rectangles that are not one batch ``(C, 2)``."""
+    if rect.center.ndim != 2:
+        raise ValueError(f"{caller} needs a batch of rectangles, centres (C, 2); got centres of shape {rect.center.shape}")
+    return np.ascontiguousarray(rect.corners()), np.ascontiguousarray(rect.center, dtype=float)
 
 
-def occluded_fraction(
-    rect: Rectangles, labels: np.ndarray, occluders: Rectangles, occluder_labels: np.ndarray,
-    *, spans: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-) -> np.ndarray:
+def occluded_fraction(rect: Rectangles, labels: np.ndarray, occluders: Rectangles, occluder_labels: np.ndarray) -> np.ndarray:
     """Fraction (C,) of each rectangle's bearing span hidden by a nearer occluder of another label
-    (``spans``: ``bearing_spans(rect)`` when the caller has them; by ``tracker.detection``
-    when the compiled kernels are on)."""
+    (one compiled call, ``occluded_kernel``)."""
     if len(occluder_labels) == 0 or len(labels) == 0:
         return np.zeros(len(labels))
-    if compiled_kernels.enabled() and rect.center.ndim == 2:
-        return occluded_kernel(np.ascontiguousarray(rect.corners()), np.ascontiguousarray(rect.center, dtype=float),
-                               np.ascontiguousarray(labels, dtype=np.int64), np.ascontiguousarray(occluders.corners()),
-                               np.ascontiguousarray(occluders.center, dtype=float),
-                               np.ascontiguousarray(occluder_labels, dtype=np.int64))
-    lo, hi, rng = bearing_spans(rect) if spans is None else spans
-    olo, ohi, orng = bearing_spans(occluders)
-    # overlap of [lo, hi] and [olo, ohi] on the circle: shift the occluder by the nearest turn
-    shift = 2.0 * np.pi * np.round((0.5 * (lo + hi))[:, None] / (2.0 * np.pi) - (0.5 * (olo + ohi))[None, :] / (2.0 * np.pi))
-    overlap = np.minimum(hi[:, None], ohi[None, :] + shift) - np.maximum(lo[:, None], olo[None, :] + shift)
-    span = np.maximum(hi - lo, 1e-9)
-    nearer = orng[None, :] < rng[:, None]
-    other = occluder_labels[None, :] != labels[:, None]
-    frac = np.where(nearer & other, np.clip(overlap, 0.0, None) / span[:, None], 0.0)
-    return np.clip(frac.max(axis=1), 0.0, 1.0)
+    return occluded_kernel(*_corners_and_centres(rect, "occluded_fraction"), np.ascontiguousarray(labels, dtype=np.int64),
+                           *_corners_and_centres(occluders, "occluded_fraction"),
+                           np.ascontiguousarray(occluder_labels, dtype=np.int64))
 
 
-def scan_occluded_fraction(rect: Rectangles, scan: np.ndarray, resolution: float, *,
-                           spans: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                           near: np.ndarray | None = None) -> np.ndarray:
+def scan_occluded_fraction(rect: Rectangles, scan: np.ndarray, resolution: float) -> np.ndarray:
     """Fraction (C,) of each rectangle's bearing span hidden by lidar returns ``scan (N, 2)`` in E that
     lie nearer than its nearest corner by more than ``SCAN_OCCLUSION_MARGIN``; each ray (bearing bin of
     ``resolution`` rad) with such a return covers one ray of the span, however many returns it has (the
-    beams of a 3-D lidar). Vectorised over (component, return) pairs. (``spans``, ``near``:
-    ``bearing_spans(rect)`` and ``nearest_range(rect)`` when the caller has them.)"""
+    beams of a 3-D lidar). One compiled call (``scan_occluded_kernel``)."""
     count = len(rect.center)
     scan = np.asarray(scan, dtype=float).reshape(-1, 2)
     if count == 0 or len(scan) == 0:
         return np.zeros(count)
-    lo, hi, _ = bearing_spans(rect) if spans is None else spans
-    near = nearest_range(rect) if near is None else near
-    centre = 0.5 * (lo + hi)
-    r_scan = np.hypot(scan[:, 0], scan[:, 1])
-    b_scan = np.arctan2(scan[:, 1], scan[:, 0])
-    close = r_scan < near.max() - SCAN_OCCLUSION_MARGIN  # only returns that can hide anything
-    r_scan, b_scan = r_scan[close], b_scan[close]
-    if len(r_scan) == 0:
-        return np.zeros(count)
-    ray = ray_index(b_scan, resolution)
-    order = np.argsort(ray, kind="stable")  # the returns of one ray together
-    r_scan, b_scan, ray = r_scan[order], b_scan[order], ray[order]
-    rel = wrap_angle(b_scan[None, :] - centre[:, None])  # (C, N)
-    half = 0.5 * (hi - lo)
-    hides = (np.abs(rel) <= half[:, None]) & (r_scan[None, :] < (near - SCAN_OCCLUSION_MARGIN)[:, None])
-    first = np.flatnonzero(np.r_[True, ray[1:] != ray[:-1]])  # each ray's first return
-    rays = np.logical_or.reduceat(hides, first, axis=1).sum(axis=1)
-    span = np.maximum(hi - lo, resolution)
-    return np.clip(rays * resolution / span, 0.0, 1.0)
-
-
-def ray_index(bearing: np.ndarray, resolution: float) -> np.ndarray:
-    """The ray (bearing bin of ``resolution`` rad, ``rint(bearing / resolution)`` modulo one turn) of
-    each bearing (rad): the returns of one ray's beams share it."""
-    per_turn = max(int(round(2.0 * np.pi / resolution)), 1)
-    return np.mod(np.rint(np.asarray(bearing, dtype=float) / resolution).astype(np.int64), per_turn)
+    return scan_occluded_kernel(*_corners_and_centres(rect, "scan_occluded_fraction"), np.ascontiguousarray(scan),
+                                float(resolution), SCAN_OCCLUSION_MARGIN)
 
 
 def detection_model(
@@ -136,35 +91,17 @@ def detection_model(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(gamma, p_d)`` per component (C,) from its predicted rectangle in E (module docstring);
     ``scan`` (N, 2): the frame's lidar returns in E (all finite ones, on and off the road) for the
-    scan-based occlusion; by ``tracker.detection`` when the compiled kernels are on)."""
-    if compiled_kernels.enabled() and rect.center.ndim == 2:
-        with_occ = occluders is not None and occluder_labels is not None
-        occ = occluders if with_occ else rect
-        return detection_kernel(
-            np.ascontiguousarray(rect.corners()), np.ascontiguousarray(rect.center, dtype=float),
-            np.ascontiguousarray(labels, dtype=np.int64), np.ascontiguousarray(occ.corners()),
-            np.ascontiguousarray(occ.center, dtype=float),
-            np.ascontiguousarray(occluder_labels if with_occ else labels, dtype=np.int64), with_occ,
-            np.zeros((0, 2)) if scan is None else np.ascontiguousarray(scan, dtype=float).reshape(-1, 2),
-            scan is not None, float(config.lidar_resolution), float(config.lidar_range), float(config.p_detection),
-            bool(config.occlusion), VISIBLE_FOR_DETECTION, SCAN_OCCLUSION_MARGIN,
-        )
-    spans = bearing_spans(rect)
-    lo, hi, _ = spans
-    near = nearest_range(rect)
-    gamma = np.maximum((hi - lo) / config.lidar_resolution, 1.0)
-    p_d = np.where(near <= config.lidar_range, config.p_detection, 0.0)
-    if config.occlusion:
-        hidden = np.zeros(len(labels))
-        if occluders is not None and occluder_labels is not None:
-            hidden = occluded_fraction(rect, labels, occluders, occluder_labels, spans=spans)
-        if scan is not None:
-            hidden = np.maximum(hidden, scan_occluded_fraction(rect, scan, config.lidar_resolution, spans=spans,
-                                                               near=near))
-        visible = 1.0 - hidden
-        p_d = p_d * np.clip(visible / VISIBLE_FOR_DETECTION, 0.0, 1.0)
-        gamma = np.maximum(gamma * visible, 1.0)
-    return gamma, p_d
+    scan-based occlusion. One compiled call (``detection_kernel``)."""
+    with_occ = occluders is not None and occluder_labels is not None
+    occ = occluders if with_occ else rect
+    return detection_kernel(
+        *_corners_and_centres(rect, "detection_model"), np.ascontiguousarray(labels, dtype=np.int64),
+        *_corners_and_centres(occ, "detection_model"),
+        np.ascontiguousarray(occluder_labels if with_occ else labels, dtype=np.int64), with_occ,
+        np.zeros((0, 2)) if scan is None else np.ascontiguousarray(scan, dtype=float).reshape(-1, 2),
+        scan is not None, float(config.lidar_resolution), float(config.lidar_range), float(config.p_detection),
+        bool(config.occlusion), VISIBLE_FOR_DETECTION, SCAN_OCCLUSION_MARGIN,
+    )
 
 
 def cap_missed_weights(missed: np.ndarray, labels: np.ndarray, updated: np.ndarray, updated_labels: np.ndarray) -> np.ndarray:
@@ -192,18 +129,16 @@ def cap_missed_weights(missed: np.ndarray, labels: np.ndarray, updated: np.ndarr
     return out
 
 # --------------------------------------------------------------------------------------------------
-# The compiled kernels of this stage.
-#
-# Compiled detection model: ``tracker.detection.detection_model`` (bearing spans, nearest range,
-# occlusion by the previous frame's tracks and by the scan's own returns) in one numba call, the same
-# formulas per component, per (component, occluder) pair and per (component, return) pair.
+# The compiled kernels of this stage: the detection model (module docstring) per component, per
+# (component, occluder) pair and per (component, return) pair.
 # --------------------------------------------------------------------------------------------------
 
 
 @njit
 def _spans(corners, centers):
-    """``bearing_spans`` and ``nearest_range`` of rectangles ``corners (C, 4, 2)``, ``centers (C, 2)``:
-    ``lo``, ``hi`` (rad), centre range and nearest-corner range (m)."""
+    """The bearing spans of rectangles ``corners (C, 4, 2)``, ``centers (C, 2)`` seen from the E origin:
+    ``lo``, ``hi`` (rad: the corners' extreme bearings taken about the centre's, so ``hi - lo < pi`` and
+    ``lo`` may lie below -pi), the centre's range and the nearest corner's range (m)."""
     count = corners.shape[0]
     lo = np.empty(count)
     hi = np.empty(count)
@@ -228,7 +163,10 @@ def _spans(corners, centers):
 
 @njit
 def _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels):
-    """``occluded_fraction`` from the components' spans and ranges."""
+    """The fraction (C,) of each span ``[lo, hi]`` (centre range ``rng``, label ``labels``) covered by
+    the largest overlap with the span of an occluder (``occ_corners (T, 4, 2)``, ``occ_centers``,
+    ``occ_labels``) of another label whose centre is nearer, the occluder shifted by the whole turns
+    that bring the two spans' middles closest; 0 without occluders."""
     count = lo.shape[0]
     hidden = np.zeros(count)
     if occ_corners.shape[0] == 0:
@@ -249,10 +187,78 @@ def _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels):
 
 @njit
 def occluded_kernel(corners, centers, labels, occ_corners, occ_centers, occ_labels):
-    """``tracker.detection.occluded_fraction``: the fraction (C,) of each rectangle's bearing span
-    hidden by a nearer occluder of another label."""
+    """``occluded_fraction``: the fraction (C,) of each rectangle's bearing span hidden by a nearer
+    occluder of another label (``_occluded``)."""
     lo, hi, rng, _ = _spans(corners, centers)
     return _occluded(lo, hi, rng, labels, occ_corners, occ_centers, occ_labels)
+
+
+@njit(inline="always")
+def _scan_hidden(lo, hi, near, scan, resolution, scan_margin):
+    """The fraction (C,) of each bearing span ``[lo, hi]`` (rad) that returns of ``scan (N, 2)`` (N > 0)
+    hide: those nearer than the span's rectangle's nearest corner ``near`` (m) by more than
+    ``scan_margin``. Each ray (bearing bin of ``resolution``, ``rint(bearing / resolution)`` modulo one
+    turn) holding such a return within the span counts once: the fraction is the rays times
+    ``resolution`` over the span (at least one ray), at most 1."""
+    count = lo.shape[0]
+    hidden = np.zeros(count)
+    limit = -np.inf
+    for c in range(count):
+        limit = max(limit, near[c])
+    limit -= scan_margin
+    m = scan.shape[0]
+    r_all = np.empty(m)
+    b_all = np.empty(m)
+    ray_all = np.empty(m, dtype=np.int64)
+    per_turn = max(int(np.rint(2.0 * np.pi / resolution)), 1)
+    k = 0
+    for i in range(m):
+        r = np.hypot(scan[i, 0], scan[i, 1])
+        if r < limit:  # only returns that can hide anything
+            r_all[k] = r
+            b_all[k] = np.arctan2(scan[i, 1], scan[i, 0])
+            ray_all[k] = np.int64(np.rint(b_all[k] / resolution)) % per_turn  # its ray (bearing bin)
+            k += 1
+    order = np.argsort(ray_all[:k], kind="mergesort")  # the returns of one ray together
+    r_scan = r_all[:k][order]
+    b_scan = b_all[:k][order]
+    ray = ray_all[:k][order]
+    for c in range(count):
+        centre = 0.5 * (lo[c] + hi[c])
+        half = 0.5 * (hi[c] - lo[c])
+        threshold = near[c] - scan_margin
+        # the returns sorted by ray whose ray can lie in the span: the rays of its bearings, two
+        # rays more on either side (rounding, and 2 pi / resolution not a whole number); as two
+        # ranges where the window crosses ray 0. The count of rays with a hiding return does not
+        # depend on the order the rays are visited in, so the window gives the whole scan's count.
+        first = np.int64(np.floor((centre - half) / resolution)) - 2
+        final = np.int64(np.ceil((centre + half) / resolution)) + 2
+        if final - first + 1 >= per_turn:
+            ranges = ((0, k), (0, 0))
+        else:
+            a = first % per_turn
+            b = final % per_turn
+            if a <= b:
+                ranges = ((np.searchsorted(ray, a), np.searchsorted(ray, b, side="right")), (0, 0))
+            else:
+                ranges = ((np.searchsorted(ray, a), k), (0, np.searchsorted(ray, b, side="right")))
+        hides = 0  # rays with a hiding return (a 3-D lidar's beams share a ray)
+        for start, stop in ranges:
+            last = -1
+            for i in range(start, stop):
+                if ray[i] != last and r_scan[i] < threshold and abs(wrap_angle_scalar(b_scan[i] - centre)) <= half:
+                    hides += 1
+                    last = ray[i]
+        hidden[c] = min(max(hides * resolution / max(hi[c] - lo[c], resolution), 0.0), 1.0)
+    return hidden
+
+
+@njit
+def scan_occluded_kernel(corners, centers, scan, resolution, scan_margin):
+    """``scan_occluded_fraction``: the fraction (C,) of each rectangle's bearing span hidden by the
+    returns of ``scan (N, 2)`` (N > 0) nearer than its nearest corner by more than ``scan_margin``."""
+    lo, hi, _, near = _spans(corners, centers)
+    return _scan_hidden(lo, hi, near, scan, resolution, scan_margin)
 
 
 @njit
@@ -274,55 +280,9 @@ def detection_kernel(corners, centers, labels, occ_corners, occ_centers, occ_lab
     else:
         hidden = np.zeros(count)
     if use_scan and scan.shape[0] > 0 and count > 0:
-        limit = -np.inf
+        by_scan = _scan_hidden(lo, hi, near, scan, resolution, scan_margin)
         for c in range(count):
-            limit = max(limit, near[c])
-        limit -= scan_margin
-        m = scan.shape[0]
-        r_all = np.empty(m)
-        b_all = np.empty(m)
-        ray_all = np.empty(m, dtype=np.int64)
-        per_turn = max(int(np.rint(2.0 * np.pi / resolution)), 1)
-        k = 0
-        for i in range(m):
-            r = np.hypot(scan[i, 0], scan[i, 1])
-            if r < limit:  # only returns that can hide anything
-                r_all[k] = r
-                b_all[k] = np.arctan2(scan[i, 1], scan[i, 0])
-                ray_all[k] = np.int64(np.rint(b_all[k] / resolution)) % per_turn  # its ray (bearing bin)
-                k += 1
-        order = np.argsort(ray_all[:k], kind="mergesort")  # the returns of one ray together
-        r_scan = r_all[:k][order]
-        b_scan = b_all[:k][order]
-        ray = ray_all[:k][order]
-        for c in range(count):
-            centre = 0.5 * (lo[c] + hi[c])
-            half = 0.5 * (hi[c] - lo[c])
-            threshold = near[c] - scan_margin
-            # the returns sorted by ray whose ray can lie in the span: the rays of its bearings, two
-            # rays more on either side (rounding, and 2 pi / resolution not a whole number); as two
-            # ranges where the window crosses ray 0. The count of rays with a hiding return does not
-            # depend on the order the rays are visited in, so the window gives the whole scan's count.
-            first = np.int64(np.floor((centre - half) / resolution)) - 2
-            final = np.int64(np.ceil((centre + half) / resolution)) + 2
-            if final - first + 1 >= per_turn:
-                ranges = ((0, k), (0, 0))
-            else:
-                a = first % per_turn
-                b = final % per_turn
-                if a <= b:
-                    ranges = ((np.searchsorted(ray, a), np.searchsorted(ray, b, side="right")), (0, 0))
-                else:
-                    ranges = ((np.searchsorted(ray, a), k), (0, np.searchsorted(ray, b, side="right")))
-            hides = 0  # rays with a hiding return (a 3-D lidar's beams share a ray)
-            for start, stop in ranges:
-                last = -1
-                for i in range(start, stop):
-                    if ray[i] != last and r_scan[i] < threshold and abs(wrap_angle_scalar(b_scan[i] - centre)) <= half:
-                        hides += 1
-                        last = ray[i]
-            frac = min(max(hides * resolution / max(hi[c] - lo[c], resolution), 0.0), 1.0)
-            hidden[c] = max(hidden[c], frac)
+            hidden[c] = max(hidden[c], by_scan[c])
     for c in range(count):
         visible = 1.0 - hidden[c]
         p_d[c] = p_d[c] * min(max(visible / visible_for_detection, 0.0), 1.0)

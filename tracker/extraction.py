@@ -1,11 +1,10 @@
 """Compiled steps of the tracker's extraction of the tracks (``Tracker._extract``).
 
 ``report_centres_kernel``: the report-range test's rectangle centres in E of the components at
-``index``, the rows gathered and converted in one call (``tracker.measurement.to_vehicle``'s compiled
-path, its centres computed by the same ``to_vehicle_kernel``: the same numbers bit for bit), without
-``to_vehicle``'s per-call Python work and the fancy-indexed copy of the rows. The distance of the
-centres (``numpy.hypot``) stays in numpy (module docstring of ``tracker.compiled``: numba's ``hypot``
-may differ from numpy's in the last bit).
+``index``, the rows gathered and converted in one call (the centres of ``tracker.measurement.to_vehicle``,
+computed by its kernel ``to_vehicle_kernel``), without ``to_vehicle``'s per-call Python work and the
+fancy-indexed copy of the rows. The distance of the centres stays in numpy (``numpy.hypot``: numba's
+``hypot`` may differ from numpy's in the last bit).
 """
 
 from __future__ import annotations

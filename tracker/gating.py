@@ -1,7 +1,7 @@
-"""Compiled pre-gating of the tracker's update (``tracker.tracker.Tracker._update``): the (component,
-cluster) pairs worth a UKF update, in one numba call (``candidate_pairs_kernel``). The same arithmetic in
-the same order as the numpy it replaces (the distance ``sqrt(dx^2 + dy^2)``, as ``numpy.linalg.norm``,
-to the clusters' centroids, which numpy computes), so the same pairs."""
+"""Pre-gating of the tracker's update (``tracker.tracker.Tracker._update``): the (component, cluster)
+pairs worth a UKF update, in one numba call (``candidate_pairs_kernel``): a component's rectangle centre
+within its reach of the cluster's centroid (the distance ``sqrt(dx^2 + dy^2)``), a positive detection
+probability, and a cluster free or owned by the component's track group."""
 
 from __future__ import annotations
 

@@ -12,7 +12,9 @@ weighted means, so components on either side of ``s = 0`` merge.
 - cap: keep the ``max_components`` heaviest.
 
 ``reduce_in_view`` is the tracker's reduce stage before its overlap rules: the components out of view or
-off the road dropped, then ``reduce`` (one compiled call when the kernels are on).
+off the road dropped, then ``reduce``, in one compiled call (``reduce_kernel``). ``absorb_overlapping``
+lets one label absorb another whose rectangle overlaps its own (two tracks of one vehicle). The stage's
+numba kernels are at the end of the module.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
 from tracker.ukf import NO_WRAP, Wrapping
 from tracker.jit import njit
 from tracker.clustering import points_in_rectangles_kernel
@@ -121,38 +122,18 @@ def merge_same_label(
 def merge(mix: Mixture, gate: float, wrapping: Wrapping = NO_WRAP) -> Mixture:
     """Merge components within Mahalanobis distance^2 ``gate`` of the heaviest remaining one.
 
-    The distances of every pair, ``d_ij^T P_i^-1 d_ij`` with ``d_ij = m_i - m_j`` (wrapped), are
-    computed at once; the greedy grouping (heaviest remaining component ``j`` takes every remaining
-    ``i`` within the gate) is then a loop of boolean operations, and all groups are moment-matched in
-    one batched pass (``_moment_match_groups``). The merged mean is the weighted mean (circular for
-    angles, about the group's heaviest component), the covariance the weighted spread plus the weighted
-    covariances. (By ``tracker.reduction`` when the compiled kernels are on.)
+    The heaviest remaining component ``j`` (ties of weight in index order) takes every remaining ``i``
+    with ``d_ij^T P_i^-1 d_ij <= gate``, ``d_ij = m_i - m_j`` (wrapped coordinates wrapped); each group
+    becomes one moment-matched Gaussian: the weights' sum, the weighted mean (circular for angles, about
+    the group's heaviest component), the weighted covariances plus the weighted spread. The group keeps
+    the label of its heaviest component. One compiled call (``merge_kernel``); a singular ``P_i`` that
+    some pair needs raises ``numpy.linalg.LinAlgError``.
     """
-    n = len(mix)
-    if n <= 1:
+    if len(mix) <= 1:
         return mix
-    if compiled_kernels.enabled():
-        weights, means, covs, anchor = merge_kernel(
-            np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
-            np.ascontiguousarray(mix.covs, dtype=float), float(gate), *_wrapping_args(wrapping))
-        return Mixture(weights, means, covs, mix.labels[anchor])
-    inv = np.linalg.inv(mix.covs)
-    d = wrapping.residual(mix.means[:, None, :] - mix.means[None, :, :])  # (i, j, D): m_i - m_j
-    maha = np.einsum("ijd,ide,ije->ij", d, inv, d)
-    within = maha <= gate
-    remaining = np.ones(n, dtype=bool)
-    group = np.full(n, -1)
-    anchors = []
-    for j in np.argsort(-mix.weights, kind="stable"):  # each iteration removes at least component j
-        if not remaining[j]:
-            continue
-        members = remaining & within[:, j]
-        members[j] = True
-        group[members] = len(anchors)
-        anchors.append(j)
-        remaining &= ~members
-    anchor = np.array(anchors)
-    weights, means, covs = _moment_match_groups(mix, group, anchor, wrapping)
+    weights, means, covs, anchor = merge_kernel(
+        np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
+        np.ascontiguousarray(mix.covs, dtype=float), float(gate), *_wrapping_args(wrapping))
     return Mixture(weights, means, covs, mix.labels[anchor])
 
 
@@ -165,26 +146,6 @@ def _wrapping_args(wrapping: Wrapping) -> tuple[np.ndarray, np.ndarray, np.ndarr
     for array in out:
         array.flags.writeable = False  # shared by every call
     return out
-
-
-def _moment_match_groups(mix: Mixture, group: np.ndarray, anchor: np.ndarray,
-                         wrapping: Wrapping) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``_moment_match`` of every group at once: component ``i`` belongs to group ``group[i]`` whose
-    residuals are taken about component ``anchor[group[i]]``. Returns weights ``(G,)``, means
-    ``(G, D)`` and covariances ``(G, D, D)``."""
-    count = len(anchor)
-    w = mix.weights
-    w_sum = np.bincount(group, weights=w, minlength=count)
-    dev = wrapping.residual(mix.means - mix.means[anchor[group]])
-    mean_dev = np.zeros((count, mix.means.shape[1]))
-    np.add.at(mean_dev, group, w[:, None] * dev)
-    mean_dev /= w_sum[:, None]
-    means = wrapping.wrap(mix.means[anchor] + mean_dev)
-    spread = dev - mean_dev[group]
-    cov = np.zeros((count,) + mix.covs.shape[1:])
-    np.add.at(cov, group, w[:, None, None] * (mix.covs + spread[:, :, None] * spread[:, None, :]))
-    cov /= w_sum[:, None, None]
-    return w_sum, means, 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
 def reduce(
@@ -226,37 +187,26 @@ def reduce_in_view(
     """The components in view (``near_range <= max_range``: the range of each one's nearest corner) and
     on the road (``lo <= lateral <= hi``, ``lateral_bounds = (lo, hi)``), ``reduce``d; with ``s_period``
     coordinate 0 then taken modulo it (``numpy.mod``: a closed road's ``s``). Returns the mixture, the
-    number of components out of view and the number in view but off the road. (In one call of
-    ``tracker.reduction.reduce_kernel`` when the compiled kernels are on; ``merge_same_label``,
-    and then the cap and the modulo, stay here in the frames where two heavy merged components share
-    a label.)"""
+    number of components out of view and the number in view but off the road. In one call of
+    ``reduce_kernel``; ``merge_same_label``, and then the cap and the modulo, follow here in the frames
+    where two heavy merged components share a label."""
     if len(near_range) != len(mix) or len(lateral) != len(mix):
         raise ValueError(f"need one range and one lateral offset per component ({len(mix)}); "
                          f"got {len(near_range)} and {len(lateral)}")
     lo, hi = lateral_bounds
-    if compiled_kernels.enabled() and len(mix):
-        weights, means, covs, source, left_view, off_road, pending = reduce_kernel(
-            np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
-            np.ascontiguousarray(mix.covs, dtype=float), np.ascontiguousarray(mix.labels, dtype=np.int64),
-            np.ascontiguousarray(near_range, dtype=float), float(max_range), np.ascontiguousarray(lateral, dtype=float),
-            float(lo), float(hi), float(prune_threshold), float(merge_gate), *_wrapping_args(wrapping),
-            -1.0 if same_label_distance is None else float(same_label_min_weight), int(max_components),
-            0.0 if s_period is None else float(s_period))
-        mix = Mixture(weights, means, covs, mix.labels[source])
-        if pending:
-            mix = cap(merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping,
-                                       along_length=same_label_along_length), max_components)
-            if s_period is not None and len(mix):
-                mix.means[:, 0] = np.mod(mix.means[:, 0], s_period)
-        return mix, left_view, off_road
-    inside = near_range <= max_range
-    on_road = (lateral >= lo) & (lateral <= hi)
-    left_view, off_road = int((~inside).sum()), int((inside & ~on_road).sum())
-    mix = reduce(mix.take(inside & on_road), prune_threshold=prune_threshold, merge_gate=merge_gate,
-                 max_components=max_components, wrapping=wrapping, same_label_distance=same_label_distance,
-                 same_label_min_weight=same_label_min_weight, same_label_along_length=same_label_along_length)
-    if s_period is not None and len(mix):
-        mix.means[:, 0] = np.mod(mix.means[:, 0], s_period)
+    weights, means, covs, source, left_view, off_road, pending = reduce_kernel(
+        np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
+        np.ascontiguousarray(mix.covs, dtype=float), np.ascontiguousarray(mix.labels, dtype=np.int64),
+        np.ascontiguousarray(near_range, dtype=float), float(max_range), np.ascontiguousarray(lateral, dtype=float),
+        float(lo), float(hi), float(prune_threshold), float(merge_gate), *_wrapping_args(wrapping),
+        -1.0 if same_label_distance is None else float(same_label_min_weight), int(max_components),
+        0.0 if s_period is None else float(s_period))
+    mix = Mixture(weights, means, covs, mix.labels[source])
+    if pending:
+        mix = cap(merge_same_label(mix, same_label_distance, same_label_min_weight, wrapping=wrapping,
+                                   along_length=same_label_along_length), max_components)
+        if s_period is not None and len(mix):
+            mix.means[:, 0] = np.mod(mix.means[:, 0], s_period)
     return mix, left_view, off_road
 
 
@@ -271,12 +221,12 @@ def _position_periods(wrapping: Wrapping) -> tuple[tuple[tuple[int, float], ...]
 
 def _screened_candidates(mix: Mixture, min_weight: float, overlap: float, cartesian: bool, position_periodic: bool,
                          s_period: float | None) -> tuple[np.ndarray, bool]:
-    """``absorb_overlapping``'s candidates by the compiled kernels (``absorb_candidates_kernel``: the
-    heaviest component of each label of weight >= ``min_weight``, heaviest first) and whether they may
-    overlap: False when there are fewer than two or ``overlapping_pairs_kernel`` finds no pair (along
-    the road in one call with the candidates, ``overlapping_candidates_kernel``; along the heading,
-    whose cosine and sine numpy takes, in a second); True where that test does not apply (fewer than 7
-    state entries, a periodic position other than ``s`` alone), for the numpy test to decide."""
+    """``absorb_overlapping``'s candidates (``absorb_candidates_kernel``: the heaviest component of each
+    label of weight >= ``min_weight``, heaviest first) and whether they may overlap: False when there
+    are fewer than two or ``overlapping_pairs_kernel`` finds no pair (along the road in one call with
+    the candidates, ``overlapping_candidates_kernel``; along the heading, whose cosine and sine numpy
+    takes, in a second); True where that test does not apply (fewer than 7 state entries, a periodic
+    position other than ``s`` alone), for ``absorb_overlapping``'s own test of the pairs to decide."""
     weights = np.ascontiguousarray(mix.weights, dtype=float)
     labels = np.ascontiguousarray(mix.labels, dtype=np.int64)
     if mix.means.shape[1] >= 7 and (not position_periodic or s_period is not None):
@@ -333,21 +283,11 @@ def absorb_overlapping(
     Every component of the absorbed label is dropped. Returns the mixture and the number of labels
     absorbed."""
     position_periods, s_period = _position_periods(wrapping)
-    if compiled_kernels.enabled():
-        # the usual frame: no two labels overlap, which compiled passes over the pairs tell
-        cand, overlapping = _screened_candidates(mix, min_weight, overlap, cartesian, bool(position_periods), s_period)
-        if not overlapping:
-            return mix, 0
-    else:
-        heavy = np.flatnonzero(mix.weights >= min_weight)
-        if len(heavy) < 2:
-            return mix, 0
-        order = heavy[np.argsort(-mix.weights[heavy], kind="stable")]
-        seen: set[int] = set()  # a few heavy components: a set beats numpy.unique's sort
-        first = [k for k, lab in enumerate(mix.labels[order].tolist()) if not (lab in seen or seen.add(lab))]
-        cand = order[first]  # the heaviest component of each label, heaviest first
-        if len(cand) < 2:
-            return mix, 0
+    # the usual frame: no two labels overlap, which compiled passes over the pairs tell
+    cand, overlapping = _screened_candidates(mix, min_weight, overlap, cartesian, bool(position_periods), s_period)
+    if not overlapping:
+        return mix, 0
+    # the pairs of candidates that overlap, and how far along the keeper's axis the other lies (its union)
     m = mix.means[cand]
     d = m[None, :, :2] - m[:, None, :2]  # d[i, j] = position of j - position of i
     if position_periods:
@@ -411,21 +351,19 @@ def absorb_overlapping(
 # --------------------------------------------------------------------------------------------------
 # The compiled kernels of this stage.
 #
-# Compiled mixture reduction: ``tracker.reduction.merge`` in one numba call (``merge_kernel``), the
-# whole reduce stage's first part (``reduce_kernel``: the field-of-view and road test, prune, merge, cap,
-# the closed road's ``s``), ``Tracker._drop_inside_updated``'s test (``inside_updated_kernel``) and
-# ``absorb_overlapping``'s screen (``absorb_candidates_kernel``, ``overlapping_pairs_kernel``,
-# ``overlapping_candidates_kernel``).
+# The merge (``merge_kernel``), the whole reduce stage's first part (``reduce_kernel``: the field-of-view
+# and road test, prune, merge, cap, the closed road's ``s``), ``Tracker._drop_inside_updated``'s test
+# (``inside_updated_kernel``) and ``absorb_overlapping``'s screen (``absorb_candidates_kernel``,
+# ``overlapping_pairs_kernel``, ``overlapping_candidates_kernel``).
 #
-# The merge takes the same steps as the numpy reference: the Mahalanobis distance of every pair ``d_ij^T
-# P_i^-1 d_ij`` (``d_ij = m_i - m_j``, wrapped coordinates wrapped; a pair whose ``d_k^2 / P_i[k, k]``, a
-# lower bound of it when ``P_i`` is positive definite, already exceeds the gate on the first or second
-# coordinate is rejected without it, and ``P_i^-1`` is computed only for the components some pair needs it
-# of: so a singular covariance raises ``LinAlgError`` here only when a pair needs its inverse, where the
-# numpy reference inverts them all), the greedy grouping (the heaviest remaining component takes every
-# remaining one within the gate; ties of weight in index order), and the moment match of each group about
-# its heaviest component (weighted mean, circular for angles; weighted covariances plus the weighted
-# spread, symmetrised).
+# The merge (Vo & Ma): the Mahalanobis distance ``d_ij^T P_i^-1 d_ij`` of a pair (``d_ij = m_i - m_j``,
+# wrapped coordinates wrapped); a pair whose ``d_k^2 / P_i[k, k]``, a lower bound of it when ``P_i`` is
+# positive definite, already exceeds the gate on the first or second coordinate is rejected without it,
+# and ``P_i^-1`` is computed only for the components some pair needs it of (so a singular covariance
+# raises ``LinAlgError`` only when a pair needs its inverse). The greedy grouping: the heaviest remaining
+# component takes every remaining one within the gate (ties of weight in index order). The moment match
+# of each group about its heaviest component: the weighted mean, circular for angles; the weighted
+# covariances plus the weighted spread, symmetrised.
 # --------------------------------------------------------------------------------------------------
 
 
@@ -531,7 +469,7 @@ def overlapping_pairs_kernel(means, cos_h, sin_h, cartesian, overlap, period):  
     when the rectangles of ``i`` and ``j`` overlap along the road (``s``; along ``i``'s heading, of cosine
     ``cos_h[i]`` and sine ``sin_h[i]``, for ``cartesian`` states) by more than ``overlap`` m, each centre
     within half the narrower width of the other's across it; ``period`` > 0: ``s`` wraps with it (a
-    closed road). The same arithmetic as the numpy test, element by element; the diagonal False."""
+    closed road). The diagonal is False."""
     n = len(means)
     over = np.zeros((n, n), dtype=np.bool_)
     for i in range(n):

@@ -67,10 +67,8 @@ from scipy.stats import chi2
 from tracker.birth import (cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births,
                            with_acceleration)
 from tracker.cloud import CloudResult
-from tracker import jit as compiled_kernels
-from tracker.clustering import (bearing_extremes, cluster_radar_ranges, dense_components, distance_partition,
-                                fragment_owners, occluded_ends, points_in_rectangles, split_across,
-                                SPLIT_MAX_CUTS)
+from tracker.clustering import (bearing_extremes, cluster_radar_ranges, distance_partition, fragment_owners,
+                                occluded_ends, points_in_rectangles, SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
@@ -85,13 +83,16 @@ from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
-from tracker.clustering import cluster_points_kernel, ordered_clusters_kernel
+from tracker.clustering import cluster_points_kernel, ordered_clusters_kernel, overlap_groups_kernel
 from tracker.extraction import report_centres_kernel
 from tracker.gating import candidate_pairs_kernel
 from tracker.reduction import inside_updated_kernel
 
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
+
+#: ``cluster_points_kernel``'s components when the kernel is to find them itself (none given).
+_PARTITION_HERE = np.zeros(0, dtype=np.int64)
 
 #: The stages of ``Tracker.step`` timed in ``Tracker.stage_seconds``, in their order: the prediction
 #: (cluster births of the last frame joining first), the lidar preprocessing, the road births (with the
@@ -193,10 +194,6 @@ class Tracker:
     # -- public -----------------------------------------------------------------------------------
     def step(self, frame: Frame) -> list[Track]:
         """Process one frame (its lidar points, radar detections and ego pose); returns the tracks."""
-        with compiled_kernels.pinned():  # the kernels' switch read once per frame
-            return self._step(frame)
-
-    def _step(self, frame: Frame) -> list[Track]:
         if not isinstance(frame, Frame):
             raise ValueError(f"Tracker.step needs a tracker.Frame; got {type(frame).__name__}")
         if self.t is not None and frame.t < self.t - TIME_TOLERANCE:
@@ -418,13 +415,11 @@ class Tracker:
         """The frame's clusters (views of the points ordered by cluster) and their radar velocities (or
         None); sets ``_owned`` (each cluster's track group, or -1), ``_component_group`` (each
         component's track group, or -1) and ``_free_radar`` (the detections that joined no cluster).
-        The grouping is ``_grouped_points`` (one or two compiled calls when the kernels are on, the
-        same numbers as its numpy reference ``_grouped_points_numpy``), the radar association
+        The grouping is ``_grouped_points``, the radar association
         ``tracker.clustering.cluster_radar_ranges``."""
         cfg = self.config.clustering
         if len(points):
-            grouped = self._grouped_points(points, rect) if compiled_kernels.enabled() else None
-            ordered, edges, owned = self._grouped_points_numpy(points, rect) if grouped is None else grouped
+            ordered, edges, owned = self._grouped_points(points, rect)
         else:
             self._component_group = np.full(len(self.mixture), -1)
             ordered, edges, owned = np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=int)
@@ -448,23 +443,36 @@ class Tracker:
         self.stats["clusters_fused"] += sum(v is not None for v in velocities)
         return clusters, velocities
 
-    def _grouped_points(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """``_grouped_points_numpy`` in one compiled call (``tracker.clustering.cluster_points_kernel``),
-        or two with ``fragment_owners`` (numpy) between them where a fragment may join a track
-        (``ordered_clusters_kernel`` then finishes); None (nothing set) where the kernel hands back (a
-        non-finite lateral offset, a partition the compiled path does not take)."""
+    def _grouped_points(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points grouped into clusters (``tracker.clustering.cluster_points_kernel``): points inside
+        a reported track's predicted rectangle (plus ``clustering.track_margin``) go to its group
+        (overlapping rectangles, ``_duplicate_groups``, are one); a connected component
+        (``distance_partition``) that a group owns in part joins it entirely; lone fragments may continue
+        a track (``_fragments_adopted``, between the kernel's two halves); all points a group owns form
+        one cluster, even in fragments (a partly hidden car), the other points one cluster per connected
+        component; clusters wider across the road than one vehicle (``clustering.split_width``) are cut
+        at their largest lateral gap (``clustering.split_gap``): two long vehicles side by side whose
+        points the lidar sees as one line, or that a drifted track's rectangle owns together. The points'
+        lateral offsets are the road-bound test's (``self._point_n``). Of a track-owned cluster cut in
+        parts, the part with the most points inside the track's rectangle stays the track's; the others
+        become free clusters (any track may take them in the update, else they seed births). Returns
+        the points ordered by cluster (groups first, then components, then the cut parts; ties by
+        index), the clusters' edges ``(K + 1,)`` in them and each cluster's group (or -1); sets
+        ``_component_group`` and counts ``clusters_split``."""
         cfg = self.config.clustering
         tracks = self._reported
         labels = self.mixture.labels
         fragment = cfg.fragment_points is not None and len(tracks)
         split = cfg.split_width is not None
+        head = (points, rect.center, np.cos(rect.psi), np.sin(rect.psi), rect.length, rect.width, float(cfg.track_margin),
+                rect.corners(), labels, labels[tracks], float(cfg.distance))
+        tail = (self._point_n, int(cfg.fragment_points) if fragment else -1, split,
+                float(cfg.split_width) if split else 0.0, float(cfg.split_gap), SPLIT_MAX_CUTS)
         ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(
-            points, rect.center, np.cos(rect.psi), np.sin(rect.psi), rect.length, rect.width, float(cfg.track_margin),
-            rect.corners(), labels, labels[tracks], float(cfg.distance), self._point_n,
-            int(cfg.fragment_points) if fragment else -1, split, float(cfg.split_width) if split else 0.0,
-            float(cfg.split_gap), SPLIT_MAX_CUTS)
-        if not ok:
-            return None
+            *head, _PARTITION_HERE, *tail)
+        if not ok:  # points the partition's grid does not hold: their components from the whole graph
+            ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = (
+                cluster_points_kernel(*head, distance_partition(points, cfg.distance), *tail))
         self._component_group = component_group
         if not done:
             owner = self._fragments_adopted(points, rect, groups, component, owner)
@@ -475,42 +483,6 @@ class Tracker:
         if added:
             self.stats["clusters_split"] += int(added)
         return ordered, edges, owned
-
-    def _grouped_points_numpy(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The points grouped into clusters: points inside a reported track's predicted rectangle (plus
-        ``clustering.track_margin``) go to its group (overlapping rectangles, ``_duplicate_groups``, are
-        one); a connected component (``distance_partition``) that a group owns in part joins it entirely
-        (``_adopt_strays``); lone fragments may continue a track (``_fragments_adopted``); all points a
-        group owns form one cluster, even in fragments (a partly hidden car), the other points one
-        cluster per connected component; clusters too wide across the road are cut (``_split_across``).
-        Returns the points ordered by cluster (groups first, then components, then the cut parts; ties
-        by index), the clusters' edges ``(K + 1,)`` in them and each cluster's group (or -1); sets
-        ``_component_group``."""
-        cfg = self.config.clustering
-        self._component_group = np.full(len(self.mixture), -1)
-        owner = np.full(len(points), -1)
-        tracks = self._reported
-        groups = np.zeros(0, dtype=int)
-        if len(tracks):
-            owner = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, cfg.track_margin)
-            groups = _duplicate_groups(rect)
-            # every component carrying a reported track's label belongs to that track's group
-            # (its unreported hypotheses: a missed-detection copy, a fragment's update)
-            same = self.mixture.labels[:, None] == self.mixture.labels[tracks][None, :]  # (C, T)
-            self._component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
-            owner = np.where(owner >= 0, groups[np.maximum(owner, 0)], -1)
-        component = distance_partition(points, cfg.distance)
-        inside = owner >= 0  # inside a rectangle (plus margin), before strays are adopted
-        owner = _adopt_strays(component, owner)
-        if cfg.fragment_points is not None and len(tracks):  # a far truck's side past its track's front
-            owner = self._fragments_adopted(points, rect, groups, component, owner)
-        key = np.where(owner >= 0, owner, len(tracks) + component)
-        if cfg.split_width is not None:
-            key, owner = self._split_across(key, owner, inside)
-        order = np.argsort(key, kind="stable")
-        bounds = np.flatnonzero(np.diff(key[order])) + 1
-        edges = np.concatenate([[0], bounds, [len(points)]])
-        return points[order], edges, owner[order][edges[:-1]]
 
     def _fragments_adopted(self, points: np.ndarray, rect: Rectangles, groups: np.ndarray, component: np.ndarray,
                            owner: np.ndarray) -> np.ndarray:
@@ -530,52 +502,6 @@ class Tracker:
             self.stats["fragment_points_adopted"] += int(taken.sum())
             owner = np.where(taken, groups[np.maximum(adopted, 0)], owner)
         return owner
-
-    def _split_across(self, key: np.ndarray, owner: np.ndarray, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cut clusters wider across the road than one vehicle (``clustering.split_width``) at their
-        largest lateral gap (``clustering.split_gap``; ``tracker.clustering.split_across``): two long
-        vehicles side by side whose points the lidar sees as one line, or that a drifted track's
-        rectangle owns together. The points' lateral offsets are the road-bound test's
-        (``self._point_n``). Of a track-owned cluster cut in parts, the part with the most points
-        inside the track's rectangle stays the track's; the others become free clusters (any track
-        may take them in the update, else they seed births). Returns the new keys and owners."""
-        cfg = self.config.clustering
-        n_all = self._point_n
-        order = np.argsort(key, kind="stable")
-        ks = key[order]
-        first = np.ones(len(ks), dtype=bool)
-        first[1:] = ks[1:] != ks[:-1]
-        starts = np.flatnonzero(first)
-        ns = n_all[order]
-        big = np.maximum.reduceat(ns, starts) - np.minimum.reduceat(ns, starts) > cfg.split_width
-        if not big.any():
-            return key, owner
-        cand = order[big[np.cumsum(first) - 1]]  # points of the candidate clusters
-        part = split_across(n_all[cand], key[cand], cfg.split_width, cfg.split_gap)
-        kc = key[cand]
-        # a part of cluster k: parts that are one whole cluster keep their key
-        pieces = np.bincount(np.unique(np.column_stack([kc, part]), axis=0)[:, 0] - kc.min(),
-                             minlength=int(kc.max() - kc.min()) + 1)
-        cut = pieces[kc - kc.min()] > 1
-        if not cut.any():
-            return key, owner
-        self.stats["clusters_split"] += int(len(np.unique(part[cut])) - len(np.unique(kc[cut])))
-        key, owner = key.copy(), owner.copy()
-        key[cand[cut]] = int(key.max()) + 1 + part[cut]
-        # the part with most points inside the owner's rectangles stays owned; the others are free
-        oc = owner[cand[cut]]
-        pc = part[cut]
-        owned_part = oc >= 0
-        if owned_part.any():
-            votes = np.bincount(pc, weights=inside[cand[cut]].astype(float), minlength=int(pc.max()) + 1)
-            votes = votes + 1e-6 * np.bincount(pc, minlength=int(pc.max()) + 1)  # ties: the larger part
-            parent = np.zeros(int(pc.max()) + 1, dtype=int)
-            parent[pc] = kc[cut]
-            best = np.full(int(kc.max()) + 1, -1.0)
-            np.maximum.at(best, parent, votes)
-            winner = votes >= best[parent]
-            owner[cand[cut]] = np.where(winner[pc], oc, -1)
-        return key, owner
 
     def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
         """GM-PHD update; returns which clusters some component explained (a gated pair)."""
@@ -804,8 +730,8 @@ class Tracker:
         posterior in this frame (none above the extraction threshold) whose centre lies inside the
         rectangle of another label's reportable posterior: a duplicate of the seen vehicle, whether no
         cluster updated it or its vehicle's cluster did, weakly, beside the track that took it (the
-        centres inside the rectangles as ``points_in_rectangles`` finds them, margin 0; by
-        ``tracker.reduction.inside_updated_kernel`` in one call when the kernels are on)."""
+        centres inside the rectangles as ``points_in_rectangles`` finds them, margin 0:
+        ``tracker.reduction.inside_updated_kernel``)."""
         mix = self.mixture
         updated = _labels_in(mix.labels, self._strong_labels)
         seen = updated & (mix.weights > self.config.reduction.extraction_threshold)
@@ -813,16 +739,8 @@ class Tracker:
             return
         rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
         seen, idle = np.flatnonzero(seen), np.flatnonzero(~updated)
-        if compiled_kernels.enabled():
-            psi = rect.psi[seen]
-            keep, dropped = inside_updated_kernel(rect.center, np.cos(psi), np.sin(psi), rect.length, rect.width, seen,
-                                                  idle)
-        else:
-            inside = points_in_rectangles(rect.center[idle], rect.center[seen], rect.psi[seen], rect.length[seen],
-                                          rect.width[seen], margin=0.0) >= 0
-            keep = np.ones(len(mix), dtype=bool)
-            keep[idle[inside]] = False
-            dropped = int(inside.sum())
+        psi = rect.psi[seen]
+        keep, dropped = inside_updated_kernel(rect.center, np.cos(psi), np.sin(psi), rect.length, rect.width, seen, idle)
         if dropped:
             self.stats["components_inside_updated_dropped"] += dropped
             self.mixture = mix.take(keep)
@@ -978,9 +896,10 @@ class Tracker:
 
 def _centres(means: np.ndarray, index: np.ndarray, ego: EgoState, road: Road, coordinates: str) -> np.ndarray:
     """The rectangle centres ``(K, 2)`` in E of the states ``means[index]``: ``to_vehicle(...).center``,
-    by one compiled call for curvilinear states when the kernels are on
-    (``tracker.extraction.report_centres_kernel``: the same numbers)."""
-    if coordinates == "curvilinear" and compiled_kernels.enabled() and len(index):
+    for curvilinear states by one compiled call (``tracker.extraction.report_centres_kernel``, which
+    computes them with ``to_vehicle``'s kernel); Cartesian states, no rows and a non-finite ``s`` (whose
+    error ``to_vehicle`` raises) take ``to_vehicle``."""
+    if coordinates == "curvilinear" and len(index):
         kind, *curve = road._curve.kernel_args()
         means = means if means.flags.c_contiguous else np.ascontiguousarray(means)
         centre, finite = report_centres_kernel(kind, means, index, float(ego.x), float(ego.y), float(ego.yaw),
@@ -1001,48 +920,18 @@ def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, 
     """The (component, cluster) pairs the update tries, row-major: the component's rectangle centre
     ``center`` within ``reach`` (m) of the centroid of cluster ``k`` (``points[offsets[k]:offsets[k + 1]]``,
     non-empty), ``p_d > 0``, and the cluster either owned by no track (``owned < 0``) or by the
-    component's track group ``group`` (by ``tracker.gating`` when the kernels are on: the same
-    pairs)."""
+    component's track group ``group`` (one compiled call, ``tracker.gating.candidate_pairs_kernel``)."""
     centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
-    if compiled_kernels.enabled():
-        return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
-                                      centroid, np.ascontiguousarray(p_d, dtype=float),
-                                      np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
-    dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)
-    allowed = (owned[None, :] < 0) | (owned[None, :] == group[:, None])
-    return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
-
-
-def _adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
-    """Points outside every predicted rectangle (``owner == -1``) join the track that owns most of
-    their connected component's points, so a track whose prediction is a little off keeps one cluster."""
-    owned = owner >= 0
-    if not owned.any() or owned.all():
-        return owner
-    n_comp, n_own = int(component.max()) + 1, int(owner.max()) + 1
-    votes = np.zeros((n_comp, n_own), dtype=int)
-    np.add.at(votes, (component[owned], owner[owned]), 1)
-    majority = np.where(votes.any(axis=1), votes.argmax(axis=1), -1)
-    out = owner.copy()
-    out[~owned] = majority[component[~owned]]
-    return out
+    return candidate_pairs_kernel(np.ascontiguousarray(center, dtype=float), np.ascontiguousarray(reach, dtype=float),
+                                  centroid, np.ascontiguousarray(p_d, dtype=float),
+                                  np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
 
 
 def _duplicate_groups(rect: Rectangles) -> np.ndarray:
     """Group index (T,) of track rectangles: overlapping rectangles (separating-axis test) are one
-    group, so duplicate hypotheses of one vehicle do not split its points between them."""
+    group, so duplicate hypotheses of one vehicle do not split its points between them
+    (``tracker.clustering.overlap_groups_kernel``)."""
     count = len(rect.center)
     if count <= 1:
         return np.zeros(count, dtype=int)
-    corners = rect.corners()  # (T, 4, 2)
-    if compiled_kernels.enabled():
-        from tracker.clustering import overlap_groups_kernel
-
-        return overlap_groups_kernel(np.ascontiguousarray(corners), np.cos(rect.psi), np.sin(rect.psi))
-    axes = np.concatenate([np.stack([np.cos(rect.psi), np.sin(rect.psi)], -1),
-                           np.stack([-np.sin(rect.psi), np.cos(rect.psi)], -1)], axis=0)  # (2T, 2)
-    proj = np.einsum("tkd,ad->tak", corners, axes)  # (T, 2T, 4): every rectangle on every axis
-    lo, hi = proj.min(axis=2), proj.max(axis=2)
-    separated = (hi[:, None, :] < lo[None, :, :]) | (hi[None, :, :] < lo[:, None, :])  # (T, T, 2T)
-    overlap = ~separated.any(axis=2)
-    return dense_components(overlap)
+    return overlap_groups_kernel(np.ascontiguousarray(rect.corners()), np.cos(rect.psi), np.sin(rect.psi))

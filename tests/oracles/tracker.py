@@ -1,0 +1,169 @@
+"""The tracker's own steps (``tracker.tracker``) in numpy: the grouping of a frame's points into clusters
+(``Tracker._cluster``), the update's pre-gating, the overlap groups of track rectangles and the test of
+``Tracker._drop_inside_updated``."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+
+from oracles.clustering import associate_radar, distance_partition, points_in_rectangles, split_across
+from tracker.clustering import fragment_owners
+from tracker.config import ClusteringConfig
+from tracker.frame import RadarDetections
+from tracker.measurement import Rectangles
+
+
+def candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, offsets: np.ndarray, p_d: np.ndarray,
+                    owned: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (component, cluster) pairs in row-major order: the rectangle centre within ``reach`` of the
+    cluster's centroid, ``p_d > 0``, and the cluster free (``owned < 0``) or the component's group's."""
+    centroid = np.add.reduceat(points, offsets[:-1]) / np.diff(offsets)[:, None]
+    dist = np.linalg.norm(center[:, None, :] - centroid[None, :, :], axis=2)
+    allowed = (owned[None, :] < 0) | (owned[None, :] == group[:, None])
+    return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
+
+
+def duplicate_groups(rect: Rectangles) -> np.ndarray:
+    """Group per rectangle: rectangles that overlap (no separating axis among the two rectangles' own
+    edge directions) are one group, groups numbered in order of their first rectangle."""
+    count = len(rect.center)
+    corners = rect.corners()  # (T, 4, 2)
+    axes = np.stack([np.cos(rect.psi), np.sin(rect.psi), -np.sin(rect.psi), np.cos(rect.psi)], -1).reshape(-1, 2, 2)
+    overlap = np.eye(count, dtype=bool)
+    for i in range(count):
+        for j in range(i + 1, count):
+            separated = False
+            for axis in np.concatenate([axes[i], axes[j]]):
+                a, b = corners[i] @ axis, corners[j] @ axis
+                separated |= a.max() < b.min() or b.max() < a.min()
+            overlap[i, j] = overlap[j, i] = not separated
+    return first_of_components(overlap)
+
+
+def first_of_components(adjacency: np.ndarray) -> np.ndarray:
+    """Connected components of a boolean adjacency, numbered in order of each one's first node."""
+    labels = connected_components(adjacency, directed=False)[1]
+    _, first = np.unique(labels, return_index=True)
+    rank = np.empty(len(first), dtype=int)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[labels]
+
+
+def adopt_strays(component: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """Points owned by no group (-1) join the group owning most points of their connected component (the
+    first such group on a tie; -1 when none owns any)."""
+    owned = owner >= 0
+    if not owned.any() or owned.all():
+        return owner
+    votes = np.zeros((int(component.max()) + 1, int(owner.max()) + 1), dtype=int)
+    np.add.at(votes, (component[owned], owner[owned]), 1)
+    majority = np.where(votes.any(axis=1), votes.argmax(axis=1), -1)
+    out = owner.copy()
+    out[~owned] = majority[component[~owned]]
+    return out
+
+
+def split_clusters(key: np.ndarray, owner: np.ndarray, inside: np.ndarray, n: np.ndarray, width: float,
+                   gap: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """The clusters (equal ``key``) whose lateral offsets ``n`` span more than ``width`` cut by
+    ``split_across``; the parts of a cut cluster take the keys ``max(key) + 1 + part``, and of an owned
+    cluster only the part(s) with most points ``inside`` (plus 1e-6 per point) stay owned. Returns the
+    keys, the owners and the number of parts added."""
+    with np.errstate(invalid="ignore"):  # inf - inf: a NaN span, never wide
+        span = {k: np.max(n[key == k]) - np.min(n[key == k]) for k in np.unique(key).tolist()}
+    candidate = np.array([span[k] > width for k in key.tolist()], dtype=bool)
+    if not candidate.any():
+        return key, owner, 0
+    cand = np.flatnonzero(candidate)
+    part = split_across(n[cand], key[cand], width, gap)
+    cut = np.array([len(np.unique(part[key[cand] == k])) > 1 for k in key[cand].tolist()], dtype=bool)
+    if not cut.any():
+        return key, owner, 0
+    added = len(np.unique(part[cut])) - len(np.unique(key[cand][cut]))
+    new_key, new_owner = key.copy(), owner.copy()
+    new_key[cand[cut]] = key.max() + 1 + part[cut]
+    for k in np.unique(key[cand][cut]).tolist():  # the cut clusters
+        rows = cand[key[cand] == k]
+        if owner[rows[0]] < 0:
+            continue
+        parts = part[key[cand] == k]
+        votes = {p: inside[rows[parts == p]].sum() + 1e-6 * (parts == p).sum() for p in np.unique(parts).tolist()}
+        best = max(votes.values())
+        new_owner[rows] = [owner[r] if votes[p] >= best else -1 for r, p in zip(rows.tolist(), parts.tolist())]
+    return new_key, new_owner, added
+
+
+def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray,
+                   length_sd: np.ndarray, n: np.ndarray, config: ClusteringConfig) -> dict:
+    """The tracker's grouping of a frame's points: the points in a track's rectangle (plus
+    ``track_margin``) go to its group (``duplicate_groups``); strays join their component's majority
+    group; small free fragments may continue a track's side (``fragment_owners``, with the length's sd
+    ``length_sd`` per track); the clusters too wide across the road are cut (``split_clusters``).
+    Returns the points ordered by key (ties by index), the clusters' edges, each cluster's owner group,
+    each mixture component's group (``labels`` against those of ``tracks``), and the counts
+    ``clusters_split`` and ``fragment_points_adopted``."""
+    owner = np.full(len(points), -1)
+    groups = np.zeros(0, dtype=int)
+    component_group = np.full(len(labels), -1)
+    if len(tracks):
+        groups = duplicate_groups(rect)
+        same = labels[:, None] == labels[tracks][None, :]  # (C, T)
+        component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
+        box = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, config.track_margin)
+        owner = np.where(box >= 0, groups[np.maximum(box, 0)], -1)
+    component = distance_partition(points, config.distance)
+    inside = owner >= 0
+    owner = adopt_strays(component, owner)
+    adopted = 0
+    if config.fragment_points is not None and len(tracks):
+        held = np.zeros(int(groups.max()) + 1, dtype=bool)
+        held[owner[owner >= 0]] = True
+        taken = fragment_owners(points, component, owner < 0, rect.center, rect.psi, rect.length, rect.width,
+                                length_sd, config.track_margin, config.fragment_points, config.fragment_sigmas,
+                                held[groups], config.fragment_side_tolerance)
+        adopted = int((taken >= 0).sum())
+        owner = np.where(taken >= 0, groups[np.maximum(taken, 0)], owner)
+    key = np.where(owner >= 0, owner, len(tracks) + component)
+    split = 0
+    if config.split_width is not None:
+        key, owner, split = split_clusters(key, owner, inside, n, config.split_width, config.split_gap)
+    order = np.argsort(key, kind="stable")
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(key[order])) + 1, [len(points)]])
+    return {"ordered": points[order], "edges": edges, "owned": owner[order][edges[:-1]],
+            "component_group": component_group, "clusters_split": split, "fragment_points_adopted": adopted}
+
+
+def cluster(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray, length_sd: np.ndarray,
+            n: np.ndarray, radar: RadarDetections, t: float, config: ClusteringConfig, use_radar: bool = True) -> tuple:
+    """``Tracker._cluster``: the clusters (``grouped_points``; those of fewer than ``min_points`` points
+    dropped), each one's radar velocity (``associate_radar`` of the detections moved to ``t``) or None,
+    each cluster's owner group, each component's group, the free detections and the counts."""
+    grouped = grouped_points(points, rect, labels, tracks, length_sd, n, config)
+    edges = grouped["edges"]
+    clusters = [grouped["ordered"][a:b] for a, b in zip(edges[:-1], edges[1:])]
+    big = np.diff(edges) >= config.min_points
+    stats = Counter(clusters_too_small=int((~big).sum()) if config.min_points > 1 else 0,
+                    clusters_split=grouped["clusters_split"], fragment_points_adopted=grouped["fragment_points_adopted"])
+    if config.min_points > 1:
+        clusters = [c for c, keep in zip(clusters, big) if keep]
+        owned = grouped["owned"][big]
+    else:
+        owned = grouped["owned"]
+    velocities: list = [None] * len(clusters)
+    free = np.arange(len(radar))
+    if use_radar and clusters and len(radar):
+        index = associate_radar(clusters, radar.positions_at(t), config.radar_gate)
+        velocities = [None if r < 0 else np.array([radar.vx[r], radar.vy[r]]) for r in index.tolist()]
+        free = np.setdiff1d(free, index[index >= 0])
+    stats.update(clusters=len(clusters), clusters_fused=sum(v is not None for v in velocities))
+    return clusters, velocities, owned, grouped["component_group"], free, stats
+
+
+def inside_updated(center: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray, seen: np.ndarray,
+                   idle: np.ndarray) -> np.ndarray:
+    """Which of the components ``idle`` have their centre inside the rectangle (margin 0) of one of the
+    components ``seen``."""
+    return points_in_rectangles(center[idle], center[seen], psi[seen], length[seen], width[seen], margin=0.0) >= 0
