@@ -1,5 +1,6 @@
-"""Tests of tracker/preparation.py: the batched ``prepare_clusters`` against the one-cluster reference
-``tracker.measurement.prepare_cluster`` on many kinds of clusters at once."""
+"""Tests of tracker/preparation.py: the batched ``prepare_clusters`` (and ``tracker.measurement.prepare_cluster``,
+both by ``tracker.measurement.prepare_kernel``) against the one-cluster numpy oracle
+``oracles.preparation.prepare_cluster`` on many kinds of clusters at once."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from oracles.preparation import prepare_cluster as oracle_cluster
 
 from tracker.config import MeasurementConfig
 from tracker.measurement import ClusterBatch, prepare_cluster, rectangle_corners
@@ -56,16 +58,17 @@ def assert_same(batch, reference) -> None:
 
 
 @pytest.mark.parametrize("seed", range(6))
-@pytest.mark.parametrize("gap_correction", [True, False])
-def test_batch_equals_the_one_cluster_reference(seed: int, gap_correction: bool) -> None:
-    config = MeasurementConfig(end_gap_correction=gap_correction)
+@pytest.mark.parametrize("config", [MeasurementConfig(), MeasurementConfig(end_gap_correction=False),
+                                    MeasurementConfig(max_cluster_points=12)], ids=["default", "no-gap", "12-points"])
+def test_batch_equals_the_one_cluster_oracle(seed: int, config: MeasurementConfig) -> None:
     clusters = random_clusters(seed)
     rng = np.random.default_rng(100 + seed)
     velocities = [rng.normal(0, 10, 2) if rng.random() < 0.5 else None for _ in clusters]
     batch = prepare_clusters(clusters, config, velocities)
-    assert_same(batch, [prepare_cluster(c, config, v) for c, v in zip(clusters, velocities)])
+    assert_same(batch, [oracle_cluster(c, config, v) for c, v in zip(clusters, velocities)])
     assert sum(c.raw_count > c.size for c in batch) >= 3  # downsampling exercised
     assert sum(c.two_sided for c in batch) >= 5  # corners exercised
+    assert sum(not c.two_sided for c in batch) >= 5
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -75,30 +78,36 @@ def test_prepare_batch_equals_the_batch_of_the_prepared_clusters(seed: int) -> N
     rng = np.random.default_rng(200 + seed)
     velocities = [rng.normal(0, 10, 2) if rng.random() < 0.5 else None for _ in clusters]
     got = prepare_batch(clusters, MeasurementConfig(), velocities)
-    want = ClusterBatch.of([prepare_cluster(c, MeasurementConfig(), v) for c, v in zip(clusters, velocities)])
+    want = ClusterBatch.of([oracle_cluster(c, MeasurementConfig(), v) for c, v in zip(clusters, velocities)])
     for name in want.__dataclass_fields__:
         if name in ("occluded_end", "continued_end"):  # set by the tracker from the whole scan, not by preparation
             assert getattr(got, name) is None and getattr(want, name) is None
             continue
         np.testing.assert_allclose(getattr(got, name), getattr(want, name), rtol=1e-9, atol=1e-9, err_msg=name)
-    # a cluster with a non-finite point takes the reference path for the whole batch
+    # a cluster with a non-finite point: the batch of the clusters prepared one by one
     clusters[3] = np.vstack([clusters[3], [[np.nan, 1.0]]])
     mixed = prepare_batch(clusters, MeasurementConfig(), velocities)
     assert mixed.valid.sum() == want.valid.sum()
 
 
-def test_small_point_budget_downsamples_both_parts_like_the_reference() -> None:
+def test_small_point_budget_downsamples_both_parts_like_the_oracle() -> None:
     config = dataclasses.replace(MeasurementConfig(), max_cluster_points=7)
     clusters = random_clusters(11)
-    assert_same(prepare_clusters(clusters, config), [prepare_cluster(c, config) for c in clusters])
+    assert_same(prepare_clusters(clusters, config), [oracle_cluster(c, config) for c in clusters])
 
 
-def test_non_finite_points_take_the_reference_path_and_bad_input_is_refused() -> None:
+def test_non_finite_points_are_dropped_and_counted_and_bad_input_is_refused() -> None:
     rng = np.random.default_rng(0)
     pts = l_shape(rng, 30)
     pts[3] = np.nan
-    batch = prepare_clusters([pts, l_shape(rng, 20)])
-    assert batch[0].dropped == 1 and batch[0].raw_count == 29
+    pts[17, 1] = np.inf
+    second = l_shape(rng, 20)
+    batch = prepare_clusters([pts, second], velocities=[None, np.array([3.0, -1.0])])
+    assert batch[0].dropped == 2 and batch[0].raw_count == 28
+    assert 3 not in batch[0].order and 17 not in batch[0].order  # the kept points' input indices
+    assert_same(batch, [oracle_cluster(pts), oracle_cluster(second, velocity=np.array([3.0, -1.0]))])
+    assert_same([prepare_cluster(pts, MeasurementConfig(max_cluster_points=9))],
+                [oracle_cluster(pts, MeasurementConfig(max_cluster_points=9))])
     with pytest.raises(ValueError, match="at least one finite point"):
         prepare_clusters([np.full((2, 2), np.inf)])
     with pytest.raises(ValueError, match="velocity"):
@@ -109,7 +118,7 @@ def test_non_finite_points_take_the_reference_path_and_bad_input_is_refused() ->
 
 
 @pytest.mark.parametrize("batch", ["one-cluster", "single-points", "pairs", "point-at-sensor"])
-def test_degenerate_batches_equal_the_reference(batch) -> None:
+def test_degenerate_batches_equal_the_oracle(batch) -> None:
     rng = np.random.default_rng(7)
     clusters = {
         "one-cluster": [l_shape(rng, 60)],
@@ -122,26 +131,22 @@ def test_degenerate_batches_equal_the_reference(batch) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         got = prepare_clusters(clusters)
-    assert_same(got, [prepare_cluster(c) for c in clusters])
+    assert_same(got, [oracle_cluster(c) for c in clusters])
+    assert_same([prepare_cluster(c) for c in clusters], [oracle_cluster(c) for c in clusters])
 
 
 BATCH_FIELDS = ("points", "valid", "part", "proj", "chord_start", "chord_end", "chord_dir", "chord_len", "end_margin",
                 "end_gap", "two_sided", "single", "fused", "velocity", "centroid")
 
 
-@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
 @pytest.mark.parametrize("seed", range(3))
-def test_scanned_batch_is_the_batch_with_its_shadow_flags(kernels: str, seed: int, monkeypatch) -> None:
-    """``prepare_scanned_batch`` (one compiled call when the kernels are on) gives bit for bit what
+def test_scanned_batch_is_the_batch_with_its_shadow_flags(seed: int) -> None:
+    """``prepare_scanned_batch`` (one call of ``scanned_batch_kernel``) gives bit for bit what
     ``prepare_batch`` then ``occluded_ends`` and ``continued_ends`` of its ends give, with the flags
     switched off as the settings say; some ends of the random clusters are in shadows, some continue."""
-    from tracker import compiled
     from tracker.clustering import continued_ends, occluded_ends
     from tracker.preparation import prepare_scanned_batch
 
-    if kernels == "compiled" and not compiled.available():
-        pytest.skip("numba is not installed (the fast extra)")
-    monkeypatch.setenv(compiled.ENV_SWITCH, "1" if kernels == "compiled" else "0")
     rng = np.random.default_rng(seed)
     clusters = [c + np.array([30.0, 0.0]) for c in random_clusters(seed)]
     velocities = [rng.normal(0.0, 10.0, 2) if rng.random() < 0.5 else None for _ in clusters]
@@ -170,6 +175,18 @@ def test_scanned_batch_is_the_batch_with_its_shadow_flags(kernels: str, seed: in
         np.testing.assert_array_equal(got.continued_end, continued)
         flags[1] += int(continued.sum())
     assert flags[0] > 0 and flags[1] > 0
+    # a cluster with a non-finite point: its point dropped, the flags of the batch's ends the same way
+    clusters[2] = np.vstack([clusters[2], [[np.nan, 0.0]]])
+    config = settings[-1]
+    got = prepare_scanned_batch(clusters, config, velocities, scan, resolution, max_range)
+    ref = prepare_batch(clusters, config, velocities)
+    for name in BATCH_FIELDS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    np.testing.assert_array_equal(got.occluded_end, occluded_ends(
+        ref.bearing_ends(), scan, config.shadow_window * resolution, config.shadow_margin, max_range,
+        config.shadow_range_margin))
+    np.testing.assert_array_equal(got.continued_end, continued_ends(*ref.side_ends(), scan, config.continuation_rays,
+                                                                    config.continuation_offset))
 
 
 def test_scanned_batch_needs_a_two_dimensional_scan() -> None:

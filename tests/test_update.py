@@ -3,12 +3,14 @@ filter (predict + update) on a car driving a radius-80 m curve, seen by a simula
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
+from scenes import Car, Scene
 from scipy.stats import multivariate_normal
 
-from tracker import Road
-from tracker import jit as compiled_kernels
+from tracker import Road, Tracker
 from tracker.config import MeasurementConfig, TrackerConfig
 from tracker.measurement import prepare_cluster, rectangle_scan, to_vehicle
 from tracker.motion import make_motion, predict
@@ -142,13 +144,11 @@ def test_low_rank_update_equals_dense_textbook_update() -> None:
         assert res.dim[p] == rows.sum()
 
 
-@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
-def test_likelihood_variances_change_the_weights_not_the_posterior(compiled, monkeypatch) -> None:
+def test_likelihood_variances_change_the_weights_not_the_posterior() -> None:
     """``kalman_update(..., r_likelihood=...)`` (``MeasurementConfig.shadowed_lidar_sigma``: the update
     softened, the weights and the gate not): the posterior is the update with ``r``, the log-likelihood and NIS
     those of the update with ``r_likelihood`` (against scipy's density with the dense ``S``), for the
     pairs where they differ; a pair where they agree is untouched."""
-    monkeypatch.setenv("EOT_NUMBA", "1" if compiled else "0")
     rng = np.random.default_rng(3)
     p_count, d = 3, 10
     ut, wrap, mean, cov, sigma, z_sigma = _random_pairs(rng, p_count, d)
@@ -348,13 +348,31 @@ def test_grow_extent_leaves_a_settled_width_alone(settled_width_std) -> None:
     assert out[1, 6, 6] == pytest.approx(0.3**2 + 0.8**2)
 
 
+def _extent_rules(mean, cov, corners, birth, length_seen=False):
+    """``apply_extent_rules`` of posteriors ``mean``, ``cov`` equal to their priors (the Schmidt hold
+    changes nothing) whose parts show the rear whole (the width measured) and the long side whole only
+    with ``length_seen``; the largest vehicle off. Returns the result and the pairs whose length changed."""
+    from tracker.measurement import FROM_A, FULL, Structure
+    from tracker.update import UpdateResult, apply_extent_rules
+
+    count = len(mean)
+    structure = Structure(*([None] * 7), two_sided=None, sides=np.tile([1, 2], (count, 1)),
+                          mode=np.tile([FULL if length_seen else FROM_A, FULL], (count, 1)), radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=None)
+    res = UpdateResult(mean.copy(), cov.copy(), np.zeros(count), np.zeros(count), np.zeros(count, dtype=int),
+                       np.zeros((count, 2)), np.zeros((count, 2)))
+    config = TrackerConfig(birth=dataclasses.replace(birth, max_length=None, max_width=None))
+    res = apply_extent_rules(res, mean, cov, structure, corners, config)
+    return res, res.mean[:, 5] != mean[:, 5]
+
+
 def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
-    """``long_vehicle_prior`` replaces a car's never-measured length by a long vehicle's (centre moved
-    away from the sensor by half the change, variance added along that direction), and leaves alone a
-    track that already carries it and one whose length was measured."""
+    """The long-vehicle prior (``apply_extent_rules``, ``BirthConfig.long_width``) replaces a car's
+    never-measured length by a long vehicle's (centre moved away from the sensor by half the change,
+    variance added along that direction), and leaves alone a track that already carries it and one
+    whose length was measured."""
     from tracker.config import BirthConfig
     from tracker.measurement import rectangle_corners
-    from tracker.update import UpdateResult, long_vehicle_prior
 
     cfg = BirthConfig()
     mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.5]] * 4)
@@ -362,10 +380,8 @@ def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
     mean[3, 6] = 2.0  # a car's width
     cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.01]), (4, 1, 1))
     cov[2, 5, 5] = 0.05**2  # measured
-    res = UpdateResult(mean.copy(), cov.copy(), np.zeros(4), np.zeros(4), np.zeros(4, dtype=int), np.zeros((4, 2)),
-                       np.zeros((4, 2)))
     corners = rectangle_corners(np.array([[20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # ahead, in E
-    hit = long_vehicle_prior(res, np.ones(4, dtype=bool), corners, cfg)
+    res, hit = _extent_rules(mean, cov, corners, cfg)
     np.testing.assert_array_equal(hit, [True, False, False, False])
     e = cfg.long_length - 4.5
     assert res.mean[0, 5] == pytest.approx(cfg.long_length) and res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
@@ -374,19 +390,19 @@ def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
     np.testing.assert_array_equal(res.mean[1:], mean[1:])
     np.testing.assert_array_equal(res.cov[1:], cov[1:])
     behind = rectangle_corners(np.array([[-20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # the rear is far
-    res2 = UpdateResult(mean.copy(), cov.copy(), *(np.zeros(4),) * 2, np.zeros(4, dtype=int), *(np.zeros((4, 2)),) * 2)
-    long_vehicle_prior(res2, np.ones(4, dtype=bool), behind, cfg)
+    res2, _ = _extent_rules(mean, cov, behind, cfg)
     assert res2.mean[0, 0] == pytest.approx(100.0 - 0.5 * e)  # the front (nearest the sensor) stays put
+    assert not _extent_rules(mean, cov, corners, cfg, length_seen=True)[1].any()  # the length was measured
+    assert not _extent_rules(mean, cov, corners, dataclasses.replace(cfg, long_width=None))[1].any()  # the rule off
 
 
 def test_narrow_vehicle_prior_gives_a_measured_narrow_rear_a_motorcycles_length():
-    """``narrow_vehicle_prior`` replaces a car's never-measured length by a motorcycle's where the width
-    is measured narrow (centre moved towards the sensor by half the change: the rear stays put), and
-    leaves alone a narrow width that is only a guess, a car's width, a length already short, and one
-    that was measured."""
+    """The narrow-vehicle prior (``apply_extent_rules``, ``BirthConfig.narrow_width``) replaces a car's
+    never-measured length by a motorcycle's where the width is measured narrow (centre moved towards the
+    sensor by half the change: the rear stays put), and leaves alone a narrow width that is only a
+    guess, a car's width, a length already short, and one that was measured."""
     from tracker.config import BirthConfig
     from tracker.measurement import rectangle_corners
-    from tracker.update import UpdateResult, narrow_vehicle_prior
 
     cfg = BirthConfig()
     mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 0.8]] * 5)
@@ -395,10 +411,8 @@ def test_narrow_vehicle_prior_gives_a_measured_narrow_rear_a_motorcycles_length(
     mean[2, 6] = 1.8  # a car's width
     mean[3, 5] = 2.3  # already a motorcycle's length
     cov[4, 5, 5] = 0.05**2  # the length measured (a side seen)
-    res = UpdateResult(mean.copy(), cov.copy(), np.zeros(5), np.zeros(5), np.zeros(5, dtype=int), np.zeros((5, 2)),
-                       np.zeros((5, 2)))
     corners = rectangle_corners(np.array([[20.0, 0.0]] * 5), np.zeros(5), mean[:, 5], mean[:, 6])  # ahead, in E
-    hit = narrow_vehicle_prior(res, np.ones(5, dtype=bool), corners, cfg)
+    res, hit = _extent_rules(mean, cov, corners, cfg)
     np.testing.assert_array_equal(hit, [True, False, False, False, False])
     e = cfg.narrow_length - 4.5  # -2.3 m
     assert res.mean[0, 5] == pytest.approx(cfg.narrow_length)
@@ -407,16 +421,13 @@ def test_narrow_vehicle_prior_gives_a_measured_narrow_rear_a_motorcycles_length(
     assert res.cov[0, 5, 5] == pytest.approx(cfg.length_std**2 + cfg.narrow_length_std**2)
     np.testing.assert_array_equal(res.mean[1:], mean[1:])
     np.testing.assert_array_equal(res.cov[1:], cov[1:])
-    not_held = UpdateResult(mean.copy(), cov.copy(), *(np.zeros(5),) * 2, np.zeros(5, dtype=int), *(np.zeros((5, 2)),) * 2)
-    assert not narrow_vehicle_prior(not_held, np.zeros(5, dtype=bool), corners, cfg).any()  # the length was updated
+    assert not _extent_rules(mean, cov, corners, cfg, length_seen=True)[1].any()  # the length was updated
 
 
 @pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])
 def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None:
     """Two vehicles' rears side by side form one 8 m line; with a loose width prior the update alone
     makes the track ~8 m wide. With ``BirthConfig.max_width`` the width is projected back onto 3 m."""
-    import dataclasses
-
     from tracker.config import BirthConfig
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
@@ -434,20 +445,16 @@ def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None
         assert post[6] == pytest.approx(max_width)
 
 
-@pytest.mark.parametrize("kernels", ["numpy", "compiled"])
 @pytest.mark.parametrize("radar_rows", ["speed", "velocity"])
 @pytest.mark.parametrize("off, gate, rejected", [(20.0, 25.0, True), (3.0, 25.0, False), (20.0, None, False)],
                          ids=["false-alarm", "braking", "gate-off"])
 def test_a_radar_velocity_no_pair_explains_is_set_aside(circle80: Road, off: float, gate, rejected: bool,
-                                                         radar_rows: str, kernels: str, monkeypatch) -> None:
+                                                         radar_rows: str) -> None:
     """``MeasurementConfig.radar_gate``: a cluster's radar velocity 20 m/s slower than the prediction
     (speed std 3 m/s: normalised innovation ~43 > 25) is a false alarm: set aside, the posterior is the
     lidar-only one. 3 m/s slower (~1) is a braking the prediction lags behind: kept, it pulls the speed
     down. Without the gate the false alarm pulls the speed down by metres per second. The same with the
-    paper's two velocity rows. By numpy and by the compiled kernel (``measurement_update_kernel``)."""
-    if kernels == "compiled" and not compiled_kernels.available():
-        pytest.skip("numba is not installed")
-    monkeypatch.setenv(compiled_kernels.ENV_SWITCH, "1" if kernels == "compiled" else "0")
+    paper's two velocity rows."""
     scn = CurveScenario(circle80, 1)
     cfg = TrackerConfig(measurement=MeasurementConfig(radar_gate=gate, radar_rows=radar_rows))
     pts = scn.scan(0, np.random.default_rng(4), 0.03)
@@ -465,3 +472,400 @@ def test_a_radar_velocity_no_pair_explains_is_set_aside(circle80: Road, off: flo
     else:
         assert res.mean[0, 2] < ref.mean[0, 2] - 0.5 * min(off, 3.0)
         assert res.dim[0] == ref.dim[0] + (1 if radar_rows == "speed" else 2)
+
+
+# -- the kernels against the numpy oracle, the fused calls against the staged ones --------------------
+def track_scene(frames: int) -> Tracker:
+    """The default tracker run ``frames`` frames (10 Hz, noise seed 0) on a curved three-lane road with
+    three cars and an 11 m bus around the ego, with radar."""
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0), [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5),
+                                                 Car(50.0, 3.5, 18.0)], radar=True)
+    tracker = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(0)
+    for k in range(frames):
+        tracker.step(scene.frame(0.1 * k, rng))
+    return tracker
+
+
+def tracked_update_calls(frames: int, monkeypatch) -> list[tuple]:
+    """``track_scene(frames)``'s calls of the update (``tracker.update.update_clusters``) as the
+    ``update_pairs`` calls they stand for: ``(means, covs, batch, comp, clu, ego, road, config, ut)``,
+    the batch prepared by ``prepare_scanned_batch`` as the two-step path prepares it."""
+    import tracker.tracker as tt
+    from tracker.preparation import prepare_scanned_batch
+
+    raw = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: raw.append(args) or original(*args))
+    track_scene(frames)
+    monkeypatch.setattr(tt, "update_clusters", original)
+    calls = []
+    for means, covs, points, offsets, velocity, has_velocity, comp, clu, scan, ego, road, config, ut in raw:
+        used, slot = np.unique(clu, return_inverse=True)
+        clusters = [points[offsets[k]:offsets[k + 1]] for k in used]
+        velocities = [velocity[k] if has_velocity[k] else None for k in used]
+        batch = prepare_scanned_batch(clusters, config.measurement, velocities, scan, config.detection.lidar_resolution,
+                                      config.detection.lidar_range)
+        calls.append((means, covs, batch, comp, slot, ego, road, config, ut))
+    return calls
+
+
+def _counting(function, taken: list):
+    """``function`` that also records in ``taken`` whether each call gave a result (not None)."""
+    def counting(*args):
+        out = function(*args)
+        taken.append(out is not None)
+        return out
+    return counting
+
+
+def _lengths_cut(calls: list[tuple]) -> list[tuple]:
+    """The update calls ``(means, covs, ...)`` with every prior's length cut to 2 m (sides longer than
+    predicted: the fused kernels hand back for the widened prior)."""
+    from tracker.motion import LENGTH
+
+    out = []
+    for means, covs, *rest in calls:
+        short = means.copy()
+        short[:, LENGTH] = 2.0
+        out.append((short, covs, *rest))
+    return out
+
+
+def _kalman_inputs(rng, pairs, n, rows, extra, wrapping):
+    """Random UKF update inputs of a realistic scale: states of road traffic, measurement sigma points
+    a smooth nonlinear function of the state, innovations of a few standard deviations."""
+    ut = UnscentedTransform(n=n)
+    root = rng.normal(0.0, 1.0, (pairs, n, n)) * rng.uniform(0.05, 1.0, (pairs, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(n)
+    mean = rng.normal(0.0, 1.0, (pairs, n)) * np.r_[50.0, 3.0, 10.0, 0.3, 0.1, 4.0, 1.0, 1.0][:n]
+    mean[: pairs // 3, 3] = np.pi - 0.02  # headings across +-pi
+    sigma = ut.sigma_points(mean, cov, Wrapping(wrapping.angles, wrapping.periods[:1]))
+    h = rng.normal(0.0, 1.0, (rows, n))
+    z_sigma = np.sin(sigma @ h.T / 20.0) * 10.0 + sigma @ h.T
+    r = rng.uniform(0.005, 0.3, (pairs, rows))
+    mask = rng.random((pairs, rows)) < 0.7
+    mask[:, :2] = True
+    z = ut.wm @ z_sigma + rng.normal(0.0, 1.0, (pairs, rows)) * np.sqrt(r) * 3.0
+    factors = rng.normal(0.0, 0.2, (pairs, extra, rows)) if extra else None
+    return ut, sigma, mean, cov, z_sigma, z, r, mask, factors
+
+
+def assert_results_close(got, ref, names=("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation"),
+                         tol=1e-9) -> None:
+    for name in names:
+        a, b = getattr(ref, name), getattr(got, name)
+        assert a.shape == b.shape, (name, a.shape, b.shape)
+        np.testing.assert_allclose(b, a, rtol=tol, atol=tol, err_msg=name)
+
+
+@pytest.mark.parametrize("extra", [0, 2])
+@pytest.mark.parametrize("periods", [(), ((0, 180.0),), ((0, 180.0), (1, 40.0))], ids=["open", "closed-road", "two"])
+def test_kalman_update_equals_the_textbook_oracle(extra, periods):
+    """``kalman_update`` (``tracker.kalman.kalman_kernel``; numpy's low-rank form for two periodic
+    coordinates, which no kernel wraps) against the textbook update of ``oracles.update`` within 1e-9:
+    padded rows, with and without the low-rank noise factors, the heading wrapped across +-pi, ``s`` on
+    a closed road; the 7- and 8-state filters; an empty batch."""
+    from oracles.update import kalman_update as oracle_kalman_update
+
+    wrapping = Wrapping(angles=(3,), periods=periods)
+    rng = np.random.default_rng(5)
+    for n, pairs, rows in ((7, 9, 40), (8, 12, 122), (7, 1, 2), (8, 0, 6)):
+        ut, *inputs, factors = _kalman_inputs(rng, pairs, n, rows, extra, wrapping)
+        got = kalman_update(ut, *inputs, wrapping=wrapping, factors=factors)
+        ref = oracle_kalman_update(ut, *inputs, wrapping=wrapping, factors=factors)
+        assert got.nis.size == pairs and got.dim.dtype.kind == "i"
+        assert_results_close(got, ref)
+        assert np.all(np.abs(got.mean[:, 3]) <= np.pi)
+        for index, period in periods:
+            assert np.all((got.mean[:, index] >= 0.0) & (got.mean[:, index] < period))
+
+
+def test_a_pair_whose_predicted_measurement_is_not_finite_takes_numpys_update():
+    """A NaN in one pair's measurement sigma points (the kernel's Cholesky factorisation fails): that
+    pair's posterior is NaN, every other pair's is the oracle's."""
+    from oracles.update import kalman_update as oracle_kalman_update
+
+    wrapping = Wrapping(angles=(3,))
+    ut, sigma, mean, cov, z_sigma, z, r, mask, factors = _kalman_inputs(np.random.default_rng(8), 6, 7, 20, 2, wrapping)
+    z_sigma[2, 4, 0] = np.nan
+    with np.errstate(invalid="ignore"):
+        got = kalman_update(ut, sigma, mean, cov, z_sigma, z, r, mask, wrapping, factors)
+    assert np.isnan(got.mean[2]).any()
+    others = np.arange(6) != 2
+    ref = oracle_kalman_update(ut, sigma[others], mean[others], cov[others], z_sigma[others], z[others], r[others],
+                               mask[others], wrapping, factors[others])
+    for name in ("mean", "cov", "log_likelihood", "nis"):
+        np.testing.assert_allclose(getattr(got, name)[others], getattr(ref, name), rtol=1e-9, atol=1e-9, err_msg=name)
+
+
+def test_the_update_of_a_tracked_scene_equals_the_oracle(monkeypatch):
+    """``update_pairs`` (one call of ``tracker.pairs.update_pairs_kernel``) on the tracker's own update
+    batches (three cars and a bus with radar rows, ends in shadows), and the same batches with every
+    prior's length cut to 2 m (the sides longer than predicted widen the priors: the staged kernels),
+    against ``oracles.update.update_pairs``: the same radar decisions and dimensions, the numbers within
+    1e-9 (1e-7 after a widened prior, whose variances of up to ~80 m^2 the update cancels)."""
+    import tracker.update as tu
+    from oracles.update import update_pairs as oracle_update_pairs
+
+    calls = tracked_update_calls(12, monkeypatch)
+    taken = []
+    monkeypatch.setattr(tu, "_update_pairs_fused", _counting(tu._update_pairs_fused, taken))
+    fused = 0
+    for k, args in enumerate(calls + _lengths_cut(calls)):
+        got = tu.update_pairs(*args)
+        ref = oracle_update_pairs(*args)
+        np.testing.assert_array_equal(got.radar_rejected, ref.radar_rejected)
+        np.testing.assert_array_equal(got.dim, ref.dim)
+        assert_results_close(got, ref, names=("mean", "cov", "log_likelihood", "nis", "predicted", "innovation"),
+                             tol=1e-9 if k < len(calls) else 1e-7)
+        fused += int(np.asarray(args[2].fused).sum())
+    assert fused >= 20  # clusters with a radar velocity took part
+    assert all(taken[: len(calls)]) and not all(taken[len(calls):])  # some widened priors: the staged kernels
+
+
+@pytest.mark.parametrize("dim", [7, 8])
+def test_the_extent_rules_equal_the_oracle(dim):
+    """``apply_extent_rules`` (``tracker.extent.extent_rules_kernel``) against ``oracles.update`` on
+    random pairs built to reach every rule: lengths and widths held or seen whole, trucks' widths with a
+    car's length (the long-vehicle prior), measured narrow widths (the narrow one), estimates beyond the
+    largest vehicle, the sensor ahead of and behind the rectangles; the same numbers, bit for bit, with
+    the rules on and off."""
+    from oracles.update import apply_extent_rules as oracle_extent_rules
+
+    from tracker.config import BirthConfig
+    from tracker.measurement import FROM_A, FULL, Structure
+    from tracker.update import UpdateResult, apply_extent_rules
+
+    rng = np.random.default_rng(7)
+    pairs = 400
+    prior = np.zeros((pairs, dim))
+    prior[:, 0], prior[:, 1], prior[:, 2] = rng.uniform(0, 200, pairs), rng.uniform(-5, 5, pairs), rng.uniform(0, 30, pairs)
+    prior[:, 3] = rng.normal(0.0, 0.5, pairs)
+    prior[:, 5] = rng.choice([2.0, 4.5, 13.0, 30.0], pairs) + rng.normal(0.0, 0.3, pairs)
+    prior[:, 6] = rng.choice([0.8, 1.8, 2.5, 3.4], pairs) + rng.normal(0.0, 0.05, pairs)
+    root = rng.normal(0.0, 1.0, (pairs, dim, dim)) * rng.uniform(0.02, 0.6, (pairs, 1, 1))
+    prior_cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(dim)
+    post = prior + rng.normal(0.0, 0.3, (pairs, dim))
+    post_cov = prior_cov * rng.uniform(0.5, 1.0, (pairs, 1, 1))
+    mode = rng.choice([FULL, FROM_A], (pairs, 2))
+    sides = rng.integers(0, 4, (pairs, 2))
+    centre = rng.normal(0.0, 30.0, (pairs, 1, 2))
+    corners = centre + rng.normal(0.0, 2.0, (pairs, 4, 2))
+    structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=mode, radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=None)
+    for birth, hold in ((BirthConfig(), True), (BirthConfig(), False),
+                        (BirthConfig(long_width=None, narrow_width=None, max_length=None, max_width=None), True),
+                        (BirthConfig(narrow_width_std=0.6, length_std=0.2), True)):
+        config = TrackerConfig(birth=birth, measurement=MeasurementConfig(hold_unobserved_extent=hold))
+        got = apply_extent_rules(UpdateResult(post.copy(), post_cov.copy(), *([None] * 5)), prior, prior_cov, structure,
+                                 corners, config)
+        ref = oracle_extent_rules(UpdateResult(post.copy(), post_cov.copy(), *([None] * 5)), prior, prior_cov, structure,
+                                  corners, config)
+        assert np.array_equal(got.mean, ref.mean) and np.array_equal(got.cov, ref.cov)
+        changed = ~np.isclose(got.mean[:, 5], post[:, 5])
+        assert changed.sum() >= 20  # the rules did something
+
+
+@pytest.mark.parametrize("settled", [None, 0.15])
+def test_grow_extent_equals_the_oracle(settled):
+    """``grow_extent`` (``tracker.extent.grow_extent_kernel``) against ``oracles.update``: random
+    excesses (some not finite) on long and short parts, narrow and wide extent spreads, the sensor on
+    either side; the same mask and covariances, bit for bit, and both extents grown somewhere."""
+    from oracles.update import grow_extent as oracle_grow_extent
+
+    from tracker.measurement import Structure
+    from tracker.update import grow_extent
+
+    rng = np.random.default_rng(11)
+    pairs, dim = 300, 8
+    means = rng.normal(0.0, 1.0, (pairs, dim)) * np.r_[50.0, 3.0, 10.0, 0.5, 0.1, 3.0, 0.5, 1.0]
+    root = rng.normal(0.0, 1.0, (pairs, dim, dim)) * rng.uniform(0.02, 0.8, (pairs, 1, 1))
+    covs = root @ np.swapaxes(root, 1, 2) + 1e-4 * np.eye(dim)
+    excess = rng.normal(0.0, 2.0, (pairs, 2))
+    excess[rng.random((pairs, 2)) < 0.1] = np.nan
+    excess[rng.random((pairs, 2)) < 0.05] = np.inf
+    sides = rng.integers(0, 4, (pairs, 2))
+    corners = rng.normal(0.0, 30.0, (pairs, 1, 2)) + rng.normal(0.0, 2.0, (pairs, 4, 2))
+    structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=None, radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=excess)
+    grown, out = grow_extent(means, covs, structure, corners, settled)
+    ref_grown, ref_out = oracle_grow_extent(means, covs, structure, corners, settled)
+    assert np.array_equal(grown, ref_grown) and np.array_equal(out, ref_out)
+    for index in (5, 6):
+        assert (grown & (out[:, index, index] > covs[:, index, index])).sum() >= 10
+    empty = grow_extent(means[:0], covs[:0], dataclasses.replace(structure, sides=sides[:0], excess=excess[:0]),
+                        corners[:0], settled)
+    assert empty[0].shape == (0,) and empty[1].shape == (0, dim, dim)
+
+
+@pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
+def test_sigma_rectangles_equal_the_two_steps(name):
+    """``tracker.update.sigma_rectangles`` (sigma points and their rectangles in one compiled call)
+    gives exactly ``sigma_points`` then ``to_vehicle``, and rectangles within 1e-9 of the road's frame
+    in numpy (``oracles.measurement.to_vehicle``); 8-state Gaussians across the seam and beyond the
+    ends; a NaN is refused, a covariance that is not positive definite is repaired and counted."""
+    from oracles.measurement import to_vehicle as oracle_to_vehicle
+    from test_measurement import _roads
+
+    from tracker.frame import EgoState
+    from tracker.motion import curvilinear_wrapping
+    from tracker.update import sigma_rectangles
+
+    road = _roads()[name]
+    wrapping = curvilinear_wrapping(road)
+    ut = UnscentedTransform(n=8)
+    rng = np.random.default_rng(5)
+    ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
+    mean = rng.normal(0.0, 1.0, (25, 8)) * np.r_[1.0, 3.0, 10.0, 0.3, 0.1, 1.0, 0.3, 1.0] + np.r_[0.0, 0, 0, 0, 0, 5.0, 2.0, 0]
+    mean[:, 0] = rng.uniform(-20.0, road.length + 20.0, 25)
+    if road.closed:
+        mean[:, 0] %= road.length
+    root = rng.normal(0.0, 1.0, (25, 8, 8)) * rng.uniform(0.02, 1.0, (25, 1, 1))
+    cov = root @ np.swapaxes(root, 1, 2) + 1e-3 * np.eye(8)
+    sigma, rect = sigma_rectangles(ut, mean, cov, wrapping, ego, road, "curvilinear")
+    steps = ut.sigma_points(mean, cov, wrapping)
+    ref = to_vehicle(steps, ego, road)
+    assert np.array_equal(sigma, steps)
+    for field in ("center", "psi", "v", "length", "width"):
+        assert np.array_equal(getattr(rect, field), getattr(ref, field))
+    assert np.array_equal(rect.corners(), ref.corners())
+    np.testing.assert_allclose(rect.corners(), oracle_to_vehicle(steps, ego, road).corners(), rtol=0.0, atol=1e-9)
+    bad = cov.copy()
+    bad[4] = -np.eye(8)
+    before = ut.repairs
+    sigma_b, _ = sigma_rectangles(ut, mean, bad, wrapping, ego, road, "curvilinear")
+    assert ut.repairs > before and np.isfinite(sigma_b).all()
+    nan = mean.copy()
+    nan[3, 2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        sigma_rectangles(ut, nan, cov, wrapping, ego, road, "curvilinear")
+
+
+def test_the_fused_update_of_the_pairs_equals_the_staged_kernels(monkeypatch):
+    """``tracker.update.update_pairs`` by one compiled call (``tracker.pairs``) gives the staged
+    kernels' numbers bit for bit: every call of a tracked scene (a bus, radar, shadows) replayed both
+    ways, and the same calls with the priors' lengths cut to 2 m (sides longer than predicted: the
+    kernel hands the pairs back for the widened prior, and the staged path runs)."""
+    import tracker.update as tu
+
+    calls = tracked_update_calls(15, monkeypatch)
+    assert len(calls) >= 14
+    taken = []
+    counting = _counting(tu._update_pairs_fused, taken)
+    for case in calls + _lengths_cut(calls):
+        monkeypatch.setattr(tu, "_update_pairs_fused", counting)
+        got = tu.update_pairs(*case)
+        monkeypatch.setattr(tu, "_update_pairs_fused", lambda *args: None)
+        ref = tu.update_pairs(*case)
+        for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation", "radar_rejected"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    assert all(taken[: len(calls)])  # the scene's own calls: all by the fused kernel
+    assert not all(taken[len(calls):])  # some shortened priors grew: handed back to the staged path
+
+
+def test_the_fused_preparation_and_update_equal_the_two_steps(monkeypatch):
+    """``tracker.update.update_clusters`` by one compiled call (``tracker.pairs.prepared_pairs_kernel``:
+    the clusters prepared with their shadow flags, then the fused update) gives bit for bit what
+    ``prepare_scanned_batch`` then ``update_pairs`` give, and the same counts of shadowed and continued
+    ends: every call of a tracked scene (a bus, radar, ends in shadows), and the same calls with the priors'
+    lengths cut to 2 m (the kernel hands back; the two steps run)."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+
+    raw = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: raw.append(args) or original(*args))
+    road = Road.from_curvature([(150.0, 0.0, 0.0), (300.0, 0.0, 1 / 120.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(60.0, -3.5, 14.0),
+                  [Car(80.0, -3.5, 14.0), Car(75.0, 0.0, 17.0, length=11.0, width=2.5), Car(50.0, 3.5, 18.0),
+                   Car(95.0, 0.0, 12.0)], radar=True)  # the structure test's scene: shadows, a bus, radar
+    tracker, rng = Tracker(road, TrackerConfig()), np.random.default_rng(3)
+    for k in range(30):
+        tracker.step(scene.frame(0.1 * k, rng))
+    monkeypatch.setattr(tt, "update_clusters", original)
+    assert len(raw) >= 28
+    taken = []
+    counting = _counting(tu._update_clusters_fused, taken)
+    counts = []
+    for case in raw + _lengths_cut(raw):
+        monkeypatch.setattr(tu, "_update_clusters_fused", counting)
+        got, occluded, continued = tu.update_clusters(*case)
+        monkeypatch.setattr(tu, "_update_clusters_fused", lambda *args: None)
+        ref, ref_occluded, ref_continued = tu.update_clusters(*case)
+        assert (occluded, continued) == (ref_occluded, ref_continued)
+        counts.append(occluded)
+        for name in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation", "radar_rejected"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    assert sum(taken[: len(raw)]) >= 0.8 * len(raw)  # the scene's own calls: by the one kernel (a bus's side may grow)
+    assert not all(taken[len(raw):])  # some shortened priors grew: handed back to the two steps
+    assert any(c for c in counts), counts  # some ends in a shadow
+    # a non-finite point in a cluster of some pair: the kernel hands back, the two steps take it
+    means, covs, points, offsets, velocity, has_velocity, comp, clu, *rest = raw[-1]
+    bad = points.copy()
+    bad[offsets[clu[0]]] = np.nan
+    assert tu._update_clusters_fused(means, covs, bad, offsets, velocity, has_velocity, comp, clu, *rest) is None
+    # ... and in a cluster of no pair: the kernel still runs (only the pairs' clusters are prepared)
+    idle = np.setdiff1d(np.arange(len(offsets) - 1), clu)
+    if len(idle) and offsets[idle[0] + 1] > offsets[idle[0]]:
+        bad = points.copy()
+        bad[offsets[idle[0]]] = np.nan
+        got = tu._update_clusters_fused(means, covs, bad, offsets, velocity, has_velocity, comp, clu, *rest)
+        ref = tu._update_clusters_fused(means, covs, points, offsets, velocity, has_velocity, comp, clu, *rest)
+        np.testing.assert_array_equal(got[0].mean, ref[0].mean)
+    with pytest.raises(ValueError, match="does not exist"):
+        tu.update_clusters(means, covs, points, offsets, velocity, has_velocity, comp, clu + len(offsets), *rest)
+    with pytest.raises(ValueError, match="offsets must rise"):
+        tu.update_clusters(means, covs, points, offsets[::-1], velocity, has_velocity, comp, clu, *rest)
+    # a non-finite radar velocity: the fused call declines, the two steps raise their error
+    bad_velocity = velocity.copy()
+    bad_velocity[clu[0]] = np.nan
+    has = has_velocity.copy()
+    has[clu[0]] = True
+    with pytest.raises(ValueError, match="finite"):
+        tu.update_clusters(means, covs, points, offsets, bad_velocity, has, comp, clu, *rest)
+
+
+def test_a_non_finite_prior_takes_the_staged_update_and_its_error(monkeypatch):
+    """A NaN in a prior: the fused update hands the pairs back and the staged path's error is raised."""
+    import tracker.update as tu
+
+    calls = tracked_update_calls(4, monkeypatch)
+    means, covs, *rest = calls[-1]
+    bad = means.copy()
+    bad[0, 2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        tu.update_pairs(bad, covs, *rest)
+
+
+def test_the_papers_euler_conversion_never_takes_the_fused_update(monkeypatch):
+    """The ``paper`` variant converts states to E by the paper's Euler integration
+    (``MeasurementConfig.conversion = "euler"``), which the fused kernels do not do: its tracker gives the
+    same numbers with the fused calls as with the two steps, and the fused calls decline its updates."""
+    import tracker.tracker as tt
+    import tracker.update as tu
+    from sim.evaluation.variants import variant_config
+
+    config = variant_config("paper")
+    assert config.measurement.conversion == "euler"
+    road = Road.from_curvature([(80.0, 0.0, 0.0), (200.0, 0.0, 1 / 90.0)], lanes=3, lane_width=3.5)
+    scene = Scene(road, Car(40.0, -3.5, 14.0), [Car(60.0, -3.5, 14.0), Car(55.0, 0.0, 17.0), Car(70.0, 3.5, 12.0)])
+
+    def run() -> list:
+        tracker, rng = Tracker(road, config), np.random.default_rng(2)
+        return [(t.label, t.mean.copy()) for k in range(12) for t in tracker.step(scene.frame(0.1 * k, rng))]
+
+    calls = []
+    original = tt.update_clusters
+    monkeypatch.setattr(tt, "update_clusters", lambda *args: calls.append(args) or original(*args))
+    fused = run()
+    monkeypatch.setattr(tt, "update_clusters", original)
+    assert calls and all(tu._update_clusters_fused(*args) is None for args in calls)
+    monkeypatch.setattr(tu, "_update_clusters_fused", lambda *args: None)
+    monkeypatch.setattr(tu, "_update_pairs_fused", lambda *args: None)
+    staged = run()
+    assert len(fused) == len(staged) > 0
+    for (label, mean), (ref_label, ref_mean) in zip(fused, staged):
+        assert label == ref_label
+        np.testing.assert_array_equal(mean, ref_mean)

@@ -1,9 +1,16 @@
-"""Compiled extent rules of the UKF update of the pairs (``tracker.update``): before it, the prior
-widened where a side shows longer than predicted (``grow_extent``); after it, the Schmidt hold of an
-unobserved length or width (``hold_unobserved_extent``), the long- and narrow-vehicle priors
-(``long_vehicle_prior``, ``narrow_vehicle_prior``, through ``replace_length_prior``) and the largest
-vehicle's limits (``BirthConfig.max_length``, ``max_width``), in place. In the numpy reference's order
-and with its products: the same numbers."""
+"""The extent rules of the UKF update of the pairs (``tracker.update``) as numba calls, in place.
+
+Before the update, ``grow_extent_kernel``: a part's chord longer than its predicted side by more than
+``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``tracker.measurement``) widens the prior,
+``P += e^2 d d^T`` with ``d`` the direction in which the vehicle grows while the end nearest the sensor
+stays put (``_growth_direction``; ``tracker.update.grow_extent``). After it, ``extent_rules_kernel``:
+the Schmidt hold of an extent no part shows whole (``L`` for the long sides, ``W`` for the short ones
+keep their prior mean and variance, both held: their joint block;
+``MeasurementConfig.hold_unobserved_extent``); where the length was held, a car's unmeasured length
+replaced by a long vehicle's where the width is a truck's or a bus's (``BirthConfig.long_width``), or
+by a motorcycle's where a measured width is narrow (``BirthConfig.narrow_width``), the end nearest the
+sensor staying put (``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``,
+``max_width``: the estimate projected back onto them)."""
 
 from __future__ import annotations
 
@@ -18,7 +25,7 @@ from tracker.motion import LENGTH, WIDTH, XI
 
 @njit(inline="always")
 def _growth_direction(corners, heading, index, d):  # pragma: no cover - compiled
-    """``tracker.update.extent_growth_direction`` of one pair into ``d (D,)`` (zeroed first):
+    """The direction ``d (D,)`` in which one pair's rectangle grows by 1 m, into ``d`` (zeroed first):
     ``0.5 sgn u`` in the position slots (``u`` along the body for ``index = LENGTH``, across it for
     ``WIDTH``), 1 in the extent slot; ``sgn = +1`` when the sensor lies behind the centre along that
     axis of ``corners (4, 2)``."""
@@ -41,9 +48,10 @@ def _growth_direction(corners, heading, index, d):  # pragma: no cover - compile
 
 @njit(inline="always")
 def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
-    """``replace_length_prior`` of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
+    """A new length prior of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
     its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along
-    ``d`` (``_growth_direction``), the end nearest the sensor staying put."""
+    ``d`` (``_growth_direction``), the end nearest the sensor staying put: ``m += e d``,
+    ``P += variance d d^T`` with ``e = length - L``."""
     dim = mean.shape[0]
     d = np.empty(dim)
     _growth_direction(corners, mean[XI], LENGTH, d)

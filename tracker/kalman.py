@@ -1,11 +1,12 @@
-"""Compiled UKF update: ``tracker.update.kalman_update`` as one numba call over the batch of pairs.
+"""The UKF update of a batch of pairs as numba calls: ``kalman_kernel`` (``tracker.update.kalman_update``)
+and ``measurement_update_kernel``, the rectangle model's measurement step (the predicted measurements,
+the radar gate, then the update).
 
-The same low-rank form as the numpy reference (``tracker.update``'s module docstring): per pair the
-whitened measurement deviations ``A`` (the sigma points' columns, then the noise factors' columns with
-weight 1 and no state deviation), ``M = I + A^T A`` and the solves against ``M`` by its Cholesky
-factor (numpy solves by LU: the results agree to rounding). A pair whose ``M`` is not positive definite
-(it always is, ``I`` plus a Gram matrix, unless the input holds NaN) raises
-``numpy.linalg.LinAlgError``; the caller then takes the numpy path.
+The update has the low-rank form of ``tracker.update``'s module docstring: per pair the whitened
+measurement deviations ``A`` (the sigma points' columns, then the noise factors' columns with weight 1
+and no state deviation), ``M = I + A^T A``, and the solves against ``M`` by its Cholesky factor. ``M``
+is positive definite (``I`` plus a Gram matrix) unless a predicted measurement or a noise factor is not
+finite: then ``numpy.linalg.LinAlgError`` is raised, and ``tracker.update`` updates that batch in numpy.
 """
 
 from __future__ import annotations

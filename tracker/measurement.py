@@ -90,11 +90,12 @@ from typing import Literal
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
+from tracker.centerline import rectangles_kernel
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
+from tracker.jit import njit
 from tracker.road import Road
-from tracker.centerline import rectangles_kernel
+from tracker.structure import structure_kernel
 
 Coordinates = Literal["curvilinear", "cartesian"]
 
@@ -172,8 +173,8 @@ class Rectangles:
     @classmethod
     def computed(cls, center: np.ndarray, psi: np.ndarray, v: np.ndarray, length: np.ndarray, width: np.ndarray,
                  corners: np.ndarray) -> Rectangles:
-        """Rectangles whose fields and corners a compiled kernel computed (``to_vehicle``'s compiled
-        path: the extent already floored), built without the dataclass's per-field checks of a frozen
+        """Rectangles whose fields and corners a compiled kernel computed (``to_vehicle``'s kernel: the
+        extent already floored), built without the dataclass's per-field checks of a frozen
         ``__init__`` (the tracker builds several per frame). The corners are returned read-only."""
         rect = object.__new__(cls)
         corners.flags.writeable = False
@@ -182,7 +183,7 @@ class Rectangles:
 
     def with_corners(self, corners: np.ndarray) -> Rectangles:
         """These rectangles with their corners already computed (``corners()`` then returns them,
-        read-only): for a producer that computes them anyway (the compiled ``to_vehicle``)."""
+        read-only): for a producer that computes them anyway (``to_vehicle``'s kernel)."""
         corners.flags.writeable = False
         object.__setattr__(self, "_corners", corners)
         return self
@@ -212,20 +213,6 @@ def rectangle_corners(center: np.ndarray, psi: np.ndarray, length: np.ndarray, w
     return np.stack([x, y], axis=-1)
 
 
-def side_normals(corners: np.ndarray) -> np.ndarray:
-    """Unit outward normals ``(..., 4, 2)`` of sides ``K_k -> K_{k+1}`` (corners counter-clockwise)."""
-    d = corners[..., NEXT_CORNER, :] - corners
-    nrm = np.stack([d[..., 1], -d[..., 0]], axis=-1)  # direction turned by -90 deg
-    return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
-
-
-def visible_sides(corners: np.ndarray, sensor: np.ndarray | None = None) -> np.ndarray:
-    """Which sides ``(..., 4)`` of the rectangles face ``sensor`` (default: the E origin)."""
-    sensor = np.zeros(2) if sensor is None else np.asarray(sensor, dtype=float)
-    mid = 0.5 * (corners + corners[..., NEXT_CORNER, :])
-    return np.einsum("...kd,...kd->...k", sensor - mid, side_normals(corners)) > 0.0
-
-
 def to_vehicle(
     states: np.ndarray, ego: EgoState | tuple, road: Road | None = None, coordinates: Coordinates = "curvilinear",
     euler_s0: float | None = None,
@@ -234,9 +221,10 @@ def to_vehicle(
     ``(x, y, yaw[, v, yaw_rate])`` in G. Curvilinear states need ``road`` (open roads extrapolate along
     their end tangents) and use the exact conversion ``c(s) + n (-sin theta, cos theta)``: ``n`` positive
     to the left (the paper's Algorithm 1 writes the normal as ``(cos(pi/2 - theta), sin(pi/2 - theta))``,
-    which points right). With ``euler_s0`` (the ego's arc length, m) a curvilinear state goes through
-    the paper's Euler conversion instead (``Road.frame_euler``: Algorithm 1, the local cubic heading
-    polynomial around ``euler_s0``), the ``paper`` variant's measurement model."""
+    which points right), by one call of ``tracker.centerline.rectangles_kernel``. With ``euler_s0`` (the
+    ego's arc length, m) a curvilinear state goes through the paper's Euler conversion instead
+    (``Road.frame_euler``: Algorithm 1, the local cubic heading polynomial around ``euler_s0``), the
+    ``paper`` variant's measurement model."""
     ego = EgoState.coerce(ego)
     x = np.asarray(states, dtype=float)
     if x.shape[-1] not in (7, 8):
@@ -244,7 +232,7 @@ def to_vehicle(
     if coordinates == "curvilinear":
         if road is None:
             raise ValueError("curvilinear states need the road to go to E")
-        if euler_s0 is None and compiled_kernels.enabled() and x.size:
+        if euler_s0 is None:
             flat = x if x.ndim == 2 and x.flags.c_contiguous else np.ascontiguousarray(x.reshape(-1, x.shape[-1]))
             kind, *curve = road._curve.kernel_args()
             center, psi, corners, length, width, finite = rectangles_kernel(
@@ -257,10 +245,7 @@ def to_vehicle(
                 center, psi, corners = center.reshape(lead + (2,)), psi.reshape(lead), corners.reshape(lead + (4, 2))
                 length, width = length.reshape(lead), width.reshape(lead)
             return Rectangles.computed(center, psi, x[..., 2], length, width, corners)
-        if euler_s0 is None:
-            xy, theta, _ = road.frame(x[..., 0], extrapolate=True)
-        else:
-            xy, theta = road.frame_euler(x[..., 0], euler_s0)
+        xy, theta = road.frame_euler(x[..., 0], euler_s0)
         n = x[..., 1]
         gx = xy[..., 0] - n * np.sin(theta) - ego.x
         gy = xy[..., 1] + n * np.cos(theta) - ego.y
@@ -346,74 +331,20 @@ class Cluster:
         return self.velocity is not None
 
 
-def _lambda_min(sxx: np.ndarray, syy: np.ndarray, sxy: np.ndarray) -> np.ndarray:
-    """Smallest eigenvalue of symmetric 2x2 matrices ``[[sxx, sxy], [sxy, syy]]``."""
-    return 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
-
-
-def corner_index(points: np.ndarray) -> int:
-    """Corner index of bearing-sorted points ``(N, 2)``, ``N >= 3``: the split ``k`` in ``1..N-2``
-    minimising the summed total-least-squares residuals of lines fitted to ``points[:k+1]`` and
-    ``points[k:]`` (the corner point in both). All splits at once from prefix sums: O(N)."""
-    p = np.asarray(points, dtype=float)
-    n = len(p)
-    if n < 3:
-        raise ValueError(f"corner_index needs at least 3 points; got {n}")
-    p = p - p.mean(axis=0)
-    x, y = p[:, 0], p[:, 1]
-    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones(n), x, y, x * x, y * y, x * y)]
-    k = np.arange(1, n - 1)
-
-    def residual(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:  # points lo..hi inclusive
-        cnt, sx, sy, sxx, syy, sxy = (c[hi + 1] - c[lo] for c in cs)
-        return np.maximum(_lambda_min(sxx - sx * sx / cnt, syy - sy * sy / cnt, sxy - sx * sy / cnt), 0.0)
-
-    cost = residual(np.zeros_like(k), k) + residual(k, np.full_like(k, n - 1))
-    return int(k[np.argmin(cost)])
-
-
-def _even(lo: int, hi: int, count: int) -> np.ndarray:
-    """``count`` indices evenly spread over ``lo..hi`` inclusive (both ends kept)."""
-    return np.unique(np.round(np.linspace(lo, hi, max(count, 2))).astype(int))
-
-
-def _scatter(pts: np.ndarray) -> tuple[np.ndarray, float, float, float]:
-    """Centroid and the (biased) covariance entries ``sxx, syy, sxy`` of ``pts (K, 2)``."""
-    c = pts.mean(axis=0)
-    d = pts - c
-    return c, float(d[:, 0] @ d[:, 0]) / len(pts), float(d[:, 1] @ d[:, 1]) / len(pts), float(d[:, 0] @ d[:, 1]) / len(pts)
-
-
-def _line_fit(pts: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D401
-    """Total-least-squares line through ``pts (K, 2)``: a point on it (the centroid) and its unit
-    direction (the major axis of the scatter, angle ``atan2(2 sxy, sxx - syy) / 2``), oriented from the
-    first point towards the last; ``fallback`` direction if the points have no extent."""
-    c, sxx, syy, sxy = _scatter(pts)
-    if len(pts) < 2 or sxx + syy <= MIN_CHORD**2:
-        return c, fallback
-    phi = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-    u = np.array([np.cos(phi), np.sin(phi)])
-    return c, (u if float(u @ (pts[-1] - pts[0])) >= 0.0 else -u)
-
-
-def _intersect(o1: np.ndarray, u1: np.ndarray, o2: np.ndarray, u2: np.ndarray) -> np.ndarray | None:
-    """Intersection of the lines ``o1 + a u1`` and ``o2 + b u2``; ``None`` if they meet at less than
-    ``CORNER_MIN_ANGLE``."""
-    den = u1[0] * u2[1] - u1[1] * u2[0]
-    if abs(den) < np.sin(CORNER_MIN_ANGLE):
-        return None
-    w = o2 - o1
-    a = (w[0] * u2[1] - w[1] * u2[0]) / den
-    return o1 + a * u1
+def prepare_settings(config: MeasurementConfig) -> tuple:
+    """``prepare_kernel``'s settings, the arguments after its points and offsets."""
+    return (int(config.max_cluster_points), int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
+            bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
 
 
 def prepare_cluster(
     points: np.ndarray, config: MeasurementConfig | None = None, velocity: np.ndarray | None = None
 ) -> Cluster:
     """Prepare lidar ``points (N, 2)`` in E (m) for the rectangle model: drop non-finite points
-    (counted in ``dropped``), sort by bearing, decide one/two-sided from the eigenvalue ratio, find the
-    corner, downsample to ``config.max_cluster_points`` and compute each point's chord coordinates.
-    ``velocity`` is an associated radar detection's absolute velocity ``(vx, vy)`` in E (m/s)."""
+    (counted in ``dropped``), then ``prepare_kernel`` (module docstring): sort by bearing, decide
+    one/two-sided from the eigenvalue ratio, find the corner, downsample to ``config.max_cluster_points``
+    and compute each point's chord coordinates. ``velocity`` is an associated radar detection's absolute
+    velocity ``(vx, vy)`` in E (m/s)."""
     config = config if config is not None else MeasurementConfig()
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2:
@@ -421,91 +352,21 @@ def prepare_cluster(
     finite = np.isfinite(pts).all(axis=1)
     dropped = int((~finite).sum())
     index = np.flatnonzero(finite)
-    pts = pts[finite]
+    pts = np.ascontiguousarray(pts[finite])
     if len(pts) == 0:
         raise ValueError(f"a cluster needs at least one finite point; got none ({dropped} non-finite dropped)")
     if velocity is not None:
         velocity = np.asarray(velocity, dtype=float).reshape(-1)
         if velocity.shape != (2,) or not np.isfinite(velocity).all():
             raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
-    centroid, sxx, syy, sxy = _scatter(pts)
-    cx, cy = float(centroid[0]), float(centroid[1])
-    ref = math.atan2(cy, cx) if math.hypot(cx, cy) > 1e-9 else 0.0
-    rel = np.arctan2(pts[:, 1], pts[:, 0]) - ref
-    rel -= 2.0 * np.pi * np.round(rel / (2.0 * np.pi))
-    order = np.argsort(rel, kind="stable")
-    pts, index, rel = pts[order], index[order], rel[order]
-    n = len(pts)
-    ratio = math.inf
-    if n >= 2:
-        root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
-        lam_min, lam_max = 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
-        ratio = lam_max / lam_min if lam_min > 1e-15 * max(lam_max, 1e-300) else math.inf
-    two = n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
-    keep = np.arange(n)
-    corner = -1
-    if two:
-        k = corner_index(pts)
-        if n > config.max_cluster_points:
-            bound = config.max_cluster_points  # the corner is shared: m0 + m1 - 1 = bound points
-            m0 = min(max(2, int(round(bound * (k + 1) / (n + 1)))), bound - 1)
-            m1 = bound + 1 - m0
-            keep = np.unique(np.concatenate([_even(0, k, m0), _even(k, n - 1, m1)]))
-        corner = int(np.searchsorted(keep, k))
-    elif n > config.max_cluster_points:
-        keep = _even(0, n - 1, config.max_cluster_points)
-    # lines and extents from all the points, before downsampling
-    norm = max(math.hypot(cx, cy), 1e-12)
-    fallback = np.array([-cy / norm, cx / norm])  # no extent: the line-of-sight normal
-    corner_full = int(keep[corner]) if two else -1
-    # slot 0: the whole cluster; slots 1, 2: before / after the corner (the corner point in both fits)
-    members = [pts, pts[: corner_full + 1], pts[corner_full:]] if two else [pts]
-    fits = [_line_fit(q, fallback) for q in members]
-    lo, hi = np.zeros(len(fits)), np.zeros(len(fits))
-    for i, (q, (o, u)) in enumerate(zip(members, fits)):
-        a = (q - o) @ u
-        lo[i], hi[i] = a.min(), a.max()
-    if not two:  # one part: slots 1 and 2 repeat slot 0
-        fits, lo, hi = fits * 3, np.repeat(lo, 3), np.repeat(hi, 3)
-    if two:  # the corner: where the two fitted lines meet, if they meet near the corner point
-        x = _intersect(fits[1][0], fits[1][1], fits[2][0], fits[2][1])
-        if x is None or np.hypot(*(x - pts[corner_full])) > CORNER_MAX_SHIFT:
-            x = pts[corner_full]
-        hi[1] = (x - fits[1][0]) @ fits[1][1]
-        lo[2] = (x - fits[2][0]) @ fits[2][1]
-        hi[1], lo[2] = max(hi[1], lo[1]), min(lo[2], hi[2])
-    origin = np.stack([o for o, _ in fits])
-    direction = np.stack([u for _, u in fits])
-    starts = origin + lo[:, None] * direction
-    ends = origin + hi[:, None] * direction
-    length = hi - lo
-    margin, half_gap = np.zeros((3, 2)), np.zeros((3, 2))
-    if config.end_gap_correction and n >= 2:
-        # half the gap between rays at each free end: along a line at distance d from the sensor a
-        # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
-        gaps = np.diff(rel)
-        db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])  # the median bearing step
-        dist = np.abs(origin[:, 0] * direction[:, 1] - origin[:, 1] * direction[:, 0])  # (3,) line to sensor
-        r2 = np.column_stack([(starts * starts).sum(axis=1), (ends * ends).sum(axis=1)])
-        gap = r2 * db / np.maximum(dist, 1e-3)[:, None]
-        half_gap = 0.5 * np.minimum(gap, MAX_END_GAP)
-        margin = np.minimum(half_gap, 0.5 * length[:, None])
-        if two:
-            margin[1, 1] = margin[2, 0] = 0.0  # the corner of a split is observed
-            half_gap[1, 1] = half_gap[2, 0] = 0.0
-    pts, index = pts[keep], index[keep]
-    m = len(pts)
-    part = np.zeros(m, dtype=np.intp)
-    if two:
-        part[corner + 1:] = 1
-    proj = np.stack([
-        (pts - starts[0]) @ direction[0],
-        np.einsum("md,md->m", pts - starts[1 + part], direction[1 + part]),
-    ])
+    (kept, _, part, proj, starts, ends, direction, length, margin, half_gap, two, corner, ratio, order,
+     kept_count) = prepare_kernel(pts, np.array([0, len(pts)], dtype=np.intp), *prepare_settings(config))
+    m = int(kept_count[0])
     return Cluster(
-        points=pts, part=part, proj=proj, chord_start=starts, chord_end=ends, chord_dir=direction,
-        chord_len=length, two_sided=bool(two), corner=corner, eigen_ratio=ratio, end_margin=margin, velocity=velocity,
-        raw_count=n, dropped=dropped, order=index, end_gap=half_gap,
+        points=kept[0, :m], part=part[0, :m], proj=proj[0, :, :m], chord_start=starts[0], chord_end=ends[0],
+        chord_dir=direction[0], chord_len=length[0], two_sided=bool(two[0]), corner=int(corner[0]),
+        eigen_ratio=float(ratio[0]), end_margin=margin[0], velocity=velocity, raw_count=len(pts), dropped=dropped,
+        order=index[order[0, :m]], end_gap=half_gap[0],
     )
 
 
@@ -643,30 +504,6 @@ def _shadowed_parts_partial(config: MeasurementConfig, shadows: bool) -> bool:
     return bool(config.shadowed_parts_partial and shadows)
 
 
-def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,
-                      settled_width_std: float | None) -> np.ndarray:
-    """Whether a chord ``excess`` (m) longer than its predicted side is evidence of a longer side, not
-    noise: more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` that extent's standard
-    deviation), and not a short side (``width_side``) longer than a settled width (its sd below
-    ``settled_width_std``: the track's heading lagging a lane change, the side next to it in the
-    chord). Used by ``tracker.update.grow_extent`` and ``MeasurementConfig.shadowed_longer_whole``."""
-    longer = excess > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
-    if settled_width_std is not None:
-        longer &= ~np.asarray(width_side) | (sd >= settled_width_std)
-    return longer
-
-
-def _longer_than_predicted(chord: np.ndarray, predicted: np.ndarray, side: np.ndarray, extent_sd: np.ndarray,
-                           settled_width_std: float | None) -> np.ndarray:
-    """Whether a one-sided chord ``(P,)`` on side ``side`` shows its side longer than ``predicted``
-    (``shows_longer_side``, ``sd`` of ``L`` for the odd, long sides, of ``W`` for the others, from
-    ``extent_sd (P, 2)``), and no longer or wider than one vehicle."""
-    long_side = side % 2 == 1
-    sd = np.where(long_side, extent_sd[:, 0], extent_sd[:, 1])
-    return (shows_longer_side(chord - predicted, sd, ~long_side, settled_width_std)
-            & (chord <= np.where(long_side, LONGEST_VEHICLE, WIDEST_VEHICLE)))  # one vehicle's side
-
-
 def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
     """``(P, 2)``: whether each bearing end of the pairs' clusters is free (in no shadow, not continued)."""
     free = np.ones((len(ci), 2), dtype=bool)
@@ -674,17 +511,6 @@ def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
         if flags is not None:
             free &= ~flags[ci]
     return free
-
-
-def _lidar_variance(config: MeasurementConfig, mode: np.ndarray, shadowed: np.ndarray) -> np.ndarray:
-    """Per pair, the variance of each lidar coordinate in the update: ``shadowed_lidar_sigma^2`` for a
-    pair with a part partially visible (``mode (P, 2)`` anchored) whose cluster borders a shadow
-    (``shadowed (P,)``), ``lidar_sigma^2`` otherwise."""
-    base = np.full(len(mode), config.lidar_sigma**2)
-    if config.shadowed_lidar_sigma is None:
-        return base
-    anchored = ((mode == FROM_A) | (mode == FROM_B) | (mode == CENTRE)).any(axis=1)
-    return np.where(anchored & shadowed, config.shadowed_lidar_sigma**2, base)
 
 
 def build_structure(
@@ -695,191 +521,20 @@ def build_structure(
     use_radar: bool = True,
     *,
     extent_sd: np.ndarray | None = None,
-    compiled: bool | None = None,
 ) -> Structure:
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
-    as in the module docstring. ``extent_sd (P, 2)``: the predicted standard deviations of ``L`` and
-    ``W`` (m), for ``MeasurementConfig.sharp_parts_whole`` (None: that rule off). Vectorised over
-    pairs; by the compiled kernel (``tracker.structure``) when ``compiled`` (default:
-    ``tracker.compiled.enabled()``)."""
+    as in the module docstring, by ``tracker.structure.structure_kernel``. ``extent_sd (P, 2)``: the
+    predicted standard deviations of ``L`` and ``W`` (m), for the rules that need them
+    (``MeasurementConfig.sharp_parts_whole``, ``shadowed_longer_whole``; None: those rules off)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
         extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
-    if compiled is None:
-        compiled = compiled_kernels.enabled()
-    if compiled and len(ci):
-        compiled_kernels.require()
-        return _build_structure_compiled(batch, ci, mean_corners, config, use_radar, extent_sd)
-    p_count = len(ci)
-    rows = np.arange(p_count)
-    nrm = side_normals(mean_corners)  # (P, 4, 2)
-    vis = visible_sides(mean_corners)  # (P, 4)
-    side_len = np.linalg.norm(mean_corners[..., NEXT_CORNER, :] - mean_corners, axis=-1)  # (P, 4)
-    cdir = batch.chord_dir[ci]  # (P, 3, 2)
-    normal_of_chord = np.stack([-cdir[..., 1], cdir[..., 0]], axis=-1)  # chord turned by +90 deg
-    score = np.einsum("pkd,pqd->pqk", nrm, normal_of_chord)  # (P, slot, side)
-    two = batch.two_sided[ci] & (vis.sum(axis=1) == 2)
-    single = batch.single[ci] & ~two
-    k_one = np.argmax(score[:, 0, :], axis=1)
-    j_two = np.argmax(score[:, 1, :] + np.roll(score[:, 2, :], 1, axis=1), axis=1)  # sides j and j - 1
-    # single point: the visible side of the mean rectangle nearest to the point
-    z0 = batch.points[ci, 0]  # (P, 2)
-    e = mean_corners[..., NEXT_CORNER, :] - mean_corners
-    t_seg = np.clip(np.einsum("pkd,pkd->pk", z0[:, None, :] - mean_corners, e) / np.maximum(side_len**2, 1e-12), 0, 1)
-    dist = np.linalg.norm(mean_corners + t_seg[..., None] * e - z0[:, None, :], axis=-1)
-    # ... among the visible sides that look wide enough from the sensor (not seen at grazing incidence)
-    mid = mean_corners + 0.5 * e
-    apparent = side_len * np.einsum("pkd,pkd->pk", -mid, nrm) / np.maximum(np.linalg.norm(mid, axis=-1), 1e-12)
-    eligible = vis & (apparent >= config.single_point_min_apparent * apparent.max(axis=1, keepdims=True))
-    dist = np.where(eligible, dist, np.inf)
-    k_single = np.where(eligible.any(axis=1), np.argmin(dist, axis=1), k_one)
-    side0 = np.where(two, j_two, np.where(single, k_single, k_one))
-    sides = np.stack([side0, np.where(two, (j_two - 1) % 4, side0)], axis=1)  # (P, 2) side of each part
-    start_c, end_c = (sides + 1) % 4, sides  # side k is traversed from K_{k+1} to K_k
-    # chords of the two parts as this pair sees them: slots 1, 2 if two-sided, else slot 0 twice
-    slots = np.where(two[:, None], np.array([1, 2]), np.array([0, 0]))  # (P, 2)
-    chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
-    margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
-    occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
-    shadowed_parts = _shadowed_parts_partial(config, batch.occluded_end is not None)
-    if shadowed_parts:
-        # a two-sided part's far end (part 0: the first point, part 1: the last) in a shadow is no end of
-        # the side: no end-gap margin there, the chord reaches at least to the last return
-        margin[:, 0, 0] = np.where(two & occ[:, 0], 0.0, margin[:, 0, 0])
-        margin[:, 1, 1] = np.where(two & occ[:, 1], 0.0, margin[:, 1, 1])
-    covered = chord_len + margin.sum(axis=2)
-    predicted = side_len[rows[:, None], sides]  # (P, 2) the predicted length of each part's side
-    alpha = covered / np.maximum(predicted, 1e-12)
-    partial = alpha <= config.partial_visibility
-    # a part with an end in another object's shadow goes on behind it: partially visible
-    # one-sided only (a corner anchors the two-sided), and only when the other end is sharp (its
-    # end-gap margin at most shadow_free_gap: not a far or grazing side whose next ray skips metres)
-    sharp_end = batch.end_gap[ci] <= config.shadow_free_gap  # (P, 3 slots, 2 ends): half a ray gap at most
-    sharp = sharp_end[:, 0]  # (P, 2 ends) of the one-sided chord
-    free = _free_ends(batch, ci)  # (P, 2) the bearing ends: in no shadow, not continued
-    if _sharp_side_whole(config, batch.occluded_end is not None):
-        # a one-sided part with both ends sharp and free is the whole side, however much shorter than
-        # predicted (a convex rectangle shows each visible side whole): a motorcycle's rear is 0.8 m,
-        # not the visible part of a car's 1.8 m
-        whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & free[:, 0] & free[:, 1]
-        partial &= ~whole[:, None]
-    if _sharp_parts_whole(config, batch.occluded_end is not None, extent_sd is not None):
-        # each part of a two-sided cluster runs from the fitted corner to a far end, the cluster's first
-        # (part 0, slot 1's start) or last point (part 1, slot 2's end): whole if that end is sharp and
-        # free, both parts have enough points (the corner is where two well-fitted lines meet: with two
-        # points on the other side it is the last return before the corner, up to a ray gap short of it),
-        # and the side it would shrink is within the gate
-        part_pts = np.stack([(batch.valid[ci] & (batch.part[ci] == 0)).sum(axis=1),
-                             (batch.valid[ci] & (batch.part[ci] == 1)).sum(axis=1) + 1], axis=1)  # the corner in both
-        # ... a far end is sharp by its ray gap, or because the predicted side goes on beyond it for
-        # MISSED_RAYS_SHARP whole gaps (2 half gaps each) where the rays found nothing
-        far_gap = np.stack([batch.end_gap[ci, 1, 0], batch.end_gap[ci, 2, 1]], axis=1)
-        far_sharp = (far_gap <= config.shadow_free_gap) | (predicted - chord_len >= MISSED_RAYS_SHARP * 2.0 * far_gap)
-        sd = np.where(sides % 2 == 1, extent_sd[:, :1], extent_sd[:, 1:])  # odd sides are the length
-        shrink = predicted - covered
-        consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
-        enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
-        partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
-    if shadowed_parts:
-        # ... and the side goes on behind it: partially visible, anchored at the corner, unless the chord
-        # is longer than its predicted side (a lower bound: measured whole, to the last return); taken
-        # whole, a side that an occluder hides a little more every frame would shrink with what shows
-        partial |= two[:, None] & occ & (covered < predicted)
-    shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
-    if _shadowed_longer_whole(config, batch.occluded_end is not None, extent_sd is not None):
-        # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
-        # bound the prediction falls short of, so the part is measured whole (kept partial, a truck's
-        # rear half-hidden by a car would keep a car's width, and so never take the long-vehicle prior)
-        shadowed &= ~_longer_than_predicted(chord_len[:, 0], predicted[:, 0], sides[:, 0], extent_sd,
-                                            config.settled_width_std)
-    partial |= shadowed[:, None]
-    if config.two_sided_data_partial:
-        # the data say two sides, the prediction shows one: what is seen is not one whole side
-        partial |= (batch.two_sided[ci] & ~two & ~single)[:, None]
-    # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
-    p_start = mean_corners[rows, start_c[:, 0]]
-    q_end = mean_corners[rows, end_c[:, 0]]
-    d_a = np.linalg.norm(batch.chord_start[ci, 0] - p_start, axis=-1)
-    d_b = np.linalg.norm(batch.chord_end[ci, 0] - q_end, axis=-1)
-    d_c = np.linalg.norm(batch.centroid[ci] - 0.5 * (p_start + q_end), axis=-1)
-    anchor = np.array([FROM_A, FROM_B, CENTRE])[np.argmin(np.stack([d_a, d_b, d_c], axis=1), axis=1)]
-    # ... unless exactly one end is in a shadow: the other is the vehicle's corner
-    anchor = np.where(shadowed, np.where(occ[:, 1], FROM_A, FROM_B), anchor)
-    mode_one = np.where(single, FIXED, np.where(partial[:, 0], anchor, FULL))
-    mode = np.stack([
-        np.where(two, np.where(partial[:, 0], FROM_B, FULL), mode_one),  # first part: anchored at the corner
-        np.where(two, np.where(partial[:, 1], FROM_A, FULL), mode_one),  # second part: starts at the corner
-    ], axis=1)
-    # per point
-    valid = batch.valid[ci]
-    part = np.where(two[:, None], batch.part[ci], 0)  # (P, M)
-    proj = np.where(two[:, None], batch.proj[ci, 1], batch.proj[ci, 0])
-    mp = np.take_along_axis(mode, part, axis=1)
-    sc = np.take_along_axis(start_c, part, axis=1)
-    ec = np.take_along_axis(end_c, part, axis=1)
-    ln = np.take_along_axis(chord_len, part, axis=1)
-    e_lo = np.take_along_axis(margin[..., 0], part, axis=1)
-    e_hi = np.take_along_axis(margin[..., 1], part, axis=1)
-    frac = (proj + e_lo) / np.maximum(ln + e_lo + e_hi, MIN_CHORD)
-    pts = batch.points[ci]
-    p_m = mean_corners[rows[:, None], sc]  # (P, M, 2)
-    pq = mean_corners[rows[:, None], ec] - p_m
-    fixed_frac = np.clip(
-        np.einsum("pmd,pmd->pm", pts - p_m, pq) / np.maximum(np.einsum("pmd,pmd->pm", pq, pq), 1e-12), 0.0, 1.0
-    )
-    a = np.where(mp == FROM_B, ec, sc)
-    b = np.where(mp == FROM_B, sc, ec)
-    full, from_a, from_b, centre = mp == FULL, mp == FROM_A, mp == FROM_B, mp == CENTRE
-    c1 = np.where(full, frac, np.where(centre, 0.5, np.where(mp == FIXED, fixed_frac, 0.0)))
-    c2 = np.where(from_a, proj + e_lo, np.where(from_b, ln - proj + e_hi,
-                                                np.where(centre, proj - 0.5 * ln + 0.5 * (e_lo - e_hi), 0.0)))
-    c1, c2 = np.where(valid, c1, 0.0), np.where(valid, c2, 0.0)
-    dx, dy = SX[b] - SX[a], SY[b] - SY[a]  # one of them is 0 (adjacent corners)
-    coef = np.stack([0.5 * (SX[a] + c1 * dx), c2 * np.sign(dx), 0.5 * (SY[a] + c1 * dy), c2 * np.sign(dy)], axis=-1)
-    coef = np.where(valid[..., None], coef, 0.0)
-    # end-gap noise: the free ends' unknown offsets eps ~ U(-e, e) (var e^2 / 3) move the points along
-    # their side by k_lo eps_lo + k_hi eps_hi, with (k_lo, k_hi) = (1 - t, -t) spread over a fully
-    # visible side, (1, 0) / (0, -1) anchored at the start / end, (1/2, -1/2) centred, (0, 0) fixed
-    t = np.where(full, c1, 0.0)
-    k_lo = np.where(full, 1.0 - t, np.where(from_a, 1.0, np.where(centre, 0.5, 0.0)))
-    k_hi = np.where(full, -t, np.where(from_b, -1.0, np.where(centre, -0.5, 0.0)))
-    unit = pq / np.maximum(np.linalg.norm(pq, axis=-1, keepdims=True), 1e-12)  # (P, M, 2) side direction P -> Q
-    last_part = np.where(two, 1, 0)[:, None]
-    std_lo = np.where(part == 0, e_lo, 0.0) / np.sqrt(3.0)  # the first part's free start
-    std_hi = np.where(part == last_part, e_hi, 0.0) / np.sqrt(3.0)  # the last part's free end
-    f_lo = np.where(valid[..., None], (k_lo * std_lo)[..., None] * unit, 0.0).reshape(p_count, -1)
-    f_hi = np.where(valid[..., None], (k_hi * std_hi)[..., None] * unit, 0.0).reshape(p_count, -1)
-    factors = np.stack([f_lo, f_hi], axis=1)  # (P, 2, 2M)
-    # stacked measurement: x0, y0, x1, y1, ..., vx, vy
-    m = pts.shape[1]
-    radar = batch.fused[ci] & bool(use_radar)
-    mask = np.concatenate([np.repeat(valid, 2, axis=1), np.repeat(radar[:, None], 2, axis=1)], axis=1)
-    z = np.concatenate([pts.reshape(p_count, 2 * m), batch.velocity[ci]], axis=1)
-    r = np.concatenate(
-        [np.repeat(_lidar_variance(config, mode, occ.any(axis=1))[:, None], 2 * m, axis=1),
-         np.full((p_count, 2), config.radar_velocity_sigma**2)],
-        axis=1,
-    )
-    factors = np.concatenate([factors, np.zeros((p_count, 2, 2))], axis=2)  # no end noise on radar rows
-    # features (cx, cy, L cos, L sin, cos, sin, W sin, W cos, v cos, v sin) -> stacked measurement
-    ax, gx, ay, gy = (coef[..., i] for i in range(4))
-    vf = valid.astype(float)
-    matrix = np.zeros((p_count, 10, 2 * m + 2))
-    xs, ys = matrix[:, :, 0 : 2 * m : 2], matrix[:, :, 1 : 2 * m : 2]
-    xs[:, 0], xs[:, 2], xs[:, 4], xs[:, 5], xs[:, 6] = vf, ax, gx, -gy, -ay
-    ys[:, 1], ys[:, 3], ys[:, 5], ys[:, 4], ys[:, 7] = vf, ax, gx, gy, ay
-    if config.radar_rows == "speed":  # one row: the component along the predicted mean heading
-        heading = mean_corners[:, 0] - mean_corners[:, 3]  # rear-right -> front-right corner
-        u = heading / np.maximum(np.linalg.norm(heading, axis=-1, keepdims=True), 1e-12)
-        z[:, -2] = np.einsum("pd,pd->p", batch.velocity[ci], u)
-        mask[:, -1] = False
-        matrix[:, 8, -2], matrix[:, 9, -2] = u[:, 0] * radar, u[:, 1] * radar
-    else:
-        matrix[:, 8, -2] = matrix[:, 9, -1] = radar
-    return Structure(a=a, b=b, c1=c1, c2=c2, coef=coef, matrix=matrix, valid=valid, two_sided=two, sides=sides, mode=mode, radar=radar,
-                     z=np.where(mask, z, 0.0), r=np.where(mask, r, 1.0), mask=mask, factors=factors,
-                     excess=np.where(single[:, None], -np.inf, chord_len - predicted))
+    head, tail = structure_config_args(config, batch.occluded_end is not None, use_radar, extent_sd is not None)
+    sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
+    fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
+                              sd, *tail)
+    return Structure(*fields)
 
 
 def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
@@ -909,17 +564,6 @@ def structure_config_args(config: MeasurementConfig, shadows: bool, use_radar: b
             _shadowed_parts_partial(config, shadows), bool(config.two_sided_data_partial),
             -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
     return head, tail
-
-
-def _build_structure_compiled(batch: ClusterBatch, ci: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
-                              use_radar: bool, extent_sd: np.ndarray | None) -> Structure:
-    from tracker.structure import structure_kernel
-
-    head, tail = structure_config_args(config, batch.occluded_end is not None, use_radar, extent_sd is not None)
-    sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
-    fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
-                              sd, *tail)
-    return Structure(*fields)
 
 
 def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
@@ -956,3 +600,277 @@ def generating_points(
                          use_radar=False)
     y = predict_measurements(rect, st)
     return y[0, 0, : 2 * cluster.size].reshape(-1, 2)
+
+
+# --------------------------------------------------------------------------------------------------
+# The compiled kernels of this stage.
+#
+# Cluster preparation (module docstring, "Data"), one cluster after the other: centroid and biased
+# scatter, the points sorted by bearing about the centroid's bearing (a stable sort), one or two sides
+# from the scatter's eigenvalue ratio, the corner split minimising the two line fits' total-least-squares
+# residuals (prefix sums over every split), even downsampling (indices rounded half to even, the corner
+# kept in both parts), the chords of slots 0, 1, 2 (all points; before and after the corner, the corner
+# point in both), the corner where the two fitted lines meet, the end-gap margins and each kept point's
+# chord coordinates.
+# --------------------------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _lambda_min_scalar(sxx: float, syy: float, sxy: float) -> float:
+    """Smallest eigenvalue of the symmetric 2x2 matrix ``[[sxx, sxy], [sxy, syy]]``."""
+    return 0.5 * (sxx + syy) - math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+
+
+@njit(inline="always")
+def _residual(cnt: float, sx: float, sy: float, sxx: float, syy: float, sxy: float) -> float:
+    """The summed squared distances of ``cnt`` points from their total-least-squares line (the smallest
+    eigenvalue of their scatter matrix, at least 0), from the sums of their ``x``, ``y``, ``x^2``,
+    ``y^2`` and ``x y``."""
+    cnt = max(cnt, 1.0)
+    return max(_lambda_min_scalar(sxx - sx * sx / cnt, syy - sy * sy / cnt, sxy - sx * sy / cnt), 0.0)
+
+
+@njit(inline="always")
+def _even(keep: np.ndarray, lo: int, hi: int, count: int) -> None:
+    """Mark in ``keep`` ``count`` indices (at least 2) evenly spread over ``lo..hi``, both ends kept
+    (``j (hi - lo) / (count - 1) + lo`` rounded half to even)."""
+    count = max(count, 2)
+    step = (hi - lo) / (count - 1)
+    for j in range(count):
+        pos = float(hi) if j == count - 1 else j * step + lo
+        keep[int(np.rint(pos))] = True
+
+
+@njit(inline="always")
+def _mean_scatter(pts, j0, j1):
+    """Centroid and biased scatter ``(cx, cy, sxx, syy, sxy)`` of ``pts[j0:j1 + 1]``."""
+    cnt = j1 - j0 + 1
+    cx = 0.0
+    cy = 0.0
+    for j in range(j0, j1 + 1):
+        cx += pts[j, 0]
+        cy += pts[j, 1]
+    cx /= cnt
+    cy /= cnt
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    for j in range(j0, j1 + 1):
+        dx = pts[j, 0] - cx
+        dy = pts[j, 1] - cy
+        sxx += dx * dx
+        syy += dy * dy
+        sxy += dx * dy
+    return cx, cy, sxx / cnt, syy / cnt, sxy / cnt
+
+
+@njit(inline="always")
+def _corner_split(pts: np.ndarray, n: int) -> int:
+    """The corner of the bearing-sorted ``pts[:n]`` (``n >= 3``): the split ``k`` in ``1..n-2`` minimising
+    the summed total-least-squares residuals of the points ``0..k`` and ``k..n-1`` (the corner point in
+    both), every split from prefix sums of the centred coordinates (the first of equal minima)."""
+    cx, cy, _, _, _ = _mean_scatter(pts, 0, n - 1)
+    c = np.zeros((n + 1, 6))
+    for j in range(n):
+        x = pts[j, 0] - cx
+        y = pts[j, 1] - cy
+        c[j + 1, 0] = c[j, 0] + 1.0
+        c[j + 1, 1] = c[j, 1] + x
+        c[j + 1, 2] = c[j, 2] + y
+        c[j + 1, 3] = c[j, 3] + x * x
+        c[j + 1, 4] = c[j, 4] + y * y
+        c[j + 1, 5] = c[j, 5] + x * y
+    best = np.inf
+    k_best = 1
+    for k in range(1, n - 1):
+        head = _residual(c[k + 1, 0], c[k + 1, 1], c[k + 1, 2], c[k + 1, 3], c[k + 1, 4], c[k + 1, 5])
+        tail = _residual(c[n, 0] - c[k, 0], c[n, 1] - c[k, 1], c[n, 2] - c[k, 2],
+                         c[n, 3] - c[k, 3], c[n, 4] - c[k, 4], c[n, 5] - c[k, 5])
+        if head + tail < best:
+            best = head + tail
+            k_best = k
+    return k_best
+
+
+@njit
+def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle, max_shift,
+                   max_end_gap):
+    """The clusters ``flat[offsets[i]:offsets[i + 1]]`` (finite, non-empty) prepared, in padded arrays
+    (kept points padded to the largest count a cluster may keep): ``(points, valid, part, proj,
+    chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided, corner, eigen_ratio,
+    order, kept_count)``, ``Cluster``'s fields of each cluster, ``order`` the index of each kept point in
+    its cluster's input. The settings after ``offsets`` are ``prepare_settings``'."""
+    count = len(offsets) - 1
+    width = 0
+    for i in range(count):
+        width = max(width, min(offsets[i + 1] - offsets[i], bound + 2))
+    points = np.zeros((count, width, 2))
+    valid = np.zeros((count, width), dtype=np.bool_)
+    part = np.zeros((count, width), dtype=np.intp)
+    proj = np.zeros((count, 2, width))
+    order_out = np.zeros((count, width), dtype=np.intp)
+    chord_start = np.zeros((count, 3, 2))
+    chord_end = np.zeros((count, 3, 2))
+    chord_dir = np.zeros((count, 3, 2))
+    chord_len = np.zeros((count, 3))
+    end_margin = np.zeros((count, 3, 2))
+    end_gap = np.zeros((count, 3, 2))
+    two_sided = np.zeros(count, dtype=np.bool_)
+    corner_out = np.full(count, -1, dtype=np.intp)
+    eigen_ratio = np.zeros(count)
+    kept_count = np.zeros(count, dtype=np.intp)
+    for i in range(count):
+        o = offsets[i]
+        n = offsets[i + 1] - o
+        raw = flat[o : o + n]
+        cx, cy, sxx, syy, sxy = _mean_scatter(raw, 0, n - 1)  # centroid, biased scatter
+        # bearing order about the centroid's bearing
+        ref = math.atan2(cy, cx) if math.hypot(cx, cy) > 1e-9 else 0.0
+        rel0 = np.empty(n)
+        for j in range(n):
+            a = math.atan2(raw[j, 1], raw[j, 0]) - ref
+            rel0[j] = a - 2.0 * np.pi * np.rint(a / (2.0 * np.pi))
+        order = np.argsort(rel0, kind="mergesort")
+        pts = np.empty((n, 2))
+        rel = np.empty(n)
+        for j in range(n):
+            pts[j, 0] = raw[order[j], 0]
+            pts[j, 1] = raw[order[j], 1]
+            rel[j] = rel0[order[j]]
+        # one or two sides
+        root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+        lam_min = 0.5 * (sxx + syy) - root
+        lam_max = 0.5 * (sxx + syy) + root
+        ratio = np.inf
+        if n >= 2 and lam_min > 1e-15 * max(lam_max, 1e-300):
+            ratio = lam_max / lam_min
+        two = n >= min_two and ratio < ratio_max
+        k = _corner_split(pts, n) if two else -1
+        # downsampling
+        keep = np.zeros(n, dtype=np.bool_)
+        if n > bound:
+            if two:
+                m0 = min(max(2, int(np.rint(bound * (k + 1) / (n + 1)))), bound - 1)
+                _even(keep, 0, k, m0)
+                _even(keep, k, n - 1, bound + 1 - m0)
+            else:
+                _even(keep, 0, n - 1, bound)
+        else:
+            keep[:] = True
+        # chords: slot 0 all points, slot 1 = 0..k, slot 2 = k..n-1 (two-sided)
+        norm = max(math.hypot(cx, cy), 1e-12)
+        origin = np.zeros((3, 2))
+        direction = np.zeros((3, 2))
+        lo = np.zeros(3)
+        hi = np.zeros(3)
+        for s in range(3):
+            j0 = 0
+            j1 = n - 1
+            if two and s == 1:
+                j1 = k
+            if two and s == 2:
+                j0 = k
+            cnt = j1 - j0 + 1
+            ox, oy, mxx, myy, mxy = _mean_scatter(pts, j0, j1)
+            if cnt < 2 or mxx + myy <= min_chord * min_chord:
+                ux = -cy / norm
+                uy = cx / norm
+            else:
+                phi = 0.5 * math.atan2(2.0 * mxy, mxx - myy)
+                ux = math.cos(phi)
+                uy = math.sin(phi)
+                if ux * (pts[j1, 0] - pts[j0, 0]) + uy * (pts[j1, 1] - pts[j0, 1]) < 0.0:
+                    ux = -ux
+                    uy = -uy
+            low = np.inf
+            high = -np.inf
+            for j in range(j0, j1 + 1):
+                t = (pts[j, 0] - ox) * ux + (pts[j, 1] - oy) * uy
+                low = min(low, t)
+                high = max(high, t)
+            origin[s, 0] = ox
+            origin[s, 1] = oy
+            direction[s, 0] = ux
+            direction[s, 1] = uy
+            lo[s] = low
+            hi[s] = high
+        if two:  # the corner: where the two fitted lines meet, if they meet near the corner point
+            u1x, u1y, u2x, u2y = direction[1, 0], direction[1, 1], direction[2, 0], direction[2, 1]
+            den = u1x * u2y - u1y * u2x
+            ok = abs(den) >= sin_min_angle
+            wx = origin[2, 0] - origin[1, 0]
+            wy = origin[2, 1] - origin[1, 1]
+            a = (wx * u2y - wy * u2x) / (den if ok else 1.0)
+            xx = origin[1, 0] + a * u1x
+            xy = origin[1, 1] + a * u1y
+            ok = ok and math.hypot(xx - pts[k, 0], xy - pts[k, 1]) <= max_shift
+            if not ok:
+                xx = pts[k, 0]
+                xy = pts[k, 1]
+            h1 = (xx - origin[1, 0]) * u1x + (xy - origin[1, 1]) * u1y
+            l2 = (xx - origin[2, 0]) * u2x + (xy - origin[2, 1]) * u2y
+            hi[1] = max(h1, lo[1])
+            lo[2] = min(l2, hi[2])
+        starts = np.empty((3, 2))
+        ends = np.empty((3, 2))
+        length = np.empty(3)
+        for s in range(3):
+            for d in range(2):
+                starts[s, d] = origin[s, d] + lo[s] * direction[s, d]
+                ends[s, d] = origin[s, d] + hi[s] * direction[s, d]
+            length[s] = hi[s] - lo[s]
+        margin = np.zeros((3, 2))
+        half_gap = np.zeros((3, 2))
+        if gap_correction and n >= 2:
+            gaps = rel[1:] - rel[:-1]
+            gaps = gaps[np.argsort(gaps, kind="mergesort")]  # numpy.sort's values
+            db = gaps[(n - 1) // 2]
+            for s in range(3):
+                dist = abs(origin[s, 0] * direction[s, 1] - origin[s, 1] * direction[s, 0])
+                r2s = starts[s, 0] * starts[s, 0] + starts[s, 1] * starts[s, 1]
+                r2e = ends[s, 0] * ends[s, 0] + ends[s, 1] * ends[s, 1]
+                half_gap[s, 0] = 0.5 * min(r2s * db / max(dist, 1e-3), max_end_gap)
+                half_gap[s, 1] = 0.5 * min(r2e * db / max(dist, 1e-3), max_end_gap)
+                margin[s, 0] = min(half_gap[s, 0], 0.5 * length[s])
+                margin[s, 1] = min(half_gap[s, 1], 0.5 * length[s])
+            if two:
+                margin[1, 1] = 0.0  # the corner of a split is observed
+                margin[2, 0] = 0.0
+                half_gap[1, 1] = 0.0
+                half_gap[2, 0] = 0.0
+        # the kept points, compacted, with their part and chord coordinates
+        corner = -1
+        if two:
+            corner = 0
+            for j in range(k):
+                if keep[j]:
+                    corner += 1
+        m = 0
+        for j in range(n):
+            if not keep[j]:
+                continue
+            points[i, m, 0] = pts[j, 0]
+            points[i, m, 1] = pts[j, 1]
+            valid[i, m] = True
+            p = 1 if (two and m > corner) else 0
+            part[i, m] = p
+            proj[i, 0, m] = (pts[j, 0] - starts[0, 0]) * direction[0, 0] + (pts[j, 1] - starts[0, 1]) * direction[0, 1]
+            proj[i, 1, m] = ((pts[j, 0] - starts[1 + p, 0]) * direction[1 + p, 0]
+                             + (pts[j, 1] - starts[1 + p, 1]) * direction[1 + p, 1])
+            order_out[i, m] = order[j]
+            m += 1
+        for s in range(3):
+            src = s if two else 0  # one part: slots 1 and 2 repeat slot 0
+            for d in range(2):
+                chord_start[i, s, d] = starts[src, d]
+                chord_end[i, s, d] = ends[src, d]
+                chord_dir[i, s, d] = direction[src, d]
+                end_margin[i, s, d] = margin[src, d]
+                end_gap[i, s, d] = half_gap[src, d]
+            chord_len[i, s] = length[src]
+        two_sided[i] = two
+        corner_out[i] = corner
+        eigen_ratio[i] = ratio
+        kept_count[i] = m
+    return (points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided,
+            corner_out, eigen_ratio, order_out, kept_count)

@@ -1,5 +1,5 @@
-"""Compiled update of the pairs: ``tracker.update.update_pairs``' compiled steps chained in one numba
-call, so that none of their intermediate arrays goes back to Python.
+"""The update of the pairs as one numba call: ``tracker.update.update_pairs``' steps chained, so that
+none of their intermediate arrays goes back to Python.
 
 The steps are the staged path's kernels, called in its order with its arguments: the sigma points of
 the components in some pair and their rectangles in E (``centerline.sigma_rectangles_kernel``), the
@@ -11,11 +11,8 @@ numbers as the staged path. Where that path leaves the kernels or raises (a NaN 
 mean or covariance, a pair whose prior the growth widened, a measurement variance that is not
 positive), the kernel returns a status instead of a result; where a prior or an innovation covariance
 is not positive definite a kernel it calls raises ``numpy.linalg.LinAlgError``. Either way the caller
-(``tracker.update._update_pairs_fused``) takes the staged path, which handles it as before.
-
-Numba's cache tracks a kernel's own file only: after editing a kernel this one calls (in
-``centerline``, ``structure``, ``extent`` or ``kalman``), clear ``tracker/compiled/__pycache__`` so that
-this one is compiled again with it."""
+(``tracker.update._update_pairs_fused``) takes the staged path, one kernel at a time, which handles
+it."""
 
 from __future__ import annotations
 
@@ -100,7 +97,7 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
     if grow:
         grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, settled_sd,
                                                 growth_min, growth_sigmas)
-        if grown.any():  # new sigma points for the widened pairs: the staged path (numpy's factor)
+        if grown.any():  # new sigma points for the widened pairs: the staged path (UnscentedTransform.sigma_points)
             return (GROWN,) + _empty_result(pairs, dim, rows)
     width = r.shape[1]
     softened = False

@@ -1,11 +1,14 @@
-"""Compiled measurement structure: ``tracker.measurement.build_structure`` as one numba call.
+"""The measurement structure of (cluster, predicted mean rectangle) pairs as one numba call
+(``tracker.measurement.build_structure``; the model is ``tracker.measurement``'s module docstring).
 
-Per pair (cluster, predicted mean rectangle) the same decisions as the numpy reference, in its order:
-visible sides and their outward normals, the side(s) the cluster's chords face (one side, the corner's
-two sides, or for a single point the nearest visible side seen wide enough), partial visibility and the
-anchor of a partly seen side, then per point the generating-point recipe (corner indices, ``c1``,
-``c2``, the linear coefficients ``coef``), the end-gap noise factors and the feature-to-measurement
-matrix, the stacked measurement, its noise and mask (see the reference's docstrings).
+Per pair, in this order: the predicted rectangle's visible sides and their outward normals; the side or
+sides the cluster's chords face (one side; the corner's two adjacent sides; for a single point the
+nearest visible side seen wide enough); whether each part shows its side whole or in part (the
+visibility ``a = (chord + end margins) / predicted side``, and ``MeasurementConfig``'s rules on ends in
+shadows, sharp free ends and sides longer than predicted) and the anchor of a side seen in part; then
+per point the generating-point recipe (corner indices ``a``, ``b``, coefficients ``c1``, ``c2`` and the
+linear coefficients ``coef``), the end-gap noise factors, the feature-to-measurement matrix, the stacked
+measurement, its noise variances and row mask (``tracker.measurement.Structure``).
 """
 
 from __future__ import annotations

@@ -14,15 +14,19 @@ which ``UKFParams`` guarantees) and ``M = I + A^T A`` (15 x 15, SPD), the matrix
 ``S^-1 = R^-1/2 (I - A M^-1 A^T) R^-1/2`` and ``det S = det R det M``. Everything above is computed from
 the Gram matrix ``A^T A`` and ``A^T R^-1/2 (z - y)``: the cost is ``O(D n^2)`` per pair instead of
 ``O(D^3)``, exact (not an approximation), and batched over pairs with padded rows masked out. The
-noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation). With the compiled
-kernels on (``tracker.compiled``), ``kalman_update`` is one numba call over the pairs
-(``tracker.kalman``, tested against this numpy code within 1e-9); ``update_pairs`` of
-curvilinear states is one call, from the sigma points' rectangles through the measurement structure,
-the extent growth, the predicted measurements, the radar gate and the update to the extent rules
-(``tracker.pairs``); where that call hands the pairs back (a widened prior, a non-finite or
-not positive definite input), and for Cartesian states, the staged kernels run
-(``tracker.kalman.measurement_update_kernel`` for the measurement step, ``tracker.extent``
-for the extent rules): the same numbers.
+noise factors ``F`` join ``A`` as extra columns (weight 1, no state deviation).
+
+``kalman_update`` is one call of ``tracker.kalman.kalman_kernel`` over the pairs. ``update_pairs`` of
+curvilinear states with the exact conversion to E is one call of ``tracker.pairs.update_pairs_kernel``,
+from the sigma points' rectangles through the measurement structure, the extent growth, the predicted
+measurements, the radar gate and the update to the extent rules; where that call hands the pairs back
+(a widened prior, a non-finite or not positive definite input), and for Cartesian states and the
+paper's Euler conversion, the same steps run one kernel at a time (``tracker.structure``,
+``tracker.extent``, ``tracker.kalman.measurement_update_kernel``): the same numbers. Two cases no
+kernel takes are updated by numpy (``_kalman_update_numpy``, ``predict_measurements``,
+``gate_radar_rows``): a state with more than one periodic coordinate (the kernels wrap one), and a pair
+whose predicted measurement or noise factors are not finite, where the kernels' Cholesky factorisation
+fails and numpy gives that pair NaN and every other pair its update.
 """
 
 from __future__ import annotations
@@ -33,18 +37,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker import jit as compiled_kernels
-from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
+from tracker.config import MeasurementConfig, TrackerConfig
+from tracker.extent import extent_rules_kernel, grow_extent_kernel
 from tracker.frame import EgoState
 from tracker.indices import unique_indices
-from tracker.measurement import (FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
-                                 Structure, build_structure, predict_measurements, shows_longer_side,
+from tracker.kalman import kalman_kernel, measurement_update_kernel
+from tracker.measurement import (GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
+                                 Structure, build_structure, predict_measurements, prepare_settings,
                                  structure_batch_args, structure_config_args, to_vehicle)
-from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, XI, curvilinear_wrapping
-from tracker.preparation import _kernel_settings, prepare_scanned_batch
+from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, curvilinear_wrapping
+from tracker.preparation import prepare_scanned_batch
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform, Wrapping
-from tracker.pairs import DONE as FUSED_DONE, prepared_pairs_kernel
+from tracker.centerline import sigma_rectangles_kernel
+from tracker.pairs import DONE, prepared_pairs_kernel, update_pairs_kernel
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -93,7 +99,9 @@ def kalman_update(
     part). Low-rank form, see the module docstring: the noise factors enter like extra sigma-point
     columns with weight 1 and no state deviation. ``r_likelihood (P, D)`` (default ``r``): the variances
     of the log-likelihood and NIS, where they differ from the update's
-    (``MeasurementConfig.shadowed_lidar_sigma`` softens the update, not the weights or the gate)."""
+    (``MeasurementConfig.shadowed_lidar_sigma`` softens the update, not the weights or the gate).
+    By ``tracker.kalman.kalman_kernel``; by ``_kalman_update_numpy`` where no kernel applies (module
+    docstring)."""
     sigma, mean, cov = (np.asarray(a, dtype=float) for a in (sigma, mean, cov))
     z_sigma, z, r = (np.asarray(a, dtype=float) for a in (z_sigma, z, r))
     mask = np.ones(z.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -107,15 +115,22 @@ def kalman_update(
         if r_like.shape != r.shape:
             raise ValueError(f"kalman_update: r_likelihood {r_like.shape} must have the shape of r {r.shape}")
         _check_noise(r_like, mask)
-    if compiled_kernels.enabled() and len(wrapping.periods) <= 1 and z.shape[0]:
-        from tracker.kalman import kalman_kernel
-
+    if len(wrapping.periods) <= 1:
         extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
         contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
         try:
             return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))
-        except np.linalg.LinAlgError:  # a non-finite input: the numpy path below says what it makes of it
+        except np.linalg.LinAlgError:  # a predicted measurement or noise factor that is not finite
             pass
+    return _kalman_update_numpy(ut, sigma, mean, cov, z_sigma, z, r, mask, wrapping, factors, r_like)
+
+
+def _kalman_update_numpy(ut: UnscentedTransform, sigma: np.ndarray, mean: np.ndarray, cov: np.ndarray,
+                         z_sigma: np.ndarray, z: np.ndarray, r: np.ndarray, mask: np.ndarray, wrapping: Wrapping,
+                         factors: np.ndarray | None, r_like: np.ndarray) -> UpdateResult:
+    """``kalman_update`` (its arguments checked) in numpy, batched over the pairs: the low-rank form of
+    the module docstring. For the cases no kernel takes: more than one periodic coordinate, and pairs
+    whose predicted measurement or noise factors are not finite (those pairs come out NaN)."""
     wm = ut.wm
     inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
     y = (wm @ z_sigma) * mask  # (P, D)
@@ -243,7 +258,7 @@ def update_pairs(
             pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
     res = _measure_compiled(ut, pair_sigma, pair_means, pair_covs, pair_rect, structure, clu,
                             config.measurement.radar_gate, wrapping, likelihood_variances(structure, config.measurement))
-    if res is None:  # numpy (the reference): the same three steps
+    if res is None:  # a predicted measurement that is not finite: the same three steps in numpy
         z_sigma = predict_measurements(pair_rect, structure)
         rejected = np.zeros(len(comp), dtype=bool)
         if config.measurement.radar_gate is not None and structure.radar.any():
@@ -270,11 +285,10 @@ def _extent_rule_args(config: TrackerConfig) -> tuple:
 
 def _fused_update_applies(config: TrackerConfig, road: Road | None, wrapping: Wrapping) -> bool:
     """Whether the update of the pairs may take its one compiled call (``update_pairs_kernel``, also
-    inside ``prepared_pairs_kernel``): the kernels on, the curvilinear state with its road, the exact
-    conversion to E (not the paper's Euler one, ``MeasurementConfig.conversion``) and at most one
-    periodic coordinate."""
-    return (compiled_kernels.enabled() and config.coordinates == "curvilinear" and road is not None
-            and config.measurement.conversion != "euler" and len(wrapping.periods) <= 1)
+    inside ``prepared_pairs_kernel``): the curvilinear state with its road, the exact conversion to E
+    (not the paper's Euler one, ``MeasurementConfig.conversion``) and at most one periodic coordinate."""
+    return (config.coordinates == "curvilinear" and road is not None and config.measurement.conversion != "euler"
+            and len(wrapping.periods) <= 1)
 
 
 def update_clusters(
@@ -333,7 +347,7 @@ def _fused_settings(config: TrackerConfig) -> tuple[tuple, tuple, tuple, bool, b
         head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
         update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent),
                   -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
-        cached = (_kernel_settings(mcfg), scanned, update, shadows, continuation)
+        cached = (prepare_settings(mcfg), scanned, update, shadows, continuation)
         config.__dict__["_fused_update_settings"] = cached
     return cached
 
@@ -370,7 +384,7 @@ def _update_clusters_fused(means: np.ndarray, covs: np.ndarray, points: np.ndarr
             road._ends_array, *curve, *update)
     except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the two steps
         return None
-    if status != FUSED_DONE:
+    if status != DONE:
         return None
     return UpdateResult(*out), int(occluded) if shadows else None, int(continued) if continuation else None
 
@@ -380,14 +394,12 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
                         wrapping: Wrapping) -> UpdateResult | None:
     """``update_pairs``' compiled steps in one call (``tracker.pairs.update_pairs_kernel``: the
     same kernels in the same order, the same numbers) for the components ``means (U, D)``, ``covs`` in
-    some pair (pair ``p``: component ``inverse[p]``, cluster ``clu[p]``); ``None`` where the kernels are
-    off or do not apply (Cartesian states, more than one periodic coordinate) or where the kernel hands
-    the pairs back (a non-finite or not positive definite prior, a widened prior, a variance that is not
-    positive): the staged path then runs."""
+    some pair (pair ``p``: component ``inverse[p]``, cluster ``clu[p]``); ``None`` where it does not
+    apply (``_fused_update_applies``) or where the kernel hands the pairs back (a non-finite or not
+    positive definite prior, a widened prior, a variance that is not positive): the staged path then
+    runs."""
     if not len(means) or not _fused_update_applies(config, road, wrapping):
         return None
-    from tracker.pairs import DONE, update_pairs_kernel
-
     mcfg = config.measurement
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
@@ -409,31 +421,18 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
 
 def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
-    """The extent rules after the update, in place: ``hold_unobserved_extent`` (with
-    ``MeasurementConfig.hold_unobserved_extent``), then where a length was held ``long_vehicle_prior``
-    and ``narrow_vehicle_prior`` (``BirthConfig.long_width``, ``narrow_width``), then the largest
-    vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto it). By the
-    compiled kernel (``tracker.extent``: the same numbers) when the kernels are on."""
-    b = config.birth
-    if compiled_kernels.enabled() and len(res.mean):
-        from tracker.extent import extent_rules_kernel
-
-        mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)
-        extent_rules_kernel(
-            mean, cov, np.ascontiguousarray(prior_mean), np.ascontiguousarray(prior_cov),
-            np.ascontiguousarray(structure.mode), np.ascontiguousarray(structure.sides),
-            np.ascontiguousarray(mean_corners, dtype=float), *_extent_rule_args(config))
-        return res if mean is res.mean and cov is res.cov else dataclasses.replace(res, mean=mean, cov=cov)
-    if config.measurement.hold_unobserved_extent:
-        held_length = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
-        if b.long_width is not None:
-            long_vehicle_prior(res, held_length, mean_corners, b)
-        if b.narrow_width is not None:
-            narrow_vehicle_prior(res, held_length, mean_corners, b)
-    for index, limit in ((LENGTH, b.max_length), (WIDTH, b.max_width)):
-        if limit is not None:  # the largest vehicle (BirthConfig): project the estimate back onto it
-            np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
-    return res
+    """The extent rules after the update, in place (``tracker.extent.extent_rules_kernel``): the
+    Schmidt hold of an unobserved extent (``MeasurementConfig.hold_unobserved_extent``), then where a
+    length was held the long- and narrow-vehicle priors (``BirthConfig.long_width``, ``narrow_width``),
+    then the largest vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto
+    it); ``tracker.extent``'s module docstring says what each rule does. ``mean_corners (P, 4, 2)``: the
+    pairs' predicted mean rectangles in E."""
+    mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)
+    extent_rules_kernel(
+        mean, cov, np.ascontiguousarray(prior_mean), np.ascontiguousarray(prior_cov),
+        np.ascontiguousarray(structure.mode), np.ascontiguousarray(structure.sides),
+        np.ascontiguousarray(mean_corners, dtype=float), *_extent_rule_args(config))
+    return res if mean is res.mean and cov is res.cov else dataclasses.replace(res, mean=mean, cov=cov)
 
 
 def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray, wrapping: Wrapping,
@@ -441,12 +440,10 @@ def sigma_rectangles(ut: UnscentedTransform, means: np.ndarray, covs: np.ndarray
                      euler_s0: float | None = None) -> tuple[np.ndarray, Rectangles]:
     """The sigma points ``(C, S, n)`` of ``N(means, covs)`` and their rectangles in E ``(C, S)``
     (``UnscentedTransform.sigma_points``, then ``tracker.measurement.to_vehicle``); for curvilinear
-    states with the exact conversion, by one compiled call when the kernels are on
-    (``tracker.centerline.sigma_rectangles_kernel``: the same numbers)."""
-    if (compiled_kernels.enabled() and coordinates == "curvilinear" and euler_s0 is None and road is not None
+    states with the exact conversion, by one call of ``tracker.centerline.sigma_rectangles_kernel``
+    (the same numbers), unless a covariance is not positive definite (``sigma_points`` repairs it)."""
+    if (coordinates == "curvilinear" and euler_s0 is None and road is not None
             and len(wrapping.periods) <= 1 and means.ndim == 2 and len(means)):
-        from tracker.centerline import sigma_rectangles_kernel
-
         ego = EgoState.coerce(ego)
         kind, *curve = road._curve.kernel_args()
         try:
@@ -485,15 +482,14 @@ def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.
 def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,
                       structure: Structure, cluster_index: np.ndarray, gate: float | None,
                       wrapping: Wrapping, r_like: np.ndarray | None = None) -> UpdateResult | None:
-    """``predict_measurements``, ``gate_radar_rows`` and ``kalman_update`` of the pairs in one compiled
-    call (``tracker.kalman.measurement_update_kernel``; the same steps, the numbers agree to
-    rounding); ``None`` where the kernels are off or do not apply (more than one periodic coordinate,
-    or a non-finite input the numpy path reports)."""
-    if not compiled_kernels.enabled() or len(wrapping.periods) > 1 or not len(means):
+    """The measurement step of the pairs in one call of ``tracker.kalman.measurement_update_kernel``:
+    the predicted measurements (``predict_measurements``), the radar gate (``gate_radar_rows``) and the
+    update (``kalman_update``); ``None`` where it does not apply (more than one periodic coordinate, no
+    pair) or where a predicted measurement is not finite (the kernel raises): the caller then takes
+    these steps in numpy."""
+    if len(wrapping.periods) > 1 or not len(means):
         return None
     _check_noise(structure.r, structure.mask)
-    from tracker.kalman import measurement_update_kernel
-
     c = np.ascontiguousarray
     shape = sigma.shape[:2]
     try:
@@ -504,7 +500,7 @@ def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarr
             c(structure.mask), c(np.zeros((len(means), 0, structure.z.shape[1])) if structure.factors is None
                                  else structure.factors), c(structure.radar), c(cluster_index),
             -1.0 if gate is None else float(gate), ut.wm, ut.wc, *wrapping.kernel_args())
-    except np.linalg.LinAlgError:  # a non-finite input: the numpy path says what it makes of it
+    except np.linalg.LinAlgError:  # a predicted measurement that is not finite
         return None
     return UpdateResult(*out)
 
@@ -560,11 +556,10 @@ def grow_extent(
     is far outside the gate, the track is not updated, and a newborn takes the cluster. A side's chord
     (the extent of its points, without the end-gap margins) is a lower bound of its length, so an
     excess ``e = chord - predicted`` (``Structure.excess``) above ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS
-    sqrt(P[L, L]))`` (``tracker.measurement.shows_longer_side``) is evidence that the prior is wrong, not
-    noise. (The end-gap margins are left out because at grazing views they are large and would let a
-    converged car's length grow falsely.) The prior then gets
-    the variance ``e^2`` along the direction in which the vehicle can grow while the end nearest the
-    sensor stays put::
+    sqrt(P[L, L]))`` is evidence that the prior is wrong, not noise. (The end-gap margins are left out
+    because at grazing views they are large and would let a converged car's length grow falsely.) The
+    prior then gets the variance ``e^2`` along the direction in which the vehicle can grow while the end
+    nearest the sensor stays put::
 
         P += e^2 d d^T,   d = 0.5 sgn (cos h, sin h) in the position slots, 1 in the L slot
 
@@ -574,145 +569,26 @@ def grow_extent(
     ``settled_width_std`` (``MeasurementConfig``) is not grown: a short side longer than a settled
     width is the track's heading lagging (the side next to it joined the chord), not a wider vehicle.
     Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
-    False). By the compiled kernel (``tracker.extent.grow_extent_kernel``: the same numbers)
-    when the kernels are on."""
-    if compiled_kernels.enabled() and len(means):
-        from tracker.extent import grow_extent_kernel
-
-        c = np.ascontiguousarray
-        return grow_extent_kernel(c(means, dtype=float), c(covs, dtype=float), c(structure.excess, dtype=float),
-                                  c(structure.sides), c(mean_corners, dtype=float),
-                                  -1.0 if settled_width_std is None else float(settled_width_std),
-                                  GROWTH_MIN_EXCESS, GROWTH_SIGMAS)
-    long_part = structure.sides % 2 == 1  # (P, 2): sides 1, 3 run along the length
-    excess = np.where(np.isfinite(structure.excess), structure.excess, -np.inf)
-    out = covs.copy()
-    grown = np.zeros(len(means), dtype=bool)
-    hits = []
-    for index, is_part in ((LENGTH, long_part), (WIDTH, ~long_part)):
-        e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
-        sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
-        hits.append((e, shows_longer_side(e, sd, index == WIDTH, settled_width_std)))
-    if not (hits[0][1].any() or hits[1][1].any()):  # the common case: no side longer than predicted
-        return grown, out
-    for index, (e, hit) in zip((LENGTH, WIDTH), hits):
-        if not hit.any():
-            continue
-        d = extent_growth_direction(mean_corners, means[:, XI], means.shape[1], index)
-        add = np.where(hit, e, 0.0)[:, None, None] ** 2 * d[:, :, None] * d[:, None, :]
-        out += add
-        grown |= hit
-    return grown, out
-
-
-def extent_growth_direction(mean_corners: np.ndarray, heading: np.ndarray, dim: int, index: int) -> np.ndarray:
-    """The state direction ``d (P, dim)`` in which rectangles grow their length (``index = LENGTH``) or
-    width (``WIDTH``) by 1 m while the end nearest the sensor stays put: ``0.5 sgn u`` in the position
-    slots (``u = (cos h, sin h)`` along the body for the length, ``(-sin h, cos h)`` across it for the
-    width, ``h`` the ``heading`` state ``xi`` or ``psi``), 1 in the extent slot; ``sgn = +1`` when the
-    sensor (the E origin) lies behind the centre along that axis of ``mean_corners (P, 4, 2)`` in E.
-    Used by ``grow_extent`` and ``replace_length_prior``."""
-    corners = np.asarray(mean_corners, dtype=float)
-    body = corners[:, 0] - corners[:, 3]  # rear-right -> front-right: the body axis in E
-    axis = body if index == LENGTH else np.stack([-body[:, 1], body[:, 0]], axis=-1)
-    sgn = np.where(np.einsum("pd,pd->p", corners.mean(axis=1), axis) >= 0.0, 1.0, -1.0)
-    c, s = np.cos(heading), np.sin(heading)
-    d = np.zeros((len(corners), dim))
-    d[:, 0], d[:, 1] = (0.5 * sgn * c, 0.5 * sgn * s) if index == LENGTH else (0.5 * sgn * -s, 0.5 * sgn * c)
-    d[:, index] = 1.0
-    return d
-
-
-def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> np.ndarray:
-    """Keep ``L`` (``W``) of a pair at its prior mean and variance unless the cluster shows a long
-    (short) side fully -- the Schmidt ("consider") update of an unobserved extent, in place.
-
-    Seen only from its rear, a car's length is unobservable: the points fix ``s - L/2``, and the
-    normal update moves ``L`` by the prior's ``s``-``L`` correlation times every along-track innovation.
-    Any small model error (slip, a timing lag, an accelerating car) then drains into ``L`` frame after
-    frame. The Schmidt update with the extent as a consider
-    parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
-    prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
-    everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
-    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite. Returns the
-    mask of pairs whose ``L`` was held."""
-    full = structure.mode == FULL  # (P, 2 parts)
-    long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
-    hold_length, hold_width = ~(full & long_side).any(axis=1), ~(full & ~long_side).any(axis=1)
-    hold_extent(res, prior_mean, prior_cov, hold_length, hold_width)
-    return hold_length
+    False). By ``tracker.extent.grow_extent_kernel``."""
+    c = np.ascontiguousarray
+    return grow_extent_kernel(c(means, dtype=float), c(covs, dtype=float), c(structure.excess, dtype=float),
+                              c(structure.sides), c(mean_corners, dtype=float),
+                              -1.0 if settled_width_std is None else float(settled_width_std),
+                              GROWTH_MIN_EXCESS, GROWTH_SIGMAS)
 
 
 def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, hold_length: np.ndarray,
                 hold_width: np.ndarray) -> None:
     """The Schmidt update's consider parameters, in place: ``L`` where ``hold_length`` and ``W`` where
     ``hold_width`` (masks over the pairs) keep their prior mean and variance, and where both are held
-    their joint 2 x 2 block stays the prior's (``hold_unobserved_extent``; the radar-only update holds
-    both, ``MeasurementConfig.radar_only_holds_extent``)."""
+    their joint 2 x 2 block stays the prior's (as the hold of ``apply_extent_rules``; the radar-only
+    update holds both, ``MeasurementConfig.radar_only_holds_extent``)."""
     for index, hold in ((LENGTH, hold_length), (WIDTH, hold_width)):
         res.mean[hold, index] = prior_mean[hold, index]
         res.cov[hold, index, index] = prior_cov[hold, index, index]
     both = hold_length & hold_width  # both consider parameters: their joint block stays the prior's
     res.cov[both, LENGTH, WIDTH] = prior_cov[both, LENGTH, WIDTH]
     res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
-
-
-def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
-    """A car's length prior replaced by a truck's or a bus's where the width says so, in place.
-
-    Seen from behind, a bus is a 2.5 m wide rear: its width is measured, its length never (the Schmidt
-    update holds it, ``hold_unobserved_extent``), and a track born with a car's 4.5 m puts the centre of
-    a 16 m bus ~6 m behind the bus's. Cars and vans are at most
-    ~2.2 m wide, trucks and buses 2.5-2.55 m, so a pair whose length was held this update, whose
-    posterior width is at least ``config.long_width`` and whose length is still a car's prior (below
-    ``long_length - long_length_std``, its standard deviation at least half of ``length_std``: never
-    measured) takes the length ``long_length``, with the variance ``long_length_std^2``, while the end
-    nearest the sensor stays put (``replace_length_prior``).
-    A track that already carries the long prior, or whose length was measured, is left alone (applied
-    again each frame, the added variance would let a truck's track drift off it).
-    Returns the mask of the pairs changed."""
-    hit = (held_length & (res.mean[:, WIDTH] >= config.long_width)
-           & (res.mean[:, LENGTH] < config.long_length - config.long_length_std)
-           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
-    return replace_length_prior(res, hit, mean_corners, config.long_length, config.long_length_std)
-
-
-def narrow_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
-    """A car's length prior replaced by a motorcycle's where a measured width says so, in place.
-
-    The mirror image of ``long_vehicle_prior``: seen from behind, a motorcycle is a 0.8 m wide rear
-    whose length is never measured, and a track born with a car's 4.5 m puts its centre ~1.2 m ahead of
-    the motorcycle's for as long as its side stays unseen. Cars are at least ~1.5 m wide, motorcycles
-    and bicycles at most ~1 m, so a pair whose length was held this update, whose posterior width is at
-    most ``config.narrow_width`` and known to ``config.narrow_width_std`` (measured, not a prior's
-    guess), and whose length is still a car's prior (above ``narrow_length + narrow_length_std``, its
-    standard deviation at least half of ``length_std``: never measured) takes the length
-    ``narrow_length``, with the variance ``narrow_length_std^2``, the end nearest the sensor staying put
-    (``replace_length_prior``).
-    Returns the mask of the pairs changed."""
-    hit = (held_length & (res.mean[:, WIDTH] <= config.narrow_width)
-           & (res.cov[:, WIDTH, WIDTH] <= config.narrow_width_std**2)
-           & (res.mean[:, LENGTH] > config.narrow_length + config.narrow_length_std)
-           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
-    return replace_length_prior(res, hit, mean_corners, config.narrow_length, config.narrow_length_std)
-
-
-def replace_length_prior(res: UpdateResult, hit: np.ndarray, mean_corners: np.ndarray, length: float, std: float) -> np.ndarray:
-    """Give the pairs ``hit`` the length ``length`` +- ``std`` in place of their unmeasured one, the end
-    nearest the sensor staying put: with ``e = length - L`` and ``d`` as in ``grow_extent``
-    (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in the ``L`` slot)::
-
-        m += e d,   P += std^2 d d^T
-
-    (a shift of the length by an uncertain ``e``, the centre moving by half of it away from the sensor,
-    or towards it when the new length is shorter). Returns ``hit``."""
-    if not hit.any():
-        return hit
-    d = extent_growth_direction(np.asarray(mean_corners, dtype=float)[hit], res.mean[hit, XI], res.mean.shape[1], LENGTH)
-    e = length - res.mean[hit, LENGTH]
-    res.mean[hit] += e[:, None] * d
-    res.cov[hit] += std**2 * d[:, :, None] * d[:, None, :]
-    return hit
 
 
 def update(
