@@ -123,7 +123,7 @@ def test_entering_car_confirmed_and_leaving_car_dropped_within_1s():
     enter = 1.0  # the first time A's nearest point is within range is a little earlier
     assert any(near(k, 0) for k in range(int(enter / DT), int((enter + 1.0) / DT) + 1))
     # seen from its front only, A's length is unobservable and held at the birth prior (4.5 m, truth
-    # 4.8 m; tracker.update.hold_unobserved_extent): its centre may sit ~0.2 m off on top of the noise
+    # 4.8 m; MeasurementConfig.hold_unobserved_extent): its centre may sit ~0.2 m off on top of the noise
     assert all(near(k, 0, 1.25) for k in range(int((enter + 1.0) / DT), len(frames)))
     leave = 1.0
     assert near(int(leave / DT) - 3, 1)

@@ -269,7 +269,7 @@ def correlate_unseen_extent(covs: np.ndarray, levers: np.ndarray, rows: np.ndarr
         P[sn, sn] = P_e + g_L g_L^T var(L) + g_W g_W^T var(W),   P[sn, L] = g_L var(L),   P[sn, W] = g_W var(W)
 
     Without the correlation the unseen length's uncertainty would sit in ``s`` independently of ``L``:
-    seen from the rear, with the length held (``tracker.update.hold_unobserved_extent``), the filter
+    seen from the rear, with the length held (``MeasurementConfig.hold_unobserved_extent``, ``tracker.extent``), the filter
     would keep the rear's along-road position (``s - L/2``) uncertain by the length's spread for
     seconds, although the lidar fixes it to centimetres, and the lidar would then tell it little about
     the speed. With the correlation the first update pins the visible edge."""

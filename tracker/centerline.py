@@ -163,19 +163,9 @@ class HermiteCenterline(_Cells):
 
     # -- spline algebra -------------------------------------------------------------------------
     @staticmethod
-    def _d0(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-        t = t[:, None]
-        return ((c[:, 3] * t + c[:, 2]) * t + c[:, 1]) * t + c[:, 0]
-
-    @staticmethod
     def _d1(c: np.ndarray, t: np.ndarray) -> np.ndarray:
         t = t[:, None]
         return (3.0 * c[:, 3] * t + 2.0 * c[:, 2]) * t + c[:, 1]
-
-    @staticmethod
-    def _d2(c: np.ndarray, t: np.ndarray) -> np.ndarray:
-        t = t[:, None]
-        return 6.0 * c[:, 3] * t + 2.0 * c[:, 2]
 
     @classmethod
     def _arc_length(cls, c: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:

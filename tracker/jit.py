@@ -138,18 +138,3 @@ def _install() -> None:
     impl._locator_classes[:0] = [_locator(base) for base in bases]
     _INSTALLED = True
 
-
-def enabled() -> bool:  # TRANSITIONAL: removed once no stage asks; every stage runs its kernels
-    return True
-
-
-def require() -> None:  # TRANSITIONAL
-    return None
-
-
-class pinned:  # TRANSITIONAL
-    def __enter__(self):
-        return True
-
-    def __exit__(self, *exc):
-        return None

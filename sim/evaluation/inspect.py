@@ -752,7 +752,7 @@ def worst_intervals(insp: Inspection, top: int = WORST_COUNT) -> list[Interval]:
 
 def _interval_detail(insp: Inspection, a: int, b: int, cc: np.ndarray) -> str:
     """Who carries the main causes (those with >= 20 % of the cost, at least the dominant one)."""
-    d, items, dt = insp.data, insp.items, insp.data.dt
+    items, dt = insp.items, insp.data.dt
     total = float(cc.sum())
     parts = []
     for cause in np.argsort(-cc):
