@@ -192,7 +192,9 @@ def kalman_kernel(sigma, mean, cov, z_sigma, z, r, r_like, mask, factors, wm, wc
 
 @njit
 def _features(center, psi, v, length, width, p, i, out):  # pragma: no cover - compiled
-    """``tracker.measurement.predict_measurements``' features of sigma point ``i`` of pair ``p``."""
+    """The features of sigma point ``i`` of pair ``p`` in which its predicted measurement is linear
+    (``tracker.measurement.predict_measurements``): ``(cx, cy, L cos psi, L sin psi, cos psi, sin psi,
+    W sin psi, W cos psi, v cos psi, v sin psi)``, written to ``out (10,)``."""
     c, s = math.cos(psi[p, i]), math.sin(psi[p, i])
     out[0] = center[p, i, 0]
     out[1] = center[p, i, 1]
@@ -207,19 +209,11 @@ def _features(center, psi, v, length, width, p, i, out):  # pragma: no cover - c
 
 
 @njit
-def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, matrix, z, r, r_like, mask, factors,
-                              radar, cluster_index, gate, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
-    """``tracker.update.update_pairs``' measurement step of the pairs in one call: the predicted
-    measurement sigma points ``features @ matrix`` (``predict_measurements``; the sigma points'
-    rectangles ``center (P, S, 2)``, ``psi``, ``v``, ``length``, ``width (P, S)``), the radar gate
-    (``gate_radar_rows``; ``gate < 0``: off): a cluster's radar rows (the last two of ``D`` that any
-    pair uses) are set aside when no pair with ``radar`` explains them (their own normalised
-    innovation squared above ``gate``), and the UKF update (``kalman_kernel``; ``r_like`` the variances
-    of its likelihood and NIS). Returns
-    ``kalman_kernel``'s outputs and, per pair, whether its radar rows were set aside."""
-    pairs, num_sigma, n = sigma.shape
-    rows = matrix.shape[2]
-    z_sigma = np.empty((pairs, num_sigma, rows))  # only the rows a pair uses are read, so only those are made
+def _predicted(center, psi, v, length, width, matrix, mask, z_sigma):  # pragma: no cover - compiled
+    """The rectangle measurement model ``h``: the predicted measurement of sigma point ``i`` of pair ``p``
+    in row ``d`` is ``z_sigma[p, i, d] = features(p, i) . matrix[p, :, d]`` (``_features``; the rows
+    where ``mask`` is False are left as they are)."""
+    pairs, num_sigma, rows = z_sigma.shape
     feats = np.empty(10)
     for p in range(pairs):
         for i in range(num_sigma):
@@ -231,6 +225,33 @@ def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, m
                 for k in range(10):
                     acc += feats[k] * matrix[p, k, d]
                 z_sigma[p, i, d] = acc
+
+
+@njit
+def predict_measurements_kernel(center, psi, v, length, width, matrix):  # pragma: no cover - compiled
+    """Every row of ``_predicted``: the predicted measurements ``(P, S, D)`` (``tracker.measurement.
+    predict_measurements``)."""
+    z_sigma = np.empty((center.shape[0], center.shape[1], matrix.shape[2]))
+    _predicted(center, psi, v, length, width, matrix, np.ones((center.shape[0], matrix.shape[2]), dtype=np.bool_),
+               z_sigma)
+    return z_sigma
+
+
+@njit
+def measurement_update_kernel(sigma, mean, cov, center, psi, v, length, width, matrix, z, r, r_like, mask, factors,
+                              radar, cluster_index, gate, wm, wc, angles, period_index, period):  # pragma: no cover - compiled
+    """``tracker.update.update_pairs``' measurement step of the pairs in one call: the predicted
+    measurement sigma points ``features @ matrix`` (``predict_measurements``; the sigma points'
+    rectangles ``center (P, S, 2)``, ``psi``, ``v``, ``length``, ``width (P, S)``), the radar gate
+    (``MeasurementConfig.radar_gate``; ``gate < 0``: off): a cluster's radar rows (the last two of ``D`` that any
+    pair uses) are set aside when no pair with ``radar`` explains them (their own normalised
+    innovation squared above ``gate``), and the UKF update (``kalman_kernel``; ``r_like`` the variances
+    of its likelihood and NIS). Returns
+    ``kalman_kernel``'s outputs and, per pair, whether its radar rows were set aside."""
+    pairs, num_sigma, n = sigma.shape
+    rows = matrix.shape[2]
+    z_sigma = np.empty((pairs, num_sigma, rows))  # only the rows a pair uses are read, so only those are made
+    _predicted(center, psi, v, length, width, matrix, mask, z_sigma)
     rejected = np.zeros(pairs, dtype=np.bool_)
     if gate >= 0.0 and pairs:
         radar_rows = np.zeros(2, dtype=np.int64)

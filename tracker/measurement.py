@@ -94,6 +94,7 @@ from tracker.centerline import rectangles_kernel
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
 from tracker.jit import njit
+from tracker.kalman import predict_measurements_kernel
 from tracker.road import Road
 from tracker.structure import structure_kernel
 
@@ -574,14 +575,14 @@ def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
     Every generating point is ``centre + (ax L + gx) e_x + (ay W + gy) e_y`` (``Structure.coef``), i.e.
     linear in the per-sigma-point features ``(cx, cy, L cos psi, L sin psi, cos psi, sin psi, W sin psi,
     W cos psi, v cos psi, v sin psi)``: the whole prediction is one batched product
-    ``features (P, S, 10) @ Structure.matrix (P, 10, D)``."""
-    c, s = np.cos(rect.psi), np.sin(rect.psi)
-    feats = np.stack(
-        [rect.center[..., 0], rect.center[..., 1], rect.length * c, rect.length * s, c, s,
-         rect.width * s, rect.width * c, rect.v * c, rect.v * s],
-        axis=-1,
-    )
-    return feats @ structure.matrix
+    ``features (P, S, 10) @ Structure.matrix (P, 10, D)`` (``tracker.kalman.predict_measurements_kernel``,
+    the model the update's kernels evaluate)."""
+    shape = rect.center.shape[:2]
+    c = np.ascontiguousarray
+    return predict_measurements_kernel(
+        c(rect.center, dtype=float),
+        *(c(np.broadcast_to(a, shape), dtype=float) for a in (rect.psi, rect.v, rect.length, rect.width)),
+        c(structure.matrix, dtype=float))
 
 
 def generating_points(

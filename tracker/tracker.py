@@ -32,7 +32,7 @@
    occlusion model puts below ``detection.hidden_update_p_detection`` takes that value in its pairs'
    weights (not in its missed-detection term), so that a car the model takes for hidden can still be
    updated by the points it shows; a fused cluster's radar velocity that no pair explains
-   (``measurement.radar_gate``) is set aside for all its pairs (``tracker.update.gate_radar_rows``);
+   (``measurement.radar_gate``) is set aside for all its pairs (``tracker.kalman.measurement_update_kernel``);
    optionally (``detection.missed_weight_cap``, off) a label's missed-detection weight is capped at one
    minus what its updated components took.
 

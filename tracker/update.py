@@ -22,11 +22,8 @@ from the sigma points' rectangles through the measurement structure, the extent 
 measurements, the radar gate and the update to the extent rules; where that call hands the pairs back
 (a widened prior, a non-finite or not positive definite input), and for Cartesian states and the
 paper's Euler conversion, the same steps run one kernel at a time (``tracker.structure``,
-``tracker.extent``, ``tracker.kalman.measurement_update_kernel``): the same numbers. Two cases no
-kernel takes are updated by numpy (``_kalman_update_numpy``, ``predict_measurements``,
-``gate_radar_rows``): a state with more than one periodic coordinate (the kernels wrap one), and a pair
-whose predicted measurement or noise factors are not finite, where the kernels' Cholesky factorisation
-fails and numpy gives that pair NaN and every other pair its update.
+``tracker.extent``, ``tracker.kalman.measurement_update_kernel``): the same numbers. The kernels wrap at
+most one periodic coordinate (``s`` on a closed road).
 """
 
 from __future__ import annotations
@@ -43,7 +40,7 @@ from tracker.frame import EgoState
 from tracker.indices import unique_indices
 from tracker.kalman import kalman_kernel, measurement_update_kernel
 from tracker.measurement import (GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_EXTENT, Cluster, ClusterBatch, Rectangles,
-                                 Structure, build_structure, predict_measurements, prepare_settings,
+                                 Structure, build_structure, prepare_settings,
                                  structure_batch_args, structure_config_args, to_vehicle)
 from tracker.motion import CARTESIAN_WRAPPING, LENGTH, WIDTH, curvilinear_wrapping
 from tracker.preparation import prepare_scanned_batch
@@ -52,7 +49,6 @@ from tracker.ukf import UnscentedTransform, Wrapping
 from tracker.centerline import sigma_rectangles_kernel
 from tracker.pairs import DONE, prepared_pairs_kernel, update_pairs_kernel
 
-LOG_2PI = float(np.log(2.0 * np.pi))
 
 
 @dataclass(frozen=True)
@@ -62,7 +58,7 @@ class UpdateResult:
     innovation squared ``(z - y)^T S^-1 (z - y)``; ``dim (P,)`` the measurement dimension ``D``;
     ``predicted (P, D_max)`` the predicted measurement ``y`` (padded rows 0); ``innovation (P, D_max)``;
     ``radar_rejected (P,)`` (``update_pairs``; None from ``kalman_update``): the pair's cluster had a
-    radar velocity that ``gate_radar_rows`` set aside."""
+    radar velocity that the radar gate (``MeasurementConfig.radar_gate``) set aside."""
 
     mean: np.ndarray
     cov: np.ndarray
@@ -100,8 +96,8 @@ def kalman_update(
     columns with weight 1 and no state deviation. ``r_likelihood (P, D)`` (default ``r``): the variances
     of the log-likelihood and NIS, where they differ from the update's
     (``MeasurementConfig.shadowed_lidar_sigma`` softens the update, not the weights or the gate).
-    By ``tracker.kalman.kalman_kernel``; by ``_kalman_update_numpy`` where no kernel applies (module
-    docstring)."""
+    By ``tracker.kalman.kalman_kernel``; a pair whose predicted measurement or noise factors are not
+    finite comes out NaN (mean, covariance, likelihood and NIS). At most one periodic coordinate."""
     sigma, mean, cov = (np.asarray(a, dtype=float) for a in (sigma, mean, cov))
     z_sigma, z, r = (np.asarray(a, dtype=float) for a in (z_sigma, z, r))
     mask = np.ones(z.shape, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
@@ -115,70 +111,26 @@ def kalman_update(
         if r_like.shape != r.shape:
             raise ValueError(f"kalman_update: r_likelihood {r_like.shape} must have the shape of r {r.shape}")
         _check_noise(r_like, mask)
-    if len(wrapping.periods) <= 1:
-        extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
+    if len(wrapping.periods) > 1:
+        raise ValueError(f"kalman_update wraps at most one periodic coordinate; got {len(wrapping.periods)}")
+    extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
+    # a pair whose predicted measurement or noise factors are not finite has no posterior (NaN); the others
+    # are updated alone (the kernel treats every pair on its own, so they get the numbers of a full batch)
+    finite = (np.isfinite(z_sigma) | ~mask[:, None, :]).all(axis=(1, 2)) & (np.isfinite(extra) | ~mask[:, None, :]).all(axis=(1, 2))
+    if finite.all():
         contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
-        try:
-            return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))
-        except np.linalg.LinAlgError:  # a predicted measurement or noise factor that is not finite
-            pass
-    return _kalman_update_numpy(ut, sigma, mean, cov, z_sigma, z, r, mask, wrapping, factors, r_like)
-
-
-def _kalman_update_numpy(ut: UnscentedTransform, sigma: np.ndarray, mean: np.ndarray, cov: np.ndarray,
-                         z_sigma: np.ndarray, z: np.ndarray, r: np.ndarray, mask: np.ndarray, wrapping: Wrapping,
-                         factors: np.ndarray | None, r_like: np.ndarray) -> UpdateResult:
-    """``kalman_update`` (its arguments checked) in numpy, batched over the pairs: the low-rank form of
-    the module docstring. For the cases no kernel takes: more than one periodic coordinate, and pairs
-    whose predicted measurement or noise factors are not finite (those pairs come out NaN)."""
-    wm = ut.wm
-    inv_sqrt_r = np.where(mask, 1.0 / np.sqrt(np.where(mask, r, 1.0)), 0.0)  # (P, D)
-    y = (wm @ z_sigma) * mask  # (P, D)
-    zt = z_sigma * inv_sqrt_r[:, None, :]  # (P, S, D) whitened deviations (one temporary, then in place)
-    zt -= (y * inv_sqrt_r)[:, None, :]
-    nu = (z - y) * inv_sqrt_r  # whitened innovation
-    xc = ut.deviations(sigma, mean, wrapping)  # (P, S, n)
-    wc = ut.wc
-    gram = zt @ np.swapaxes(zt, 1, 2)  # (P, S, S)
-    g = (zt @ nu[..., None])[..., 0]  # (P, S)
-    if factors is not None and factors.shape[1]:  # extra columns: weight 1, no state deviation
-        f = np.asarray(factors, dtype=float) * inv_sqrt_r[:, None, :]  # (P, E, D)
-        g_zf = zt @ np.swapaxes(f, 1, 2)  # (P, S, E)
-        g_ff = f @ np.swapaxes(f, 1, 2)
-        gram = np.concatenate(
-            [np.concatenate([gram, g_zf], axis=2), np.concatenate([np.swapaxes(g_zf, 1, 2), g_ff], axis=2)], axis=1
-        )
-        g = np.concatenate([g, (f @ nu[..., None])[..., 0]], axis=1)
-        xc = np.concatenate([xc, np.zeros((xc.shape[0], f.shape[1], xc.shape[2]))], axis=1)
-        wc = np.concatenate([wc, np.ones(f.shape[1])])
-    sw = np.sqrt(wc)
-    m_mat = np.eye(len(wc)) + sw[:, None] * gram * sw[None, :]
-    a_vec = sw * g
-    xw = np.swapaxes(xc * wc[:, None], 1, 2)  # (P, n, S): X^T W
-    xwg = xw @ gram  # (P, n, S)
-    b_mat = xwg * sw  # T~ A (P, n, S)
-    rhs = np.concatenate([a_vec[..., None], np.swapaxes(b_mat, 1, 2)], axis=2)  # (P, S, 1 + n)
-    sol = np.linalg.solve(m_mat, rhs)
-    m_inv_a, m_inv_bt = sol[..., 0], sol[..., 1:]
-    nis = np.einsum("pd,pd->p", nu, nu) - np.einsum("ps,ps->p", a_vec, m_inv_a)
-    logdet_m = 2.0 * np.log(np.diagonal(np.linalg.cholesky(m_mat), axis1=1, axis2=2)).sum(axis=1)  # M = I + A^T A is SPD
-    logdet = logdet_m + np.sum(np.log(np.where(mask, r, 1.0)), axis=1)
-    dim = mask.sum(axis=1)
-    k_nu = (xw @ g[..., None])[..., 0] - (b_mat @ m_inv_a[..., None])[..., 0]
-    t_st = xwg @ np.swapaxes(xw, 1, 2) - b_mat @ m_inv_bt
-    post_mean = mean + k_nu
-    if not wrapping.empty:
-        post_mean = wrapping.wrap(post_mean)
-    post_cov = cov - t_st
-    post_cov = 0.5 * (post_cov + np.swapaxes(post_cov, 1, 2))
-    loglik = -0.5 * (dim * LOG_2PI + logdet + nis)
-    differs = np.flatnonzero(np.any(mask & (r_like != r), axis=1))
-    if len(differs):  # the likelihood and NIS of these pairs under r_likelihood
-        other = kalman_update(ut, sigma[differs], mean[differs], cov[differs], z_sigma[differs], z[differs],
-                              r_like[differs], mask[differs], wrapping,
-                              None if factors is None else np.asarray(factors, dtype=float)[differs])
-        loglik[differs], nis[differs] = other.log_likelihood, other.nis
-    return UpdateResult(post_mean, post_cov, loglik, nis, dim, y, (z - y) * mask)
+        return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))
+    good = np.flatnonzero(finite)
+    with np.errstate(invalid="ignore"):
+        predicted = (ut.wm @ z_sigma) * mask
+    out = UpdateResult(np.full(mean.shape, np.nan), np.full(cov.shape, np.nan), np.full(len(z), np.nan),
+                       np.full(len(z), np.nan), mask.sum(axis=1).astype(np.int64), predicted, (z - predicted) * mask)
+    if len(good):
+        part = (np.ascontiguousarray(a[good]) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
+        done = UpdateResult(*kalman_kernel(*part, ut.wm, ut.wc, *wrapping.kernel_args()))
+        for field in ("mean", "cov", "log_likelihood", "nis", "dim", "predicted", "innovation"):
+            getattr(out, field)[good] = getattr(done, field)
+    return out
 
 
 def _check_noise(r: np.ndarray, mask: np.ndarray) -> None:
@@ -256,17 +208,8 @@ def update_pairs(
             pair_sigma = pair_sigma.copy()
             pair_sigma[grown] = ut.sigma_points(pair_means[grown], grown_covs[grown], wrapping)
             pair_rect = to_vehicle(pair_sigma, ego, road, config.coordinates, euler_s0)
-    res = _measure_compiled(ut, pair_sigma, pair_means, pair_covs, pair_rect, structure, clu,
-                            config.measurement.radar_gate, wrapping, likelihood_variances(structure, config.measurement))
-    if res is None:  # a predicted measurement that is not finite: the same three steps in numpy
-        z_sigma = predict_measurements(pair_rect, structure)
-        rejected = np.zeros(len(comp), dtype=bool)
-        if config.measurement.radar_gate is not None and structure.radar.any():
-            structure, rejected = gate_radar_rows(ut, structure, z_sigma, clu, config.measurement.radar_gate)
-        res = kalman_update(ut, pair_sigma, pair_means, pair_covs, z_sigma, structure.z, structure.r,
-                            structure.mask, wrapping, structure.factors,
-                            likelihood_variances(structure, config.measurement))
-        res = dataclasses.replace(res, radar_rejected=rejected)
+    res = _measure(ut, pair_sigma, pair_means, pair_covs, pair_rect, structure, clu, config.measurement.radar_gate,
+                   wrapping, likelihood_variances(structure, config.measurement))
     return apply_extent_rules(res, pair_means, pair_covs, structure, mean_corners[inverse], config)
 
 
@@ -479,16 +422,13 @@ def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.
     return r
 
 
-def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,
-                      structure: Structure, cluster_index: np.ndarray, gate: float | None,
-                      wrapping: Wrapping, r_like: np.ndarray | None = None) -> UpdateResult | None:
+def _measure(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs: np.ndarray, rect: Rectangles,
+             structure: Structure, cluster_index: np.ndarray, gate: float | None, wrapping: Wrapping,
+             r_like: np.ndarray | None = None) -> UpdateResult:
     """The measurement step of the pairs in one call of ``tracker.kalman.measurement_update_kernel``:
-    the predicted measurements (``predict_measurements``), the radar gate (``gate_radar_rows``) and the
-    update (``kalman_update``); ``None`` where it does not apply (more than one periodic coordinate, no
-    pair) or where a predicted measurement is not finite (the kernel raises): the caller then takes
-    these steps in numpy."""
-    if len(wrapping.periods) > 1 or not len(means):
-        return None
+    the predicted measurements (``predict_measurements``), the radar gate (``MeasurementConfig.radar_gate``:
+    a cluster's radar rows set aside where no pair explains them) and the update (``kalman_update``). A predicted measurement that is not finite (a NaN or an infinity in a
+    sigma point's rectangle) is refused with a ``ValueError``."""
     _check_noise(structure.r, structure.mask)
     c = np.ascontiguousarray
     shape = sigma.shape[:2]
@@ -500,49 +440,10 @@ def _measure_compiled(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarr
             c(structure.mask), c(np.zeros((len(means), 0, structure.z.shape[1])) if structure.factors is None
                                  else structure.factors), c(structure.radar), c(cluster_index),
             -1.0 if gate is None else float(gate), ut.wm, ut.wc, *wrapping.kernel_args())
-    except np.linalg.LinAlgError:  # a predicted measurement that is not finite
-        return None
+    except np.linalg.LinAlgError:  # the factorisation of a pair's innovation failed: a non-finite prediction
+        raise ValueError("update_pairs: a predicted measurement is not finite (a NaN/inf in a sigma point's "
+                         "rectangle)") from None
     return UpdateResult(*out)
-
-
-def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.ndarray, cluster_index: np.ndarray,
-                    gate: float) -> tuple[Structure, np.ndarray]:
-    """Set aside the radar velocity of clusters that no pair explains (``MeasurementConfig.radar_gate``).
-
-    Per pair with radar rows, their own normalised innovation squared ``nu^T S_v^-1 nu`` (``S_v`` the
-    rows' block of ``S``: the sigma points' spread plus ``R``; one row in ``"speed"`` mode, two in
-    ``"velocity"`` mode) is compared with ``gate``; when it exceeds the gate for *every* pair of a
-    cluster, the detection is no velocity of anything predicted there (a false alarm or another
-    vehicle's detection joined to the cluster), and the cluster's pairs are updated without it. A
-    detection some pair explains stays for all of them: it still tells the hypotheses apart. Returns the
-    structure (radar rows masked where rejected) and, per pair, whether its radar rows were rejected."""
-    width = structure.mask.shape[1]
-    rows = np.flatnonzero(structure.mask.any(axis=0) & (np.arange(width) >= width - 2))  # the radar rows in use
-    has = structure.radar
-    fused = np.flatnonzero(has)
-    if len(rows) == 1:  # "speed": one row, S is a number
-        zs = z_sigma[fused, :, rows[0]]  # (F, S) the radar row's sigma points of the pairs with radar
-        y = zs @ ut.wm
-        dev = zs - y[:, None]
-        nis_f = (structure.z[fused, rows[0]] - y) ** 2 / ((dev * dev) @ ut.wc + structure.r[fused, rows[0]])
-    else:
-        zs = z_sigma[fused][:, :, rows]  # (F, S, k)
-        y = np.einsum("s,psk->pk", ut.wm, zs)
-        dev = zs - y[:, None, :]
-        nu = structure.z[fused][:, rows] - y
-        s_v = np.einsum("s,psk,psl->pkl", ut.wc, dev, dev) + structure.r[fused][:, rows][:, :, None] * np.eye(len(rows))
-        nis_f = np.einsum("pk,pk->p", nu, np.linalg.solve(s_v, nu[..., None])[..., 0])
-    nis = np.full(len(has), np.inf)
-    nis[fused] = nis_f
-    explained = np.zeros(int(cluster_index.max()) + 1 if len(cluster_index) else 0, dtype=bool)
-    explained[cluster_index[has & (nis <= gate)]] = True
-    rejected = has & ~explained[cluster_index]
-    if not rejected.any():
-        return structure, rejected
-    mask = structure.mask.copy()
-    mask[rejected[:, None] & (np.arange(mask.shape[1]) >= mask.shape[1] - 2)[None, :]] = False
-    return dataclasses.replace(structure, mask=mask, radar=has & ~rejected, z=np.where(mask, structure.z, 0.0),
-                               r=np.where(mask, structure.r, 1.0)), rejected
 
 
 def grow_extent(
