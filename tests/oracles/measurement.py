@@ -11,7 +11,8 @@ import numpy as np
 
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
-from tracker.measurement import (CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, LONGEST_VEHICLE,
+from tracker.measurement import (_shadowed_longer_whole, _shadowed_parts_partial, _sharp_parts_whole, _sharp_side_whole,
+                                 CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, LONGEST_VEHICLE,
                                  MIN_CHORD, MIN_EXTENT, MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, WIDEST_VEHICLE,
                                  ClusterBatch, Rectangles, Structure)
 
@@ -49,29 +50,6 @@ def to_vehicle(states: np.ndarray, ego: EgoState | tuple, road=None, coordinates
     c, s = np.cos(ego.yaw), np.sin(ego.yaw)
     center = np.stack([c * gx + s * gy, -s * gx + c * gy], axis=-1)
     return Rectangles(center, psi, x[..., 2], np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
-
-
-def _sharp_side_whole(config: MeasurementConfig, shadows: bool) -> bool:
-    """Whether ``MeasurementConfig.sharp_side_whole`` applies: it needs the shadow flags (without them
-    nothing says an end is free)."""
-    return bool(config.sharp_side_whole and shadows)
-
-
-def _sharp_parts_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
-    """Whether ``MeasurementConfig.sharp_parts_whole`` applies: it needs the shadow flags and the
-    predicted extent's standard deviations (its consistency gate)."""
-    return bool(config.sharp_parts_whole and shadows and has_extent_sd)
-
-
-def _shadowed_longer_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
-    """Whether ``MeasurementConfig.shadowed_longer_whole`` applies: it needs the shadow flags, the
-    predicted extent's standard deviations and the extent growth it goes with (``grow_extent``)."""
-    return bool(config.shadowed_longer_whole and config.grow_extent and shadows and has_extent_sd)
-
-
-def _shadowed_parts_partial(config: MeasurementConfig, shadows: bool) -> bool:
-    """Whether ``MeasurementConfig.shadowed_parts_partial`` applies: it needs the shadow flags."""
-    return bool(config.shadowed_parts_partial and shadows)
 
 
 def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,

@@ -11,11 +11,11 @@ import dataclasses
 import numpy as np
 from oracles.measurement import build_structure, shows_longer_side, to_vehicle
 
-from tracker.config import BirthConfig, MeasurementConfig, TrackerConfig
+from tracker.config import BirthConfig, TrackerConfig
 from tracker.measurement import FULL, Rectangles, Structure
 from tracker.motion import LENGTH, WIDTH, XI
 from tracker.ukf import UnscentedTransform, Wrapping
-from tracker.update import UpdateResult, state_wrapping
+from tracker.update import UpdateResult, likelihood_variances, state_wrapping
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -99,24 +99,6 @@ def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
         axis=-1,
     )
     return feats @ structure.matrix
-
-
-def likelihood_variances(structure: Structure, config: MeasurementConfig) -> np.ndarray | None:
-    """The variances ``(P, D)`` of the pairs' likelihood and NIS: ``structure.r`` with every lidar row at
-    ``lidar_sigma^2`` (``MeasurementConfig.shadowed_lidar_sigma`` softens the update of some pairs, not
-    their weight or their gate); None where no pair's update was softened. A pair's lidar rows share
-    one variance and its first row is a point (a cluster's points come first in its row of the batch,
-    as ``tracker.preparation`` and ``ClusterBatch.of`` build it): the first row tells."""
-    nominal = config.lidar_sigma**2
-    if config.shadowed_lidar_sigma is None or not len(structure.r):
-        return None
-    # a pair's lidar rows share one variance (tracker.measurement): its first row, always a point, tells
-    if not np.any(structure.r[:, 0][structure.mask[:, 0]] != nominal):
-        return None
-    lidar = structure.mask[:, :-2]  # the last two rows are the radar's
-    r = structure.r.copy()
-    r[:, :-2] = np.where(lidar, nominal, r[:, :-2])
-    return r
 
 
 def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.ndarray, cluster_index: np.ndarray,
