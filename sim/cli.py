@@ -293,6 +293,33 @@ def _inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tracker_settings(items: list[str] | None) -> dict:
+    """``--set SECTION.FIELD=VALUE`` options as nested tables of tracker overrides (``VALUE`` read as a
+    TOML value: ``true``, ``0.5``, ``"exact"``; ``none`` for None)."""
+    import tomllib
+
+    out: dict = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        path = key.strip().split(".")
+        if not sep or not all(path):
+            raise UsageError(f"--set needs SECTION.FIELD=VALUE (e.g. measurement.grow_extent=false); got {item!r}")
+        text = text.strip()
+        if text.lower() in ("none", "null"):
+            value = None
+        else:
+            try:
+                value = tomllib.loads(f"v = {text}")["v"]
+            except tomllib.TOMLDecodeError:
+                raise UsageError(f"--set {key}: {text!r} is not a value (true, false, none, a number or a quoted "
+                                 "string)") from None
+        table = out
+        for part in path[:-1]:
+            table = table.setdefault(part, {})
+        table[path[-1]] = value
+    return out
+
+
 def _split_variants(values: list[str] | None) -> list[str]:
     from sim.evaluation.variants import DEFAULT_VARIANT
 
@@ -325,7 +352,8 @@ def _montecarlo(args: argparse.Namespace) -> int:
     _check_backend(args)
     try:
         tasks = plan(paths, args.runs, variants, seed0=args.seed, duration=args.duration,
-                     roadside=False if args.no_roadside else None, lidar_model=args.lidar_model)
+                     roadside=False if args.no_roadside else None, lidar_model=args.lidar_model,
+                     tracker_overrides=_tracker_settings(args.set))
     except ValueError as exc:
         raise UsageError(" ".join(str(exc).split())) from None
     out = Path(args.out)
@@ -637,6 +665,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
     p.add_argument("--lidar-model", choices=("2d", "vlp16"),
                    help="lidar model for every scenario, replacing sensors.lidar.model: 2d or vlp16 (3-D)")
+    p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE",
+                   help="a tracker setting for every run, over the scenarios' own [tracker] overrides "
+                        "(repeatable; e.g. measurement.grow_extent=false, birth.long_width=none)")
     p.add_argument("--resume", action="store_true",
                    help="keep the runs already in OUT/runs.csv (an interrupted study) and run only the missing ones")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

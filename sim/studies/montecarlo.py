@@ -103,8 +103,11 @@ def plan(
     roadside: bool | None = None,
     tracker_factory: Callable[..., Any] | None = None,
     lidar_model: str | None = None,
+    tracker_overrides: dict[str, Any] | None = None,
 ) -> list[RunTask]:
-    """The tasks of a study: every scenario x variant x seed in ``seed0 .. seed0 + runs - 1``."""
+    """The tasks of a study: every scenario x variant x seed in ``seed0 .. seed0 + runs - 1``.
+    ``tracker_overrides`` (nested tables, as a scenario's ``[tracker]``) go on top of every scenario's
+    own ``[tracker]`` overrides: an ablation of the tracker's configuration over a whole suite."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs must be an integer >= 1; got {runs!r}")
     if isinstance(seed0, bool) or not isinstance(seed0, int) or seed0 < 0:
@@ -112,6 +115,9 @@ def plan(
     for v in variants:
         check_variant(v)
     loaded = [scenario_task_data(s) for s in scenarios]
+    if tracker_overrides:
+        loaded = [(name, source, {**data, "tracker": merge_tables(data.get("tracker", {}), tracker_overrides)})
+                  for name, source, data in loaded]
     for name, source, data in loaded:  # bad [sensors] / [tracker] / [faults] settings: an error now, not in a worker
         spec = parse_scenario(data, source)
         if lidar_model is not None:
@@ -130,6 +136,14 @@ def plan(
         for variant in variants
         for k in range(runs)
     ]
+
+
+def merge_tables(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``top``'s entries put over it, nested tables merged key by key (a new dict)."""
+    out = dict(base)
+    for key, value in top.items():
+        out[key] = merge_tables(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 def _scalar(value: Any) -> bool:
