@@ -72,6 +72,24 @@ def test_bad_override_fails_before_the_study_starts(capsys, tmp_path):
     assert not (tmp_path / "mc" / "runs.csv").exists()
 
 
+@pytest.mark.parametrize("option, needle", [
+    ("measurement", "--set needs SECTION.FIELD=VALUE"),
+    ("measurement.lidar_sigma=abc", "is not a value"),
+    ("measurement.lidar_sigmaa=0.1", "tracker.measurement.lidar_sigmaa = 0.1: unknown key"),
+])
+def test_a_bad_tracker_setting_fails_before_the_study_starts(capsys, tmp_path, option, needle):
+    code, _, err = _main(capsys, "montecarlo", "cut-in", "--runs", "1", "--set", option, "--out", tmp_path / "mc")
+    assert code == 2 and needle in _one_line(err), err
+    assert not (tmp_path / "mc" / "runs.csv").exists()
+
+
+def test_tracker_settings_parse_toml_values():
+    assert cli._tracker_settings(["measurement.grow_extent=false", "birth.long_width=none", "reduction.prune_threshold=1e-3",
+                                  "measurement.conversion=\"euler\""]) == {
+        "measurement": {"grow_extent": False, "conversion": "euler"}, "birth": {"long_width": None},
+        "reduction": {"prune_threshold": 1e-3}}
+
+
 def test_missing_files_and_folders(capsys, tmp_path):
     missing = tmp_path / "nope.toml"
     for argv in (["run", missing], ["montecarlo", missing, "--runs", "1", "--out", tmp_path / "mc"], ["soak", missing]):

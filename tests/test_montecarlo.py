@@ -44,6 +44,28 @@ def test_plan_crosses_scenarios_variants_and_seeds():
         plan(["curve-single"], 0)
 
 
+def test_plan_puts_tracker_overrides_over_the_scenarios_own():
+    """``tracker_overrides`` reach every task's ``[tracker]`` table (merged key by key over the scenario's
+    own: ``merge_tables``), and the run's tracker configuration (``tracker_config_for``) has them."""
+    from sim.evaluation.runner import tracker_config_for
+    from sim.world.scenario import parse_scenario
+
+    tasks = plan(["cut-in"], 1, tracker_overrides={"measurement": {"grow_extent": False}, "birth": {"long_width": None}})
+    table = tasks[0].data["tracker"]
+    assert table == {"measurement": {"grow_extent": False}, "birth": {"long_width": None}}
+    config = tracker_config_for(parse_scenario(tasks[0].data, tasks[0].source), tasks[0].variant)
+    assert config.measurement.grow_extent is False and config.birth.long_width is None
+    with pytest.raises(ValueError, match="unknown key"):
+        plan(["cut-in"], 1, tracker_overrides={"measurement": {"nope": 1}})
+
+
+def test_merge_tables_merges_nested_tables_and_leaves_its_inputs():
+    base = {"a": {"x": 1, "y": 2}, "b": 3}
+    top = {"a": {"y": 5, "z": 6}, "c": {"k": 7}}
+    assert montecarlo.merge_tables(base, top) == {"a": {"x": 1, "y": 5, "z": 6}, "b": 3, "c": {"k": 7}}
+    assert base == {"a": {"x": 1, "y": 2}, "b": 3}
+
+
 def test_summary_mean_and_t_interval():
     rows = [{"scenario": "a", "variant": "v", "seed": i, "sim_s": 1.0, "x": float(x), "y": None if i else 2.0}
             for i, x in enumerate([1, 2, 3, 4])]
