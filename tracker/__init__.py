@@ -1,6 +1,6 @@
 """frenet-eot tracker: extended object tracking of vehicles in curvilinear road coordinates.
 
-numpy + scipy only; never imports ``sim``. A user with real data needs only this package.
+numpy, scipy and numba only; never imports ``sim``. A user with real data needs only this package.
 """
 
 from tracker.config import TrackerConfig

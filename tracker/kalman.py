@@ -6,7 +6,8 @@ The update has the low-rank form of ``tracker.update``'s module docstring: per p
 measurement deviations ``A`` (the sigma points' columns, then the noise factors' columns with weight 1
 and no state deviation), ``M = I + A^T A``, and the solves against ``M`` by its Cholesky factor. ``M``
 is positive definite (``I`` plus a Gram matrix) unless a predicted measurement or a noise factor is not
-finite: then ``numpy.linalg.LinAlgError`` is raised, and ``tracker.update`` updates that batch in numpy.
+finite: then ``numpy.linalg.LinAlgError`` is raised (``tracker.update.kalman_update`` keeps such pairs out
+of the kernel and gives them a NaN posterior; ``update_pairs`` refuses them).
 """
 
 from __future__ import annotations
