@@ -52,23 +52,17 @@ def run_reference() -> dict[str, np.ndarray]:
     # radar_gate, session 9) and no births from two radar-backed points (BirthConfig.
     # min_cluster_points_fused, session 9) and no first-scan births or dropping of tracks inside a seen
     # vehicle or radar-only updates of coasting tracks (BirthConfig.first_scan, ReductionConfig.
-    # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no settled widths kept
-    # from growing (MeasurementConfig.settled_width_std, session 11) and no birth centre correlated with
-    # its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
-    # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both
-    # need the shadow flags, off here; its manoeuvre-gated jerk, MotionConfig.quiet_jerk,
-    # needs the acceleration state, off here) and no absorption of overlapping labels (ReductionConfig.
-    # absorb_overlap, session 15) and no narrow-vehicle prior (BirthConfig.narrow_width, session 16;
-    # its shadowed sides longer than predicted taken whole, MeasurementConfig.shadowed_longer_whole,
-    # need the shadow flags, off here) and no one-point fragments joined to the track they continue
-    # (ClusteringConfig.fragment_points, session 17) and no shadowed parts of two-sided clusters held
-    # partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs the shadow flags,
-    # off here) and no births spread on either side of a cluster whose near end borders a shadow
-    # (BirthConfig.shadow_aware, session 19; needs the shadow flags) nor radar-only updates holding the
-    # extent (MeasurementConfig.radar_only_holds_extent, session 19; radar-only updates are off here)
-    # nor two-sided clusters partially visible where the prediction shows one side (MeasurementConfig.
-    # two_sided_data_partial, session 21) nor the softer update of parts going on behind a shadow
-    # (shadowed_lidar_sigma, session 21; needs the shadow flags):
+    # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no birth centre correlated
+    # with its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
+    # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both need
+    # the shadow flags, off here; the manoeuvre-gated jerk, MotionConfig.quiet_jerk, needs the acceleration
+    # state, off here) and no absorption of overlapping labels (ReductionConfig.absorb_overlap, session 15)
+    # and no narrow-vehicle prior (BirthConfig.narrow_width, session 16) and no one-point fragments joined to
+    # the track they continue (ClusteringConfig.fragment_points, session 17) and no shadowed parts of
+    # two-sided clusters held partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs
+    # the shadow flags, off here) and no births spread on either side of a cluster whose near end borders a
+    # shadow (BirthConfig.shadow_aware, session 19; needs the shadow flags) nor the softer update of parts
+    # going on behind a shadow (shadowed_lidar_sigma, session 21; needs the shadow flags):
     # intended changes of the model,
     # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
     base = TrackerConfig()
@@ -77,9 +71,7 @@ def run_reference() -> dict[str, np.ndarray]:
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
                                   first_scan=False, correlated_extent=False, narrow_width=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
-                                        settled_width_std=None, sharp_side_whole=False,
-                                        sharp_parts_whole=False, two_sided_data_partial=False,
-                                        shadowed_lidar_sigma=None),
+                                        sharp_side_whole=False, sharp_parts_whole=False, shadowed_lidar_sigma=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
         clustering=dataclasses.replace(base.clustering, fragment_points=None),

@@ -21,11 +21,10 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.motion.coast_acceleration_time == 0.5
     assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
-    assert (c.motion.manoeuvre_memory, c.motion.manoeuvre_coasting) == (0.5, True)
+    assert c.motion.manoeuvre_memory == 0.5
     assert c.measurement.sharp_side_whole
     assert c.measurement.sharp_parts_whole and c.measurement.whole_min_points == 4
     assert c.reduction.same_label_along_length
-    assert c.measurement.settled_width_std == 0.15
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
@@ -47,7 +46,6 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: ProcessNoise(accel=float("nan")), r"ProcessNoise.accel must be finite"),
         (lambda: UKFParams(alpha=1e-3), r"Wc0"),
         (lambda: MeasurementConfig(radar_gate=-1.0), r"MeasurementConfig.radar_gate must be > 0"),
-        (lambda: MeasurementConfig(settled_width_std=-0.1), r"MeasurementConfig.settled_width_std must be >= 0"),
         (lambda: MotionConfig(coast_established_time=0.0), r"MotionConfig.coast_established_time must be > 0.0 s"),
         (lambda: MotionConfig(coast_established_sigmas=-1.0), r"MotionConfig.coast_established_sigmas must be >= 0"),
         (lambda: MotionConfig(quiet_jerk=0.9), r"MotionConfig.quiet_jerk \(0.9 m s\^-2.5\) must not exceed MotionConfig.jerk \(0.7\)"),
@@ -55,7 +53,6 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(manoeuvre_sigmas=0.0), r"MotionConfig.manoeuvre_sigmas must be > 0"),
         (lambda: MotionConfig(manoeuvre_hold=-1.0), r"MotionConfig.manoeuvre_hold must be >= 0"),
         (lambda: MotionConfig(manoeuvre_memory=0.0), r"MotionConfig.manoeuvre_memory must be > 0"),
-        (lambda: MotionConfig(manoeuvre_coasting=1), r"MotionConfig.manoeuvre_coasting must be true or false"),
         (lambda: MeasurementConfig(sharp_side_whole="yes"), r"MeasurementConfig.sharp_side_whole must be true or false"),
         (lambda: MeasurementConfig(sharp_parts_whole=1), r"MeasurementConfig.sharp_parts_whole must be true or false"),
         (lambda: MeasurementConfig(whole_min_points=1), r"MeasurementConfig.whole_min_points must be an integer >= 2"),

@@ -200,49 +200,6 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
         assert both.mode[0, 0] == plain.mode[0, 0]
 
 
-def test_a_shadowed_side_longer_than_predicted_is_measured_whole() -> None:
-    """A truck (2.5 m wide) 40 m straight ahead, predicted with a narrow car's 1.7 +- 0.3 m width: its
-    rear's left end lies in a nearer object's shadow and 2.4 m of it show. Its chord longer than the
-    prediction by more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (0.7 > 0.6 m), the visible
-    part is a lower bound of the width that the prediction falls short of: measured whole (``FULL``)
-    with ``MeasurementConfig.shadowed_longer_whole``, so the width grows to it; partially visible,
-    anchored at the free end (``FROM_A``), without the rule, with a settled width (its sd below
-    ``settled_width_std``: a heading lagging a lane change), without the extent's sd, when the
-    visible part is shorter than the prediction, or wider than any vehicle."""
-    from tracker.measurement import GROWTH_MIN_EXCESS, GROWTH_SIGMAS
-
-    truth = np.array([40.0, 0.0, 10.0, 0.0, 0.0, 12.0, 2.5])
-    k = corners_of(truth)
-    predicted = corners_of(np.array([36.0, -0.4, 10.0, 0.0, 0.0, 4.5, 1.7]))[None]  # its rear on the truck's
-    b3, b2 = bearing(k[3]), bearing(k[2])
-    pts, hit = rectangle_scan(k, np.linspace(b3, b3 + 0.96 * (b2 - b3), 14))
-    assert hit.all()
-    batch = dataclasses.replace(ClusterBatch.of([prepare_cluster(pts, EXACT)]), occluded_end=np.array([[False, True]]))
-    chord = float(batch.chord_len[0, 0])
-    sd = np.array([[1.0, 0.3]])
-    assert chord - 1.7 > max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * 0.3)  # the scene is what the rule is about
-
-    def mode(config, extent_sd=sd, corners=predicted):
-        got = build_structure(batch, np.array([0]), corners, config, extent_sd=extent_sd).mode[0, 0]
-        assert got == oracle_structure(batch, np.array([0]), corners, config, extent_sd=extent_sd).mode[0, 0]
-        return got
-
-    assert mode(EXACT) == FULL
-    assert mode(dataclasses.replace(EXACT, shadowed_longer_whole=False)) == FROM_A
-    assert mode(EXACT, extent_sd=np.array([[1.0, 0.1]])) == FROM_A  # a settled width is not grown
-    assert mode(EXACT, extent_sd=None) == FROM_A  # no extent sd: the rule needs it
-    wide = corners_of(np.array([36.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.6]))[None]  # predicted wider than what shows
-    assert mode(EXACT, corners=wide) == FROM_A
-    # a chord wider than any vehicle (2.55 m) is no one vehicle's rear (two side by side, a vehicle and a
-    # roadside object): no lower bound of its width, partially visible as before
-    merged = corners_of(np.array([40.0, 0.0, 10.0, 0.0, 0.0, 12.0, 3.6]))
-    b3, b2 = bearing(merged[3]), bearing(merged[2])
-    pts, hit = rectangle_scan(merged, np.linspace(b3, b3 + 0.96 * (b2 - b3), 14))
-    batch = dataclasses.replace(ClusterBatch.of([prepare_cluster(pts, EXACT)]), occluded_end=np.array([[False, True]]))
-    assert batch.chord_len[0, 0] > 2.55
-    assert mode(EXACT) == FROM_A
-
-
 def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predicted() -> None:
     """A 16 m bus 25 m ahead, 5 m left, shows its right side and rear, rays every 0.05 deg; its front
     1.2 m lie in a nearer object's shadow (``ClusterBatch.occluded_end[:, 0]``, the side's far end is
@@ -557,38 +514,6 @@ def test_euler_conversion_follows_the_exact_one_with_the_papers_error() -> None:
         errors.append(float(np.linalg.norm(exact.center - euler.center)))
         assert errors[-1] == pytest.approx(0.25 * d / 80.0, rel=0.25)
     assert errors == sorted(errors)
-
-
-def test_a_two_sided_cluster_whose_prediction_shows_one_side_is_partially_visible() -> None:
-    """A car ahead-left shows its rear and right side (the data: two-sided, a corner); its prediction,
-    1.2 m to the right and so straight ahead, shows the rear alone. With
-    ``MeasurementConfig.two_sided_data_partial`` off (the model before) the whole cluster, rear and
-    side, is taken as one whole side (``FULL``), whose chord pulls the predicted side to the span of
-    both; with the rule the part is partially visible (anchored), so the update holds the extent. A
-    prediction that shows both sides is untouched."""
-    car = np.array([12.0, 1.2, 10.0, 0.0, 0.0, 4.7, 1.9])
-    k = corners_of(car)
-    assert visible_sides(k).tolist() == [False, False, True, True]
-    config = MeasurementConfig()
-    batch = ClusterBatch.of([prepare_cluster(two_sided_scan(k, 0, 3, 2), config)])
-    assert batch.two_sided[0]
-    ahead = corners_of(car - np.array([0.0, 1.2, 0.0, 0.0, 0.0, 0.0, 0.0]))[None]
-    assert visible_sides(ahead[0]).tolist() == [False, False, True, False]
-    sd = np.array([[0.5, 0.2]])
-
-    def structure(corners, cfg):
-        st = build_structure(batch, np.array([0]), corners, cfg, extent_sd=sd)
-        other = oracle_structure(batch, np.array([0]), corners, cfg, extent_sd=sd)
-        np.testing.assert_array_equal(other.mode, st.mode)
-        np.testing.assert_allclose(other.coef, st.coef, atol=1e-12)
-        return st
-
-    before = structure(ahead, dataclasses.replace(config, two_sided_data_partial=False))
-    assert not before.two_sided[0] and before.mode[0].tolist() == [FULL, FULL]
-    after = structure(ahead, config)
-    assert not after.two_sided[0] and after.mode[0, 0] in (FROM_A, FROM_B, CENTRE)
-    both = structure(k[None], config)  # the prediction shows the corner: two whole sides
-    assert both.two_sided[0] and both.mode[0].tolist() == [FULL, FULL]
 
 
 def test_the_points_of_a_part_going_on_behind_a_shadow_update_with_the_shadowed_sigma() -> None:

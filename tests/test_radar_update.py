@@ -209,29 +209,3 @@ def test_the_radar_carries_the_tracks_through_a_lidar_blackout(radar_only):
         assert tracker.stats["radar_only_updates"] >= 14 and end < 1.0, end
     else:
         assert tracker.stats["radar_only_updates"] == 0 and 2.5 < end < np.inf, end
-
-
-@pytest.mark.parametrize("hold", [True, False], ids=["extent-held", "extent-updated"])
-def test_a_radar_only_update_moves_the_position_not_the_extent(straight, hold):
-    """A coasting track 1.5 m behind its car (sd 0.3 m), its length uncertain (sd 1 m): the detection of
-    the car's rear says the rear is 1.5 m further on. Held (``MeasurementConfig.radar_only_holds_extent``):
-    ``L`` and ``W`` keep their prior mean and variance, the position moves towards the detection (by
-    the Schmidt gain, which counts the length's uncertainty); updated: most of the offset goes into
-    ``L``, which shrinks by half a metre (4.6 -> 4.04 m). The detection's spread is 1 m here (the
-    default 2 m moves the position only 0.03 m, too little to show the split)."""
-    base = TrackerConfig()
-    config = dataclasses.replace(base, measurement=dataclasses.replace(base.measurement, radar_only_holds_extent=hold,
-                                                                       radar_position_sigma=1.0))
-    ut = UnscentedTransform(config.ukf, n=8)
-    mean, cov = coasting(straight, 48.5, 0.0, 6.0, sd_s=0.3)
-    cov[0, 5, 5] = 1.0
-    radar = detection_of(straight, 50.0, 0.0, 6.0)
-    res = update_coasting(mean, cov, np.array([0]), radar, np.array([0]), 0.0, EGO, straight, config, ut)
-    assert list(res.component) == [0]
-    if hold:
-        assert res.mean[0, 5] == mean[0, 5] and res.mean[0, 6] == mean[0, 6]
-        assert res.cov[0, 5, 5] == cov[0, 5, 5] and res.cov[0, 6, 6] == cov[0, 6, 6]
-        assert res.mean[0, 0] > 48.6, res.mean[0, :3]
-    else:
-        assert res.mean[0, 5] < mean[0, 5] - 0.4, res.mean[0, [0, 5]]
-    assert np.all(np.linalg.eigvalsh(res.cov[0]) > 0)

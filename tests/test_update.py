@@ -323,31 +323,6 @@ def test_a_truck_side_longer_than_the_prior_grows_the_length_and_passes_the_gate
     assert np.linalg.eigvalsh(res_grow.cov[0]).min() > 0.0
 
 
-@pytest.mark.parametrize("settled_width_std", [0.15, None], ids=["settled-width-kept", "off"])
-def test_grow_extent_leaves_a_settled_width_alone(settled_width_std) -> None:
-    """Three pairs whose short side runs 0.8 m past the predicted width, and one whose long side runs
-    6 m past the predicted length: a width scanned for a while (sd 0.03 m) is not grown with
-    ``settled_width_std`` (the excess is the heading lagging, the side joined the rear's chord), an
-    unsettled one (sd 0.3 m, a new track) is; the length grows whatever the width's spread."""
-    from types import SimpleNamespace
-
-    from tracker.measurement import rectangle_corners
-    from tracker.update import grow_extent
-
-    means = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.1]] * 4)
-    sd_w = np.array([0.03, 0.3, 0.149, 0.03])
-    covs = np.array([np.diag([0.1, 0.1, 0.1, 0.01, 0.01, 0.3**2, s**2]) for s in sd_w])
-    structure = SimpleNamespace(sides=np.array([[0, 2], [0, 2], [0, 2], [1, 3]]),  # short sides, then long ones
-                                excess=np.array([[0.8, np.nan], [0.8, np.nan], [0.8, np.nan], [6.0, np.nan]]))
-    corners = rectangle_corners(np.array([[20.0, 0.0]] * 4), np.zeros(4), means[:, 5], means[:, 6])
-    grown, out = grow_extent(means, covs, structure, corners, settled_width_std)
-    expect_width = [settled_width_std is None, True, settled_width_std is None, False]
-    np.testing.assert_array_equal(out[:, 6, 6] > covs[:, 6, 6], expect_width)
-    np.testing.assert_array_equal(out[:, 5, 5] > covs[:, 5, 5], [False, False, False, True])
-    np.testing.assert_array_equal(grown, np.array(expect_width) | [False, False, False, True])
-    assert out[1, 6, 6] == pytest.approx(0.3**2 + 0.8**2)
-
-
 def _extent_rules(mean, cov, corners, birth, length_seen=False):
     """``apply_extent_rules`` of posteriors ``mean``, ``cov`` equal to their priors (the Schmidt hold
     changes nothing) whose parts show the rear whole (the width measured) and the long side whole only
@@ -677,8 +652,7 @@ def test_the_extent_rules_equal_the_oracle(dim):
         assert changed.sum() >= 20  # the rules did something
 
 
-@pytest.mark.parametrize("settled", [None, 0.15])
-def test_grow_extent_equals_the_oracle(settled):
+def test_grow_extent_equals_the_oracle():
     """``grow_extent`` (``tracker.extent.grow_extent_kernel``) against ``oracles.update``: random
     excesses (some not finite) on long and short parts, narrow and wide extent spreads, the sensor on
     either side; the same mask and covariances, bit for bit, and both extents grown somewhere."""
@@ -699,13 +673,13 @@ def test_grow_extent_equals_the_oracle(settled):
     corners = rng.normal(0.0, 30.0, (pairs, 1, 2)) + rng.normal(0.0, 2.0, (pairs, 4, 2))
     structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=None, radar=None, z=None, r=None,
                           mask=None, factors=None, excess=excess)
-    grown, out = grow_extent(means, covs, structure, corners, settled)
-    ref_grown, ref_out = oracle_grow_extent(means, covs, structure, corners, settled)
+    grown, out = grow_extent(means, covs, structure, corners)
+    ref_grown, ref_out = oracle_grow_extent(means, covs, structure, corners)
     assert np.array_equal(grown, ref_grown) and np.array_equal(out, ref_out)
     for index in (5, 6):
         assert (grown & (out[:, index, index] > covs[:, index, index])).sum() >= 10
     empty = grow_extent(means[:0], covs[:0], dataclasses.replace(structure, sides=sides[:0], excess=excess[:0]),
-                        corners[:0], settled)
+                        corners[:0])
     assert empty[0].shape == (0,) and empty[1].shape == (0, dim, dim)
 
 

@@ -173,8 +173,6 @@ class MotionConfig:
     manoeuvre_hold: float = 2.0
     #: Time constant of the fading mean of ``s`` corrections that flags a steady lag (s; default 0.5; None: off).
     manoeuvre_memory: float | None = 0.5
-    #: A reported label no cluster updated in the last frame is predicted with the full ``jerk`` (default True).
-    manoeuvre_coasting: bool = True
 
     def __post_init__(self) -> None:
         _check_choice("MotionConfig", "model", self.model, ("frenet", "paper"))
@@ -204,8 +202,6 @@ class MotionConfig:
         _check("MotionConfig", "manoeuvre_hold", self.manoeuvre_hold, low=0.0, unit="s")
         if self.manoeuvre_memory is not None:
             _check("MotionConfig", "manoeuvre_memory", self.manoeuvre_memory, low=0.0, low_open=True, unit="s")
-        if not isinstance(self.manoeuvre_coasting, bool):
-            raise ValueError(f"MotionConfig.manoeuvre_coasting must be true or false; got {self.manoeuvre_coasting!r}")
 
 
 @dataclass(frozen=True)
@@ -216,8 +212,7 @@ class MeasurementConfig:
     ``tracker.measurement``; the visibility rules that decide whether a part of a cluster shows a whole
     side or part of one (shadows, sharp ends, continuation) and the extent rules (hold, growth) in
     ``docs/tracker.md`` ("Update", "Departures from the paper"). Several rules need the shadow flags
-    (``shadow_window`` not None): ``sharp_side_whole``, ``sharp_parts_whole``, ``shadowed_longer_whole``
-    (also ``grow_extent``) and ``shadowed_parts_partial``.
+    (``shadow_window`` not None): ``sharp_side_whole``, ``sharp_parts_whole`` and ``shadowed_parts_partial``.
     """
 
     #: Std of a lidar point about its generating point, per axis in E, model error included (m; default 0.1).
@@ -244,8 +239,6 @@ class MeasurementConfig:
     hold_unobserved_extent: bool = True
     #: Widen the extent prior when a side's points run well past the predicted rectangle (default True).
     grow_extent: bool = True
-    #: A width whose std is below this is settled and not grown by ``grow_extent`` (m; default 0.15; None: off).
-    settled_width_std: float | None = 0.15
     #: A lone point fits only visible sides that look at least this fraction as wide as the widest (default 0.25).
     single_point_min_apparent: float = 0.25
     #: State to E: ``"exact"`` via the centerline, or ``"euler"``, the paper's Algorithm 1 (default "exact").
@@ -262,14 +255,8 @@ class MeasurementConfig:
     sharp_side_whole: bool = True
     #: A two-sided cluster's part with a sharp, free far end shows its whole side, within a gate (default True).
     sharp_parts_whole: bool = True
-    #: A one-sided part with one shadowed end, longer than its predicted side, is measured whole (default True).
-    shadowed_longer_whole: bool = True
     #: A two-sided part whose far end is shadowed is partially visible unless longer than predicted (default True).
     shadowed_parts_partial: bool = True
-    #: A radar-only update keeps ``L`` and ``W`` at their prior (Schmidt update) (default True).
-    radar_only_holds_extent: bool = True
-    #: Data two-sided, predicted rectangle showing one side: the cluster is partially visible (default True).
-    two_sided_data_partial: bool = True
     #: Lidar std in the state update of an anchored part whose cluster borders a shadow (m; default 0.15; None: off).
     shadowed_lidar_sigma: float | None = 0.15
     #: Fewest points each part needs for ``sharp_parts_whole``, the corner counted in both (default 4).
@@ -300,8 +287,7 @@ class MeasurementConfig:
         if self.shadowed_lidar_sigma is not None:
             _check("MeasurementConfig", "shadowed_lidar_sigma", self.shadowed_lidar_sigma, low=0.0, low_open=True,
                    unit="m")
-        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_longer_whole", "shadowed_parts_partial",
-                     "radar_only_holds_extent", "two_sided_data_partial"):
+        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_parts_partial"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"MeasurementConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check_int("MeasurementConfig", "whole_min_points", self.whole_min_points, 2)
@@ -319,8 +305,6 @@ class MeasurementConfig:
         _check_choice("MeasurementConfig", "radar_rows", self.radar_rows, ("speed", "velocity"))
         if not isinstance(self.hold_unobserved_extent, bool):
             raise ValueError(f"MeasurementConfig.hold_unobserved_extent must be true or false; got {self.hold_unobserved_extent!r}")
-        if self.settled_width_std is not None:
-            _check("MeasurementConfig", "settled_width_std", self.settled_width_std, low=0.0, unit="m")
         if not isinstance(self.grow_extent, bool):
             raise ValueError(f"MeasurementConfig.grow_extent must be true or false; got {self.grow_extent!r}")
         _check("MeasurementConfig", "single_point_min_apparent", self.single_point_min_apparent, low=0.0, high=1.0)

@@ -64,13 +64,11 @@ def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover -
 
 
 @njit
-def grow_extent_kernel(means, covs, excess, sides, corners, settled_width_std, min_excess,
-                       sigmas):  # pragma: no cover - compiled
+def grow_extent_kernel(means, covs, excess, sides, corners, min_excess, sigmas):  # pragma: no cover - compiled
     """``tracker.update.grow_extent``: per pair, the largest excess of a part over its predicted side
     (``excess (P, 2)``; long parts, odd ``sides``, for ``L``, the others for ``W``), and where it is
-    evidence of a longer side (above ``max(min_excess, sigmas sd)``; for ``W`` not with its sd below
-    ``settled_width_std``, negative: no such test) the prior widened by ``e^2 d d^T``. Returns the
-    mask of widened pairs and the covariances (a copy)."""
+    evidence of a longer side (above ``max(min_excess, sigmas sd)``) the prior widened by ``e^2 d d^T``.
+    Returns the mask of widened pairs and the covariances (a copy)."""
     pairs, dim = means.shape
     out = covs.copy()
     grown = np.zeros(pairs, dtype=np.bool_)
@@ -83,8 +81,6 @@ def grow_extent_kernel(means, covs, excess, sides, corners, settled_width_std, m
                     e = max(e, excess[p, part])
             sd = math.sqrt(max(covs[p, index, index], 0.0))
             if not e > max(min_excess, sigmas * sd):
-                continue
-            if index == WIDTH and settled_width_std >= 0.0 and not sd >= settled_width_std:
                 continue
             _growth_direction(corners[p], means[p, XI], index, d)
             e2 = e * e

@@ -115,15 +115,9 @@ MAX_END_GAP = 2.0
 
 #: A side's chord must exceed its predicted length by more than ``GROWTH_MIN_EXCESS`` (m) and by more
 #: than ``GROWTH_SIGMAS`` standard deviations of the extent to be evidence of a longer side, not noise:
-#: ``tracker.update.grow_extent`` then widens the prior, and a one-sided part with an end in a shadow
-#: is taken whole (``MeasurementConfig.shadowed_longer_whole``).
+#: ``tracker.update.grow_extent`` then widens the prior.
 GROWTH_MIN_EXCESS = 0.5
 GROWTH_SIGMAS = 2.0
-#: The widest and the longest road vehicle (m; EU limits): a chord beyond them is not one vehicle's
-#: side (two vehicles' points in one cluster, or a vehicle and a roadside object), so it is no lower
-#: bound of one vehicle's extent (``MeasurementConfig.shadowed_longer_whole``).
-WIDEST_VEHICLE = 2.55
-LONGEST_VEHICLE = 25.25
 
 #: A part's far end is also sharp (``MeasurementConfig.sharp_parts_whole``) when the predicted side goes
 #: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
@@ -494,12 +488,6 @@ def _sharp_parts_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: 
     return bool(config.sharp_parts_whole and shadows and has_extent_sd)
 
 
-def _shadowed_longer_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
-    """Whether ``MeasurementConfig.shadowed_longer_whole`` applies: it needs the shadow flags, the
-    predicted extent's standard deviations and the extent growth it goes with (``grow_extent``)."""
-    return bool(config.shadowed_longer_whole and config.grow_extent and shadows and has_extent_sd)
-
-
 def _shadowed_parts_partial(config: MeasurementConfig, shadows: bool) -> bool:
     """Whether ``MeasurementConfig.shadowed_parts_partial`` applies: it needs the shadow flags."""
     return bool(config.shadowed_parts_partial and shadows)
@@ -527,7 +515,7 @@ def build_structure(
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
     as in the module docstring, by ``tracker.structure.structure_kernel``. ``extent_sd (P, 2)``: the
     predicted standard deviations of ``L`` and ``W`` (m), for the rules that need them
-    (``MeasurementConfig.sharp_parts_whole``, ``shadowed_longer_whole``; None: those rules off)."""
+    (``MeasurementConfig.sharp_parts_whole``; None: that rule off)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
         extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
@@ -560,9 +548,7 @@ def structure_config_args(config: MeasurementConfig, shadows: bool, use_radar: b
             config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, shadows),
             _sharp_parts_whole(config, shadows, has_extent_sd))
     tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-            MISSED_RAYS_SHARP, _shadowed_longer_whole(config, shadows, has_extent_sd), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
-            WIDEST_VEHICLE, LONGEST_VEHICLE, -1.0 if config.settled_width_std is None else float(config.settled_width_std),
-            _shadowed_parts_partial(config, shadows), bool(config.two_sided_data_partial),
+            MISSED_RAYS_SHARP, _shadowed_parts_partial(config, shadows),
             -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
     return head, tail
 

@@ -42,11 +42,11 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                         min_extent, points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
                         end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, min_apparent,
                         partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
-                        sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, longer_whole,
-                        growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed, data_partial,
-                        shadowed_var, grow, gate, hold, long_on, long_width, long_below, long_variance,
-                        long_length, narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance,
-                        narrow_length, unmeasured_var, max_length, max_width):  # pragma: no cover - compiled
+                        sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, parts_shadowed,
+                        shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on, long_width, long_below,
+                        long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above,
+                        narrow_variance, narrow_length, unmeasured_var, max_length,
+                        max_width):  # pragma: no cover - compiled
     """The posteriors of the pairs ``(component used[inverse[p]], cluster ci[p])`` of the components
     ``means (U, D)``, ``covs (U, D, D)`` (the ones in some pair) and the prepared clusters (the
     ``tracker.measurement.ClusterBatch`` fields). Returns ``(status, mean, cov, log_likelihood, nis,
@@ -92,11 +92,10 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                                 end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, ci,
                                 mean_corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var,
                                 use_radar, speed_row, min_chord, sharp_whole, parts_whole, extent_sd, min_points,
-                                gate_sigmas, gate_slack, missed_rays, longer_whole, growth_min, growth_sigmas, widest,
-                                longest, settled_sd, parts_shadowed, data_partial, shadowed_var)
+                                gate_sigmas, gate_slack, missed_rays, parts_shadowed, shadowed_var)
     if grow:
-        grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, settled_sd,
-                                                growth_min, growth_sigmas)
+        grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, growth_min,
+                                                growth_sigmas)
         if grown.any():  # new sigma points for the widened pairs: the staged path (UnscentedTransform.sigma_points)
             return (GROWN,) + _empty_result(pairs, dim, rows)
     width = r.shape[1]
@@ -204,10 +203,9 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
                           ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent,
                           min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                           min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays,
-                          longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed,
-                          data_partial, shadowed_var, grow, gate, hold, long_on, long_width, long_below,
-                          long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above,
-                          narrow_variance, narrow_length, unmeasured_var, max_length,
+                          parts_shadowed, shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on,
+                          long_width, long_below, long_variance, long_length, narrow_on, narrow_width,
+                          narrow_width_var, narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
                           max_width):  # pragma: no cover - compiled
     """The pairs ``(component comp[p], cluster clu[p])`` of the components ``means_all``, ``covs_all``
     and the clusters ``points_all[offsets_all[k]:offsets_all[k + 1]]`` (E; radar velocity
@@ -250,8 +248,8 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
         length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, points, valid,
         part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, fused, velocity,
         centroid, occluded, not_free, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar,
-        speed_row, min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, longer_whole,
-        growth_min, growth_sigmas, widest, longest, settled_sd, parts_shadowed, data_partial, shadowed_var, grow, gate,
-        hold, long_on, long_width, long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
-        narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length, max_width)
+        speed_row, min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays,
+        parts_shadowed, shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on, long_width, long_below,
+        long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance,
+        narrow_length, unmeasured_var, max_length, max_width)
     return result + (n_occluded, n_continued)

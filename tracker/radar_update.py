@@ -43,7 +43,7 @@ from tracker.frame import EgoState, RadarDetections
 from tracker.measurement import Rectangles, to_vehicle
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform
-from tracker.update import hold_extent, kalman_update, state_wrapping
+from tracker.update import kalman_update, state_wrapping
 
 #: Measurement rows of a radar-only detection: position (x, y) and velocity (vx, vy) in E.
 RADAR_DIM = 4
@@ -136,9 +136,6 @@ def update_coasting(
     prior_m, prior_p = means[idx][inverse], covs[idx][inverse]
     res = kalman_update(ut, sigma[inverse], prior_m, prior_p, z_sigma[inverse], z[det],
                         np.broadcast_to(r, (len(comp), RADAR_DIM)), wrapping=wrapping)
-    if m.radar_only_holds_extent:  # the nearest visible point says where the vehicle is, not its extent
-        every = np.ones(len(comp), dtype=bool)
-        hold_extent(res, prior_m, prior_p, every, every)
     gated = res.nis <= chi2.ppf(config.gating.probability, RADAR_DIM)
     if not gated.any():
         return RadarOnlyResult.empty(dim)

@@ -34,14 +34,12 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                      min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
-                     missed_rays, longer_whole, growth_min, growth_sigmas, widest, longest, settled_sd,
-                     parts_shadowed, data_partial, shadowed_var):
+                     missed_rays, parts_shadowed, shadowed_var):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
-    ``longer_whole``: ``MeasurementConfig.shadowed_longer_whole`` with the growth evidence ``growth_min``,
-    ``growth_sigmas``, the widest and longest vehicle ``widest``, ``longest`` and the settled width
-    ``settled_sd`` (negative: None); ``parts_shadowed``: ``MeasurementConfig.shadowed_parts_partial``;
-    ``data_partial``: ``two_sided_data_partial``; ``shadowed_var``: ``shadowed_lidar_sigma`` squared
+    ``sharp_whole``: ``MeasurementConfig.sharp_side_whole``; ``parts_whole``:
+    ``MeasurementConfig.sharp_parts_whole``; ``parts_shadowed``:
+    ``MeasurementConfig.shadowed_parts_partial``; ``shadowed_var``: ``shadowed_lidar_sigma`` squared
     (negative: None)."""
     sx = _SX
     sy = _SY
@@ -192,19 +190,7 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             if occ_hi and ln1 + (m1_lo + m1_hi) < side_len[side1]:
                 partial1 = True
         shadowed = (not two) and ((occ_hi and not occ_lo and sharp_lo) or (occ_lo and not occ_hi and sharp_hi))
-        if shadowed and longer_whole:  # ... unless longer than predicted: a lower bound, measured whole
-            sd_side = extent_sd[p, 0] if side0 % 2 == 1 else extent_sd[p, 1]
-            longer = ln0 - side_len[side0] > max(growth_min, growth_sigmas * sd_side)
-            if ln0 > (longest if side0 % 2 == 1 else widest):  # not one vehicle's side
-                longer = False
-            if settled_sd >= 0.0 and side0 % 2 == 0 and sd_side < settled_sd:
-                longer = False
-            if longer:
-                shadowed = False
         if shadowed:
-            partial0 = True
-            partial1 = True
-        if data_partial and two_in[c] and not two and not single:  # two sides in the data, one predicted
             partial0 = True
             partial1 = True
         # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre

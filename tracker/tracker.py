@@ -296,7 +296,7 @@ class Tracker:
                 relax = np.concatenate([relax, np.ones(len(pending_m))])
         jerk = floor = None
         if self.dim == 8 and self.config.motion.quiet_jerk is not None:
-            jerk, floor = self._manoeuvre_jerk(mix, updated)
+            jerk, floor = self._manoeuvre_jerk(mix)
         if dt > 0.0 and len(mix):
             means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk, relax, floor)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
@@ -304,12 +304,11 @@ class Tracker:
             mix = Mixture(mix.weights, *relax_acceleration(mix.means, mix.covs, None, floor), mix.labels)
         self.mixture = mix
 
-    def _manoeuvre_jerk(self, mix: Mixture, updated: set[int] | None) -> tuple[np.ndarray, np.ndarray | None]:
+    def _manoeuvre_jerk(self, mix: Mixture) -> tuple[np.ndarray, np.ndarray | None]:
         """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
         label manoeuvres (an update moved it by more than ``manoeuvre_sigmas`` of the correction's
         expected spread within the last ``manoeuvre_hold`` s: ``_detect_manoeuvres``), else
-        ``quiet_jerk`` (and ``jerk`` for a reported label no cluster updated in the last frame, with
-        ``manoeuvre_coasting``). The labels whose manoeuvre began in the last frame with a single large
+        ``quiet_jerk``. The labels whose manoeuvre began in the last frame with a single large
         correction (an abrupt onset, not a steady lag: ``_detect_manoeuvres``) first have the
         acceleration's variance raised to at least the Singer model's stationary one, ``jerk^2
         acceleration_time / 2`` (only the diagonal entry: the covariance stays positive definite), so
@@ -332,8 +331,6 @@ class Tracker:
         jerk = np.full(len(mix), motion.quiet_jerk)
         if self._manoeuvre_until and len(mix):
             jerk[_labels_in(mix.labels, self._manoeuvre_until)] = motion.jerk
-        if motion.manoeuvre_coasting and updated is not None and len(mix):
-            jerk[~_labels_in(mix.labels, updated) & _labels_in(mix.labels, self._ever_reported)] = motion.jerk
         return jerk, floor
 
     def _detect_manoeuvres(self, prior_means: np.ndarray, prior_covs: np.ndarray, post_means: np.ndarray,

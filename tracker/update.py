@@ -201,8 +201,7 @@ def update_pairs(
                                 extent_sd=extent_sd)
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if config.measurement.grow_extent:
-        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse],
-                                        config.measurement.settled_width_std)
+        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse])
         if grown.any():  # new sigma points for the pairs whose prior was widened (rare: a side came into view)
             pair_covs = grown_covs
             pair_sigma = pair_sigma.copy()
@@ -288,7 +287,7 @@ def _fused_settings(config: TrackerConfig) -> tuple[tuple, tuple, tuple, bool, b
                    float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
                    float(mcfg.continuation_offset))
         head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
-        update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent),
+        update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
                   -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
         cached = (prepare_settings(mcfg), scanned, update, shadows, continuation)
         config.__dict__["_fused_update_settings"] = cached
@@ -353,8 +352,8 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
             c(means, dtype=float), c(covs, dtype=float), c(inverse, dtype=np.intp), c(clu, dtype=np.intp), ut.scale,
             ut.wm, ut.wc, *wrapping.kernel_args(), kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
             road.length, road._ends_array, *curve, MIN_EXTENT, *structure_batch_args(batch), *head, *tail,
-            bool(mcfg.grow_extent), -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate),
-            *_extent_rule_args(config))
+            bool(mcfg.grow_extent), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
+            -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
     except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the staged path
         return None
     if status != DONE:
@@ -448,7 +447,6 @@ def _measure(ut: UnscentedTransform, sigma: np.ndarray, means: np.ndarray, covs:
 
 def grow_extent(
     means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray,
-    settled_width_std: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Widen the prior of pairs whose cluster shows a side longer than the predicted rectangle's.
 
@@ -466,30 +464,11 @@ def grow_extent(
 
     (``h`` = ``xi`` (``psi``) of the mean, ``sgn`` = +1 when the sensor is behind the centre along the
     body axis), and likewise ``W`` with the left normal ``(-sin h, cos h)`` for a short side; the update
-    then learns the extent from the side itself. A width whose standard deviation is below
-    ``settled_width_std`` (``MeasurementConfig``) is not grown: a short side longer than a settled
-    width is the track's heading lagging (the side next to it joined the chord), not a wider vehicle.
-    Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
+    then learns the extent from the side itself. Returns the mask of widened pairs ``(P,)`` and the covariances (a copy; unchanged where the mask is
     False). By ``tracker.extent.grow_extent_kernel``."""
     c = np.ascontiguousarray
     return grow_extent_kernel(c(means, dtype=float), c(covs, dtype=float), c(structure.excess, dtype=float),
-                              c(structure.sides), c(mean_corners, dtype=float),
-                              -1.0 if settled_width_std is None else float(settled_width_std),
-                              GROWTH_MIN_EXCESS, GROWTH_SIGMAS)
-
-
-def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, hold_length: np.ndarray,
-                hold_width: np.ndarray) -> None:
-    """The Schmidt update's consider parameters, in place: ``L`` where ``hold_length`` and ``W`` where
-    ``hold_width`` (masks over the pairs) keep their prior mean and variance, and where both are held
-    their joint 2 x 2 block stays the prior's (as the hold of ``apply_extent_rules``; the radar-only
-    update holds both, ``MeasurementConfig.radar_only_holds_extent``)."""
-    for index, hold in ((LENGTH, hold_length), (WIDTH, hold_width)):
-        res.mean[hold, index] = prior_mean[hold, index]
-        res.cov[hold, index, index] = prior_cov[hold, index, index]
-    both = hold_length & hold_width  # both consider parameters: their joint block stays the prior's
-    res.cov[both, LENGTH, WIDTH] = prior_cov[both, LENGTH, WIDTH]
-    res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
+                              c(structure.sides), c(mean_corners, dtype=float), GROWTH_MIN_EXCESS, GROWTH_SIGMAS)
 
 
 def update(

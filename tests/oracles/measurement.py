@@ -11,10 +11,9 @@ import numpy as np
 
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
-from tracker.measurement import (_shadowed_longer_whole, _shadowed_parts_partial, _sharp_parts_whole, _sharp_side_whole,
-                                 CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, LONGEST_VEHICLE,
-                                 MIN_CHORD, MIN_EXTENT, MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, WIDEST_VEHICLE,
-                                 ClusterBatch, Rectangles, Structure)
+from tracker.measurement import (_shadowed_parts_partial, _sharp_parts_whole, _sharp_side_whole, CENTRE, FIXED,
+                                 FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_CHORD, MIN_EXTENT,
+                                 MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, ClusterBatch, Rectangles, Structure)
 
 
 def side_normals(corners: np.ndarray) -> np.ndarray:
@@ -52,28 +51,11 @@ def to_vehicle(states: np.ndarray, ego: EgoState | tuple, road=None, coordinates
     return Rectangles(center, psi, x[..., 2], np.maximum(x[..., 5], MIN_EXTENT), np.maximum(x[..., 6], MIN_EXTENT))
 
 
-def shows_longer_side(excess: np.ndarray, sd: np.ndarray, width_side: np.ndarray | bool,
-                      settled_width_std: float | None) -> np.ndarray:
+def shows_longer_side(excess: np.ndarray, sd: np.ndarray) -> np.ndarray:
     """Whether a chord ``excess`` (m) longer than its predicted side is evidence of a longer side, not
     noise: more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` that extent's standard
-    deviation), and not a short side (``width_side``) longer than a settled width (its sd below
-    ``settled_width_std``: the track's heading lagging a lane change, the side next to it in the
-    chord). The evidence of the extent growth and of ``MeasurementConfig.shadowed_longer_whole``."""
-    longer = excess > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
-    if settled_width_std is not None:
-        longer &= ~np.asarray(width_side) | (sd >= settled_width_std)
-    return longer
-
-
-def _longer_than_predicted(chord: np.ndarray, predicted: np.ndarray, side: np.ndarray, extent_sd: np.ndarray,
-                           settled_width_std: float | None) -> np.ndarray:
-    """Whether a one-sided chord ``(P,)`` on side ``side`` shows its side longer than ``predicted``
-    (``shows_longer_side``, ``sd`` of ``L`` for the odd, long sides, of ``W`` for the others, from
-    ``extent_sd (P, 2)``), and no longer or wider than one vehicle."""
-    long_side = side % 2 == 1
-    sd = np.where(long_side, extent_sd[:, 0], extent_sd[:, 1])
-    return (shows_longer_side(chord - predicted, sd, ~long_side, settled_width_std)
-            & (chord <= np.where(long_side, LONGEST_VEHICLE, WIDEST_VEHICLE)))  # one vehicle's side
+    deviation). The evidence of the extent growth."""
+    return excess > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
 
 
 def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
@@ -180,16 +162,7 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
         # whole, a side that an occluder hides a little more every frame would shrink with what shows
         partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
-    if _shadowed_longer_whole(config, batch.occluded_end is not None, extent_sd is not None):
-        # ... unless it is longer than predicted: the vehicle is at least that long (or wide), a lower
-        # bound the prediction falls short of, so the part is measured whole (kept partial, a truck's
-        # rear half-hidden by a car would keep a car's width, and so never take the long-vehicle prior)
-        shadowed &= ~_longer_than_predicted(chord_len[:, 0], predicted[:, 0], sides[:, 0], extent_sd,
-                                            config.settled_width_std)
     partial |= shadowed[:, None]
-    if config.two_sided_data_partial:
-        # the data say two sides, the prediction shows one: what is seen is not one whole side
-        partial |= (batch.two_sided[ci] & ~two & ~single)[:, None]
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
     q_end = mean_corners[rows, end_c[:, 0]]

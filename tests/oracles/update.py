@@ -141,8 +141,8 @@ def gate_radar_rows(ut: UnscentedTransform, structure: Structure, z_sigma: np.nd
                                r=np.where(mask, structure.r, 1.0)), rejected
 
 
-def grow_extent(means: np.ndarray, covs: np.ndarray, structure: Structure, mean_corners: np.ndarray,
-                settled_width_std: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def grow_extent(means: np.ndarray, covs: np.ndarray, structure: Structure,
+                mean_corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The prior of each pair widened where a part's chord exceeds its predicted side by evidence of a
     longer side (``shows_longer_side``; long parts, odd sides, for ``L``, the others for ``W``):
     ``P += e^2 d d^T`` with ``d = extent_growth_direction``. Returns the mask of widened pairs and the
@@ -154,7 +154,7 @@ def grow_extent(means: np.ndarray, covs: np.ndarray, structure: Structure, mean_
     for index, is_part in ((LENGTH, long_part), (WIDTH, ~long_part)):
         e = np.max(np.where(is_part, excess, -np.inf), axis=1)  # (P,)
         sd = np.sqrt(np.maximum(covs[:, index, index], 0.0))
-        hit = shows_longer_side(e, sd, index == WIDTH, settled_width_std)
+        hit = shows_longer_side(e, sd)
         if not hit.any():
             continue
         d = extent_growth_direction(mean_corners, means[:, XI], means.shape[1], index)
@@ -205,8 +205,7 @@ def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray
                 hold_width: np.ndarray) -> None:
     """The Schmidt update's consider parameters, in place: ``L`` where ``hold_length`` and ``W`` where
     ``hold_width`` (masks over the pairs) keep their prior mean and variance, and where both are held
-    their joint 2 x 2 block stays the prior's (``hold_unobserved_extent``; the radar-only update holds
-    both, ``MeasurementConfig.radar_only_holds_extent``)."""
+    their joint 2 x 2 block stays the prior's (``hold_unobserved_extent``)."""
     for index, hold in ((LENGTH, hold_length), (WIDTH, hold_width)):
         res.mean[hold, index] = prior_mean[hold, index]
         res.cov[hold, index, index] = prior_cov[hold, index, index]
@@ -311,7 +310,7 @@ def update_pairs(means: np.ndarray, covs: np.ndarray, batch, component_index: np
     structure = build_structure(batch, clu, mean_corners, mcfg, config.use_radar, extent_sd=extent_sd)
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if mcfg.grow_extent:
-        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners, mcfg.settled_width_std)
+        grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners)
         if grown.any():
             pair_covs = grown_covs
             pair_sigma = pair_sigma.copy()
