@@ -125,3 +125,14 @@ class Scene:
         curvature = float(self.road.curvature(np.array([float(self.road.wrap_s(self.ego.s0 + self.ego.v * t))]))[0])
         speed = self.ego.v * (1.0 - curvature * self.ego.n)
         return Frame(t, EgoState(ego_xy[0], ego_xy[1], ego_yaw, speed, self.ego.v * curvature), pts, radar)
+
+
+def kernel_roads() -> dict[str, Road]:
+    """The kernels' test roads by name: an open clothoid road (straight, arc, ramp to the other side) and a
+    closed Hermite ellipse."""
+    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
+                                    lanes=3, lane_width=3.5)
+    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
+    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
+                               lane_width=3.5)
+    return {"clothoid-open": open_road, "hermite-closed": ring}

@@ -10,7 +10,7 @@ import pytest
 from oracles.measurement import build_structure as oracle_structure
 from oracles.measurement import to_vehicle as oracle_to_vehicle
 from oracles.measurement import visible_sides
-from scenes import Car, Scene
+from scenes import Car, Scene, kernel_roads
 
 from tracker import Road, Tracker
 from tracker.config import MeasurementConfig, TrackerConfig
@@ -628,22 +628,13 @@ def test_the_structure_kernel_equals_the_oracle(radar_rows, monkeypatch):
     assert whole_parts > 0  # the two-sided rule decided some parts
 
 
-def _roads():
-    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
-                                    lanes=3, lane_width=3.5)
-    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
-    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
-                               lane_width=3.5)
-    return {"clothoid-open": open_road, "hermite-closed": ring}
-
-
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 def test_the_exact_conversion_to_e_equals_the_oracle(name):
     """``to_vehicle`` of curvilinear states (``tracker.centerline.rectangles_kernel``) against the road's
     frame in numpy (``oracles.measurement.to_vehicle``): any leading shape, empty batches, 7 and 8 state
     columns, states beyond an open road's ends and across a closed road's seam, extents below
     ``MIN_EXTENT`` and a NaN extent; a non-finite ``s`` is refused."""
-    road = _roads()[name]
+    road = kernel_roads()[name]
     rng = np.random.default_rng(2)
     ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
     for shape, dim in (((40,), 7), ((6, 15), 7), ((5, 3, 2), 8), ((0,), 7), ((4, 0), 8)):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scenes import kernel_roads
 
 from tracker import Road
 from tracker.config import MotionConfig, ProcessNoise, TrackerConfig
@@ -306,17 +307,7 @@ def test_predict_refuses_relax_and_floor_of_the_wrong_shape():
 
 
 # -- the Frenet motion and UKF prediction kernels against the numpy oracles -----------------------------
-def _kernel_roads() -> dict[str, Road]:
-    """An open clothoid road (straight, arc, ramp to the other side) and a closed Hermite ellipse."""
-    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
-                                    lanes=3, lane_width=3.5)
-    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
-    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
-                               lane_width=3.5)
-    return {"clothoid-open": open_road, "hermite-closed": ring}
-
-
-KERNEL_ROADS = _kernel_roads()
+KERNEL_ROADS = kernel_roads()
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scenes import kernel_roads
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
@@ -389,17 +390,7 @@ def test_one_point_in_any_shape_takes_the_fast_path_and_agrees_with_the_batch():
 
 
 # -- the curve and projection kernels against the numpy oracles ---------------------------------------
-def _kernel_roads() -> dict[str, Road]:
-    """An open clothoid road (straight, arc, ramp to the other side) and a closed Hermite ellipse."""
-    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
-                                    lanes=3, lane_width=3.5)
-    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
-    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
-                               lane_width=3.5)
-    return {"clothoid-open": open_road, "hermite-closed": ring}
-
-
-KERNEL_ROADS = _kernel_roads()
+KERNEL_ROADS = kernel_roads()
 
 
 def _seam_difference(road: Road, a: np.ndarray, b: np.ndarray) -> np.ndarray:

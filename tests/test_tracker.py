@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from scenes import Car, Scene
+from scenes import Car, Scene, kernel_roads
 
 from oracles import tracker as oracle
 from tracker import Frame, Road, Track, Tracker, TrackerConfig
@@ -1146,15 +1146,6 @@ def test_extract_orders_by_weight_splits_a_second_component_and_holds_back_the_u
     assert tr._lost.last_updated(20, -1.0) == 1.0 and tr._lost.lost == {}
 
 
-def _curved_roads():
-    open_road = Road.from_curvature([(200.0, 0.0, 0.0), (300.0, 0.0, 1 / 150.0), (600.0, 1 / 150.0, -1 / 80.0)],
-                                    lanes=3, lane_width=3.5)
-    th = np.linspace(0.0, 2.0 * np.pi, 13)[:-1]
-    ring = Road.from_waypoints(np.column_stack([300.0 * np.cos(th), 200.0 * np.sin(th)]), closed=True, lanes=2,
-                               lane_width=3.5)
-    return {"clothoid-open": open_road, "hermite-closed": ring}
-
-
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 def test_the_report_centres_equal_to_vehicle_exactly(name):
     """``Tracker._extract``'s report-range centres (``tracker.tracker._centres``: one compiled call,
@@ -1164,7 +1155,7 @@ def test_the_report_centres_equal_to_vehicle_exactly(name):
     from tracker.measurement import to_vehicle
     from tracker.tracker import _centres
 
-    road = _curved_roads()[name]
+    road = kernel_roads()[name]
     rng = np.random.default_rng(7)
     ego = EgoState(120.0, -40.0, 0.7, 12.0, 0.05)
     for dim in (7, 8):
