@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from scenes import Car, Scene
+from scenes import Car, Scene, kernel_roads
 from scipy.stats import multivariate_normal
 
 from tracker import Road, Tracker
@@ -690,13 +690,12 @@ def test_sigma_rectangles_equal_the_two_steps(name):
     in numpy (``oracles.measurement.to_vehicle``); 8-state Gaussians across the seam and beyond the
     ends; a NaN is refused, a covariance that is not positive definite is repaired and counted."""
     from oracles.measurement import to_vehicle as oracle_to_vehicle
-    from test_measurement import _roads
 
     from tracker.frame import EgoState
     from tracker.motion import curvilinear_wrapping
     from tracker.update import sigma_rectangles
 
-    road = _roads()[name]
+    road = kernel_roads()[name]
     wrapping = curvilinear_wrapping(road)
     ut = UnscentedTransform(n=8)
     rng = np.random.default_rng(5)
