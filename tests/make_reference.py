@@ -44,34 +44,26 @@ def run_reference() -> dict[str, np.ndarray]:
     """Per reported track row: frame index, label, weight, mean (7), covariance (7 x 7)."""
     scene = reference_scene()
     rng = np.random.default_rng(2026)
-    # the reference's model as it was made: a single extraction threshold (before
-    # ReductionConfig.keep_threshold), no radar-backed sparse births (BirthConfig.min_cluster_points_radar)
-    # no shadow-aware anchoring (MeasurementConfig.shadow_window), constant speed (MotionConfig.
-    # acceleration, on by default since session 8) and no updates of components the occlusion model
-    # hides (DetectionConfig.hidden_update_p_detection, session 9) and no radar gate (MeasurementConfig.
-    # radar_gate, session 9) and no births from two radar-backed points (BirthConfig.
-    # min_cluster_points_fused, session 9) and no first-scan births or dropping of tracks inside a seen
-    # vehicle or radar-only updates of coasting tracks (BirthConfig.first_scan, ReductionConfig.
-    # drop_inside_updated, MeasurementConfig.radar_only_update, session 10) and no birth centre correlated
-    # with its unseen length (BirthConfig.correlated_extent, session 12) and no sharp short side taken whole
-    # (MeasurementConfig.sharp_side_whole, session 13; nor its parts, sharp_parts_whole, session 14; both need
-    # the shadow flags, off here; the manoeuvre-gated jerk, MotionConfig.quiet_jerk, needs the acceleration
-    # state, off here) and no absorption of overlapping labels (ReductionConfig.absorb_overlap, session 15)
-    # and no narrow-vehicle prior (BirthConfig.narrow_width, session 16) and no one-point fragments joined to
-    # the track they continue (ClusteringConfig.fragment_points, session 17) and no shadowed parts of
-    # two-sided clusters held partially visible (MeasurementConfig.shadowed_parts_partial, session 18; needs
-    # the shadow flags, off here) and no births spread on either side of a cluster whose near end borders a
-    # shadow (BirthConfig.shadow_aware, session 19; needs the shadow flags) nor the softer update of parts
-    # going on behind a shadow (shadowed_lidar_sigma, session 21; needs the shadow flags):
-    # intended changes of the model,
-    # measured in issue 10's notes; the reference guards the speed-ups against unintended ones
+    # the reference's model with these rules off: a single extraction threshold (ReductionConfig.
+    # keep_threshold), no radar-backed sparse births (BirthConfig.min_cluster_points_radar), no
+    # shadow-aware anchoring (MeasurementConfig.shadow_window; the rules that need the shadow flags are
+    # off with it: sharp ends and sides, shadowed parts, shadow-aware births, shadowed_lidar_sigma),
+    # constant speed (MotionConfig.acceleration; the manoeuvre-gated jerk, MotionConfig.quiet_jerk, needs
+    # it), no updates of components the occlusion model hides (DetectionConfig.hidden_update_p_detection),
+    # no radar gate (MeasurementConfig.radar_gate), no births from two radar-backed points (BirthConfig.
+    # min_cluster_points_fused), no first-scan births (BirthConfig.first_scan), no dropping of tracks
+    # inside a seen vehicle (ReductionConfig.drop_inside_updated), no radar-only updates of coasting
+    # tracks (MeasurementConfig.radar_only_update), no absorption of overlapping labels (ReductionConfig.
+    # absorb_overlap), no narrow-vehicle prior (BirthConfig.narrow_width), no one-point fragments joined to
+    # the track they continue (ClusteringConfig.fragment_points): the reference guards the speed-ups
+    # against unintended changes of the model
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
-                                  first_scan=False, correlated_extent=False, narrow_width=None),
+                                  first_scan=False, narrow_width=None),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
-                                        sharp_side_whole=False, sharp_parts_whole=False, shadowed_lidar_sigma=None),
+                                        shadowed_lidar_sigma=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
         clustering=dataclasses.replace(base.clustering, fragment_points=None),

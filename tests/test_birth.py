@@ -169,18 +169,17 @@ def test_cartesian_births_match_the_exact_conversion(road):
 
 
 @pytest.mark.parametrize("ahead", [True, False], ids=["car-ahead", "car-behind"])
-@pytest.mark.parametrize("correlated", [True, False], ids=["correlated-extent", "off"])
-def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_length(ahead, correlated):
+def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_length(ahead):
     """A car straight ahead (behind) on a straight road shows only its rear (front): the birth's centre
     is that end plus (minus) half the unseen length, ``s = e +- L/2``, so ``cov(s, L) = +- var(L)/2``,
     ``var(s) = var(e) + var(L)/4`` and the end itself, ``s -+ L/2``, keeps the fit's ``var(e)`` (0.5^2).
-    The width is seen: no lateral coupling. Off: the diagonal prior."""
+    The width is seen: no lateral coupling."""
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
     ego = EgoState(100.0, 0.0, 0.0, 15.0)
     centre = np.array([125.0 if ahead else 75.0, 0.0])
     corners = to_local(rectangle_corners(centre, np.array(0.0), np.array(4.8), np.array(2.0)), np.array([100.0, 0.0]), 0.0)
     points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
-    cfg = BirthConfig(correlated_extent=correlated)
+    cfg = BirthConfig()
     means, covs = cluster_births([points], [None], ego, road, cfg)
     p = covs[0]
     sign = 1.0 if ahead else -1.0
@@ -188,13 +187,10 @@ def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_le
     assert means[0, 5] == pytest.approx(cfg.length)
     # the centre half the prior length beyond the visible end
     assert means[0, 0] == pytest.approx(centre[0] - sign * 2.4 + sign * 0.5 * cfg.length, abs=0.05)
-    if correlated:
-        assert p[0, 5] == pytest.approx(sign * 0.5 * var_l, rel=1e-3) and p[5, 0] == p[0, 5]  # the fit's heading: ~1e-4 rad off
-        assert p[0, 0] == pytest.approx(0.25 + 0.25 * var_l, rel=1e-3)
-        end = np.array([1.0, 0, 0, 0, 0, -sign * 0.5, 0])  # s -+ L/2: the visible end
-        assert end @ p @ end == pytest.approx(0.25, rel=1e-3)
-    else:
-        assert p[0, 5] == 0.0 and p[0, 0] == pytest.approx(0.25)
+    assert p[0, 5] == pytest.approx(sign * 0.5 * var_l, rel=1e-3) and p[5, 0] == p[0, 5]  # the fit's heading: ~1e-4 rad off
+    assert p[0, 0] == pytest.approx(0.25 + 0.25 * var_l, rel=1e-3)
+    end = np.array([1.0, 0, 0, 0, 0, -sign * 0.5, 0])  # s -+ L/2: the visible end
+    assert end @ p @ end == pytest.approx(0.25, rel=1e-3)
     assert p[1, 5] == pytest.approx(0.0, abs=0.01) and np.all(p[:2, 6] == 0.0)  # the fit's heading: 0.01 rad off
     np.testing.assert_allclose(p, p.T)
     assert np.linalg.eigvalsh(p).min() > 0.0
@@ -225,27 +221,26 @@ def test_a_birth_seen_from_its_side_couples_its_lateral_position_with_its_unseen
     assert means[0, 5] == pytest.approx(cfg.long_length) and np.all(covs[:, :2, 5:] == 0.0)
 
 
-@pytest.mark.parametrize("shadow_aware", [True, False], ids=["shadow-aware", "off"])
 @pytest.mark.parametrize("near_end_shadowed", [True, False], ids=["near-end-shadowed", "far-end-shadowed"])
-def test_a_side_whose_near_end_borders_a_shadow_may_go_on_either_way(shadow_aware, near_end_shadowed):
+def test_a_side_whose_near_end_borders_a_shadow_may_go_on_either_way(near_end_shadowed):
     """A car abeam-ahead on a straight road shows 2 m of its left side, from x = 110 to 112 (the side at
     y = 4); the prior length 4.5 m leaves 2.5 m unseen. Away from the sensor (ahead) is where the birth
     puts it, correlated with L: centre 112.25, ``cov(s, L) = var(L) / 2``. When the cluster's *near* end
     (x = 110) borders another object's shadow, the unseen part may lie behind that object as well: the
     centre stays at the points' (111) and ``var(s)`` takes ``(2.5 / 2)^2`` more, uncorrelated with L.
-    A shadow at the far end changes nothing (it agrees with "away"); so does the rule switched off."""
+    A shadow at the far end changes nothing (it agrees with "away")."""
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
     ego = EgoState(100.0, 0.0, 0.0, 15.0)
     x = np.linspace(110.0, 112.0, 9)
     points = np.column_stack([x - 100.0, np.full_like(x, 4.0)])  # in E (ego at x = 100, heading +x)
     near, far = points[0], points[-1]
     shadowed = [(near, far) if near_end_shadowed else (far, near)]
-    cfg = BirthConfig(shadow_aware=shadow_aware)
+    cfg = BirthConfig()
     means, covs = cluster_births([points], [None], ego, road, cfg, shadowed)
     plain_means, plain_covs = cluster_births([points], [None], ego, road, cfg)
     s, p = means[0, 0], covs[0]
     missing = cfg.length - 2.0
-    if shadow_aware and near_end_shadowed:
+    if near_end_shadowed:
         assert s == pytest.approx(111.0, abs=0.05)
         assert p[0, 5] == pytest.approx(0.0, abs=1e-3)
         assert p[0, 0] == pytest.approx(0.25 + (0.5 * missing) ** 2, rel=1e-2)

@@ -22,8 +22,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
     assert c.motion.manoeuvre_memory == 0.5
-    assert c.measurement.sharp_side_whole
-    assert c.measurement.sharp_parts_whole and c.measurement.whole_min_points == 4
+    assert c.measurement.whole_min_points == 4
     assert c.reduction.same_label_along_length
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
@@ -53,8 +52,6 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(manoeuvre_sigmas=0.0), r"MotionConfig.manoeuvre_sigmas must be > 0"),
         (lambda: MotionConfig(manoeuvre_hold=-1.0), r"MotionConfig.manoeuvre_hold must be >= 0"),
         (lambda: MotionConfig(manoeuvre_memory=0.0), r"MotionConfig.manoeuvre_memory must be > 0"),
-        (lambda: MeasurementConfig(sharp_side_whole="yes"), r"MeasurementConfig.sharp_side_whole must be true or false"),
-        (lambda: MeasurementConfig(sharp_parts_whole=1), r"MeasurementConfig.sharp_parts_whole must be true or false"),
         (lambda: MeasurementConfig(whole_min_points=1), r"MeasurementConfig.whole_min_points must be an integer >= 2"),
         (lambda: MeasurementConfig(whole_gate_sigmas=-1.0), r"MeasurementConfig.whole_gate_sigmas"),
         (lambda: MeasurementConfig(whole_gate_slack=float("nan")), r"MeasurementConfig.whole_gate_slack"),

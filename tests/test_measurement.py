@@ -17,6 +17,7 @@ from tracker.config import MeasurementConfig, TrackerConfig
 from tracker.frame import EgoState
 from tracker.measurement import (
     CENTRE,
+    Cluster,
     FROM_A,
     FROM_B,
     FULL,
@@ -32,7 +33,14 @@ from tracker.measurement import (
 from tracker.ukf import UnscentedTransform
 from tracker.update import update
 
-EXACT = MeasurementConfig(end_gap_correction=False)  # MATLAB's model: extreme points are the corners
+EXACT = MeasurementConfig()
+
+
+def cornered(points: np.ndarray, config: MeasurementConfig = EXACT, velocity=None) -> Cluster:
+    """``prepare_cluster`` with MATLAB's model of the ends: the extreme points are the corners (no
+    end-gap margins), so the generating points of a noise-free scan are its points."""
+    c = prepare_cluster(points, config, velocity=velocity)
+    return dataclasses.replace(c, end_margin=np.zeros((3, 2)), end_gap=np.zeros((3, 2)))
 R80 = 80.0
 
 
@@ -69,7 +77,7 @@ def test_two_sided_exact_contour_generating_points_within_1cm() -> None:
     assert visible_sides(k).tolist() == [False, False, True, True]
     pts = two_sided_scan(k, 0, 3, 2)
     shuffled = pts[np.random.default_rng(0).permutation(len(pts))]
-    c = prepare_cluster(shuffled, EXACT)
+    c = cornered(shuffled, EXACT)
     assert c.two_sided and c.size == len(pts)
     np.testing.assert_allclose(c.points[c.corner], k[3], atol=1e-9)  # the corner index is the corner
     y = generating_points(AHEAD_LEFT, c, ORIGIN, config=EXACT, coordinates="cartesian")
@@ -83,7 +91,7 @@ def test_one_sided_exact_contour_generating_points_within_1cm() -> None:
     assert visible_sides(k).tolist() == [False, False, True, False]
     b = bearing(k)
     pts, _ = rectangle_scan(k, np.linspace(b[3], b[2], 25))
-    c = prepare_cluster(pts, EXACT)
+    c = cornered(pts, EXACT)
     assert not c.two_sided
     y = generating_points(state, c, ORIGIN, config=EXACT, coordinates="cartesian")
     assert np.abs(y - c.points).max() < 0.01
@@ -111,7 +119,7 @@ def test_curvilinear_state_goes_through_road_and_ego_pose(circle80: Road) -> Non
     assert vis.sum() == 2
     j = int(np.flatnonzero(vis & np.roll(vis, 1))[0])  # sides j - 1 and j visible: corner K_j
     pts = two_sided_scan(k_hand, (j + 1) % 4, j, (j - 1) % 4)
-    cl = prepare_cluster(pts, EXACT)
+    cl = cornered(pts, EXACT)
     y = generating_points(state, cl, ego, circle80, EXACT)
     assert np.abs(y - cl.points).max() < 0.01
 
@@ -126,7 +134,7 @@ def test_corner_index_found_with_noise() -> None:
     rng = np.random.default_rng(1)
     for _ in range(20):
         noisy = pts + 0.02 * rng.standard_normal(pts.shape)
-        c = prepare_cluster(noisy[rng.permutation(len(noisy))], every_point)
+        c = cornered(noisy[rng.permutation(len(noisy))], every_point)
         assert c.two_sided and c.size == len(pts)
         assert abs(c.corner - true_index) <= 2
         assert np.hypot(*(c.chord_end[1] - k[3])) < 0.05
@@ -143,8 +151,8 @@ def test_partial_visibility_keeps_the_length_from_shrinking() -> None:
     visible_end = k[3] + 0.4 * (k[0] - k[3])  # only 40 % of the right side, next to the corner
     rays = np.concatenate([np.linspace(bearing(visible_end), b[3], 15), np.linspace(b[3], b[2], 20)[1:]])
     pts, _ = rectangle_scan(k, rays)
-    cfg = MeasurementConfig(lidar_sigma=0.05, end_gap_correction=False)  # the contour includes the corners
-    cl = prepare_cluster(pts, cfg)
+    cfg = MeasurementConfig(lidar_sigma=0.05)  # the contour includes the corners
+    cl = cornered(pts, cfg)
     st = build_structure(ClusterBatch.of([cl]), np.array([0]), k[None], cfg)
     assert st.two_sided[0] and st.mode[0, 0] == FROM_B and st.mode[0, 1] == FULL
     y = generating_points(state, cl, ORIGIN, config=cfg, coordinates="cartesian")
@@ -153,11 +161,11 @@ def test_partial_visibility_keeps_the_length_from_shrinking() -> None:
     for threshold in (0.6, 0.0):
         tc = TrackerConfig(
             coordinates="cartesian",
-            measurement=MeasurementConfig(lidar_sigma=0.05, partial_visibility=threshold, end_gap_correction=False),
+            measurement=MeasurementConfig(lidar_sigma=0.05, partial_visibility=threshold),
         )
         ut = UnscentedTransform(tc.ukf)
         mean, cov = state.copy(), np.diag([0.1, 0.1, 0.5, 0.02, 0.01, 0.5, 0.1]) ** 2
-        c2 = prepare_cluster(pts, tc.measurement)
+        c2 = cornered(pts, tc.measurement)
         for _ in range(10):
             mean, cov, _ = update(mean, cov, c2, ORIGIN, None, tc, ut)
             cov = cov + np.diag([1e-4, 1e-4, 1e-3, 1e-5, 1e-5, 1e-3, 1e-4])
@@ -181,7 +189,7 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
         lo, hi = (b3, b3 + share * (b2 - b3)) if first_end else (b2 - share * (b2 - b3), b2)
         pts, hit = rectangle_scan(k, np.linspace(lo, hi, 12))
         assert hit.all()
-        batch = ClusterBatch.of([prepare_cluster(pts, EXACT)])
+        batch = ClusterBatch.of([cornered(pts, EXACT)])
         shadow = np.array([[not first_end, first_end]])  # the end away from the visible one is occluded
         flagged = build_structure(dataclasses.replace(batch, occluded_end=shadow), np.array([0]), predicted, EXACT)
         plain = build_structure(batch, np.array([0]), predicted, EXACT)
@@ -204,11 +212,11 @@ def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predi
     """A 16 m bus 25 m ahead, 5 m left, shows its right side and rear, rays every 0.05 deg; its front
     1.2 m lie in a nearer object's shadow (``ClusterBatch.occluded_end[:, 0]``, the side's far end is
     the cluster's first point). Predicted at its true 16 m, the visible side covers over 90 % of it:
-    the whole side before (``FULL``, the length pulled to what shows), partially visible and anchored at
-    the corner (``FROM_B``) with ``MeasurementConfig.shadowed_parts_partial``. Predicted 12 m long (same
-    rear-right corner), the side is longer than predicted: measured whole, to the last return (no
-    end-gap margin at the shadowed end, so the first point is the far corner: ``c1 = 0``). The rule
-    off, no shadow flags, or the shadow at the other end (the rear's): ``FULL`` as before."""
+    partially visible and anchored at the corner (``FROM_B``), not the whole side (``FULL``, which would
+    pull the length to what shows). Predicted 12 m long (same rear-right corner), the side is longer
+    than predicted: measured whole, to the last return (no end-gap margin at the shadowed end, so the
+    first point is the far corner: ``c1 = 0``). No shadow flags, or the shadow at the other end (the
+    rear's): ``FULL``."""
     bus = np.array([25.0, 5.0, 10.0, 0.0, 0.0, 16.0, 2.5])
     k = corners_of(bus)  # K0 front-right (lowest bearing), K3 rear-right, K2 rear-left
     visible_front = k[0] + 1.2 * (k[3] - k[0]) / 16.0
@@ -222,7 +230,6 @@ def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predi
     short = corners_of(bus + np.array([-2.0, 0.0, 0.0, 0.0, 0.0, -4.0, 0.0]))[None]  # 12 m, same K3
     np.testing.assert_allclose(short[0, 3], k[3], atol=1e-12)
     sd = np.array([[1.0, 0.2]])
-    off = dataclasses.replace(config, shadowed_parts_partial=False)
 
     def structure(b, corners=true_length, cfg=config):
         st = build_structure(b, np.array([0]), corners, cfg, extent_sd=sd)
@@ -232,13 +239,12 @@ def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predi
     covered = batch.chord_len[0, 1] + batch.end_margin[0, 1].sum()
     assert 0.9 * 16.0 < covered < 16.0  # what the rule is about: over partial_visibility, short of the side
     assert structure(shadowed).mode[0, 0] == FROM_B
-    assert structure(shadowed, cfg=off).mode[0, 0] == FULL
     assert structure(batch).mode[0, 0] == FULL  # no flags
     assert structure(dataclasses.replace(batch, occluded_end=np.array([[False, True]]))).mode[0, 0] == FULL
     longer = structure(shadowed, corners=short)
     assert longer.mode[0, 0] == FULL and abs(longer.c1[0, 0]) < 1e-12  # to the last return
-    before = structure(shadowed, corners=short, cfg=off)
-    assert before.mode[0, 0] == FULL and before.c1[0, 0] > 0.0  # the end-gap margin beyond it
+    unflagged = structure(batch, corners=short)
+    assert unflagged.mode[0, 0] == FULL and unflagged.c1[0, 0] > 0.0  # the end-gap margin beyond it
     # the oracle agrees
     other = oracle_structure(shadowed, np.array([0]), short, config, extent_sd=sd)
     np.testing.assert_array_equal(other.mode, longer.mode)
@@ -248,12 +254,10 @@ def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predi
 
 def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     """A motorcycle (2.2 x 0.8 m) 20 m straight ahead shows its whole 0.8 m rear; predicted as a car
-    (1.9 m wide) the rear covers 42 % of the predicted one. With ``MeasurementConfig.sharp_side_whole``
-    and shadow flags saying neither end borders a nearer object, both ends sharp (half a ray gap,
+    (1.9 m wide) the rear covers 42 % of the predicted one. With shadow flags saying neither end borders a nearer object, both ends sharp (half a ray gap,
     ~4 cm here): the whole rear (``FULL``), so the width can shrink to it. Not without the shadow
     flags (nothing says an end is free), not with an end in a shadow or continuing in another cluster,
-    not with a blunt end (half a ray gap over ``shadow_free_gap``), not with the rule off: partially
-    visible, anchored, as before."""
+    not with a blunt end (half a ray gap over ``shadow_free_gap``): partially visible, anchored."""
     truth = np.array([20.0, 0.0, 10.0, 0.0, 0.0, 2.2, 0.8])
     k = corners_of(truth)
     predicted = corners_of(np.array([20.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]) + np.array([1.25, 0, 0, 0, 0, 0, 0]))[None]
@@ -265,20 +269,18 @@ def test_a_short_side_with_both_ends_sharp_and_free_is_the_whole_side() -> None:
     free = dataclasses.replace(batch, occluded_end=np.array([[False, False]]))
     structure = build_structure(free, np.array([0]), predicted, config)
     assert structure.sides[0, 0] == 2 and structure.mode[0, 0] == FULL
-    off = dataclasses.replace(config, sharp_side_whole=False)
-    for other, cfg in ((batch, config), (dataclasses.replace(batch, occluded_end=np.array([[False, True]])), config),
-                       (dataclasses.replace(free, continued_end=np.array([[True, False]])), config),
-                       (dataclasses.replace(free, end_gap=np.full_like(batch.end_gap, 0.35)), config), (free, off)):
-        assert build_structure(other, np.array([0]), predicted, cfg).mode[0, 0] != FULL
+    for other in (batch, dataclasses.replace(batch, occluded_end=np.array([[False, True]])),
+                  dataclasses.replace(free, continued_end=np.array([[True, False]])),
+                  dataclasses.replace(free, end_gap=np.full_like(batch.end_gap, 0.35))):
+        assert build_structure(other, np.array([0]), predicted, config).mode[0, 0] != FULL
 
 
 def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_side() -> None:
     """A motorcycle (2.2 x 0.8 m) 15 m ahead-left shows its rear (0.8 m) and right side (2.2 m), rays
     every 0.2 deg; predicted as a car (4.5 x 1.8 m) with the same rear-right corner, the parts cover
-    44 % and 49 % of the predicted sides. With ``MeasurementConfig.sharp_parts_whole`` (both far ends
-    sharp and free, both parts with at least ``whole_min_points`` points, the shrinks within 3 sd + 0.3
-    m of the extent's sd) both parts are whole (``FULL``); each condition that fails keeps its part(s)
-    partially visible, anchored at the corner (``FROM_B`` / ``FROM_A``): the rule off, no extent sd
+    44 % and 49 % of the predicted sides. With both far ends sharp and free, both parts with at least ``whole_min_points`` points, the shrinks within 3 sd + 0.3
+    m of the extent's sd, both parts are whole (``FULL``); each condition that fails keeps its part(s)
+    partially visible, anchored at the corner (``FROM_B`` / ``FROM_A``): no extent sd
     (the gate cannot be checked), no shadow flags, a far end in a shadow or continuing in another
     cluster (that part only), a blunt far end (half a ray gap above ``shadow_free_gap`` and the
     predicted side going on less than two ray gaps beyond it), too few points per part, an sd too small
@@ -303,7 +305,6 @@ def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_sid
         return st.mode[0].tolist()
 
     assert modes(free) == [FULL, FULL]
-    assert modes(free, dataclasses.replace(config, sharp_parts_whole=False)) == [FROM_B, FROM_A]
     assert modes(free, extent_sd=None) == [FROM_B, FROM_A]
     assert modes(batch) == [FROM_B, FROM_A]  # no shadow flags: nothing says an end is free
     assert modes(dataclasses.replace(free, occluded_end=np.array([[True, False]]))) == [FROM_B, FULL]
@@ -345,15 +346,15 @@ def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> Non
 def test_downsampling_bound_keeps_extremes_and_corner() -> None:
     k = corners_of(AHEAD_LEFT)
     pts = two_sided_scan(k, 0, 3, 2, n_a=300, n_b=200)
-    cfg = MeasurementConfig(max_cluster_points=40, end_gap_correction=False)
-    c = prepare_cluster(pts, cfg)
+    cfg = MeasurementConfig(max_cluster_points=40)
+    c = cornered(pts, cfg)
     assert c.raw_count == len(pts)
     assert c.size <= 40
     np.testing.assert_allclose(c.points[c.corner], k[3], atol=1e-9)
     np.testing.assert_allclose(c.points[0], k[0], atol=1e-9)
     np.testing.assert_allclose(c.points[-1], k[2], atol=1e-9)
     # lines and extents come from all points: the same as without downsampling
-    full = prepare_cluster(pts, MeasurementConfig(max_cluster_points=10_000, end_gap_correction=False))
+    full = cornered(pts, MeasurementConfig(max_cluster_points=10_000))
     np.testing.assert_allclose(c.chord_len, full.chord_len, atol=1e-12)
     y = generating_points(AHEAD_LEFT, c, ORIGIN, config=cfg, coordinates="cartesian")
     assert np.abs(y - c.points).max() < 0.01
@@ -362,7 +363,7 @@ def test_downsampling_bound_keeps_extremes_and_corner() -> None:
 def test_single_point_generating_point_on_nearest_visible_side() -> None:
     k = corners_of(AHEAD_LEFT)
     p = k[3] + 0.3 * (k[0] - k[3])  # on the right side
-    c = prepare_cluster(p[None], EXACT)
+    c = cornered(p[None], EXACT)
     y = generating_points(AHEAD_LEFT, c, ORIGIN, config=EXACT, coordinates="cartesian")
     np.testing.assert_allclose(y[0], p, atol=1e-9)
 
@@ -374,7 +375,7 @@ def test_single_point_is_not_matched_to_a_side_seen_at_grazing_incidence() -> No
     behind = np.array([-94.0, 3.9, 20.0, np.radians(-3.0), 0.0, 4.5, 1.8])
     k = corners_of(behind)
     point = k[2] + np.array([-0.5, 0.1])  # beyond the rear-left corner
-    c = prepare_cluster(point[None], EXACT)
+    c = cornered(point[None], EXACT)
     assert visible_sides(k[None])[0].tolist() == [True, True, False, False]
     grazing = build_structure(ClusterBatch.of([c]), np.array([0]), k[None],
                               dataclasses.replace(EXACT, single_point_min_apparent=0.0))
@@ -389,9 +390,9 @@ def test_single_point_is_not_matched_to_a_side_seen_at_grazing_incidence() -> No
 def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
     k = corners_of(AHEAD_LEFT)
     pts = two_sided_scan(k, 0, 3, 2)
-    c = prepare_cluster(pts, EXACT)
+    c = cornered(pts, EXACT)
     assert c.two_sided and c.eigen_ratio < 50
-    line = prepare_cluster(np.column_stack([np.full(30, 10.0), np.linspace(-1, 1, 30)]), EXACT)
+    line = cornered(np.column_stack([np.full(30, 10.0), np.linspace(-1, 1, 30)]), EXACT)
     assert not line.two_sided and line.eigen_ratio > 50
     # a prediction that shows only one side (straight ahead) overrules the data's L
     ahead = corners_of(np.array([12.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]))
@@ -403,7 +404,7 @@ def test_non_finite_points_are_dropped_and_counted() -> None:
     k = corners_of(AHEAD_LEFT)
     pts = two_sided_scan(k, 0, 3, 2)
     bad = np.vstack([pts, [[np.nan, 1.0], [np.inf, 0.0]]])
-    c = prepare_cluster(bad, EXACT)
+    c = cornered(bad, EXACT)
     assert c.dropped == 2 and c.size == len(pts)
     with pytest.raises(ValueError, match="at least one finite point"):
         prepare_cluster(np.full((3, 2), np.nan))
@@ -416,7 +417,7 @@ def test_non_finite_points_are_dropped_and_counted() -> None:
 def test_radar_rows_predict_absolute_velocity_in_e() -> None:
     k = corners_of(AHEAD_LEFT)
     pts = two_sided_scan(k, 0, 3, 2)
-    c = prepare_cluster(pts, EXACT, velocity=[9.9, 1.0])
+    c = cornered(pts, EXACT, velocity=[9.9, 1.0])
     ego = (5.0, -2.0, 0.3)
     state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])  # Cartesian, psi = 0.5 in G
     rect = to_vehicle(state[None, None], ego, coordinates="cartesian")  # one pair, one sigma point
@@ -435,7 +436,7 @@ def test_radar_speed_row_is_the_velocity_along_the_predicted_heading() -> None:
     with ``u`` the predicted mean's heading in E (psi_E = 0.2 here); the second row is masked out.
     A sigma point turned by 0.1 rad predicts ``v cos 0.1``."""
     k = corners_of(AHEAD_LEFT)
-    c = prepare_cluster(two_sided_scan(k, 0, 3, 2), EXACT, velocity=[9.9, 1.0])
+    c = cornered(two_sided_scan(k, 0, 3, 2), EXACT, velocity=[9.9, 1.0])
     ego = (5.0, -2.0, 0.3)
     state = np.array([20.0, 3.0, 12.0, 0.5, 0.0, 4.7, 1.9])
     turned = state + np.array([0, 0, 0, 0.1, 0, 0, 0])
@@ -622,9 +623,8 @@ def test_the_structure_kernel_equals_the_oracle(radar_rows, monkeypatch):
                 got = build_structure(variant, clu, corners, config, use_radar, extent_sd=sd)
                 assert_fields_equal(ref, got)
             if sd is not None:
-                off = build_structure(variant, clu, corners, dataclasses.replace(config, sharp_parts_whole=False),
-                                      extent_sd=sd)
-                whole_parts += int((got.mode != off.mode).sum())
+                unsized = build_structure(variant, clu, corners, config, extent_sd=None)  # the rule needs the sd
+                whole_parts += int((got.mode != unsized.mode).sum())
     assert whole_parts > 0  # the two-sided rule decided some parts
 
 

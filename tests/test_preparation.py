@@ -58,8 +58,8 @@ def assert_same(batch, reference) -> None:
 
 
 @pytest.mark.parametrize("seed", range(6))
-@pytest.mark.parametrize("config", [MeasurementConfig(), MeasurementConfig(end_gap_correction=False),
-                                    MeasurementConfig(max_cluster_points=12)], ids=["default", "no-gap", "12-points"])
+@pytest.mark.parametrize("config", [MeasurementConfig(), MeasurementConfig(max_cluster_points=12)],
+                         ids=["default", "12-points"])
 def test_batch_equals_the_one_cluster_oracle(seed: int, config: MeasurementConfig) -> None:
     clusters = random_clusters(seed)
     rng = np.random.default_rng(100 + seed)
@@ -154,8 +154,8 @@ def test_scanned_batch_is_the_batch_with_its_shadow_flags(seed: int) -> None:
     resolution, max_range = np.radians(0.2), 60.0
     flags = [0, 0]
     settings = [MeasurementConfig(), MeasurementConfig(shadow_window=None),
-                MeasurementConfig(sharp_side_whole=False, sharp_parts_whole=False),
-                MeasurementConfig(shadow_window=3.0, continuation_rays=2.0, sharp_side_whole=True)]
+                MeasurementConfig(continuation_rays=None),
+                MeasurementConfig(shadow_window=3.0, continuation_rays=2.0)]
     for config in settings:
         got = prepare_scanned_batch(clusters, config, velocities, scan, resolution, max_range)
         ref = prepare_batch(clusters, config, velocities)
@@ -168,7 +168,7 @@ def test_scanned_batch_is_the_batch_with_its_shadow_flags(seed: int) -> None:
                                  max_range, config.shadow_range_margin)
         np.testing.assert_array_equal(got.occluded_end, occluded)
         flags[0] += int(occluded.sum())
-        if config.continuation_rays is None or not (config.sharp_side_whole or config.sharp_parts_whole):
+        if config.continuation_rays is None:
             assert got.continued_end is None
             continue
         continued = continued_ends(*ref.side_ends(), scan, config.continuation_rays, config.continuation_offset)

@@ -757,18 +757,14 @@ def test_a_coasting_track_inside_a_seen_vehicle_is_dropped(drop):
     assert (tracker.stats["components_inside_updated_dropped"] >= 1) == drop
 
 
-@pytest.mark.parametrize("correlated", [True, False], ids=["correlated-extent", "off"])
-def test_a_car_followed_from_behind_has_its_rear_pinned_and_its_speed_kept_from_the_radar_noise(correlated):
+def test_a_car_followed_from_behind_has_its_rear_pinned_and_its_speed_kept_from_the_radar_noise():
     """A car 30 m ahead in the ego's lane at the ego's 18 m/s shows only its rear for 2 s; fused
     tracking (radar speed noise 0.2 m/s). With the birth's centre correlated with its unseen length
-    (``BirthConfig.correlated_extent``) the points pin the rear, ``s - L/2``, to centimetres (variance
-    ~5e-4 m^2), the filter's speed spread falls to ~0.16 m/s and the radar's noise does not carry the
-    speed off (largest error ~0.07 m/s). With the diagonal birth prior the held length leaves the rear
-    uncertain by ~0.1-0.25 m, the filter trusts the radar's speed row, and the speed wanders by
-    0.18-0.27 m/s (chicane-follow's fused speed error, session 12)."""
+    the points pin the rear, ``s - L/2``, to centimetres (variance ~5e-4 m^2), the filter's speed
+    spread falls to ~0.16 m/s and the radar's noise does not carry the speed off (largest error ~0.07
+    m/s)."""
     road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
     cfg = TrackerConfig()
-    cfg = dataclasses.replace(cfg, birth=dataclasses.replace(cfg.birth, correlated_extent=correlated))
     scene = Scene(road, Car(20.0, 0.0, 18.0), [Car(50.0, 0.0, 18.0)], radar=True)
     for seed in (0, 1):
         frames, tracker = run(scene, cfg, 2.0, seed=seed)
@@ -778,10 +774,7 @@ def test_a_car_followed_from_behind_has_its_rear_pinned_and_its_speed_kept_from_
         rear = np.zeros(len(p))
         rear[0], rear[5] = 1.0, -0.5
         worst = max(abs(tracks[0].v - 18.0) for tracks in frames[5:])
-        if correlated:
-            assert rear @ p @ rear < 0.002 and np.sqrt(p[2, 2]) < 0.2 and worst < 0.12
-        else:
-            assert rear @ p @ rear > 0.01 and worst > 0.15
+        assert rear @ p @ rear < 0.002 and np.sqrt(p[2, 2]) < 0.2 and worst < 0.12
 
 
 @pytest.mark.parametrize("residual", [0.15, 0.3], ids=["default", "session-11"])
@@ -854,44 +847,34 @@ def test_a_quiet_jerk_gated_by_manoeuvres_steadies_the_speed_and_still_follows_a
     assert blind_brake > 1.4 * full_brake
 
 
-@pytest.mark.parametrize("whole", [True, False], ids=["sharp-parts-whole", "off"])
-def test_a_motorcycle_seen_from_behind_and_beside_has_its_extent_learned(whole):
+def test_a_motorcycle_seen_from_behind_and_beside_has_its_extent_learned():
     """A motorcycle (2.2 x 0.8 m) 15 m ahead in the next lane shows its rear and its right side: a
     two-sided cluster whose parts cover 44 % and 49 % of a car's predicted sides (4.5 x 1.8 m prior).
-    With ``MeasurementConfig.sharp_parts_whole`` each part runs from the fitted corner to a sharp, free
-    end and counts as its whole side: the extent is learned within a second. Without, both parts are
-    partially visible, anchored at the corner, and the extent stays at the prior (hard-accel's
-    motorcycle: width RMSE 0.40 m)."""
+    Each part runs from the fitted corner to a sharp, free end and counts as its whole side: the extent
+    is learned within a second (were both parts partially visible, anchored at the corner, the extent
+    would stay at the prior)."""
     road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
     scene = Scene(road, Car(20.0, road.lane_centers[1], 15.0),
                   [Car(35.0, road.lane_centers[2], 15.0, length=2.2, width=0.8)], radar=True)
-    frames, _ = run(scene, config_with("measurement", sharp_parts_whole=whole), 3.0)
+    frames, _ = run(scene, TrackerConfig(), 3.0)
     assert all(len(tracks) == 1 for tracks in frames)
     width = np.array([tracks[0].width for tracks in frames])
     length = np.array([tracks[0].length for tracks in frames])
-    if whole:
-        assert np.all(np.abs(width[10:] - 0.8) < 0.1), width[10:].round(2)
-        assert np.all(np.abs(length[10:] - 2.2) < 0.25), length[10:].round(2)
-    else:
-        assert np.all(width[10:] > 1.7) and np.all(length[10:] > 4.3)
+    assert np.all(np.abs(width[10:] - 0.8) < 0.1), width[10:].round(2)
+    assert np.all(np.abs(length[10:] - 2.2) < 0.25), length[10:].round(2)
 
 
-@pytest.mark.parametrize("sharp", [True, False], ids=["sharp-side-whole", "off"])
-def test_a_motorcycle_followed_from_behind_has_its_width_learned(sharp):
+def test_a_motorcycle_followed_from_behind_has_its_width_learned():
     """A motorcycle (2.2 x 0.8 m) 20 m ahead in the ego's lane shows only its rear. Born with a car's
-    width prior (1.8 m), its 0.8 m rear covers 44 % of the predicted one: with
-    ``MeasurementConfig.sharp_side_whole`` (both ends sharp, neither in a shadow) the rear counts as
-    whole and the width is learned within a second; without, the rear is partially visible and the
-    width is held at the prior."""
+    width prior (1.8 m), its 0.8 m rear covers 44 % of the predicted one: with both ends sharp and
+    neither in a shadow the rear counts as whole and the width is learned within a second (were it
+    partially visible, the width would be held at the prior)."""
     road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
     lane = road.lane_centers[1]
     scene = Scene(road, Car(20.0, lane, 15.0), [Car(40.0, lane, 15.0, length=2.2, width=0.8)], radar=True)
-    frames, _ = run(scene, config_with("measurement", sharp_side_whole=sharp), 3.0)
+    frames, _ = run(scene, TrackerConfig(), 3.0)
     widths = np.array([tracks[0].width for tracks in frames if tracks])
-    if sharp:
-        assert np.all(np.abs(widths[10:] - 0.8) < 0.1), widths[10:].round(2)
-    else:
-        assert np.all(widths[10:] > 1.5)
+    assert np.all(np.abs(widths[10:] - 0.8) < 0.1), widths[10:].round(2)
 
 
 def test_a_duplicate_track_its_vehicles_cluster_updates_only_weakly_is_dropped_inside_it():
@@ -938,8 +921,9 @@ def test_a_second_label_overlapping_a_trucks_track_is_absorbed_into_it(overlap):
     assert (tracker.stats["labels_absorbed_overlapping"] >= 1) == (overlap is not None)
 
 
-def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration: float):
-    """A short fused run of one of the suites' scenarios with ``tracker.<section>.<key> = value``."""
+def _run_hard(scenario: str, seed: int, section: str | None, key: str | None, value, duration: float):
+    """A short fused run of one of the suites' scenarios with ``tracker.<section>.<key> = value``
+    (section None: the scenario's own configuration)."""
     import copy
 
     from sim.evaluation.runner import run_scenario
@@ -948,7 +932,8 @@ def _run_hard(scenario: str, seed: int, section: str, key: str, value, duration:
 
     _, source, data = scenario_task_data(resolve_scenario_path(scenario))
     data = copy.deepcopy(data)
-    data.setdefault("tracker", {}).setdefault(section, {})[key] = value
+    if section is not None:
+        data.setdefault("tracker", {}).setdefault(section, {})[key] = value
     return run_scenario(parse_scenario(data, source), seed, "curvilinear-fused", duration=duration)
 
 
@@ -980,43 +965,33 @@ def test_a_vans_side_past_its_tracks_front_joins_its_cluster(fragment_points):
         assert all(abs(length - 6.0) < 0.2 for length in lengths)
 
 
-@pytest.mark.parametrize("rule", [True, False], ids=["shadowed-parts-partial", "shadowed-parts-whole"])
-def test_a_bus_whose_front_disappears_in_a_shadow_keeps_its_length(rule):
+def test_a_bus_whose_front_disappears_in_a_shadow_keeps_its_length():
     """The hard suite's stop-and-go, seed 13: a 16 m bus ahead in the left lane, seen from behind and
     beside, whose front roadside objects hide a little more every frame (its side's visible chord 15.4
-    m at 0.4 s, 12.5 m at 1.2 s, the far end bordering their shadow). Counted as the whole side while it
-    covered 90 % of the prediction, the visible part pulled the track's length down with it (15.2 m at
-    1 s, 14.7 m at 1.5 s); with ``MeasurementConfig.shadowed_parts_partial`` the part is partially
-    visible, anchored at the corner, and the track keeps what it had learnt."""
-    result = _run_hard("stop-and-go", 13, "measurement", "shadowed_parts_partial", rule, 1.55)
+    m at 0.4 s, 12.5 m at 1.2 s, the far end bordering their shadow). The part is partially visible,
+    anchored at the corner, and the track keeps what it had learnt (counted as the whole side while it
+    covered 90 % of the prediction, the visible part would pull the track's length down with it)."""
+    result = _run_hard("stop-and-go", 13, None, None, None, 1.55)
     frame = result.frames[-1]
     assert abs(frame.t - 1.5) < 1e-9
     bus = int(np.flatnonzero(np.isclose(frame.truth.length, 16.0))[0])
     length = float(_tracked_mean(frame, frame.truth.ids[bus], "the bus")[5])
-    if rule:
-        assert abs(length - 16.0) < 0.6
-    else:
-        assert length < 15.0
+    assert abs(length - 16.0) < 0.6
 
 
-@pytest.mark.parametrize("rule", [True, False], ids=["shadow-aware-birth", "away-from-sensor"])
-def test_a_far_car_half_hidden_by_a_truck_is_born_where_its_free_end_puts_it(rule):
+def test_a_far_car_half_hidden_by_a_truck_is_born_where_its_free_end_puts_it():
     """The hard suite's truck-hairpin, seed 0: the car 70 m ahead in the hairpin shows the front half of
     its side (6 returns at 0.0 s, 11 at 0.2 s), the rear half hidden by the truck, whose shadow the
-    cluster's near end borders. Born with the unseen half beyond the points (away from the sensor) and
-    its centre correlated with that length, the track sat ~1 m ahead of the car for its first frames
-    (the update could move it only 60 % of the way to the free end's anchor); with
-    ``BirthConfig.shadow_aware`` the unseen half may lie on either side and the anchor places it."""
-    result = _run_hard("truck-hairpin", 0, "birth", "shadow_aware", rule, 0.25)
+    cluster's near end borders. The birth's unseen half may lie on either side of the points and the
+    free end's anchor places it (born with the unseen half beyond the points, away from the sensor, the
+    track would sit ~1 m ahead of the car for its first frames)."""
+    result = _run_hard("truck-hairpin", 0, None, None, None, 0.25)
     errors = []
     for frame in result.frames:
         car = int(np.flatnonzero(frame.truth.ids == 3)[0])
         errors.append(abs(float(_tracked_mean(frame, 3, "the far car")[0]) - float(frame.truth.s[car])))
     assert len(errors) == 3
-    if rule:
-        assert max(errors) < 0.6, errors
-    else:
-        assert min(errors) > 0.85, errors
+    assert max(errors) < 0.6, errors
 
 
 @pytest.mark.parametrize("sigma", [0.15, None], ids=["softened", "lidar-sigma"])

@@ -7,9 +7,9 @@
   an L-shape rectangle fit (centre, heading, extent; a side that was not seen takes the prior extent and
   the centre moves away from the sensor by the missing half, unless the cluster's near end borders
   another object's shadow: then the missing half may lie on either side, a spread instead of a
-  shift, ``BirthConfig.shadow_aware``), the fit's axes turned by the quarter
-  turn that puts the heading closest to the road direction (``|xi| <= pi/4``: vehicles drive along the
-  road), and the speed from an associated radar detection when fused.
+  shift), the fit's axes turned by the quarter turn that puts the heading closest to the road
+  direction (``|xi| <= pi/4``: vehicles drive along the road), and the speed from an associated radar
+  detection when fused.
 
 Both return curvilinear means (B, 7) and covariances (B, 7, 7); ``to_cartesian_gaussians`` maps them to
 the Cartesian variant's state by the unscented transform.
@@ -165,7 +165,7 @@ def cluster_births(
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
     optional radar velocity ``(vx, vy)`` in E (m/s). ``shadowed`` (per cluster, None: none): the
     cluster's end in bearing that borders another object's shadow and its other, free end (E, m), where
-    exactly one does (``BirthConfig.shadow_aware``): where the shadowed end is the one nearer the sensor
+    exactly one does: where the shadowed end is the one nearer the sensor
     along the length, the unseen part of the length may lie beyond the points or behind the object, so
     the centre stays at the points' along it and the position takes half the unseen length as its
     spread, uncorrelated with ``L``. Clusters with fewer than
@@ -174,7 +174,7 @@ def cluster_births(
     ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
     takes the road's direction as its heading."""
     means, stds, length_stds, sparse, levers, spreads = [], [], [], [], [], []
-    if shadowed is None or not config.shadow_aware:
+    if shadowed is None:
         shadowed = [None] * len(clusters)
     for pts, vel, shadow in zip(clusters, velocities, shadowed):  # a handful per frame; the fit is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):
@@ -249,8 +249,7 @@ def cluster_births(
     covs[:, 0, 0] = covs[:, 1, 1] = 0.5**2  # the fit locates a cluster's rectangle to a few decimetres
     # one or two points may lie on the rear or on a side: the centre is known to about half a length
     covs[np.array(sparse), 0, 0] = (0.5 * config.length) ** 2
-    if config.correlated_extent:
-        correlate_unseen_extent(covs, np.array(levers), ~np.array(sparse))
+    correlate_unseen_extent(covs, np.array(levers), ~np.array(sparse))
     g = np.array(spreads)  # (B, 2) in (s, n): an unseen half that may lie on either side of the points
     covs[:, :2, :2] += g[:, :, None] * g[:, None, :]
     return np.array(means), covs
@@ -258,7 +257,7 @@ def cluster_births(
 
 def correlate_unseen_extent(covs: np.ndarray, levers: np.ndarray, rows: np.ndarray) -> None:
     """Give the births ``rows`` (mask) the covariance of a centre placed half an unseen extent beyond
-    the points, in place (``BirthConfig.correlated_extent``).
+    the points, in place.
 
     A cluster birth's centre is the fit's visible edge plus half the extent the points do not show:
     ``(s, n) = e + g_L L + g_W W`` with ``e`` the edge (spread ``P_e``, the diagonal position block

@@ -212,7 +212,8 @@ class MeasurementConfig:
     ``tracker.measurement``; the visibility rules that decide whether a part of a cluster shows a whole
     side or part of one (shadows, sharp ends, continuation) and the extent rules (hold, growth) in
     ``docs/tracker.md`` ("Update", "Departures from the paper"). Several rules need the shadow flags
-    (``shadow_window`` not None): ``sharp_side_whole``, ``sharp_parts_whole`` and ``shadowed_parts_partial``.
+    (``shadow_window`` not None): sharp sides shown whole, sharp parts shown whole and shadowed parts held
+    partially visible.
     """
 
     #: Std of a lidar point about its generating point, per axis in E, model error included (m; default 0.1).
@@ -231,8 +232,6 @@ class MeasurementConfig:
     max_cluster_points: int = 60
     #: Fewest points for which the two-sided model (corner split) is tried (default 4).
     min_points_two_sided: int = 4
-    #: Extend a chord by half the expected ray gap at each free end, with that uncertainty as noise (default True).
-    end_gap_correction: bool = True
     #: ``"speed"``: one row, radar velocity along the predicted heading; ``"velocity"``: the paper's two (default "speed").
     radar_rows: Literal["speed", "velocity"] = "speed"
     #: Schmidt update: ``L`` (``W``) keeps its prior unless a long (short) side is seen whole (default True).
@@ -251,17 +250,11 @@ class MeasurementConfig:
     shadow_range_margin: float = 5.0
     #: An end is sharp when half the expected ray gap there is at most this (m; default 0.3).
     shadow_free_gap: float = 0.3
-    #: A one-sided cluster with both ends sharp and free shows its whole side, however short (default True).
-    sharp_side_whole: bool = True
-    #: A two-sided cluster's part with a sharp, free far end shows its whole side, within a gate (default True).
-    sharp_parts_whole: bool = True
-    #: A two-sided part whose far end is shadowed is partially visible unless longer than predicted (default True).
-    shadowed_parts_partial: bool = True
     #: Lidar std in the state update of an anchored part whose cluster borders a shadow (m; default 0.15; None: off).
     shadowed_lidar_sigma: float | None = 0.15
-    #: Fewest points each part needs for ``sharp_parts_whole``, the corner counted in both (default 4).
+    #: Fewest points each part needs to be whole at a sharp, free far end, the corner counted in both (default 4).
     whole_min_points: int = 4
-    #: ``sharp_parts_whole`` may shrink a side by at most this many std of its extent plus the slack (default 3.0).
+    #: A sharp part shown whole may shrink a side by at most this many std of its extent plus the slack (default 3.0).
     whole_gate_sigmas: float = 3.0
     #: Slack added to that gate (m; default 0.3).
     whole_gate_slack: float = 0.3
@@ -287,9 +280,6 @@ class MeasurementConfig:
         if self.shadowed_lidar_sigma is not None:
             _check("MeasurementConfig", "shadowed_lidar_sigma", self.shadowed_lidar_sigma, low=0.0, low_open=True,
                    unit="m")
-        for name in ("sharp_side_whole", "sharp_parts_whole", "shadowed_parts_partial"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"MeasurementConfig.{name} must be true or false; got {getattr(self, name)!r}")
         _check_int("MeasurementConfig", "whole_min_points", self.whole_min_points, 2)
         _check("MeasurementConfig", "whole_gate_sigmas", self.whole_gate_sigmas, low=0.0)
         _check("MeasurementConfig", "whole_gate_slack", self.whole_gate_slack, low=0.0, unit="m")
@@ -300,8 +290,6 @@ class MeasurementConfig:
             _check("MeasurementConfig", "radar_gate", self.radar_gate, low=0.0, low_open=True)
         _check_int("MeasurementConfig", "max_cluster_points", self.max_cluster_points, 3)
         _check_int("MeasurementConfig", "min_points_two_sided", self.min_points_two_sided, 3)
-        if not isinstance(self.end_gap_correction, bool):
-            raise ValueError(f"MeasurementConfig.end_gap_correction must be true or false; got {self.end_gap_correction!r}")
         _check_choice("MeasurementConfig", "radar_rows", self.radar_rows, ("speed", "velocity"))
         if not isinstance(self.hold_unobserved_extent, bool):
             raise ValueError(f"MeasurementConfig.hold_unobserved_extent must be true or false; got {self.hold_unobserved_extent!r}")
@@ -422,10 +410,6 @@ class BirthConfig:
     max_length: float | None = 25.0
     #: Widest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 3.0; None: no limit).
     max_width: float | None = 3.0
-    #: A cluster birth's centre is correlated with the unseen extent it was shifted by (default True).
-    correlated_extent: bool = True
-    #: A cluster birth whose near end borders a shadow spreads its unseen length on both sides (default True).
-    shadow_aware: bool = True
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
@@ -445,9 +429,8 @@ class BirthConfig:
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
-        for name in ("road", "correlated_extent", "shadow_aware"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"BirthConfig.{name} must be true or false; got {getattr(self, name)!r}")
+        if not isinstance(self.road, bool):
+            raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)
         _check("BirthConfig", "range_margin", self.range_margin, low=0.0, unit="m")
         if self.speed is not None:

@@ -28,15 +28,15 @@ length between the first and last points: with noise that length grows with the 
 projections and a fitted corner do not. Lines and extents use all points; then clusters above
 ``max_cluster_points`` are thinned evenly in bearing order, keeping the extreme points and the corner.
 
-End gaps (``end_gap_correction``, default on). A scanning lidar's extreme return on a side lies
+End gaps. A scanning lidar's extreme return on a side lies
 somewhere within one ray gap of the side's free end (uniformly, for a random ray phase). The gap is
 ``g = r^2 db / d`` (range ``r`` of the end, median bearing step ``db`` of the cluster, distance ``d`` of
 the line from the sensor), large on far or grazing sides. With the correction the chord is extended
 by ``e = g / 2`` at each free end (never at a fitted corner), which removes the length bias, and the
 remaining uncertainty ``eps ~ U(-e, e)`` (variance ``e^2 / 3``) enters the measurement noise as one
 rank-one term per free end, ``f f^T`` with ``f`` the points' displacement per unit end shift (e.g.
-``(1 - t_i) u`` over a fully visible side): the filter does not take the extreme points for the corners.
-Without it the extreme points are taken to be the corners, as in MATLAB.
+``(1 - t_i) u`` over a fully visible side): the filter does not take the extreme points for the corners,
+as MATLAB does.
 
 Structure (per pair, from the component's predicted *mean*, shared by all its sigma points so the
 model is a smooth function of the state): two-sided only if the data say so *and* the predicted
@@ -47,11 +47,11 @@ adjacent pair ``(j, j - 1)``. Visibility ``a = (chord + end margins) / predicted
 with ``a <= partial_visibility`` (0.9) is *partially visible*, unless the data show where it ends
 (departures from the paper, ``MeasurementConfig``): a one-sided cluster with both ends sharp (half a
 ray gap at most ``shadow_free_gap``) and free (no nearer return beyond it, ``occluded_end``; no return
-continuing its line, ``continued_end``) is the whole side (``sharp_side_whole``), and so is a part of a
+continuing its line, ``continued_end``) is the whole side, and so is a part of a
 two-sided cluster from the fitted corner to a sharp, free far end, when both parts have enough points
-and the side shrinks by no more than the extent's uncertainty allows (``sharp_parts_whole``); a side
+and the side shrinks by no more than the extent's uncertainty allows; a side
 with an end in a shadow is partially visible whatever its extent (one-sided, when its other end is
-sharp; a part of a two-sided cluster, ``shadowed_parts_partial``, unless its chord is longer than the
+sharp; a part of a two-sided cluster, unless its chord is longer than the
 predicted side: then it is measured whole to its last return, no end-gap margin at the shadowed end).
 
 Measurement generating points (one per point, in the same order, so no association is needed), with
@@ -119,7 +119,7 @@ MAX_END_GAP = 2.0
 GROWTH_MIN_EXCESS = 0.5
 GROWTH_SIGMAS = 2.0
 
-#: A part's far end is also sharp (``MeasurementConfig.sharp_parts_whole``) when the predicted side goes
+#: A part's far end is also sharp (a part shown whole to a sharp, free far end) when the predicted side goes
 #: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
 MISSED_RAYS_SHARP = 2.0
 
@@ -290,11 +290,10 @@ class Cluster:
     point's part chord. ``two_sided`` is the data's verdict; ``corner`` the index of the corner point in
     ``points`` (-1 if one-sided); ``eigen_ratio``; ``end_margin (3, 2)`` per slot, the distance (m)
     assumed between the chord's start / end and the side's corner (half the expected gap between rays
-    at a free end, at most half the chord; 0 at the corner of a split; all 0 without
-    ``end_gap_correction``); ``end_gap (3, 2)`` the same half ray gap before the cap at half the chord
-    (how sharp an end is: a short chord on a grazing side is not a sharp one; also 0 at the corner of a
-    split and without the correction); ``velocity (2,)`` the radar's absolute velocity in E
-    (m/s) or ``None``; ``raw_count`` points before downsampling; ``dropped`` non-finite points removed;
+    at a free end, at most half the chord; 0 at the corner of a split; all 0 for a single point);
+    ``end_gap (3, 2)`` the same half ray gap before the cap at half the chord (how sharp an end is: a
+    short chord on a grazing side is not a sharp one; also 0 at the corner of a split); ``velocity
+    (2,)`` the radar's absolute velocity in E (m/s) or ``None``; ``raw_count`` points before downsampling; ``dropped`` non-finite points removed;
     ``order`` the input index of each kept point.
     """
 
@@ -329,7 +328,7 @@ class Cluster:
 def prepare_settings(config: MeasurementConfig) -> tuple:
     """``prepare_kernel``'s settings, the arguments after its points and offsets."""
     return (int(config.max_cluster_points), int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
-            bool(config.end_gap_correction), MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
+            MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
 
 
 def prepare_cluster(
@@ -476,23 +475,6 @@ class Structure:
     excess: np.ndarray
 
 
-def _sharp_side_whole(config: MeasurementConfig, shadows: bool) -> bool:
-    """Whether ``MeasurementConfig.sharp_side_whole`` applies: it needs the shadow flags (without them
-    nothing says an end is free)."""
-    return bool(config.sharp_side_whole and shadows)
-
-
-def _sharp_parts_whole(config: MeasurementConfig, shadows: bool, has_extent_sd: bool) -> bool:
-    """Whether ``MeasurementConfig.sharp_parts_whole`` applies: it needs the shadow flags and the
-    predicted extent's standard deviations (its consistency gate)."""
-    return bool(config.sharp_parts_whole and shadows and has_extent_sd)
-
-
-def _shadowed_parts_partial(config: MeasurementConfig, shadows: bool) -> bool:
-    """Whether ``MeasurementConfig.shadowed_parts_partial`` applies: it needs the shadow flags."""
-    return bool(config.shadowed_parts_partial and shadows)
-
-
 def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
     """``(P, 2)``: whether each bearing end of the pairs' clusters is free (in no shadow, not continued)."""
     free = np.ones((len(ci), 2), dtype=bool)
@@ -514,15 +496,15 @@ def build_structure(
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
     as in the module docstring, by ``tracker.structure.structure_kernel``. ``extent_sd (P, 2)``: the
-    predicted standard deviations of ``L`` and ``W`` (m), for the rules that need them
-    (``MeasurementConfig.sharp_parts_whole``; None: that rule off)."""
+    predicted standard deviations of ``L`` and ``W`` (m), for the rule that needs them (a part shown
+    whole to a sharp, free far end, within a gate; None: that rule does not apply)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
         extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
-    head, tail = structure_config_args(config, batch.occluded_end is not None, use_radar, extent_sd is not None)
+    head, tail = structure_config_args(config, use_radar)
     sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
     fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
-                              sd, *tail)
+                              batch.occluded_end is not None, extent_sd is not None, sd, *tail)
     return Structure(*fields)
 
 
@@ -538,17 +520,15 @@ def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
             c(~_free_ends(batch, np.arange(len(batch.points)))))
 
 
-def structure_config_args(config: MeasurementConfig, shadows: bool, use_radar: bool,
-                          has_extent_sd: bool) -> tuple[tuple, tuple]:
-    """The settings' arguments of the compiled structure kernel, those before its ``extent_sd`` and
-    those after it (``shadows``: the clusters have their shadow flags, ``ClusterBatch.occluded_end``;
-    ``has_extent_sd``: the pairs' predicted extent sd are known, so the rules that need them apply)."""
+def structure_config_args(config: MeasurementConfig, use_radar: bool) -> tuple[tuple, tuple]:
+    """The settings' arguments of the compiled structure kernel, those before its ``shadows`` (whether
+    the clusters have their shadow flags, ``ClusterBatch.occluded_end``) and those after its
+    ``extent_sd``."""
     head = (float(config.single_point_min_apparent), float(config.partial_visibility), float(config.shadow_free_gap),
             float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2, bool(use_radar),
-            config.radar_rows == "speed", MIN_CHORD, _sharp_side_whole(config, shadows),
-            _sharp_parts_whole(config, shadows, has_extent_sd))
+            config.radar_rows == "speed", MIN_CHORD)
     tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
-            MISSED_RAYS_SHARP, _shadowed_parts_partial(config, shadows),
+            MISSED_RAYS_SHARP,
             -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
     return head, tail
 
@@ -680,8 +660,7 @@ def _corner_split(pts: np.ndarray, n: int) -> int:
 
 
 @njit
-def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle, max_shift,
-                   max_end_gap):
+def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_chord, sin_min_angle, max_shift, max_end_gap):
     """The clusters ``flat[offsets[i]:offsets[i + 1]]`` (finite, non-empty) prepared, in padded arrays
     (kept points padded to the largest count a cluster may keep): ``(points, valid, part, proj,
     chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided, corner, eigen_ratio,
@@ -808,7 +787,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min
             length[s] = hi[s] - lo[s]
         margin = np.zeros((3, 2))
         half_gap = np.zeros((3, 2))
-        if gap_correction and n >= 2:
+        if n >= 2:
             gaps = rel[1:] - rel[:-1]
             gaps = gaps[np.argsort(gaps, kind="mergesort")]  # numpy.sort's values
             db = gaps[(n - 1) // 2]

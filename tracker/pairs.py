@@ -42,16 +42,16 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                         min_extent, points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
                         end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, min_apparent,
                         partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
-                        sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays, parts_shadowed,
-                        shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on, long_width, long_below,
-                        long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above,
-                        narrow_variance, narrow_length, unmeasured_var, max_length,
-                        max_width):  # pragma: no cover - compiled
+                        shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
+                        growth_sigmas, gate, hold, long_on, long_width, long_below, long_variance, long_length,
+                        narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance, narrow_length,
+                        unmeasured_var, max_length, max_width):  # pragma: no cover - compiled
     """The posteriors of the pairs ``(component used[inverse[p]], cluster ci[p])`` of the components
     ``means (U, D)``, ``covs (U, D, D)`` (the ones in some pair) and the prepared clusters (the
     ``tracker.measurement.ClusterBatch`` fields). Returns ``(status, mean, cov, log_likelihood, nis,
     dim, predicted, innovation, radar_rejected)``: ``measurement_update_kernel``'s outputs after the
-    extent rules when ``status`` is ``DONE``, empty arrays otherwise."""
+    extent rules when ``status`` is ``DONE``, empty arrays otherwise. ``shadows``: the clusters have
+    their shadow flags (``structure_kernel``)."""
     count, dim = means.shape
     pairs = len(ci)
     rows = 2 * points.shape[1] + 2
@@ -91,8 +91,8 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
      excess) = structure_kernel(points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
                                 end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, ci,
                                 mean_corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var,
-                                use_radar, speed_row, min_chord, sharp_whole, parts_whole, extent_sd, min_points,
-                                gate_sigmas, gate_slack, missed_rays, parts_shadowed, shadowed_var)
+                                use_radar, speed_row, min_chord, shadows, True, extent_sd, min_points, gate_sigmas,
+                                gate_slack, missed_rays, shadowed_var)
     if grow:
         grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, growth_min,
                                                 growth_sigmas)
@@ -197,16 +197,15 @@ def _selected(points, offsets, has_velocity, velocity, means, covs, comp, clu): 
 
 @njit
 def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu, bound,
-                          min_two, ratio_max, gap_correction, min_chord_prep, sin_min_angle, max_shift, max_end_gap,
-                          scan, shadows, window, shadow_margin, max_range, range_margin, continuation, rays, offset,
-                          scale, wm, wc, angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length,
-                          ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent,
-                          min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
-                          min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays,
-                          parts_shadowed, shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on,
-                          long_width, long_below, long_variance, long_length, narrow_on, narrow_width,
-                          narrow_width_var, narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
-                          max_width):  # pragma: no cover - compiled
+                          min_two, ratio_max, min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
+                          window, shadow_margin, max_range, range_margin, continuation, rays, offset, scale, wm, wc,
+                          angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table,
+                          bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent,
+                          partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
+                          min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
+                          growth_sigmas, gate, hold, long_on, long_width, long_below, long_variance, long_length,
+                          narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance, narrow_length,
+                          unmeasured_var, max_length, max_width):  # pragma: no cover - compiled
     """The pairs ``(component comp[p], cluster clu[p])`` of the components ``means_all``, ``covs_all``
     and the clusters ``points_all[offsets_all[k]:offsets_all[k + 1]]`` (E; radar velocity
     ``velocity_all[k]`` where ``has_velocity_all[k]``), updated as the two steps do it: the clusters in
@@ -222,10 +221,9 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
     if not regular:
         return (IRREGULAR,) + _empty_result(len(comp), dim, 2) + (0, 0)
     (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
-     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction,
-                                                 min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
-                                                 window, shadow_margin, max_range, range_margin, continuation, rays,
-                                                 offset)
+     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_chord_prep,
+                                                 sin_min_angle, max_shift, max_end_gap, scan, shadows, window,
+                                                 shadow_margin, max_range, range_margin, continuation, rays, offset)
     count, width = points.shape[0], points.shape[1]
     centroid = np.empty((count, 2))
     not_free = np.zeros((count, 2), dtype=np.bool_)
@@ -248,8 +246,8 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
         length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, points, valid,
         part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, fused, velocity,
         centroid, occluded, not_free, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar,
-        speed_row, min_chord, sharp_whole, parts_whole, min_points, gate_sigmas, gate_slack, missed_rays,
-        parts_shadowed, shadowed_var, grow, growth_min, growth_sigmas, gate, hold, long_on, long_width, long_below,
-        long_variance, long_length, narrow_on, narrow_width, narrow_width_var, narrow_above, narrow_variance,
-        narrow_length, unmeasured_var, max_length, max_width)
+        speed_row, min_chord, shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow,
+        growth_min, growth_sigmas, gate, hold, long_on, long_width, long_below, long_variance, long_length, narrow_on,
+        narrow_width, narrow_width_var, narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
+        max_width)
     return result + (n_occluded, n_continued)

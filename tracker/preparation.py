@@ -89,15 +89,14 @@ def prepare_scanned_batch(
     ``lidar_resolution`` rad, ``shadow_margin``, the lidar's range ``lidar_range`` m less
     ``shadow_range_margin``; None without ``MeasurementConfig.shadow_window``), and ``continued_end``,
     ``tracker.clustering.continued_ends`` of the side ends (``continuation_rays``, ``continuation_offset``;
-    None unless a sharp-end rule, ``sharp_side_whole`` or ``sharp_parts_whole``, asks for it): the batch
+    None without the shadow flags or ``continuation_rays``): the batch
     the tracker's update takes. One call of ``scanned_batch_kernel`` when every cluster is a non-empty
     ``(n, 2)`` array of finite points."""
     scan = np.asarray(scan, dtype=float)
     if scan.ndim != 2 or scan.shape[1] != 2:
         raise ValueError(f"prepare_scanned_batch: scan must be lidar returns of shape (N, 2) in E; got {scan.shape}")
     shadows = config.shadow_window is not None
-    continuation = shadows and config.continuation_rays is not None and bool(config.sharp_side_whole
-                                                                              or config.sharp_parts_whole)
+    continuation = shadows and config.continuation_rays is not None
     window = config.shadow_window * lidar_resolution if shadows else 0.0
     arrays, velocities = _checked(clusters, velocities)
     flat = _all_regular(arrays) if arrays else None
@@ -239,8 +238,8 @@ class _Prepared:
 
 
 @njit
-def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle, max_shift,
-                         max_end_gap, scan, shadows, window, margin, max_range, range_margin, continuation, rays,
+def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_chord, sin_min_angle, max_shift, max_end_gap,
+                         scan, shadows, window, margin, max_range, range_margin, continuation, rays,
                          offset):  # pragma: no cover - compiled
     """``prepare_kernel``'s arrays cut to the most points kept (as ``_prepare_finite`` cuts them),
     whether each cluster's chord is a single point, and the shadow flags of the clusters' ends in
@@ -250,8 +249,8 @@ def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, gap_correctio
     Returns ``(points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
     end_gap, two_sided, single, kept_count, occluded, continued)``."""
     (points, valid, part, proj, starts, ends, direction, length, margin_out, half_gap, two, _corner, _ratio, _order,
-     kept_count) = prepare_kernel(flat, offsets, bound, min_two, ratio_max, gap_correction, min_chord, sin_min_angle,
-                                  max_shift, max_end_gap)
+     kept_count) = prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_chord, sin_min_angle, max_shift,
+                                  max_end_gap)
     count = len(kept_count)
     m = kept_count.max()
     points = points[:, :m].copy()

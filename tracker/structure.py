@@ -33,14 +33,13 @@ def _sign(x: float) -> float:
 def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end, chord_dir, chord_len_in,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
-                     min_chord, sharp_whole, parts_whole, extent_sd, min_points, gate_sigmas, gate_slack,
-                     missed_rays, parts_shadowed, shadowed_var):
+                     min_chord, shadows, has_sd, extent_sd, min_points, gate_sigmas, gate_slack, missed_rays,
+                     shadowed_var):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
-    ``sharp_whole``: ``MeasurementConfig.sharp_side_whole``; ``parts_whole``:
-    ``MeasurementConfig.sharp_parts_whole``; ``parts_shadowed``:
-    ``MeasurementConfig.shadowed_parts_partial``; ``shadowed_var``: ``shadowed_lidar_sigma`` squared
-    (negative: None)."""
+    ``shadows``: the clusters have their shadow flags (the sharp-end and shadowed-part rules need them);
+    ``has_sd``: ``extent_sd`` is known (the sharp parts' gate needs it); ``shadowed_var``:
+    ``shadowed_lidar_sigma`` squared (negative: None)."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -141,7 +140,7 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         m0_hi = end_margin[c, slot0, 1]
         m1_lo = end_margin[c, slot1, 0]
         m1_hi = end_margin[c, slot1, 1]
-        if parts_shadowed and two:  # a far end in a shadow is no end of the side: no margin there
+        if shadows and two:  # a far end in a shadow is no end of the side: no margin there
             if occluded[c, 0]:
                 m0_lo = 0.0
             if occluded[c, 1]:
@@ -154,11 +153,11 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
         occ_hi = occluded[c, 1]
         sharp_lo = end_gap[c, 0, 0] <= free_gap
         sharp_hi = end_gap[c, 0, 1] <= free_gap
-        if (sharp_whole and not two and not single and not not_free[c, 0] and not not_free[c, 1]
+        if (shadows and not two and not single and not not_free[c, 0] and not not_free[c, 1]
                 and sharp_lo and sharp_hi):
             partial0 = False  # both ends sharp and free: the whole side
             partial1 = False
-        if parts_whole and two:
+        if shadows and has_sd and two:
             # each part from the fitted corner to a sharp, free far end (the first point for part 0,
             # the last for part 1), with enough points and a shrink within the gate, is its whole side
             n0 = 0
@@ -182,7 +181,7 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                 partial0 = False
             if enough and sharp1 and not not_free[c, 1] and shrink1 <= gate_sigmas * sd1 + gate_slack:
                 partial1 = False
-        if parts_shadowed and two:
+        if shadows and two:
             # a part whose far end borders a shadow goes on behind it, unless longer than predicted
             # (its margin there is 0: a lower bound to the last return)
             if occ_lo and ln0 + (m0_lo + m0_hi) < side_len[side0]:

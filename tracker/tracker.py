@@ -119,7 +119,7 @@ class Tracker:
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_shadowed``
-    (unexplained clusters with exactly one end in bearing next to another object's shadow, ``birth.shadow_aware``),
+    (unexplained clusters with exactly one end in bearing next to another object's shadow, ``measurement.shadow_window``),
     ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
@@ -666,9 +666,9 @@ class Tracker:
 
     def _shadowed_ends(self, clusters: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray] | None] | None:
         """Per cluster, its end in bearing that borders another object's shadow and its free end, where
-        exactly one end does (``BirthConfig.shadow_aware``; None without the shadow flags)."""
+        exactly one end does (None without the shadow flags)."""
         mcfg, det = self.config.measurement, self.config.detection
-        if not (self.config.birth.shadow_aware and mcfg.shadow_window is not None and clusters and len(self._scan)):
+        if not (mcfg.shadow_window is not None and clusters and len(self._scan)):
             return None
         ends = bearing_extremes(clusters)
         occ = occluded_ends(ends, self._scan, mcfg.shadow_window * det.lidar_resolution, mcfg.shadow_margin,

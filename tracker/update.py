@@ -280,13 +280,12 @@ def _fused_settings(config: TrackerConfig) -> tuple[tuple, tuple, tuple, bool, b
     if cached is None:
         mcfg, det = config.measurement, config.detection
         shadows = mcfg.shadow_window is not None
-        continuation = shadows and mcfg.continuation_rays is not None and bool(mcfg.sharp_side_whole
-                                                                                or mcfg.sharp_parts_whole)
+        continuation = shadows and mcfg.continuation_rays is not None
         window = mcfg.shadow_window * det.lidar_resolution if shadows else 0.0
         scanned = (shadows, float(window), float(mcfg.shadow_margin), float(det.lidar_range),
                    float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
                    float(mcfg.continuation_offset))
-        head, tail = structure_config_args(mcfg, shadows, config.use_radar, True)
+        head, tail = structure_config_args(mcfg, config.use_radar)
         update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
                   -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
         cached = (prepare_settings(mcfg), scanned, update, shadows, continuation)
@@ -345,13 +344,14 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     mcfg = config.measurement
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
-    head, tail = structure_config_args(mcfg, batch.occluded_end is not None, config.use_radar, True)
+    head, tail = structure_config_args(mcfg, config.use_radar)
     c = np.ascontiguousarray
     try:
         status, *out = update_pairs_kernel(
             c(means, dtype=float), c(covs, dtype=float), c(inverse, dtype=np.intp), c(clu, dtype=np.intp), ut.scale,
             ut.wm, ut.wc, *wrapping.kernel_args(), kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed,
-            road.length, road._ends_array, *curve, MIN_EXTENT, *structure_batch_args(batch), *head, *tail,
+            road.length, road._ends_array, *curve, MIN_EXTENT, *structure_batch_args(batch), *head,
+            batch.occluded_end is not None, *tail,
             bool(mcfg.grow_extent), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
             -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
     except np.linalg.LinAlgError:  # a prior or an innovation that is not positive definite: the staged path

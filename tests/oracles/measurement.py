@@ -11,9 +11,8 @@ import numpy as np
 
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
-from tracker.measurement import (_shadowed_parts_partial, _sharp_parts_whole, _sharp_side_whole, CENTRE, FIXED,
-                                 FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_CHORD, MIN_EXTENT,
-                                 MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, ClusterBatch, Rectangles, Structure)
+from tracker.measurement import (CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_CHORD,
+                                 MIN_EXTENT, MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, ClusterBatch, Rectangles, Structure)
 
 
 def side_normals(corners: np.ndarray) -> np.ndarray:
@@ -117,8 +116,8 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
     chord_len = np.take_along_axis(batch.chord_len[ci], slots, axis=1)
     margin = np.take_along_axis(batch.end_margin[ci], slots[..., None], axis=1)  # (P, 2 parts, 2 ends)
     occ = batch.occluded_end[ci] if batch.occluded_end is not None else np.zeros((p_count, 2), dtype=bool)
-    shadowed_parts = _shadowed_parts_partial(config, batch.occluded_end is not None)
-    if shadowed_parts:
+    shadows = batch.occluded_end is not None  # the sharp-end and shadowed-part rules need the shadow flags
+    if shadows:
         # a two-sided part's far end (part 0: the first point, part 1: the last) in a shadow is no end of
         # the side: no end-gap margin there, the chord reaches at least to the last return
         margin[:, 0, 0] = np.where(two & occ[:, 0], 0.0, margin[:, 0, 0])
@@ -133,13 +132,13 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
     sharp_end = batch.end_gap[ci] <= config.shadow_free_gap  # (P, 3 slots, 2 ends): half a ray gap at most
     sharp = sharp_end[:, 0]  # (P, 2 ends) of the one-sided chord
     free = _free_ends(batch, ci)  # (P, 2) the bearing ends: in no shadow, not continued
-    if _sharp_side_whole(config, batch.occluded_end is not None):
+    if shadows:
         # a one-sided part with both ends sharp and free is the whole side, however much shorter than
         # predicted (a convex rectangle shows each visible side whole): a motorcycle's rear is 0.8 m,
         # not the visible part of a car's 1.8 m
         whole = ~two & ~single & sharp[:, 0] & sharp[:, 1] & free[:, 0] & free[:, 1]
         partial &= ~whole[:, None]
-    if _sharp_parts_whole(config, batch.occluded_end is not None, extent_sd is not None):
+    if shadows and extent_sd is not None:
         # each part of a two-sided cluster runs from the fitted corner to a far end, the cluster's first
         # (part 0, slot 1's start) or last point (part 1, slot 2's end): whole if that end is sharp and
         # free, both parts have enough points (the corner is where two well-fitted lines meet: with two
@@ -156,7 +155,7 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
         consistent = shrink <= config.whole_gate_sigmas * sd + config.whole_gate_slack
         enough = part_pts.min(axis=1, keepdims=True) >= config.whole_min_points
         partial &= ~(two[:, None] & far_sharp & free & enough & consistent)
-    if shadowed_parts:
+    if shadows:
         # ... and the side goes on behind it: partially visible, anchored at the corner, unless the chord
         # is longer than its predicted side (a lower bound: measured whole, to the last return); taken
         # whole, a side that an occluder hides a little more every frame would shrink with what shows

@@ -150,7 +150,7 @@ def prepare_cluster(
     ends = origin + hi[:, None] * direction
     length = hi - lo
     margin, half_gap = np.zeros((3, 2)), np.zeros((3, 2))
-    if config.end_gap_correction and n >= 2:
+    if n >= 2:
         # half the gap between rays at each free end: along a line at distance d from the sensor a
         # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
         gaps = np.diff(rel)
