@@ -331,6 +331,25 @@ def prepare_settings(config: MeasurementConfig) -> tuple:
             MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
 
 
+def finite_cluster_points(points: np.ndarray, velocity: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray | None]:
+    """A cluster's checked input: its finite points ``(N', 2)`` (C-contiguous), their indices in
+    ``points``, how many non-finite points were dropped, and ``velocity`` as a finite ``(2,)`` (or None).
+    A clear ``ValueError`` for points not of shape ``(N, 2)``, no finite point, or a bad velocity."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"cluster points must have shape (N, 2) (x, y in E, m); got {pts.shape}")
+    finite = np.isfinite(pts).all(axis=1)
+    dropped = int((~finite).sum())
+    if dropped == len(pts):
+        raise ValueError(f"a cluster needs at least one finite point; got none ({dropped} non-finite dropped)")
+    if velocity is not None:
+        velocity = np.asarray(velocity, dtype=float).reshape(-1)
+        if velocity.shape != (2,) or not np.isfinite(velocity).all():
+            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
+    return np.ascontiguousarray(pts[finite]), np.flatnonzero(finite), dropped, velocity
+
+
 def prepare_cluster(
     points: np.ndarray, config: MeasurementConfig | None = None, velocity: np.ndarray | None = None
 ) -> Cluster:
@@ -340,19 +359,7 @@ def prepare_cluster(
     and compute each point's chord coordinates. ``velocity`` is an associated radar detection's absolute
     velocity ``(vx, vy)`` in E (m/s)."""
     config = config if config is not None else MeasurementConfig()
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"cluster points must have shape (N, 2) (x, y in E, m); got {pts.shape}")
-    finite = np.isfinite(pts).all(axis=1)
-    dropped = int((~finite).sum())
-    index = np.flatnonzero(finite)
-    pts = np.ascontiguousarray(pts[finite])
-    if len(pts) == 0:
-        raise ValueError(f"a cluster needs at least one finite point; got none ({dropped} non-finite dropped)")
-    if velocity is not None:
-        velocity = np.asarray(velocity, dtype=float).reshape(-1)
-        if velocity.shape != (2,) or not np.isfinite(velocity).all():
-            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
+    pts, index, dropped, velocity = finite_cluster_points(points, velocity)
     (kept, _, part, proj, starts, ends, direction, length, margin, half_gap, two, corner, ratio, order,
      kept_count) = prepare_kernel(pts, np.array([0, len(pts)], dtype=np.intp), *prepare_settings(config))
     m = int(kept_count[0])

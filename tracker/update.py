@@ -116,7 +116,8 @@ def kalman_update(
     extra = np.zeros((z.shape[0], 0, z.shape[1])) if factors is None else np.asarray(factors, dtype=float)
     # a pair whose predicted measurement or noise factors are not finite has no posterior (NaN); the others
     # are updated alone (the kernel treats every pair on its own, so they get the numbers of a full batch)
-    finite = (np.isfinite(z_sigma) | ~mask[:, None, :]).all(axis=(1, 2)) & (np.isfinite(extra) | ~mask[:, None, :]).all(axis=(1, 2))
+    unused = ~mask[:, None, :]  # padded rows take no part
+    finite = (np.isfinite(z_sigma) | unused).all(axis=(1, 2)) & (np.isfinite(extra) | unused).all(axis=(1, 2))
     if finite.all():
         contiguous = (np.ascontiguousarray(a) for a in (sigma, mean, cov, z_sigma, z, r, r_like, mask, extra))
         return UpdateResult(*kalman_kernel(*contiguous, ut.wm, ut.wc, *wrapping.kernel_args()))

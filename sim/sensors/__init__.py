@@ -21,6 +21,14 @@ from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
 from sim.sensors.radar import FRONT_RADAR, REAR_RADAR, RadarConfig, RadarScan, RadarUnit, RadarUnitConfig
 from sim.sensors.raycast import CastResult, RayGrid, Segments, cast, cast_pymunk
 from sim.sensors.rig import RigConfig, SensorFrame, SensorRig
+from tracker.warmup import register_warm_up
+
+from sim.sensors import radar as _radar, raycast as _raycast, scene as _scene
+
+# tracker.warmup.warm_up() also compiles the sensors' kernels (registered here, not in the kernels' own
+# modules: a kernel's cache key covers the modules its module imports, and warmup imports the tracker)
+for _warm in (_raycast._warm_up_cast, _scene._warm_up_scene, _radar._warm_up_visible):
+    register_warm_up(_warm)
 
 __all__ = [
     "FRONT_RADAR",

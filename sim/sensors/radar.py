@@ -258,19 +258,9 @@ def visible_kernel(xy, yaw, length, width, static_edges, static_owner, static_mi
 
 
 def _warm_up_visible() -> None:
+    """Compile (or load) this module's kernels (registered with ``tracker.warmup`` by ``sim.sensors``)."""
     fan = RayGrid.fan(0.0, 0.5, math.radians(1.0))
     visible_kernel(np.array([[6.0, 0.0]]), np.zeros(1), np.full(1, 4.5), np.full(1, 1.9),
                    np.zeros((1, 4)) + [9.0, 1.0, 9.0, -1.0], np.ones(1, dtype=np.int64), np.array([[9.0, 0.0]]),
                    np.ones(1), 0.0, 0.0, 0.0, 50.0, 0.5, math.remainder(fan.start, 2.0 * math.pi), fan.resolution,
                    fan.cos, fan.sin)
-
-
-
-def _register_warm_up() -> None:
-    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
-    from tracker.warmup import register_warm_up
-
-    register_warm_up(_warm_up_visible)
-
-
-_register_warm_up()

@@ -337,20 +337,12 @@ def cast(segments: Segments, grid: RayGrid, max_range: float, *, cull_back_faces
 
 
 def _warm_up_cast() -> None:
+    """Compile (or load) this module's kernels (registered with ``tracker.warmup`` by ``sim.sensors``)."""
     square = Segments.from_polygons(np.array([[5.0, -1.0], [7.0, -1.0], [7.0, 1.0], [5.0, 1.0]]), np.array([0, 4]),
                                     np.array([0]))
     cast(square, RayGrid.full_circle(math.radians(1.0)), 50.0)
     cast(square, RayGrid.fan(0.0, 0.5, math.radians(1.0)), 50.0)
 
-
-def _register_warm_up() -> None:
-    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
-    from tracker.warmup import register_warm_up
-
-    register_warm_up(_warm_up_cast)
-
-
-_register_warm_up()
 
 #: The casters by name (``LidarConfig.caster``): "numpy" is ``cast`` (the compiled caster, the
 #: default), "pymunk" the oracle.

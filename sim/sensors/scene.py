@@ -134,16 +134,7 @@ def scene_kernel(xy, yaw, length, width, static_edges, static_owner, static_mid,
 
 
 def _warm_up_scene() -> None:
+    """Compile (or load) this module's kernels (registered with ``tracker.warmup`` by ``sim.sensors``)."""
     one = np.array([[6.0, 0.0]])
     scene_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), *static_arrays(None, 1), 0.0, 0.0, 0.0, 50.0)
     scene_kernel(one, np.zeros(1), np.full(1, 4.5), np.full(1, 1.9), *static_arrays(None, 1), 0.0, 0.0, 0.0, math.inf)
-
-
-def _register_warm_up() -> None:
-    # imported here, not at the top: the kernels' cache keys cover the modules imported at the top only
-    from tracker.warmup import register_warm_up
-
-    register_warm_up(_warm_up_scene)
-
-
-_register_warm_up()

@@ -11,7 +11,7 @@ import numpy as np
 
 from tracker.config import MeasurementConfig
 from tracker.frame import EgoState
-from tracker.measurement import (CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_CHORD,
+from tracker.measurement import (_free_ends,CENTRE, FIXED, FROM_A, FROM_B, FULL, GROWTH_MIN_EXCESS, GROWTH_SIGMAS, MIN_CHORD,
                                  MIN_EXTENT, MISSED_RAYS_SHARP, NEXT_CORNER, SX, SY, ClusterBatch, Rectangles, Structure)
 
 
@@ -55,15 +55,6 @@ def shows_longer_side(excess: np.ndarray, sd: np.ndarray) -> np.ndarray:
     noise: more than ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``sd`` that extent's standard
     deviation). The evidence of the extent growth."""
     return excess > np.maximum(GROWTH_MIN_EXCESS, GROWTH_SIGMAS * sd)
-
-
-def _free_ends(batch: ClusterBatch, ci: np.ndarray) -> np.ndarray:
-    """``(P, 2)``: whether each bearing end of the pairs' clusters is free (in no shadow, not continued)."""
-    free = np.ones((len(ci), 2), dtype=bool)
-    for flags in (batch.occluded_end, batch.continued_end):
-        if flags is not None:
-            free &= ~flags[ci]
-    return free
 
 
 def _lidar_variance(config: MeasurementConfig, mode: np.ndarray, shadowed: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from tracker.config import MeasurementConfig
-from tracker.measurement import CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster
+from tracker.measurement import CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, finite_cluster_points
 
 
 def _lambda_min(sxx: np.ndarray, syy: np.ndarray, sxy: np.ndarray) -> np.ndarray:
@@ -85,19 +85,7 @@ def prepare_cluster(
     corner, downsample to ``config.max_cluster_points`` and compute each point's chord coordinates.
     ``velocity`` is an associated radar detection's absolute velocity ``(vx, vy)`` in E (m/s)."""
     config = config if config is not None else MeasurementConfig()
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"cluster points must have shape (N, 2) (x, y in E, m); got {pts.shape}")
-    finite = np.isfinite(pts).all(axis=1)
-    dropped = int((~finite).sum())
-    index = np.flatnonzero(finite)
-    pts = pts[finite]
-    if len(pts) == 0:
-        raise ValueError(f"a cluster needs at least one finite point; got none ({dropped} non-finite dropped)")
-    if velocity is not None:
-        velocity = np.asarray(velocity, dtype=float).reshape(-1)
-        if velocity.shape != (2,) or not np.isfinite(velocity).all():
-            raise ValueError(f"cluster velocity must be a finite (vx, vy) in m/s; got {velocity!r}")
+    pts, index, dropped, velocity = finite_cluster_points(points, velocity)
     centroid, sxx, syy, sxy = _scatter(pts)
     cx, cy = float(centroid[0]), float(centroid[1])
     ref = math.atan2(cy, cx) if math.hypot(cx, cy) > 1e-9 else 0.0

@@ -84,14 +84,8 @@ def kalman_update(ut: UnscentedTransform, sigma: np.ndarray, mean: np.ndarray, c
 
 
 def predict_measurements(rect: Rectangles, structure: Structure) -> np.ndarray:
-    """Predicted measurements ``(P, S, D)`` of pairs from sigma-point rectangles in E (``rect`` arrays of
-    shape ``(P, S)``): the generating points of ``structure`` stacked (``x0, y0, x1, y1, ...``; padding
-    0), then the radar rows ``v (cos psi_E, sin psi_E)`` (0 where masked).
-
-    Every generating point is ``centre + (ax L + gx) e_x + (ay W + gy) e_y`` (``Structure.coef``), i.e.
-    linear in the per-sigma-point features ``(cx, cy, L cos psi, L sin psi, cos psi, sin psi, W sin psi,
-    W cos psi, v cos psi, v sin psi)``: the whole prediction is one batched product
-    ``features (P, S, 10) @ Structure.matrix (P, 10, D)``."""
+    """``tracker.measurement.predict_measurements`` as one batched numpy product: the features of every
+    sigma point's rectangle times ``Structure.matrix``."""
     c, s = np.cos(rect.psi), np.sin(rect.psi)
     feats = np.stack(
         [rect.center[..., 0], rect.center[..., 1], rect.length * c, rect.length * s, c, s,
