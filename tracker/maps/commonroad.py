@@ -1,0 +1,124 @@
+"""Read the lane map of a CommonRoad scenario file (XML) into a ``LaneGraph``.
+
+Uses ``commonroad-io`` (the optional ``maps`` extra). Every lanelet becomes one ``Lanelet`` with its
+id, boundaries, successors, predecessors and left/right neighbours (``adjacentLeft``/``adjacentRight``
+with their ``drivingDir``). Lanelet types map to kinds: ``shoulder`` -> shoulder, ``parking`` -> parking,
+``sidewalk`` -> sidewalk, ``crosswalk`` -> crosswalk, ``bicycleLane`` -> bicycle, ``border``,
+``restricted``, ``restricted_area`` -> other, every other type (urban, highway, ramps, bus lanes,
+intersection...) -> driving. Traffic signs, lights, stop lines and the scenario's obstacles are not read.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from tracker.maps.graph import Lanelet, LaneGraph
+
+#: CommonRoad lanelet types that are not "driving" (``LaneletType.value`` -> kind).
+KIND_OF_TYPE = {
+    "shoulder": "shoulder",
+    "parking": "parking",
+    "sidewalk": "sidewalk",
+    "crosswalk": "crosswalk",
+    "bicycleLane": "bicycle",
+    "border": "other",
+    "restricted": "other",
+    "restricted_area": "other",
+}
+
+
+def _import_commonroad():
+    try:
+        from commonroad.common.file_reader import CommonRoadFileReader
+    except ImportError:
+        raise ImportError("reading CommonRoad maps needs commonroad-io: pip install 'frenet-eot[maps]'") from None
+    return CommonRoadFileReader
+
+
+@contextlib.contextmanager
+def _quiet(name: str):
+    """Raise the level of logger ``name`` to ERROR while inside (commonroad-io logs a warning for every
+    2020a-format intersection element it maps to the newer names)."""
+    log = logging.getLogger(name)
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
+
+
+def _precheck(path: Path) -> None:
+    """Parse the XML with the standard library to report a broken file in one line naming the element."""
+    name = path.name
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as err:
+        raise ValueError(f"{name}: not well-formed XML ({err})") from None
+    if root.tag != "commonRoad":
+        raise ValueError(f"{name}: root element is <{root.tag}>, not <commonRoad>")
+    ids = set()
+    for el in root.findall("lanelet"):
+        lid = el.get("id")
+        if lid is None:
+            raise ValueError(f"{name}: a <lanelet> has no id")
+        ids.add(lid)
+        for bound in ("leftBound", "rightBound"):
+            b = el.find(bound)
+            count = 0 if b is None else len(b.findall("point"))
+            if count < 2:
+                side = bound[: -len("Bound")]
+                raise ValueError(f"{name}: lanelet {lid} has a {side} boundary of {count} point{'s' if count != 1 else ''}; need at least 2")
+    for el in root.findall("lanelet"):
+        for tag in ("predecessor", "successor", "adjacentLeft", "adjacentRight"):
+            for ref in el.findall(tag):
+                if ref.get("ref") not in ids:
+                    raise ValueError(f"{name}: lanelet {el.get('id')} names {tag} {ref.get('ref')}, which is not in the map")
+
+
+def lanelet_from_commonroad(ll, source: str = "") -> Lanelet:
+    """A ``Lanelet`` from a ``commonroad.scenario.lanelet.Lanelet``."""
+    types = {t.value for t in (ll.lanelet_type or ())}
+    kinds = [KIND_OF_TYPE[t] for t in types if t in KIND_OF_TYPE]
+    return Lanelet(
+        id=int(ll.lanelet_id),
+        left=ll.left_vertices,
+        right=ll.right_vertices,
+        predecessors=tuple(int(i) for i in ll.predecessor),
+        successors=tuple(int(i) for i in ll.successor),
+        left_neighbor=None if ll.adj_left is None else int(ll.adj_left),
+        left_same_direction=bool(ll.adj_left_same_direction) if ll.adj_left is not None else True,
+        right_neighbor=None if ll.adj_right is None else int(ll.adj_right),
+        right_same_direction=bool(ll.adj_right_same_direction) if ll.adj_right is not None else True,
+        kind=sorted(kinds)[0] if kinds else "driving",
+        source=source or f"lanelet {ll.lanelet_id}",
+    )
+
+
+def graph_from_lanelet_network(network, source: str = "map") -> LaneGraph:
+    """A ``LaneGraph`` from a ``commonroad.scenario.lanelet.LaneletNetwork``."""
+    return LaneGraph([lanelet_from_commonroad(ll) for ll in network.lanelets], source=source)
+
+
+def read_commonroad(path: str | Path) -> LaneGraph:
+    """The lane map of the CommonRoad file ``path`` (XML, formats 2018b-2020a and later).
+
+    Raises ``FileNotFoundError`` for a missing file and ``ValueError`` (one line naming the file and
+    the element) for a broken one; ``ImportError`` without commonroad-io.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such map file")
+    reader = _import_commonroad()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), _quiet("commonroad"):  # notices on older formats
+            network = reader(str(path)).open_lanelet_network()
+    except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
+        _precheck(path)  # names the broken element when it finds one
+        first = str(err).splitlines()[0] if str(err) else ""
+        raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
+    return graph_from_lanelet_network(network, source=path.name)
