@@ -44,18 +44,21 @@ def road_edges_xy(road, stations: np.ndarray, right: np.ndarray, left: np.ndarra
 
 
 def edge_deviation(graph: LaneGraph, corridor, road=None, margin: float = 2.0) -> float:
-    """Largest distance (m) from the route lanelets' outermost boundaries to the road's edges, points
-    within ``margin`` m of the road's ends left out."""
+    """Largest distance (m) from the route lanelets' outermost boundaries to the road's edges: each
+    route lanelet's chained outer boundaries over the stretch of road it owns, points within ``margin``
+    m of the road's ends left out."""
     road = corridor.road if road is None else road
     s = np.linspace(0.0, road.length, max(int(road.length / 0.25), 2))
     right_n, left_n = edges_at(road, corridor, s)
     right_xy, left_xy = road_edges_xy(road, s, right_n, left_n)
     worst = 0.0
-    for lid in corridor.route:
+    # each route lanelet owns the stretch from the projection of its entry to that of the next one's
+    ends = np.append(corridor.route_starts[1:], road.length)
+    for lid, lo, hi in zip(corridor.route, corridor.route_starts, ends):
         for line, edge in zip(outer_boundaries(graph, lid), (right_xy, left_xy)):
             pts = densify(line, 0.5)
             ps, _ = road.to_frenet(pts)
-            pts = pts[(ps > margin) & (ps < road.length - margin)]
+            pts = pts[(ps > max(margin, lo)) & (ps < min(road.length - margin, hi))]
             if len(pts):
                 worst = max(worst, float(point_polyline_distance(pts, edge).max()))
     return worst
