@@ -418,3 +418,21 @@ def test_ukf_prediction_kernel_against_the_oracle(name, motion, monkeypatch):
     before = ut.repairs
     got = predict(ut, model, mean, bad, 0.1)
     assert ut.repairs > before and np.isfinite(got[1]).all()
+
+
+def test_oncoming_vehicle_keeps_its_lane_and_heading():
+    """A vehicle driving against ``s`` (``xi = pi``) in its lane on a curve: the road-following prior
+    relaxes its course toward pi (the axis it drives along), never toward 0; it holds its lateral offset
+    as the road curves under it, and its heading in G turns with the road's (pi from it)."""
+    road = Road.from_curvature([(400.0, 0.01, 0.01)], lanes=2, oncoming=1)
+    motion = FrenetMotion(road, MotionConfig(slip_lever=0.0))
+    x = np.array([[300.0, 1.75, 15.0, np.pi, 0.0, 4.5, 1.8],
+                  [300.0, 1.75, 15.0, -np.pi + 0.1, 0.0, 4.5, 1.8]])  # on course, and 0.1 rad off it
+    out = motion.propagate(x, 4.0)
+    # on course: s falls at v / (1 - kappa n) (the road's metric), n and xi unchanged
+    assert out[0, 0] == pytest.approx(300.0 - 4.0 * 15.0 / (1.0 - 0.01 * 1.75), abs=1e-6)
+    assert out[0, 1] == pytest.approx(1.75, abs=1e-9)
+    assert abs(np.mod(out[0, 3], 2 * np.pi) - np.pi) < 1e-9
+    # off course by 0.1 rad: the prior brings it back toward pi (not across to 0)
+    assert abs(np.mod(out[1, 3], 2 * np.pi) - np.pi) < 0.1 * np.exp(-1.0 * 4.0) * 3.0
+    assert out[1, 0] < 260.0

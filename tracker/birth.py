@@ -65,16 +65,29 @@ def _birth_arc_lengths(road: Road, s_ego: float, lidar_range: float, config: Bir
     return s[(s >= 0.0) & (s <= road.length)]
 
 
+def _lane_rows(road: Road, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One row per (arc length, driving lane present there), arc length first then lane 0 (rightmost)
+    up: the rows' ``s`` and ``n`` (m) and heading ``xi`` (rad: 0 in a lane along ``s``, pi in an
+    oncoming one)."""
+    layout = road.layout
+    if not layout.varies and not layout.two_way and all(k == "driving" for k in layout.kinds):
+        lanes = road.lane_centers
+        return np.repeat(s, len(lanes)), np.tile(lanes, len(s)), np.zeros(len(s) * len(lanes))
+    centres = road.lane_centers_at(s)  # (len(s), lanes), NaN where a lane is absent
+    driving = np.array([k == "driving" for k in layout.kinds])
+    present = ~np.isnan(centres) & driving[None, :]
+    i, j = np.nonzero(present)
+    xi = np.where(layout.directions[j] < 0, np.pi, 0.0)
+    return s[i], centres[i, j], xi
+
+
 def road_births(road: Road, s_ego: float, ego_speed: float, lidar_range: float, config: BirthConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Components per lane at ``s_ego +- (lidar_range - range_margin)`` (m); on an open road only those
-    on the road. Speed: ``config.speed`` or the ego's."""
-    s = _birth_arc_lengths(road, s_ego, lidar_range, config)
-    lanes = road.lane_centers
+    """Components per driving lane present at ``s_ego +- (lidar_range - range_margin)`` (m), heading
+    with the lane's traffic; on an open road only those on the road. Speed: ``config.speed`` or the ego's."""
+    s_rows, n_rows, xi_rows = _lane_rows(road, _birth_arc_lengths(road, s_ego, lidar_range, config))
     speed = ego_speed if config.speed is None else config.speed
-    means = np.zeros((len(s) * len(lanes), 7))
-    grid = means.reshape(len(s), len(lanes), 7)  # row i * lanes + j: the i-th arc length, the j-th lane
-    grid[:, :, 0] = s[:, None]
-    grid[:, :, 1] = lanes[None, :]
+    means = np.zeros((len(s_rows), 7))
+    means[:, 0], means[:, 1], means[:, 3] = s_rows, n_rows, xi_rows
     means[:, 2] = speed
     means[:, 5], means[:, 6] = config.length, config.width
     return means, birth_covariance(config, len(means))
@@ -113,7 +126,7 @@ def visible_road_births(road: Road, s_ego: float, ego: EgoState, lidar_range: fl
                          f"{len(tracks.center)} tracks")
     kind, *curve = road._curve.kernel_args()
     return road_births_kernel(
-        _birth_arc_lengths(road, s_ego, lidar_range, config), road.lane_centers,
+        *_lane_rows(road, _birth_arc_lengths(road, s_ego, lidar_range, config)),
         float(ego.v if config.speed is None else config.speed), float(config.length), float(config.width),
         _diagonal_variances(_birth_spreads(config)), 0.0 if acceleration_var is None else float(acceleration_var),
         7 if acceleration_var is None else 8, kind, float(ego.x), float(ego.y), float(ego.yaw), road.closed, road.length,
@@ -181,12 +194,15 @@ def cluster_births(
             continue
         sparse_k = len(pts) < SPARSE_POINTS
         fit = fit_rectangle(pts)
-        # the fit's axes are ambiguous by quarter turns: take the one closest to the road direction
-        # (vehicles drive along the road), swapping length and width for an odd quarter turn
+        # the fit's axes are ambiguous by quarter turns: take the one closest to the direction of the
+        # traffic in the lane there (vehicles drive along their lane: pi from the road's in an oncoming
+        # lane), swapping length and width for an odd quarter turn
         probe = to_global(fit.center[None, :], (ego.x, ego.y), ego.yaw)[0]
-        s_fit, _ = road.to_frenet(probe)
+        s_fit, n_fit = road.to_frenet(probe)
         theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
-        if sparse_k:  # no orientation in one or two points: the road's direction
+        lane_xi = np.pi if road.two_way and int(road.lane_direction(s_fit, n_fit)) < 0 else 0.0
+        theta_fit += lane_xi
+        if sparse_k:  # no orientation in one or two points: the lane's direction
             psi_e = theta_fit - ego.yaw
         else:
             turns = np.arange(4)
@@ -232,7 +248,7 @@ def cluster_births(
         metric = [1.0 / max(1.0 - float(curvature[0]) * n, 0.1), 1.0]
         levers.append(rotate(shifts, ego.yaw - theta[0]) * metric)
         spreads.append(rotate(either, ego.yaw - theta[0]) * metric)
-        xi = 0.0 if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
+        xi = lane_xi if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         if vel is not None:
             speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
         else:
@@ -301,26 +317,25 @@ def to_cartesian_gaussians(
 
 
 @njit
-def road_births_kernel(s, lanes, speed, length_prior, width_prior, cov7, accel_var, dim, kind, ego_x, ego_y, ego_yaw,
-                       closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
+def road_births_kernel(s, lateral, heading, speed, length_prior, width_prior, cov7, accel_var, dim, kind, ego_x, ego_y,
+                       ego_yaw, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights,
                        min_extent, track_corners, track_centers, track_labels, gate_distance):  # pragma: no cover - compiled
-    """Birth components ``(means (B, dim), covs (B, dim, dim))`` at the arc lengths ``s`` (m) on every lane
-    centre ``lanes`` (row ``i * len(lanes) + j``), speed ``speed``, extent ``length_prior`` x
-    ``width_prior``, covariance ``cov7 (7, 7)`` (and ``accel_var`` for the acceleration state when ``dim``
-    is 8); where tracks are given (``track_labels`` not empty: their rectangles' corners and centres in
-    E), only those whose rectangle in E (the ego at ``ego_x, ego_y, ego_yaw`` in G) is less than half
-    hidden by the tracks (``occluded_fraction``) and lies farther than ``gate_distance`` (m) from every
-    track's centre."""
-    count = len(s) * len(lanes)
+    """Birth components ``(means (B, dim), covs (B, dim, dim))`` at the road points ``(s, lateral)`` (m)
+    with headings ``heading`` (rad; one row each: ``_lane_rows``), speed ``speed``, extent ``length_prior``
+    x ``width_prior``, covariance ``cov7 (7, 7)`` (and ``accel_var`` for the acceleration state when
+    ``dim`` is 8); where tracks are given (``track_labels`` not empty: their rectangles' corners and
+    centres in E), only those whose rectangle in E (the ego at ``ego_x, ego_y, ego_yaw`` in G) is less
+    than half hidden by the tracks (``occluded_fraction``) and lies farther than ``gate_distance`` (m)
+    from every track's centre."""
+    count = len(s)
     means = np.zeros((count, dim))
-    for i in range(len(s)):
-        for j in range(len(lanes)):
-            row = i * len(lanes) + j
-            means[row, 0] = s[i]
-            means[row, 1] = lanes[j]
-            means[row, 2] = speed
-            means[row, 5] = length_prior
-            means[row, 6] = width_prior
+    for row in range(count):
+        means[row, 0] = s[row]
+        means[row, 1] = lateral[row]
+        means[row, 2] = speed
+        means[row, 3] = heading[row]
+        means[row, 5] = length_prior
+        means[row, 6] = width_prior
     keep = np.ones(count, dtype=np.bool_)
     if count and len(track_labels):
         center, _psi, corners = to_vehicle_kernel(kind, means, ego_x, ego_y, ego_yaw, closed, length, ends, table,

@@ -145,7 +145,7 @@ class MotionConfig:
     min_denominator: float = 0.1
     #: Rear axle behind the centre, as a fraction of ``L``, for the slip angle; 0: the paper's no slip (default 0.5).
     slip_lever: float = 0.5
-    #: Road-following prior: rate at which the course ``xi + beta`` relaxes to 0 (1/s; default 1.0; 0: off).
+    #: Road-following prior: rate at which the course ``xi + beta`` relaxes to 0, or to pi against ``s`` (1/s; default 1.0; 0: off).
     heading_decay: float = 1.0
     #: Road-following prior: rate at which ``xi_dot`` relaxes to 0 (1/s; default 2.0; 0: off).
     yaw_rate_decay: float = 2.0

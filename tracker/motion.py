@@ -11,7 +11,10 @@ Three models share one interface (``MotionModel``: ``propagate(x, dt)``, ``proce
   with the acceleration state (``MotionConfig.acceleration``, on by default) an eighth, internal state ``a``:
   ``v' = a``, ``a' = -a / acceleration_time`` (Singer);
   plus the road-following prior (``MotionConfig.heading_decay``, ``yaw_rate_decay``): ``xi' = xi_dot -
-  heading_decay (xi + beta)``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0 give the constant turn above),
+  heading_decay (xi + beta - pi round((xi + beta) / pi))``, ``xi_dot' = -yaw_rate_decay xi_dot`` (0 and 0
+  give the constant turn above): the course relaxes toward the road's axis in the direction the vehicle
+  drives, 0 along ``s`` and pi against it (an oncoming vehicle's lane, or one parked facing the other
+  way), so no prior ever turns a vehicle around,
   integrated with classic RK4 in ``ceil(dt / max_step)`` sub-steps (with ``MotionConfig.slip_lever > 0``
   the centre moves along ``xi + beta`` instead of ``xi``, ``beta`` the kinematic slip angle of a
   kinematic bicycle whose rear axle lies ``slip_lever * L`` behind the centre, ``sin beta = yaw_rate
@@ -502,7 +505,8 @@ def _derivative(x, out, params):
     """``dx/dt`` of one state ``x`` into ``out`` (``params`` as ``rk4_propagate``'s)::
 
         [v cos(xi + beta) / max(1 - kappa(s) n, min_denominator), v sin(xi + beta), a,
-         xi_dot - heading_decay (xi + beta), -yaw_rate_decay xi_dot, 0, 0, -a / acceleration_time]
+         xi_dot - heading_decay (xi + beta - pi round((xi + beta) / pi)), -yaw_rate_decay xi_dot, 0, 0,
+         -a / acceleration_time]
 
     with ``a`` the acceleration state (8 coordinates; else ``v`` constant) and the kinematic slip angle
     ``beta`` (0 when ``slip_lever = 0``): ``sin beta = yaw_rate slip_lever L / v``, clipped to
@@ -522,7 +526,7 @@ def _derivative(x, out, params):
     out[:] = 0.0
     out[0] = v * math.cos(course) / denom
     out[1] = v * math.sin(course)
-    out[3] = xi_dot - heading_decay * course
+    out[3] = xi_dot - heading_decay * (course - math.pi * math.floor(course / math.pi + 0.5))
     out[4] = -yaw_rate_decay * xi_dot
     if len(x) == 8:
         out[2] = x[7]

@@ -208,7 +208,8 @@ class PointTracker:
             centre = to_vehicle(self.means, frame.ego, self.road).center
             in_range = np.linalg.norm(centre, axis=1) <= cfg.detection.lidar_range + cfg.reduction.fov_margin
             n = self.means[:, 1]
-            on_road = (n >= self.road.right_edge - cfg.reduction.road_margin) & (n <= self.road.left_edge + cfg.reduction.road_margin)
+            right, left = self.road.edges(self.means[:, 0])
+            on_road = (n >= right - cfg.reduction.road_margin) & (n <= left + cfg.reduction.road_margin)
             self.stats["tracks_left_view"] += int((keep & ~in_range).sum())
             self.stats["tracks_off_road"] += int((keep & in_range & ~on_road).sum())
             keep &= in_range & on_road

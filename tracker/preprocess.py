@@ -26,6 +26,7 @@ from tracker.transforms import to_global
 from tracker.jit import njit
 from tracker.clustering import bearing_filter_kernel
 from tracker.centerline import project_kernel, seed_kernel
+from tracker.lanes import edge_at
 
 
 def drop_nonfinite(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -137,7 +138,7 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     margin = config.road_margin
     head = (np.ascontiguousarray(scan, dtype=float), float(np.cos(ego.yaw)), float(np.sin(ego.yaw)), float(ego.x),
             float(ego.y))
-    tail = (*args, not road.closed, road.right_edge - margin, road.left_edge + margin, float(config.bearing_bin),
+    tail = (*args, not road.closed, *road.edge_kernel_args(), float(margin), float(config.bearing_bin),
             int(max(count, 1)), bool(tiles))
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
     if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
@@ -169,11 +170,12 @@ DONE, SEED, STAGED = 0, 1, 2
 @njit
 def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid_origin, inv_resolution, grid,
                        node_frame, nodes, kind, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops,
-                       gl_nodes, gl_weights, max_iterations, tolerance, max_step, min_denominator, check_s, n_low,
-                       n_high, bin_width, bin_count, wrap):  # pragma: no cover - compiled
+                       gl_nodes, gl_weights, max_iterations, tolerance, max_step, min_denominator, check_s,
+                       edge_inv_step, edge_right, edge_left, margin, bin_width, bin_count, wrap):  # pragma: no cover - compiled
     """The returns ``scan (N, 2)`` in E (finite) of an ego at ``(ego_x, ego_y)`` in G whose heading has
     cosine ``cos_yaw`` and sine ``sin_yaw``: their projections ``(s, n)`` on the road (Newton from
-    ``seeds (N,)`` when ``seeded``, else from the seed grid's), those within ``n_low <= n <= n_high``
+    ``seeds (N,)`` when ``seeded``, else from the seed grid's), those within the road's edges at their ``s``
+    widened by ``margin`` (m; the edge tables ``edge_right``, ``edge_left`` read by ``tracker.lanes.edge_at``)
     (and ``0 <= s <= length`` when ``check_s``: an open road), and of those the closest per bearing bin.
     Returns ``(status, kept, lateral, on_road_count, points, starts, missing)``: ``kept`` indices into
     ``scan`` in increasing bearing order (``bearing_filter_kernel`` of the on-road returns), the lateral
@@ -202,6 +204,8 @@ def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid
     on_road = np.empty(count, dtype=np.int64)
     kept = 0
     for i in range(count):
+        n_low = edge_at(s[i], edge_inv_step, edge_right) - margin
+        n_high = edge_at(s[i], edge_inv_step, edge_left) + margin
         if lateral[i] >= n_low and lateral[i] <= n_high and (not check_s or (s[i] >= 0.0 and s[i] <= length)):
             on_road[kept] = i
             kept += 1

@@ -173,7 +173,7 @@ def reduce_in_view(
     near_range: np.ndarray,
     max_range: float,
     lateral: np.ndarray,
-    lateral_bounds: tuple[float, float],
+    lateral_bounds: tuple[float | np.ndarray, float | np.ndarray],
     *,
     prune_threshold: float,
     merge_gate: float,
@@ -185,7 +185,8 @@ def reduce_in_view(
     s_period: float | None = None,
 ) -> tuple[Mixture, int, int]:
     """The components in view (``near_range <= max_range``: the range of each one's nearest corner) and
-    on the road (``lo <= lateral <= hi``, ``lateral_bounds = (lo, hi)``), ``reduce``d; with ``s_period``
+    on the road (``lo <= lateral <= hi``, ``lateral_bounds = (lo, hi)``: scalars or one per component,
+    m), ``reduce``d; with ``s_period``
     coordinate 0 then taken modulo it (``numpy.mod``: a closed road's ``s``). Returns the mixture, the
     number of components out of view and the number in view but off the road. In one call of
     ``reduce_kernel``; ``merge_same_label``, and then the cap and the modulo, follow here in the frames
@@ -193,12 +194,12 @@ def reduce_in_view(
     if len(near_range) != len(mix) or len(lateral) != len(mix):
         raise ValueError(f"need one range and one lateral offset per component ({len(mix)}); "
                          f"got {len(near_range)} and {len(lateral)}")
-    lo, hi = lateral_bounds
+    lo, hi = (np.ascontiguousarray(np.broadcast_to(np.asarray(b, dtype=float), (len(mix),))) for b in lateral_bounds)
     weights, means, covs, source, left_view, off_road, pending = reduce_kernel(
         np.ascontiguousarray(mix.weights, dtype=float), np.ascontiguousarray(mix.means, dtype=float),
         np.ascontiguousarray(mix.covs, dtype=float), np.ascontiguousarray(mix.labels, dtype=np.int64),
         np.ascontiguousarray(near_range, dtype=float), float(max_range), np.ascontiguousarray(lateral, dtype=float),
-        float(lo), float(hi), float(prune_threshold), float(merge_gate), *_wrapping_args(wrapping),
+        lo, hi, float(prune_threshold), float(merge_gate), *_wrapping_args(wrapping),
         -1.0 if same_label_distance is None else float(same_label_min_weight), int(max_components),
         0.0 if s_period is None else float(s_period))
     mix = Mixture(weights, means, covs, mix.labels[source])
@@ -494,7 +495,7 @@ def overlapping_pairs_kernel(means, cos_h, sin_h, cartesian, overlap, period):  
 def reduce_kernel(weights, means, covs, labels, near, near_limit, lateral, lateral_lo, lateral_hi,  # pragma: no cover
                   prune_threshold, gate, angles, period_index, periods, same_label_weight, max_components, s_period):
     """``tracker.reduction.reduce_in_view`` in one call: the components in view (``near <= near_limit``)
-    and on the road (``lateral_lo <= lateral <= lateral_hi``) of weight ``>= prune_threshold``, merged
+    and on the road (``lateral_lo[i] <= lateral[i] <= lateral_hi[i]``) of weight ``>= prune_threshold``, merged
     (``merge_kernel``, when more than one), capped at the ``max_components`` heaviest (a stable sort of
     ``-w``) and, with ``s_period > 0``, coordinate 0 taken modulo it (a closed road's ``s``).
 
@@ -510,7 +511,7 @@ def reduce_kernel(weights, means, covs, labels, near, near_limit, lateral, later
     k = 0
     for i in range(n):
         inside = near[i] <= near_limit
-        on_road = lateral[i] >= lateral_lo and lateral[i] <= lateral_hi
+        on_road = lateral[i] >= lateral_lo[i] and lateral[i] <= lateral_hi[i]
         if not inside:
             left_view += 1
         elif not on_road:

@@ -2,8 +2,10 @@
 
 Conventions (docs/architecture.md): ``s`` is arc length along the centerline in ``[0, length)`` (wrapping on a
 closed road); ``n`` is the signed lateral offset, **positive to the left** of the driving direction;
-lane 0 is the rightmost lane. The lanes lie side by side between ``right_edge`` and ``left_edge``
-(offsets in ``n``); by default the centerline runs down the middle of the carriageway.
+lane 0 is the rightmost lane. The lanes (``tracker.lanes.LaneLayout``) lie side by side; their count, widths and
+edges may change along ``s`` (lanes that begin and end, merges, a shoulder) and each has a direction (+1
+along ``s``, -1 against it: the oncoming lanes of a two-way road). By default a road has ``lanes`` lanes
+of ``lane_width`` between ``right_edge`` and ``left_edge`` everywhere, the centerline down the middle.
 
 Off the ends of an open road:
 
@@ -24,6 +26,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from tracker.angles import wrap_angle
+from tracker.lanes import MIN_LANE_WIDTH, LaneLayout
 from tracker.centerline import ClothoidCenterline, HermiteCenterline, node_seed_kernel, project_kernel, seed_kernel
 
 ArrayLike = float | Sequence[float] | np.ndarray
@@ -68,32 +71,37 @@ class Road:
     """A road: centerline, lanes and bounds, with vectorised Frenet <-> Cartesian conversions.
 
     Build it with ``Road.from_waypoints`` (cubic Hermite spline through points) or
-    ``Road.from_curvature`` (straights, arcs and clothoid ramps). ``lanes`` lanes of ``lane_width``
-    metres lie between ``right_edge`` and ``left_edge = right_edge + lanes * lane_width`` (offsets in
-    ``n``, m); ``right_edge`` defaults to ``-lanes * lane_width / 2`` (centerline in the middle).
+    ``Road.from_curvature`` (straights, arcs and clothoid ramps), and give its lanes either as a
+    ``layout`` (``tracker.lanes.LaneLayout``: lanes varying along ``s``, with directions and kinds) or as
+    ``lanes`` lanes (default 2) of ``lane_width`` metres (default 3.5) from ``right_edge`` (offset ``n``, m;
+    default ``-lanes * lane_width / 2``: the centerline in the middle), the ``oncoming`` leftmost of them
+    (rightmost with ``drive_on = "left"``) carrying traffic against ``s``. ``right_edge`` and
+    ``left_edge`` are the outermost edges over the whole road; ``edges(s)`` gives them at ``s``.
     """
 
     def __init__(
         self,
         centerline: HermiteCenterline | ClothoidCenterline,
         *,
-        lanes: int = 2,
-        lane_width: float = 3.5,
+        lanes: int | None = None,
+        lane_width: float | None = None,
         right_edge: float | None = None,
+        oncoming: int = 0,
+        drive_on: Literal["right", "left"] = "right",
+        layout: LaneLayout | None = None,
     ) -> None:
-        if isinstance(lanes, bool) or not isinstance(lanes, (int, np.integer)) or lanes < 1:
-            raise ValueError(f"lanes must be a positive integer; got {lanes!r}")
-        if not (isinstance(lane_width, (int, float, np.floating)) and math.isfinite(lane_width)) or lane_width <= 0:
-            raise ValueError(f"lane_width must be a positive finite number of metres; got {lane_width!r}")
-        if right_edge is not None and not math.isfinite(right_edge):
-            raise ValueError(f"right_edge must be finite; got {right_edge!r}")
+        if layout is None:
+            layout = LaneLayout.uniform(2 if lanes is None else lanes, 3.5 if lane_width is None else lane_width,
+                                        right_edge, oncoming=oncoming, drive_on=drive_on)
+        elif not isinstance(layout, LaneLayout):
+            raise ValueError(f"layout must be a tracker.lanes.LaneLayout; got {type(layout).__name__}")
+        elif lanes is not None or lane_width is not None or right_edge is not None or oncoming:
+            raise ValueError("give either a layout or lanes/lane_width/right_edge/oncoming, not both: the layout "
+                             "holds the lanes")
         self._curve = centerline
         self.closed: bool = bool(centerline.closed)
         self.length: float = float(centerline.length)
-        self.lanes: int = int(lanes)
-        self.lane_width: float = float(lane_width)
-        self.right_edge: float = -0.5 * self.lanes * self.lane_width if right_edge is None else float(right_edge)
-        self.left_edge: float = self.right_edge + self.lanes * self.lane_width
+        self._set_layout(layout)
         self._nodes = centerline.nodes()
         node_xy, _, _ = centerline.frame(self._nodes)
         if self.closed:  # the last node repeats the first
@@ -115,10 +123,13 @@ class Road:
         xy: ArrayLike,
         headings: ArrayLike | None = None,
         *,
-        lane_width: float = 3.5,
-        lanes: int = 2,
+        lane_width: float | None = None,
+        lanes: int | None = None,
         closed: bool = False,
         right_edge: float | None = None,
+        oncoming: int = 0,
+        drive_on: Literal["right", "left"] = "right",
+        layout: LaneLayout | None = None,
     ) -> Road:
         """A road whose centerline is the cubic Hermite spline through ``xy`` (M, 2) metres in G.
 
@@ -148,7 +159,8 @@ class Road:
             if th.shape != (len(pts),):
                 raise ValueError(f"headings must have shape ({len(pts)},) like the waypoints; got {th.shape}")
         curve = HermiteCenterline.through(pts, th, closed)
-        return cls(curve, lanes=lanes, lane_width=lane_width, right_edge=right_edge)
+        return cls(curve, lanes=lanes, lane_width=lane_width, right_edge=right_edge, oncoming=oncoming, drive_on=drive_on,
+                   layout=layout)
 
     @classmethod
     def from_curvature(
@@ -156,11 +168,14 @@ class Road:
         segments: Sequence[tuple[float, float, float]] | np.ndarray,
         *,
         start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-        lane_width: float = 3.5,
-        lanes: int = 2,
+        lane_width: float | None = None,
+        lanes: int | None = None,
         closed: bool = False,
         right_edge: float | None = None,
         closure_tolerance: float = 0.05,
+        oncoming: int = 0,
+        drive_on: Literal["right", "left"] = "right",
+        layout: LaneLayout | None = None,
     ) -> Road:
         """A road from a curvature profile: rows ``(length m, kappa_start 1/m, kappa_end 1/m)``.
 
@@ -187,32 +202,113 @@ class Road:
                     f"closed road does not close: its end is {gap:.3f} m from its start and its heading "
                     f"differs by {turn:.4f} rad (tolerance {closure_tolerance} m); adjust the segments"
                 )
-        return cls(curve, lanes=lanes, lane_width=lane_width, right_edge=right_edge)
+        return cls(curve, lanes=lanes, lane_width=lane_width, right_edge=right_edge, oncoming=oncoming, drive_on=drive_on,
+                   layout=layout)
 
     # -- lanes and bounds -----------------------------------------------------------------------
+    def _set_layout(self, layout: LaneLayout) -> None:
+        """Store ``layout`` and what is derived from it: the edge table, the envelope of the edges, the
+        nominal lane width."""
+        self.layout: LaneLayout = layout
+        self.lanes: int = layout.lanes
+        inv_step, right, left = layout.edge_table(self.length, self.closed)
+        self._edge_inv_step, self._edge_right, self._edge_left = float(inv_step), right, left
+        #: Outermost right and left edges over the whole road (m); where the lanes vary, ``edges(s)`` gives them at ``s``.
+        self.right_edge: float = float(right.min())
+        self.left_edge: float = float(left.max())
+        uniform = getattr(layout, "_uniform", None)
+        if uniform is not None:
+            self.lane_width: float = uniform[1]
+        else:  # the median width of the lanes present at the layout's stations
+            widths = np.diff(layout.boundaries, axis=1)
+            present = widths[widths >= MIN_LANE_WIDTH]
+            self.lane_width = float(np.median(present)) if len(present) else float(widths.max())
+
+    @property
+    def uniform(self) -> bool:
+        """Whether the lanes are the same at every ``s`` (then ``lane_centers`` and ``lane_index(n)`` apply)."""
+        return not self.layout.varies
+
+    @property
+    def two_way(self) -> bool:
+        """Whether some lane carries traffic against ``s`` (``lane_directions``)."""
+        return self.layout.two_way
+
+    @property
+    def lane_directions(self) -> np.ndarray:
+        """Per lane, +1 when its traffic drives along ``s``, -1 against it (read-only)."""
+        return self.layout.directions
+
+    def edges(self, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The right and left road edges (m, offsets ``n``) at arc lengths ``s``: the outermost boundaries of
+        the lanes present there (on a closed road ``s`` wraps; on an open one the end values hold beyond)."""
+        s_arr = self.wrap_s(_as_float_array(s, "s"))
+        if len(self._edge_right) == 2 and self._edge_right[0] == self._edge_right[1] and \
+                self._edge_left[0] == self._edge_left[1]:
+            return np.full(s_arr.shape, self._edge_right[0]), np.full(s_arr.shape, self._edge_left[0])
+        grid = np.arange(len(self._edge_right)) / self._edge_inv_step
+        return np.interp(s_arr, grid, self._edge_right), np.interp(s_arr, grid, self._edge_left)
+
+    def edge_kernel_args(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """``(inv_step, right, left)``: the edge tables that compiled stages read with ``tracker.lanes.edge_at``."""
+        return self._edge_inv_step, self._edge_right, self._edge_left
+
     @property
     def lane_centers(self) -> np.ndarray:
-        """Lateral offset ``n`` (m) of every lane's centre, lane 0 (rightmost) first (read-only; kept
-        until the lanes change: the tracker asks every frame)."""
-        key = (self.right_edge, self.lanes, self.lane_width)
+        """Lateral offset ``n`` (m) of every lane's centre, lane 0 (rightmost) first (read-only), on a road
+        whose lanes are the same everywhere; ``lane_centers_at(s)`` where they vary."""
         cached = self.__dict__.get("_lane_centers")
-        if cached is None or cached[0] != key:
-            centers = self.right_edge + (np.arange(self.lanes) + 0.5) * self.lane_width
+        if cached is None:
+            if self.layout.varies:
+                raise ValueError("this road's lanes vary along s; use lane_centers_at(s)")
+            b = self.layout.boundaries[0]
+            centers = 0.5 * (b[1:] + b[:-1])
+            uniform = getattr(self.layout, "_uniform", None)
+            if uniform is not None:  # the same numbers as right_edge + (k + 1/2) * lane_width
+                centers = uniform[2] + (np.arange(uniform[0]) + 0.5) * uniform[1]
             centers.flags.writeable = False
-            cached = self.__dict__["_lane_centers"] = (key, centers)
-        return cached[1]
+            cached = self.__dict__["_lane_centers"] = centers
+        return cached
 
-    def lane_center(self, lane: int) -> float:
-        """Lateral offset ``n`` (m) of lane ``lane``'s centre; lane 0 is the rightmost."""
+    def lane_centers_at(self, s: ArrayLike) -> np.ndarray:
+        """Every lane's centre offset ``n`` (m) at arc lengths ``s``: shape ``s.shape + (lanes,)``, NaN where
+        the lane is absent (narrower than ``tracker.lanes.MIN_LANE_WIDTH``)."""
+        return self.layout.centers_at(self.wrap_s(_as_float_array(s, "s")))
+
+    def lane_center(self, lane: int, s: float | None = None) -> float:
+        """Lateral offset ``n`` (m) of lane ``lane``'s centre (at ``s`` where the lanes vary); lane 0 is the
+        rightmost."""
         if not 0 <= lane < self.lanes:
             raise ValueError(f"lane {lane} does not exist; this road has lanes 0..{self.lanes - 1}")
-        return float(self.lane_centers[lane])
+        if s is None:
+            return float(self.lane_centers[lane])
+        return float(self.lane_centers_at(float(s))[lane])
 
-    def lane_index(self, n: ArrayLike) -> np.ndarray:
-        """Lane index of lateral offsets ``n`` (m); -1 right of the road, ``lanes`` left of it."""
+    def lane_index(self, n: ArrayLike, s: ArrayLike | None = None) -> np.ndarray:
+        """Lane index of lateral offsets ``n`` (m) (at arc lengths ``s`` where the lanes vary); -1 right of
+        the road, ``lanes`` left of it. Where lanes vary, a point between boundaries takes the lane whose
+        span holds it (a lane of zero width holds nothing)."""
         n_arr = _as_float_array(n, "n")
-        idx = np.floor((n_arr - self.right_edge) / self.lane_width).astype(int)
-        return np.clip(idx, -1, self.lanes)
+        uniform = getattr(self.layout, "_uniform", None)
+        if s is None or uniform is not None:
+            if uniform is None and self.layout.varies:
+                raise ValueError("this road's lanes vary along s; pass s to lane_index")
+            if uniform is not None:
+                idx = np.floor((n_arr - self.right_edge) / self.lane_width).astype(int)
+                return np.clip(idx, -1, self.lanes)
+            s = np.zeros_like(n_arr)
+        b = self.layout.boundaries_at(self.wrap_s(np.broadcast_to(_as_float_array(s, "s"), n_arr.shape)))
+        return (n_arr[..., None] >= b).sum(axis=-1) - 1
+
+    def lane_direction(self, s: ArrayLike, n: ArrayLike) -> np.ndarray:
+        """The direction (+1 along ``s``, -1 against) of the lane nearest each road point ``(s, n)`` (m)
+        among the lanes present at ``s`` (a point off the road takes its nearest lane's)."""
+        s_arr, n_arr = np.broadcast_arrays(_as_float_array(s, "s"), _as_float_array(n, "n"))
+        if not self.two_way:
+            return np.ones(n_arr.shape, dtype=int)
+        centres = self.lane_centers_at(s_arr)
+        gap = np.abs(np.where(np.isnan(centres), np.inf, centres - n_arr[..., None]))
+        return self.layout.directions[np.argmin(gap, axis=-1)]
 
     def on_road(self, xy: ArrayLike, margin: float = 0.0) -> np.ndarray:
         """Whether points ``xy`` (N, 2) lie within the road bounds widened by ``margin`` metres."""
@@ -220,9 +316,10 @@ class Road:
         return self.within_bounds(s, n, margin)
 
     def within_bounds(self, s: np.ndarray, n: np.ndarray, margin: float = 0.0) -> np.ndarray:
-        """Whether road coordinates ``(s, n)`` (m) lie within the road bounds widened by ``margin``
-        metres (``on_road`` for points already projected)."""
-        inside = (n >= self.right_edge - margin) & (n <= self.left_edge + margin)
+        """Whether road coordinates ``(s, n)`` (m) lie within the road edges at ``s`` (``edges``) widened by
+        ``margin`` metres (``on_road`` for points already projected)."""
+        right, left = self.edges(s)
+        inside = (n >= right - margin) & (n <= left + margin)
         if not self.closed:
             inside &= (s >= 0.0) & (s <= self.length)
         return inside
@@ -232,10 +329,8 @@ class Road:
         s = np.linspace(0.0, self.length, max(2, int(math.ceil(self.length / step)) + 1))
         if self.closed:
             s[-1] = 0.0
-        return (
-            self.to_cartesian(s, np.full_like(s, self.right_edge)),
-            self.to_cartesian(s, np.full_like(s, self.left_edge)),
-        )
+        right, left = self.edges(s)
+        return self.to_cartesian(s, right), self.to_cartesian(s, left)
 
     @property
     def joins(self) -> np.ndarray:

@@ -699,8 +699,7 @@ class Tracker:
         if len(mix):
             rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
             self.mixture, left_view, off_road = reduce_in_view(
-                mix, nearest_range(rect), self.config.detection.lidar_range + red.fov_margin, self._lateral(mix.means),
-                (self.road.right_edge - red.road_margin, self.road.left_edge + red.road_margin),
+                mix, nearest_range(rect), self.config.detection.lidar_range + red.fov_margin, *self._lateral(mix.means, red.road_margin),
                 prune_threshold=red.prune_threshold, merge_gate=red.merge_threshold, max_components=red.max_components,
                 wrapping=self.wrapping, same_label_distance=red.same_label_distance,
                 same_label_min_weight=red.extraction_threshold, same_label_along_length=red.same_label_along_length,
@@ -742,11 +741,16 @@ class Tracker:
             self.stats["components_inside_updated_dropped"] += dropped
             self.mixture = mix.take(keep)
 
-    def _lateral(self, means: np.ndarray) -> np.ndarray:
-        """Lateral road offset ``n`` (m) of state means (projected for the Cartesian state)."""
+    def _lateral(self, means: np.ndarray, margin: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """Lateral road offset ``n`` (m) of state means (projected for the Cartesian state), and the road's
+        edges at their ``s`` widened by ``margin`` (m): ``(n, (right - margin, left + margin))``."""
         if not self.cartesian:
-            return means[:, 1]
-        return np.asarray(self.road.to_frenet(means[:, :2])[1]).reshape(-1)
+            s, n = means[:, 0], means[:, 1]
+        else:
+            s, n = self.road.to_frenet(means[:, :2])
+            s, n = np.asarray(s).reshape(-1), np.asarray(n).reshape(-1)
+        right, left = self.road.edges(s)
+        return n, (right - margin, left + margin)
 
     def _extract(self, t: float, ego: EgoState) -> list[Track]:
         """This frame's tracks (in decreasing weight; ``_reported`` their mixture indices): the components

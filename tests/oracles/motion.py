@@ -33,7 +33,7 @@ def curvature(model: FrenetMotion, s: np.ndarray) -> np.ndarray:
 
 def derivative(model: FrenetMotion, x: np.ndarray) -> np.ndarray:
     """``dx/dt`` of states ``x (..., 7 or 8)``: ``[v cos(xi + beta) / (1 - kappa n), v sin(xi + beta),
-    a, xi_dot - heading_decay (xi + beta), -yaw_rate_decay xi_dot, 0, 0, -a / acceleration_time]``
+    a, xi_dot - heading_decay (xi + beta - pi round((xi + beta) / pi)), -yaw_rate_decay xi_dot, 0, 0, -a / acceleration_time]``
     (``1 - kappa n`` floored at ``min_denominator``; ``a`` and ``v' = a`` with the acceleration state
     only; ``beta`` the slip angle of the yaw rate ``kappa v cos(xi) / (1 - kappa n) + xi_dot``)."""
     cfg = model.config
@@ -46,7 +46,7 @@ def derivative(model: FrenetMotion, x: np.ndarray) -> np.ndarray:
     d = np.zeros_like(x)
     d[..., 0] = v * np.cos(course) / denom
     d[..., 1] = v * np.sin(course)
-    d[..., 3] = xi_dot - cfg.heading_decay * course
+    d[..., 3] = xi_dot - cfg.heading_decay * (course - np.pi * np.floor(course / np.pi + 0.5))
     d[..., 4] = -cfg.yaw_rate_decay * xi_dot
     if x.shape[-1] == 8:
         d[..., 2] = x[..., 7]
