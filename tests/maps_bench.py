@@ -12,6 +12,7 @@ from pathlib import Path
 
 from maps_checks import edge_deviation, longest_route_start, on_road_fraction, planning_start, vehicle_centres
 
+from tracker.lanes import EDGE_TABLE_STEP
 from tracker.maps import read_map, route_corridor
 
 SHARED = Path("/work/shared/data/commonroad")
@@ -28,7 +29,7 @@ def routes(path: Path) -> list[tuple[str, dict]]:
 
 def main(files: list[str]) -> None:
     paths = [Path(f) for f in files] or sorted(SHARED.glob("*.xml")) + sorted(HERE.glob("*.xml"))
-    print(f"{'file':28s} {'route':26s} {'read s':>7s} {'route s':>8s} {'length m':>8s} {'edge dev m':>10s} {'on-road':>8s} {'n':>6s}")
+    print(f"{'file':28s} {'route':26s} {'read s':>7s} {'route s':>8s} {'length m':>8s} {'edge dev m':>10s} {'away joins':>10s} {'on-road':>8s} {'n':>6s}")
     route_road_once = None
     for path in paths:
         t0 = time.perf_counter()
@@ -42,8 +43,9 @@ def main(files: list[str]) -> None:
                 corridor = route_corridor(graph, **kw)
                 best = min(best, time.perf_counter() - t0)
             dev = edge_deviation(graph, corridor)
+            dev_away = edge_deviation(graph, corridor, join_margin=EDGE_TABLE_STEP)
             frac, n = on_road_fraction(graph, corridor, centres)
-            print(f"{path.name:28s} {name:26s} {t_read:7.3f} {best:8.3f} {corridor.road.length:8.1f} {dev:10.3f} {frac:8.4f} {n:6d}")
+            print(f"{path.name:28s} {name:26s} {t_read:7.3f} {best:8.3f} {corridor.road.length:8.1f} {dev:10.3f} {dev_away:10.3f} {frac:8.4f} {n:6d}")
     del route_road_once
 
 

@@ -43,10 +43,11 @@ def road_edges_xy(road, stations: np.ndarray, right: np.ndarray, left: np.ndarra
     return road.to_cartesian(stations, right), road.to_cartesian(stations, left)
 
 
-def edge_deviation(graph: LaneGraph, corridor, road=None, margin: float = 2.0) -> float:
+def edge_deviation(graph: LaneGraph, corridor, road=None, margin: float = 2.0, join_margin: float = 0.0) -> float:
     """Largest distance (m) from the route lanelets' outermost boundaries to the road's edges: each
     route lanelet's chained outer boundaries over the stretch of road it owns, points within ``margin``
-    m of the road's ends left out."""
+    m of the road's ends and within ``join_margin`` m of a join of route lanelets left out (where a
+    lane begins or ends at a join, the road's edges step across ``tracker.lanes.EDGE_TABLE_STEP``)."""
     road = corridor.road if road is None else road
     s = np.linspace(0.0, road.length, max(int(road.length / 0.25), 2))
     right_n, left_n = edges_at(road, corridor, s)
@@ -58,7 +59,8 @@ def edge_deviation(graph: LaneGraph, corridor, road=None, margin: float = 2.0) -
         for line, edge in zip(outer_boundaries(graph, lid), (right_xy, left_xy)):
             pts = densify(line, 0.5)
             ps, _ = road.to_frenet(pts)
-            pts = pts[(ps > max(margin, lo)) & (ps < min(road.length - margin, hi))]
+            keep = (ps > max(margin, lo + join_margin)) & (ps < min(road.length - margin, hi - join_margin))
+            pts = pts[keep]
             if len(pts):
                 worst = max(worst, float(point_polyline_distance(pts, edge).max()))
     return worst

@@ -26,6 +26,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from tracker.maps.graph import ROAD_KINDS, LaneGraph, _polyline_lengths, densify
+from tracker.lanes import LaneLayout
 from tracker.road import Road
 
 #: Spacing (m) of the chained centerline's samples, the spline's waypoints.
@@ -316,6 +317,8 @@ def route_corridor(
             lanes[rows[ok], j] = lid
 
     boundaries = _stack_boundaries(lower, upper, col_of[("C",)])
+    layout = LaneLayout(stations, boundaries, directions, tuple(kinds))
+    road = Road.from_waypoints(xy, layout=layout)
     return Corridor(
         route=tuple(ids),
         centerline=xy,
