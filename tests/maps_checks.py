@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import logging
 
@@ -74,13 +75,19 @@ def edges_at(road, corridor, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.interp(s, corridor.stations, corridor.boundaries[:, 0]), np.interp(s, corridor.stations, corridor.boundaries[:, -1])
 
 
-def vehicle_centres(path) -> np.ndarray:
-    """Centres (N, 2) m of every recorded vehicle of a CommonRoad scenario at every time step."""
+@functools.lru_cache(maxsize=4)
+def open_scenario(path):
+    """The CommonRoad scenario and planning problems of ``path`` (read once, kept for the next asks)."""
     from commonroad.common.file_reader import CommonRoadFileReader
 
     logging.getLogger("commonroad").setLevel(logging.ERROR)
     with contextlib.redirect_stdout(io.StringIO()):
-        scenario, _ = CommonRoadFileReader(str(path)).open()
+        return CommonRoadFileReader(str(path)).open()
+
+
+def vehicle_centres(path) -> np.ndarray:
+    """Centres (N, 2) m of every recorded vehicle of a CommonRoad scenario at every time step."""
+    scenario, _ = open_scenario(path)
     pts = []
     for ob in scenario.dynamic_obstacles:
         pts.append(ob.initial_state.position)
@@ -92,11 +99,7 @@ def vehicle_centres(path) -> np.ndarray:
 
 def planning_start(path) -> tuple[float, float, float]:
     """(x, y, yaw) of the first planning problem's initial state of a CommonRoad scenario."""
-    from commonroad.common.file_reader import CommonRoadFileReader
-
-    logging.getLogger("commonroad").setLevel(logging.ERROR)
-    with contextlib.redirect_stdout(io.StringIO()):
-        _, problems = CommonRoadFileReader(str(path)).open()
+    _, problems = open_scenario(path)
     state = next(iter(problems.planning_problem_dict.values())).initial_state
     return float(state.position[0]), float(state.position[1]), float(state.orientation)
 

@@ -2,7 +2,8 @@
 
 Every lane (other than ``type="none"``) of every lane section of every road becomes one lanelet:
 its boundaries are the lane's inner and outer borders sampled every ``SAMPLE_SPACING`` m along the
-road's reference line (plus every geometry start), ordered in its driving direction (right lanes,
+road's reference line and at both sides of every geometry start (where the reference line's heading
+jumps, the borders jump too), ordered in its driving direction (right lanes,
 negative ids, drive along the reference line; left lanes against it: right-hand traffic).
 
 Read: the plan view (``line``, ``arc``, ``spiral``, ``poly3``, ``paramPoly3`` with either
@@ -143,9 +144,11 @@ class _Road:
     section_s: np.ndarray
     links: dict[str, ET.Element] = field(default_factory=dict)
 
-    def reference(self, s: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """x, y, heading of the reference line at ``s`` (m), each sample evaluated on its geometry."""
-        which = np.clip(np.searchsorted(self.geo_s, s, side="right") - 1, 0, len(self.geometries) - 1)
+    def reference(self, s: np.ndarray, name: str, which: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x, y, heading of the reference line at ``s`` (m), each sample evaluated on its geometry (or on
+        geometry ``which``, one index per sample)."""
+        if which is None:
+            which = np.clip(np.searchsorted(self.geo_s, s, side="right") - 1, 0, len(self.geometries) - 1)
         x, y, h = np.empty_like(s), np.empty_like(s), np.empty_like(s)
         for g in np.unique(which):  # one vectorised evaluation per geometry
             sel = which == g
@@ -235,9 +238,17 @@ def read_opendrive(path: str | Path) -> LaneGraph:
             if s1 <= s0:
                 raise ValueError(f"{where} starts at s={s0} m, not before its end {s1} m")
             n = max(int(np.ceil((s1 - s0) / SAMPLE_SPACING)), 1)
+            # every geometry start inside the section is sampled twice, at the end of the geometry before it
+            # and at the start of its own: where the reference line's heading jumps, so do the borders
             inner_geo = road.geo_s[(road.geo_s > s0) & (road.geo_s < s1)]
-            s = np.unique(np.concatenate([np.linspace(s0, s1, n + 1), inner_geo]))
-            x, y, h = road.reference(s, name)
+            grid = np.linspace(s0, s1, n + 1)
+            grid = grid[np.min(np.abs(grid[:, None] - np.append(inner_geo, np.inf)[None]), axis=1) > 1e-6]
+            s = np.concatenate([grid, inner_geo, inner_geo])
+            which = np.clip(np.searchsorted(road.geo_s, s, side="right") - 1, 0, len(road.geometries) - 1)
+            which[len(grid):len(grid) + len(inner_geo)] -= 1
+            order = np.lexsort((which, s))
+            s, which = s[order], which[order]
+            x, y, h = road.reference(s, name, which)
             normal = np.column_stack([-np.sin(h), np.cos(h)])
             base = road.lane_offset(s)
             lanes = {}
@@ -262,6 +273,10 @@ def read_opendrive(path: str | Path) -> LaneGraph:
                     if lane_type.lower() != "none":
                         inner = np.column_stack([x, y]) + t_inner[:, None] * normal
                         outer = np.column_stack([x, y]) + t_outer[:, None] * normal
+                        # a repeated sample with no jump adds nothing
+                        step = np.maximum(np.hypot(*np.diff(inner, axis=0).T), np.hypot(*np.diff(outer, axis=0).T))
+                        keep = np.concatenate([[True], step > 1e-9])
+                        inner, outer = inner[keep], outer[keep]
                         if sign < 0:  # right lane: drives along s, inner border on its left
                             left_pts.append(inner)
                             right_pts.append(outer)
