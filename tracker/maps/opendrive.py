@@ -171,7 +171,8 @@ def _parse_road(el: ET.Element, name: str) -> _Road:
     geos = el.findall("planView/geometry")
     if not geos:
         raise ValueError(f"{where} has no planView geometry")
-    geo_s = np.array([_f(g, "s", f"{where} geometry") for g in geos])
+    geo_s = np.array([_f(g, "s", f"{where} geometry {i}") for i, g in enumerate(geos)])
+    geo_len = np.array([_f(g, "length", f"{where} geometry {i}") for i, g in enumerate(geos)])
     order = np.argsort(geo_s, kind="stable")
     geos, geo_s = [geos[i] for i in order], geo_s[order]
     offsets = np.array(
@@ -186,7 +187,7 @@ def _parse_road(el: ET.Element, name: str) -> _Road:
         link = el.find(f"link/{kind}")
         if link is not None:
             links[kind] = link
-    length = _f(el, "length", where, default=float(geo_s[-1] + _f(geos[-1], "length", f"{where} geometry")))
+    length = _f(el, "length", where, default=float(geo_s[-1] + geo_len[order][-1]))
     return _Road(rid, length, el.get("junction", "-1"), geos, geo_s, offsets[np.argsort(offsets[:, 0], kind="stable")],
                  sections, section_s, links)
 
