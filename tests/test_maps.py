@@ -172,6 +172,23 @@ def test_route_to_a_goal_and_through_via_points():
         route_lanelets(graph, (1e4, 1e4, 0.0))
 
 
+def test_route_with_a_lane_change_after_a_join():
+    graph = graph_of(US101_4)
+    goal = graph.lanelet(16).center[-3]  # the auxiliary lane, beside lanelet 13 after the join
+    corridor = route_corridor(graph, planning_start(US101_4), goal)
+    assert corridor.route == (12, 13, 16)  # begins in the rightmost lane, changes into the auxiliary lane
+    road = corridor.road
+    # the centerline ends on lanelet 16's centerline and starts on lanelet 12's
+    ends = road.to_cartesian(np.array([0.0, road.length]), np.zeros(2))
+    from tracker.maps.graph import point_polyline_distance as dist
+    assert dist(ends[:1], graph.lanelet(12).center)[0] < 0.05
+    assert dist(ends[1:], graph.lanelet(16).center)[0] < 0.05
+    assert road.on_road(goal[None])[0]
+    assert edge_deviation(graph, corridor, join_margin=EDGE_TABLE_STEP) <= 0.2
+    with pytest.raises(ValueError, match=r"lanelet 40 neither succeeds lanelet 12 nor lies beside it"):
+        route_corridor(graph, planning_start(US101_4), route=[12, 40])
+
+
 # -- the same map in other formats ---------------------------------------------------------------------
 def _road_gap(a, b, margin: float = 5.0) -> float:
     """Largest distance (m) between two roads' centerlines and edges over ``a``'s interior: points of

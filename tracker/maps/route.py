@@ -1,9 +1,11 @@
 """A route through a lane graph and the road a vehicle driving it perceives.
 
 ``route_lanelets`` finds the route: the lanelet holding the start pose (heading within 90 deg of the
-lanelet's), then successors: a shortest path (by centerline length) to the goal or through the
-``via`` points, or, without either, the straightest successor at every join until the map ends.
-The route may begin in any same-direction lane beside the start lanelet when only that one leads on.
+lanelet's), then successors: a shortest path (by centerline length, a lane change costing
+``LANE_CHANGE_COST`` m) to the goal or through the ``via`` points, or, without either, the straightest
+successor at every join until the map ends. The route may begin in any same-direction lane beside the
+start lanelet; a lane change later on is a step to a same-direction neighbour, and the centerline
+moves across over that lanelet's length.
 
 ``route_corridor`` turns the route into arrays: the centerline (the route lanelets' centerlines
 chained, resampled every ``spacing`` m and smoothed with a Gaussian of ``smoothing`` m so that a C1
@@ -25,7 +27,7 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from tracker.maps.graph import ROAD_KINDS, LaneGraph, _polyline_lengths, densify
+from tracker.maps.graph import ROAD_KINDS, LaneGraph, _polyline_lengths, densify, resample
 from tracker.lanes import LaneLayout
 from tracker.road import Road
 
@@ -42,6 +44,9 @@ BOUNDARY_SPACING = 1.0
 END_TOLERANCE = 1.0
 #: Distance (m) between the two stations placed at every join of route lanelets.
 JOIN_GAP = 0.01
+#: Cost (m of driving) of one lane change in the route search: a lane change is taken where it saves
+#: more than this.
+LANE_CHANGE_COST = 20.0
 #: Longest route followed without a goal (m).
 MAX_ROUTE_LENGTH = 5000.0
 
@@ -92,7 +97,8 @@ def _same_direction_group(graph: LaneGraph, lanelet_id: int) -> list[int]:
 
 
 def _successor_matrix(graph: LaneGraph) -> csr_matrix:
-    """Sparse (L, L) matrix: entry (i, j) = length of lanelet j when j succeeds i."""
+    """Sparse (L, L) matrix of the route search: entry (i, j) = length of lanelet j (m) when j succeeds
+    i, ``LANE_CHANGE_COST`` when j is a same-direction neighbour of i (a lane change)."""
     pos = {int(i): k for k, i in enumerate(graph.ids)}
     rows, cols, w = [], [], []
     for k, ll in enumerate(graph.lanelets):
@@ -100,6 +106,11 @@ def _successor_matrix(graph: LaneGraph) -> csr_matrix:
             rows.append(k)
             cols.append(pos[nxt])
             w.append(max(graph.lanelet(nxt).length, 1e-3))
+        for other, same in ((ll.left_neighbor, ll.left_same_direction), (ll.right_neighbor, ll.right_same_direction)):
+            if other is not None and same and graph.lanelet(other).kind == "driving":
+                rows.append(k)
+                cols.append(pos[other])
+                w.append(LANE_CHANGE_COST)
     n = len(graph.lanelets)
     return csr_matrix((w, (rows, cols)), shape=(n, n))
 
@@ -171,12 +182,32 @@ def route_lanelets(
 
 
 # -- corridor ----------------------------------------------------------------------------------------
+def _is_lateral(graph: LaneGraph, a: int, b: int) -> bool:
+    """Whether ``b`` is a same-direction neighbour of ``a`` (a lane change), not its successor."""
+    ll = graph.lanelet(a)
+    return b not in ll.successors and b in _same_direction_group(graph, a)
+
+
+def _blend(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A lane change along a lanelet: from centerline ``a`` to centerline ``b`` beside it, with a
+    weight rising as ``(1 - cos)/2`` over the lanelet (both resampled to equal arc-length fractions)."""
+    count = max(len(a), len(b), 20)
+    a, b = resample(a, count), resample(b, count)
+    w = 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, count))
+    return (1.0 - w[:, None]) * a + w[:, None] * b
+
+
 def _chained_centerline(graph: LaneGraph, route: list[int], spacing: float, smoothing: float) -> np.ndarray:
-    parts = [graph.lanelet(route[0]).center]
-    for lid in route[1:]:
-        c = graph.lanelet(lid).center
-        # drop points of the next lanelet that repeat the end of the last one (the shared join)
-        parts.append(c[1:] if np.hypot(*(c[0] - parts[-1][-1])) < 0.5 else c)
+    parts: list[np.ndarray] = []
+    i = 0
+    while i < len(route):
+        j = i
+        while j + 1 < len(route) and _is_lateral(graph, route[j], route[j + 1]):
+            j += 1
+        c = graph.lanelet(route[i]).center if j == i else _blend(graph.lanelet(route[i]).center, graph.lanelet(route[j]).center)
+        # drop a first point that repeats the end of the last piece (the shared join)
+        parts.append(c[1:] if parts and np.hypot(*(c[0] - parts[-1][-1])) < 0.5 else c)
+        i = j + 1
     pts = np.vstack(parts)
     keep = np.concatenate([[True], np.hypot(*np.diff(pts, axis=0).T) > 1e-6])
     pts = pts[keep]
@@ -249,8 +280,8 @@ def route_corridor(
     ``via`` (see ``route_lanelets``), or of the given lanelet ids ``route``."""
     ids = list(route) if route is not None else route_lanelets(graph, start, goal, via=via, max_length=max_length)
     for a, b in zip(ids[:-1], ids[1:]):
-        if b not in graph.lanelet(a).successors:
-            raise ValueError(f"{graph.source}: lanelet {b} does not succeed lanelet {a}")
+        if b not in graph.lanelet(a).successors and not _is_lateral(graph, a, b):
+            raise ValueError(f"{graph.source}: lanelet {b} neither succeeds lanelet {a} nor lies beside it")
     xy = _chained_centerline(graph, ids, spacing, smoothing)
     road = Road.from_waypoints(xy)
     length = road.length
@@ -258,6 +289,9 @@ def route_corridor(
     entries = np.array([graph.lanelet(i).center[0] for i in ids])
     s_entry, _ = road.to_frenet(entries)
     s_entry[0] = -np.inf
+    for k in range(1, len(ids)):
+        if _is_lateral(graph, ids[k - 1], ids[k]):  # a lane change: the new lane owns the whole lanelet
+            s_entry[k] = s_entry[k - 1]
     s_entry = np.maximum.accumulate(s_entry)
     # a regular grid plus a pair of stations JOIN_GAP apart at every join, so that lanes beginning or
     # ending there change within JOIN_GAP
@@ -273,7 +307,8 @@ def route_corridor(
     count = len(stations)
     owner = np.searchsorted(s_entry, stations, side="right") - 1
 
-    chains = [_lateral_chain(graph, i) for i in ids]
+    owning = set(owner.tolist())  # a lanelet left by a lane change at its start owns no station
+    chains = [_lateral_chain(graph, i) if r in owning else [] for r, i in enumerate(ids)]
     keys = {key for chain in chains for _, key, _ in chain}
     columns = _column_order(keys)
     col_of = {key: j for j, key in enumerate(columns)}
@@ -328,7 +363,7 @@ def route_corridor(
         kinds=tuple(kinds),
         lanes=lanes,
         members=frozenset(members),
-        route_starts=np.concatenate([[0.0], s_entry[1:]]),
+        route_starts=np.maximum(s_entry, 0.0),
         road=road,
     )
 
