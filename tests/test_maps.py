@@ -259,6 +259,24 @@ def test_lanelet2_copy_matches_lanelet2_positions():
         assert point_polyline_distance(ll.right, g.lanelet(ll.id).right).max() < 0.05
 
 
+def test_lanelet2_local_projection_and_default_origin():
+    path = DATA / "USA_US101-4_1_T-1.osm"
+    utm = graph_of(path)
+    local = read_map(path, origin=OSM_ORIGIN, projection="local")
+    # ground metres vs UTM grid metres: the same shapes within UTM's scale (k = 0.9996-1.001) and
+    # its grid convergence (~1.5 deg at this longitude: a rotation about the origin)
+    a, b = utm.lanelet(2).left, local.lanelet(2).left
+    ratio = np.hypot(*np.diff(b, axis=0).T).sum() / np.hypot(*np.diff(a, axis=0).T).sum()
+    assert 0.999 < ratio < 1.0011
+    assert np.abs(np.hypot(*a.T) - np.hypot(*b.T)).max() < 0.002 * np.hypot(*a.T).max() + 0.01
+    # without an origin the first node is the origin: the same map shifted
+    first = read_map(path)
+    shift = first.lanelet(2).left - utm.lanelet(2).left
+    np.testing.assert_allclose(shift, shift[:1].repeat(len(shift), axis=0), atol=1e-6)
+    with pytest.raises(ValueError, match="projection must be 'utm' or 'local'"):
+        read_map(path, projection="mercator")
+
+
 # -- broken files ----------------------------------------------------------------------------------------
 def _broken(tmp_path, source: Path, edit, name: str | None = None) -> Path:
     text = source.read_text()
@@ -345,3 +363,16 @@ def test_missing_map_library_is_one_line(monkeypatch, tmp_path):
     with pytest.raises(ImportError) as err:
         read_map(target)
     assert _one_line(err) == "reading CommonRoad maps needs commonroad-io: pip install 'frenet-eot[maps]'"
+
+
+def test_the_guide_examples_run(monkeypatch):
+    """docs/maps.md's ```python blocks run in order in one namespace (as tests/test_docs_examples.py
+    runs the other pages'), from the repository's root (their paths are relative to it)."""
+    root = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(root)
+    page = root / "docs" / "maps.md"
+    blocks = re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), re.MULTILINE | re.DOTALL)
+    assert len(blocks) >= 3
+    namespace: dict[str, object] = {"__name__": "docs_example_maps"}
+    for number, block in enumerate(blocks, start=1):
+        exec(compile(block, f"docs/maps.md (python block {number})", "exec"), namespace)  # noqa: S102

@@ -21,12 +21,13 @@ def read_commonroad(path: str | Path) -> LaneGraph:
     return read(path)
 
 
-def read_lanelet2(path: str | Path, origin: tuple[float, float] | None = None) -> LaneGraph:
+def read_lanelet2(path: str | Path, origin: tuple[float, float] | None = None, projection: str = "utm") -> LaneGraph:
     """The lane map of a Lanelet2 OSM file, projected to metres about ``origin`` = (lat, lon) deg
-    (default: the file's first node) (needs lanelet2; ``tracker.maps.lanelet2_osm``)."""
+    (default: the file's first node) with ``projection`` ``"utm"`` (default) or ``"local"`` (needs
+    lanelet2; ``tracker.maps.lanelet2_osm``)."""
     from tracker.maps.lanelet2_osm import read_lanelet2 as read
 
-    return read(path, origin=origin)
+    return read(path, origin=origin, projection=projection)
 
 
 def read_opendrive(path: str | Path) -> LaneGraph:

@@ -1,7 +1,7 @@
 """Read a Lanelet2 map (OSM XML) into a ``LaneGraph`` with the ``lanelet2`` package (the ``maps`` extra).
 
-Points are projected from latitude/longitude to metres with lanelet2's UTM projector about an origin
-(lat, lon) deg: x east, y north (UTM grid), relative to the origin. Topology is lanelet2's: lanelets
+Points are projected from latitude/longitude to metres with lanelet2's UTM projector (or its local
+Cartesian one) about an origin (lat, lon) deg: x east, y north, relative to the origin. Topology is lanelet2's: lanelets
 share points and linestrings.
 
 - successor: lanelet B follows A when B's boundaries start at the points where A's end (both sides);
@@ -73,16 +73,22 @@ def _check_osm(path: Path) -> None:
                 raise ValueError(f"{name}: lanelet {rel.get('id')} has no {role} boundary way")
 
 
-def read_lanelet2(path: str | Path, origin: tuple[float, float] | None = None) -> LaneGraph:
+def read_lanelet2(path: str | Path, origin: tuple[float, float] | None = None, projection: str = "utm") -> LaneGraph:
     """The lane graph of the Lanelet2 OSM file ``path``, in metres about ``origin`` = (lat, lon) deg
-    (default: the file's first node). ``FileNotFoundError`` for a missing file, ``ValueError`` (one
-    line naming the file and the element) for a broken one, ``ImportError`` without lanelet2."""
+    (default: the file's first node). ``projection``: ``"utm"`` (default; lanelet2's ``UtmProjector``:
+    UTM grid metres relative to the origin, lanelet2's usual frame; UTM's scale differs from ground
+    distances by up to 0.1 %) or ``"local"`` (``LocalCartesianProjector``: east/north ground metres at
+    the origin). ``FileNotFoundError`` for a missing file, ``ValueError`` (one line naming the file and
+    the element) for a broken one, ``ImportError`` without lanelet2."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such map file")
+    if projection not in ("utm", "local"):
+        raise ValueError(f"projection must be 'utm' or 'local'; got {projection!r}")
     lanelet2 = _import_lanelet2()
     lat, lon = origin if origin is not None else _first_node(path)
-    projector = lanelet2.projection.UtmProjector(lanelet2.io.Origin(float(lat), float(lon)))
+    make = lanelet2.projection.UtmProjector if projection == "utm" else lanelet2.projection.LocalCartesianProjector
+    projector = make(lanelet2.io.Origin(float(lat), float(lon)))
     try:
         lmap, errors = lanelet2.io.loadRobust(str(path), projector)
     except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
