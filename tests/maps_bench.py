@@ -30,7 +30,6 @@ def routes(path: Path) -> list[tuple[str, dict]]:
 def main(files: list[str]) -> None:
     paths = [Path(f) for f in files] or sorted(SHARED.glob("*.xml")) + sorted(HERE.glob("*.xml"))
     print(f"{'file':28s} {'route':26s} {'read s':>7s} {'route s':>8s} {'length m':>8s} {'edge dev m':>10s} {'away joins':>10s} {'on-road':>8s} {'n':>6s}")
-    route_road_once = None
     for path in paths:
         t0 = time.perf_counter()
         graph = read_map(path)
@@ -46,7 +45,6 @@ def main(files: list[str]) -> None:
             dev_away = edge_deviation(graph, corridor, join_margin=EDGE_TABLE_STEP)
             frac, n = on_road_fraction(graph, corridor, centres)
             print(f"{path.name:28s} {name:26s} {t_read:7.3f} {best:8.3f} {corridor.road.length:8.1f} {dev:10.3f} {dev_away:10.3f} {frac:8.4f} {n:6d}")
-    del route_road_once
 
 
 if __name__ == "__main__":

@@ -253,6 +253,25 @@ def _lateral_chain(graph: LaneGraph, route_id: int) -> list[tuple[int, tuple, in
     return out
 
 
+def _continued_boundaries(graph: LaneGraph, lanelet_id: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lanelet's left and right boundaries, each continued by the same-side boundary of the
+    predecessor that ends where it starts and of the successor that starts where it ends (nearest
+    first point; none when the lanelet has none)."""
+    ll = graph.lanelet(lanelet_id)
+    out = []
+    for side in ("left", "right"):
+        own = getattr(ll, side)
+        parts = [own]
+        if ll.predecessors:
+            before = min((getattr(graph.lanelet(p), side) for p in ll.predecessors), key=lambda b: np.hypot(*(b[-1] - own[0])))
+            parts.insert(0, before[:-1])
+        if ll.successors:
+            after = min((getattr(graph.lanelet(q), side) for q in ll.successors), key=lambda b: np.hypot(*(b[0] - own[-1])))
+            parts.append(after[1:])
+        out.append(np.vstack(parts))
+    return out[0], out[1]
+
+
 def _column_order(keys: set) -> list[tuple]:
     def place(key: tuple) -> tuple:
         if key == ("C",):
@@ -316,19 +335,25 @@ def route_corridor(
     directions = np.zeros(m, dtype=int)
     kinds = [""] * m
 
-    # project every member lanelet's boundaries once (one to_frenet call for all of them)
+    # project every member lanelet's boundaries (continued into the lanelets before and after it, so
+    # that a join cut at a slant still has both boundaries) and centerline, in one to_frenet call
     members = sorted({lid for chain in chains for lid, _, _ in chain})
-    lines = [densify(line, BOUNDARY_SPACING) for lid in members for line in (graph.lanelet(lid).left, graph.lanelet(lid).right)]
+    lines = []
+    for lid in members:
+        lines.extend(densify(line, BOUNDARY_SPACING) for line in _continued_boundaries(graph, lid))
+        lines.append(graph.lanelet(lid).center[[0, -1]])
     s_all, n_all = road.to_frenet(np.vstack(lines))
     cut = np.cumsum([len(p) for p in lines])[:-1]
     s_lines, n_lines = np.split(s_all, cut), np.split(n_all, cut)
 
-    def profile(k: int, at: np.ndarray) -> np.ndarray:
-        s, n = s_lines[k], n_lines[k]
+    def profile(k: int, side: int, at: np.ndarray) -> np.ndarray:
+        """Offset (m) of member k's boundary ``side`` (0 left, 1 right) at ``at``; NaN beyond the
+        member's ends (its centerline's projected ends, widened by END_TOLERANCE)."""
+        s, n = s_lines[3 * k + side], n_lines[3 * k + side]
         order = np.argsort(s)
-        s, n = s[order], n[order]
-        val = np.interp(at, s, n)
-        return np.where((at >= s[0] - END_TOLERANCE) & (at <= s[-1] + END_TOLERANCE), val, np.nan)
+        val = np.interp(at, s[order], n[order])
+        lo, hi = np.sort(s_lines[3 * k + 2])
+        return np.where((at >= lo - END_TOLERANCE) & (at <= hi + END_TOLERANCE), val, np.nan)
 
     lower = np.full((count, m), np.nan)
     upper = np.full((count, m), np.nan)
@@ -345,7 +370,7 @@ def route_corridor(
                 directions[j] = rel
                 kinds[j] = graph.lanelet(lid).kind
             k = index_of[lid]
-            a, b = profile(2 * k, at), profile(2 * k + 1, at)
+            a, b = profile(k, 0, at), profile(k, 1, at)
             ok = np.isfinite(a) & np.isfinite(b)
             lower[rows[ok], j] = np.minimum(a, b)[ok]
             upper[rows[ok], j] = np.maximum(a, b)[ok]
