@@ -10,8 +10,8 @@ from tracker.birth import road_births, visible_road_births
 from tracker.config import BirthConfig, ClusteringConfig
 from tracker.frame import EgoState
 from tracker.jit import njit
-from tracker.measurement import Rectangles
 from tracker.lanes import EDGE_TABLE_STEP, MIN_LANE_WIDTH, LaneLayout, edge_at
+from tracker.measurement import Rectangles
 from tracker.preprocess import filter_points
 
 
@@ -86,7 +86,7 @@ def test_lane_centres_and_directions(merge_road):
     np.testing.assert_allclose(centres[1], [-7.0, -3.5, 0.0, 3.5])
     np.testing.assert_allclose(centres[0, 1:], [-3.5, 0.0, 3.5])
     with pytest.raises(ValueError, match="vary along s"):
-        merge_road.lane_centers
+        _ = merge_road.lane_centers
     assert merge_road.lane_center(0, s=200.0) == pytest.approx(-7.0)
     np.testing.assert_array_equal(merge_road.lane_index(np.array([-7.0, -7.0, 3.0]), np.array([50.0, 200.0, 10.0])),
                                   [-1, 0, 3])

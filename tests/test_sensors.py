@@ -746,3 +746,21 @@ def test_projected_3d_returns_of_a_box_agree_with_the_2d_lidar_of_its_rectangle(
         assert sorted(nearest) == sorted(key2.tolist())
         gap = np.array([np.linalg.norm(nearest[k] - p) for k, p in zip(key2.tolist(), flat.points)])
         assert gap.max() < tol, (noise, gap.max())
+
+
+def test_roadside_objects_follow_the_edges_of_a_road_whose_lanes_change():
+    """On a road whose right lane ends (a 3.5 m lane tapering out between s = 100 and 150 m), the roadside
+    objects stand beyond the edge at their ``s``, none on the road surface."""
+    from tracker import LaneLayout, Road
+
+    layout = LaneLayout([0.0, 100.0, 150.0, 300.0], [[-5.25, -1.75, 1.75], [-5.25, -1.75, 1.75],
+                                                      [-1.75, -1.75, 1.75], [-1.75, -1.75, 1.75]])
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], layout=layout)
+    objects = generate_roadside(road, ClutterConfig(tree_density=20.0, parked_car_density=10.0),
+                                rng=np.random.default_rng(4))
+    s, n = road.to_frenet(objects.centre)
+    right, left = road.edges(s)
+    beyond = (n < right) | (n > left)
+    assert len(s) > 40 and beyond.all()
+    late = (s > 160.0) & (n < 0)
+    assert late.sum() > 3 and n[late].max() > -5.25  # beside the narrowed road, not where the lane was

@@ -5,8 +5,9 @@ numpy, scipy and numba only; never imports ``sim``. A user with real data needs 
 
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState, Frame, RadarDetections
+from tracker.lanes import LaneLayout
 from tracker.road import Road
 from tracker.tracker import Tracker
 from tracker.track import Track
 
-__all__ = ["EgoState", "Frame", "RadarDetections", "Road", "Track", "Tracker", "TrackerConfig"]
+__all__ = ["EgoState", "Frame", "LaneLayout", "RadarDetections", "Road", "Track", "Tracker", "TrackerConfig"]

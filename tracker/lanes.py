@@ -168,7 +168,7 @@ class LaneLayout:
             count = 2
             right, left = np.full(count, b[0]), np.full(count, b[-1])
         else:
-            count = max(2, int(math.ceil(length / EDGE_TABLE_STEP)) + 1)
+            count = max(2, math.ceil(length / EDGE_TABLE_STEP) + 1)
             s = np.linspace(0.0, length, count)
             if closed:
                 s[-1] = 0.0  # the table's last station is the first one again

@@ -144,8 +144,15 @@ def _road_lines(result: Result, s_low: float, s_high: float, step: float = 1.0) 
     else:
         s_low, s_high = max(0.0, s_low), min(road.length, s_high)
         s = np.linspace(s_low, s_high, max(2, int((s_high - s_low) / step) + 1))
-    edges = [road.to_cartesian(s, np.full_like(s, n)) for n in (road.right_edge, road.left_edge)]
-    lanes = [road.to_cartesian(s, np.full_like(s, road.right_edge + k * road.lane_width)) for k in range(1, road.lanes)]
+    right, left = road.edges(s)
+    edges = [road.to_cartesian(s, right), road.to_cartesian(s, left)]
+    bounds = road.layout.boundaries_at(road.wrap_s(s))  # (K, lanes + 1): lane lines where they lie inside the edges
+    lanes = []
+    for k in range(1, road.lanes):
+        inside = (bounds[:, k] > right + 0.05) & (bounds[:, k] < left - 0.05)
+        if inside.any():
+            n = np.where(inside, bounds[:, k], np.nan)
+            lanes.append(road.to_cartesian(s, np.nan_to_num(n, nan=0.0)) + np.where(inside, 0.0, np.nan)[:, None])
     return edges, lanes
 
 

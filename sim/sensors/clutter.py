@@ -10,7 +10,8 @@ bounds. Three kinds, each a convex counter-clockwise polygon in G:
 ``generate_roadside(road, config, rng)`` needs only a small road interface (``tracker.road.Road``
 provides it): ``length`` (m), ``closed`` (bool), ``to_cartesian(s, n) -> (N, 2)`` (m, G),
 ``heading(s) -> (N,)`` (rad), and the bounds ``left_edge``, ``right_edge`` (lateral offsets ``n`` of
-the road bounds, m, ``n`` positive to the left; floats, or callables of ``s``).
+the road bounds, m, ``n`` positive to the left; floats, or callables of ``s``); a road with ``edges(s)``
+(a ``tracker.Road``, whose lanes may begin and end) places the objects beside its edges at each ``s``.
 """
 
 from __future__ import annotations
@@ -259,7 +260,11 @@ def _check_road(road: Any) -> float:
 def _place(road: RoadLike, s: np.ndarray, side: np.ndarray, offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centres (N, 2) and headings (N,) of objects at arc length ``s``, ``offset`` m outside the bound
     on ``side`` (+1 left, -1 right)."""
-    n = np.where(side > 0, _edge(road, "left_edge", s) + offset, _edge(road, "right_edge", s) - offset)
+    if callable(getattr(road, "edges", None)):  # a tracker.Road: its edges at s (lanes may begin and end)
+        right, left = (np.asarray(e, dtype=float) for e in road.edges(s))
+    else:
+        right, left = _edge(road, "right_edge", s), _edge(road, "left_edge", s)
+    n = np.where(side > 0, left + offset, right - offset)
     centre = np.asarray(road.to_cartesian(s, n), dtype=float).reshape(-1, 2)
     heading = np.asarray(road.heading(s), dtype=float).reshape(-1)
     return centre, heading
