@@ -145,7 +145,11 @@ def _road_lines(result: Result, s_low: float, s_high: float, step: float = 1.0) 
         s_low, s_high = max(0.0, s_low), min(road.length, s_high)
         s = np.linspace(s_low, s_high, max(2, int((s_high - s_low) / step) + 1))
     edges = [road.to_cartesian(s, np.full_like(s, n)) for n in (road.right_edge, road.left_edge)]
-    lanes = [road.to_cartesian(s, np.full_like(s, road.right_edge + k * road.lane_width)) for k in range(1, road.lanes)]
+    if getattr(road.layout, "_uniform", None) is not None:
+        lanes = [road.to_cartesian(s, np.full_like(s, road.right_edge + k * road.lane_width)) for k in range(1, road.lanes)]
+    else:  # lanes of different widths (parking lanes) or varying along s: the layout's inner boundaries
+        bounds = road.layout.boundaries_at(road.wrap_s(s))
+        lanes = [road.to_cartesian(s, bounds[:, k]) for k in range(1, road.lanes)]
     return edges, lanes
 
 
