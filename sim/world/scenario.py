@@ -709,11 +709,11 @@ class ScenarioSpec(_Model):
             if v.width > widths[v.lane] - 0.5:
                 what = "lane width" if kinds[v.lane] == "driving" else f"the {kinds[v.lane]} lane's width"
                 raise ValueError(f"{where}.width = {v.width}: must be <= {widths[v.lane] - 0.5:g} m ({what} - 0.5 m)")
+            if where == "ego" and kinds[v.lane] != "driving":
+                raise ValueError(f"ego.lane = {v.lane}: lane {v.lane} is a {kinds[v.lane]} lane; the ego drives in a driving lane")
             if kinds[v.lane] != "driving" and v.speed != 0.0:
                 raise ValueError(f"{where}.speed = {v.speed}: lane {v.lane} is a {kinds[v.lane]} lane; a vehicle there "
                                  "must start standing (speed = 0) and may pull out with maneuvers")
-            if where == "ego" and kinds[v.lane] != "driving":
-                raise ValueError(f"ego.lane = {v.lane}: lane {v.lane} is a {kinds[v.lane]} lane; the ego drives in a driving lane")
             if v.facing == "backward" and where == "ego":
                 raise ValueError("ego.facing = 'backward': only a standing vehicle can face against its lane's traffic")
             if not road.closed and not (0.5 * v.length <= v.s <= road.length - 0.5 * v.length):
