@@ -15,7 +15,8 @@ from sim.cli import main
 from sim.world.scenario import (SCENARIO_DIR, Brake, RoadSpec, ScenarioError, SpeedChange, apply_overrides, load_suite,
                                 parse_scenario)
 
-STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
+STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit",
+            "oncoming-winding"]
 
 GOOD = """
 name = "tiny"
@@ -67,7 +68,7 @@ def test_shipped_scenarios_load(name: str) -> None:
     assert spec.concrete and spec.road is not None and spec.ego is not None
 
 
-def test_standard_suite_lists_the_seven_scenarios() -> None:
+def test_standard_suite_lists_its_eight_scenarios() -> None:
     suite = load_suite(SCENARIO_DIR / "standard.toml")
     assert suite.name == "standard"
     assert [p.stem for p in suite.paths] == STANDARD
@@ -278,7 +279,7 @@ def test_apply_overrides() -> None:
 
 
 # -- the hard suite and the vehicle sizes and maneuvers it needs ----------------------------------
-HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
+HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic", "urban-parked"]
 
 
 def test_hard_suite_lists_its_scenarios_and_is_not_standard(capsys: pytest.CaptureFixture[str]) -> None:

@@ -12,7 +12,7 @@ from sim.world.traffic import MAX_REAR_AXLE, ScriptedCar
 from sim.world.truth import Snapshot, rectangle_corners
 from sim.world.world import World
 
-HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
+HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic", "urban-parked"]
 
 
 def scenario(vehicles: list[dict], **overrides: object) -> dict:

@@ -162,9 +162,9 @@ class RoadSpec(_Model):
     def _lanes(self) -> RoadSpec:
         if self.oncoming > self.lanes:
             raise ValueError(f"road.oncoming = {self.oncoming}: at most road.lanes ({self.lanes}) of the driving lanes can carry oncoming traffic")
-        if self.parking is None and "parking_width" in self.model_fields_set:
+        if self.parking is None and self.parking_width != PARKING_WIDTH:
             raise ValueError("road.parking_width needs road.parking (\"right\", \"left\" or \"both\")")
-        if "drive_on" in self.model_fields_set and self.oncoming == 0:
+        if self.drive_on != "right" and self.oncoming == 0:
             raise ValueError("road.drive_on applies to two-way roads; give road.oncoming (the lanes against s) too")
         return self
 
