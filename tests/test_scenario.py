@@ -12,8 +12,16 @@ import pytest
 
 from sim import ScenarioSpec, load_scenario
 from sim.cli import main
-from sim.world.scenario import (SCENARIO_DIR, Brake, RoadSpec, ScenarioError, SpeedChange, apply_overrides, load_suite,
-                                parse_scenario)
+from sim.world.scenario import (
+    SCENARIO_DIR,
+    Brake,
+    RoadSpec,
+    ScenarioError,
+    SpeedChange,
+    apply_overrides,
+    load_suite,
+    parse_scenario,
+)
 
 STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit",
             "oncoming-winding"]
@@ -460,8 +468,8 @@ def test_road_config_round_trips_and_one_way_roads_keep_their_config(tmp_path: P
     (("oncoming = 1\n", "oncoming = 1\nparking_width = 2.2\n"), "road.parking_width needs road.parking"),
     (("oncoming = 1\n", 'oncoming = 1\nparking = "middle"\n'), "road.parking = 'middle'"),
     (("speed = 16.0\n", 'speed = 16.0\nbehaviour = "scripted"\nmaneuvers = [{ t = 1.0, kind = "lane_change", lane = 0 }]\n'),
-     "vehicles[0].maneuvers[0].lane = 0: lane 0 carries traffic along s and this vehicle's lane 1 against s; "
-     "lane changes stay within one direction"),
+     ("vehicles[0].maneuvers[0].lane = 0: lane 0 carries traffic along s and this vehicle's lane 1 against s; "
+      "lane changes stay within one direction")),
     (("speed = 16.0\n", 'speed = 16.0\nfacing = "backward"\n'), 'facing = "backward" (against the lane\'s traffic) needs a standing vehicle'),
 ])
 def test_two_way_errors_are_one_line(tmp_path: Path, change: tuple[str, str], expected: str) -> None:

@@ -282,7 +282,7 @@ def test_oncoming_cars_keep_their_lane_on_a_curve_and_a_closed_road_wraps() -> N
                                         road={"lanes": 2, "oncoming": 1, "segments": [[60.0, 0.0, 0.0], [300.0, 0.01, 0.01]]},
                                         duration=10.0)))
     for t in np.arange(1.0, 10.01, 1.0):
-        s, n, yaw, v, xi = truth_of(bend, 1, t)
+        _, n, _, _, xi = truth_of(bend, 1, t)
         assert abs(n - 1.75) < 0.15 and abs(abs(xi) - np.pi) < np.radians(2.0)
     ring = {"lanes": 2, "oncoming": 1, "closed": True, "segments": [[2 * np.pi * 100.0, 0.01, 0.01]]}
     world = World(parse_scenario(two_way([{"lane": 1, "s": 30.0, "speed": 15.0, "behaviour": "constant"}],

@@ -38,9 +38,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from highway_env import utils
-from highway_env.utils import wrap_to_pi
 from highway_env.road.road import Road as HighwayRoad
 from highway_env.road.road import RoadNetwork
+from highway_env.utils import wrap_to_pi
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 
