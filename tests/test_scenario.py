@@ -505,3 +505,41 @@ def test_an_ego_driving_against_s_must_not_reach_the_start(tmp_path: Path) -> No
     assert spec.ego.lane == 1
     message = load_error(tmp_path, text.replace("s = 330.0", "s = 60.0").replace("lane = 0\ns = 60.0", "lane = 0\ns = 200.0"))
     assert "driving against s in lane 1) could reach s = " in message and "beyond the start of this open road" in message
+
+
+def test_two_way_scenarios_have_what_they_are_designed_for() -> None:
+    from sim.world.world import World
+
+    # oncoming-winding: about 1 km, bends of R 80-200 m, one lane each way; every oncoming vehicle that
+    # passes the ego does so at a closing speed of 25-35 m/s, and nothing collides
+    spec = load_scenario("oncoming-winding")
+    road = spec.build_road()
+    arcs = sorted(1.0 / abs(k0) for _, k0, k1 in spec.road.segments if k0 == k1 != 0.0)  # the bends' radii (m)
+    assert road.length == pytest.approx(1000.0) and arcs == pytest.approx([80.0, 100.0, 125.0, 200.0])
+    assert road.lane_directions.tolist() == [1, -1] and spec.ego.lane == 0
+    assert any(v.length == 12.0 and v.lane == 1 for v in spec.vehicles)
+    world = World(spec)
+    closest: dict[int, tuple[float, float]] = {}
+    for t in np.arange(0.0, spec.duration + 1e-9, 0.1):
+        snap = world.truth_at(float(t))
+        d = np.hypot(*(snap.xy - (snap.ego.x, snap.ego.y)).T)
+        for vid, dist, v, xi in zip(snap.ids.tolist(), d, snap.v, snap.xi):
+            if np.cos(xi) < 0 and dist < closest.get(vid, (np.inf, 0.0))[0]:
+                closest[vid] = (float(dist), float(v + snap.ego.v))
+    passed = [closing for dist, closing in closest.values() if dist < 4.0]
+    assert len(passed) == 6 and all(25.0 <= c <= 35.0 for c in passed) and world.collisions == []
+    # urban-parked: 13-14 m/s, one lane each way and parking on both kerbs, parked cars on both, some
+    # facing against the traffic, and a car that pulls out of the right kerb into the ego's lane
+    spec = load_scenario("urban-parked")
+    road = spec.build_road()
+    assert road.layout.kinds == ("parking", "driving", "driving", "parking") and road.lane_directions.tolist() == [1, 1, -1, -1]
+    parked = [v for v in spec.vehicles if v.behaviour == "constant" and v.speed == 0.0]
+    assert {v.lane for v in parked} == {0, 3} and sum(v.facing == "backward" for v in parked) >= 4
+    moving = [v for v in spec.vehicles if v.speed > 0.0] + [spec.ego]
+    assert all(12.5 <= v.speed <= 14.0 for v in moving) and any(v.lane == 2 for v in moving)
+    puller = next(v for v in spec.vehicles if v.behaviour == "scripted")
+    assert puller.lane == 0 and puller.maneuvers[-1].lane == 1
+    world = World(spec)
+    world.advance(spec.duration)
+    k = list(world.truth_at(spec.duration).ids).index(spec.vehicles.index(puller) + 1)
+    assert abs(world.truth_at(spec.duration).n[k] - road.lane_center(1)) < 0.2 and world.collisions == []
