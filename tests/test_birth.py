@@ -329,3 +329,20 @@ def test_visible_road_births_needs_one_label_per_track():
     tracks = to_vehicle(np.array([[60.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]] * 2), ego, road)
     with pytest.raises(ValueError, match="one label per track"):
         visible_road_births(road, 50.0, ego, 60.0, BirthConfig(), None, tracks, np.array([1]), 3.0)
+
+
+def test_cluster_birth_in_an_oncoming_lane_ignores_a_passing_vehicles_radar_velocity():
+    """A car in the oncoming lane of a straight two-way road, 30 m ahead: its birth heads pi and takes
+    the speed of a radar velocity against s (12 m/s); a radar velocity along s (the ego lane's car
+    passing it, whose detection the cluster picked up) would be -12 m/s along that heading, so the
+    birth takes the speed prior (the ego's speed) instead."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, oncoming=1)
+    ego = EgoState(100.0, -1.75, 0.0, 10.0)
+    corners = to_local(rectangle_corners(np.array([130.0, 1.75]), np.array(np.pi), np.array(4.8), np.array(2.0)),
+                       np.array([100.0, -1.75]), 0.0)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    own, _ = cluster_births([points], [np.array([-12.0, 0.0])], ego, road, BirthConfig())
+    passing, _ = cluster_births([points], [np.array([12.0, 0.0])], ego, road, BirthConfig())
+    for means in (own, passing):
+        assert abs(abs(means[0, 3]) - np.pi) < 0.05 and means[0, 1] == pytest.approx(1.75, abs=0.3)
+    assert own[0, 2] == pytest.approx(12.0, abs=0.1) and passing[0, 2] == 10.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -274,3 +275,51 @@ def test_drawn_roads_never_overlap_themselves() -> None:
                                           "arc_length": [200.0, 250.0], "ramp_length": [1.0, 2.0]}})
     with pytest.raises(ScenarioError, match=r"drawn roads .* all came back within .* of themselves .*generator.radius"):
         realize(tight, 0)
+
+
+# -- two-way roads ------------------------------------------------------------------------------------
+def test_generator_draws_two_way_roads_with_oncoming_traffic() -> None:
+    # one oncoming lane (the leftmost): the ego drives along s, the vehicles drawn into the oncoming lane
+    # are placed oncoming_spawn ahead of the ego and change lanes only among lanes of their direction
+    spec = parse_scenario({"name": "two-way", "description": "drawn two-way roads", "duration": 10.0,
+                           "generator": {"lanes": [2, 3], "oncoming": [1, 1], "vehicles": [6, 8]}})
+    against = 0
+    for seed in range(8):
+        drawn = realize(spec, seed)
+        road = drawn.build_road()
+        lanes = road.lanes
+        assert drawn.road.oncoming == 1 and road.lane_directions.tolist() == [1] * (lanes - 1) + [-1]
+        assert drawn.ego.lane < lanes - 1
+        for v in drawn.vehicles:
+            changes = [m.lane for m in v.maneuvers if isinstance(m, LaneChange)]
+            if v.lane == lanes - 1:
+                against += 1
+                assert 40.0 <= v.s - drawn.ego.s <= 400.0 and changes == []
+            else:
+                assert all(k < lanes - 1 for k in changes)
+        again = parse_scenario(drawn.model_dump(exclude_none=True))
+        assert again.model_dump() == drawn.model_dump()
+    assert against >= 8
+    world = World(spec, 0)
+    world.advance(10.0)
+    assert world.collisions == []
+
+
+def test_one_way_generators_are_unchanged_by_the_two_way_option() -> None:
+    # the default oncoming = [0, 0] draws nothing for it: the same scenario as a generator without the key
+    base = {"name": "g", "description": "drawn", "duration": 10.0, "generator": {"lanes": [2, 3]}}
+    plain = realize(parse_scenario(base), 3)
+    explicit = realize(parse_scenario({**base, "generator": {"lanes": [2, 3], "oncoming": [0, 0]}}), 3)
+    assert plain.model_dump() == explicit.model_dump() and plain.road.oncoming == 0
+
+
+@pytest.mark.parametrize(("generator", "road", "expected"), [
+    ({"lanes": [2, 3], "oncoming": [1, 2]}, None, "generator.oncoming = [1, 2]: must lie within 0..1"),
+    ({"oncoming": [1, 1]}, {"lanes": 2, "segments": [[500.0, 0.0, 0.0]]}, "generator.oncoming = [1, 1]: applies to drawn roads"),
+])
+def test_two_way_generator_errors(generator: dict, road: dict | None, expected: str) -> None:
+    data = {"name": "g", "description": "drawn", "duration": 10.0, "generator": generator}
+    if road is not None:
+        data["road"] = road
+    with pytest.raises(ScenarioError, match=re.escape(expected)):
+        parse_scenario(data)

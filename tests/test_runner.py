@@ -10,7 +10,7 @@ import pytest
 from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
-from sim.evaluation.runner import TIMING_KEYS, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
+from sim.evaluation.runner import TIMING_KEYS, against_s, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
 from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from sim.world.scenario import ScenarioError, parse_scenario
 from sim.world.truth import EgoPose, Snapshot
@@ -327,3 +327,44 @@ def test_with_lidar_model_sets_the_model_and_the_tracker_gets_the_mount() -> Non
     assert back.sensors == {"lidar": {"model": "2d"}}
     with pytest.raises(ValueError, match="lidar model must be one of"):
         with_lidar_model(spec, "hdl32")
+
+
+# -- vehicles driving against s ------------------------------------------------------------------
+def _two_way_spec():
+    return parse_scenario({
+        "name": "two-way", "description": "oncoming cars", "duration": 4.0,
+        "road": {"lanes": 2, "oncoming": 1, "segments": [[100.0, 0.0, 0.0], [300.0, 0.0, 0.005]]},
+        "ego": {"lane": 0, "s": 30.0, "speed": 10.0},
+        "vehicles": [
+            {"lane": 0, "s": 60.0, "speed": 10.0},                                                 # along s
+            {"lane": 1, "s": 110.0, "speed": 12.0, "behaviour": "constant"},                       # against s
+            {"lane": 1, "s": 170.0, "speed": 15.0, "behaviour": "constant"},                       # against s
+            {"lane": 1, "s": 80.0, "speed": 0.0, "behaviour": "constant", "facing": "backward"},   # standing
+        ],
+    })
+
+
+def test_oncoming_metrics_are_those_of_the_vehicles_driving_against_s():
+    # fixed offsets on every track: the oncoming scores are exactly the offsets (speed 0.2 m/s, heading
+    # 0.05 rad), over the pairs of the two moving oncoming cars only; relabelling car 2 after 1.5 s is
+    # one identity switch, of an oncoming vehicle
+    spec = _two_way_spec()
+    offset = np.array([0.0, 0.0, 0.2, 0.05, 0.0, 0.0, 0.0])
+    result = _oracle_run(spec, duration=3.0, offset=offset, relabel=lambda vid, t: vid + 100 if vid == 2 and t > 1.45 else vid)
+    m = result.metrics
+    assert m["oncoming_speed_rmse_mps"] == pytest.approx(0.2, abs=1e-9)
+    assert m["oncoming_yaw_rmse_deg"] == pytest.approx(math.degrees(0.05), abs=1e-9)
+    assert m["oncoming_id_switches"] == 1 == m["id_switches"]
+    pairs = sum(int(np.isin(f.truth.ids[f.scored], [2, 3]).sum()) for f in result.frames)
+    # car 2 in range all 31 frames; car 3 from 1.7 s (140 m - 25 m/s x t along the road, 3.5 m across)
+    assert m["oncoming_matched_pairs"] == pairs == 31 + 14
+    for f in result.frames:  # truth: the oncoming cars head against s at their speed, the standing one does not count
+        k = list(f.truth.ids).index(2)
+        assert abs(abs(f.truth.xi[k]) - math.pi) < 1e-3 and f.truth.v[k] == 12.0
+        assert against_s(f.truth).tolist() == [False, True, True, False]
+
+
+def test_oncoming_metrics_are_none_without_oncoming_traffic(curvy):
+    m = _oracle_run(curvy).metrics
+    assert m["oncoming_yaw_rmse_deg"] is None and m["oncoming_speed_rmse_mps"] is None
+    assert m["oncoming_id_switches"] is None and m["oncoming_matched_pairs"] == 0

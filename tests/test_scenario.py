@@ -12,10 +12,19 @@ import pytest
 
 from sim import ScenarioSpec, load_scenario
 from sim.cli import main
-from sim.world.scenario import (SCENARIO_DIR, Brake, ScenarioError, SpeedChange, apply_overrides, load_suite,
-                                parse_scenario)
+from sim.world.scenario import (
+    SCENARIO_DIR,
+    Brake,
+    RoadSpec,
+    ScenarioError,
+    SpeedChange,
+    apply_overrides,
+    load_suite,
+    parse_scenario,
+)
 
-STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit"]
+STANDARD = ["curvy-multi", "chicane-follow", "curve-single", "cut-in", "occlusion", "dense-highway", "circuit",
+            "oncoming-winding"]
 
 GOOD = """
 name = "tiny"
@@ -67,7 +76,7 @@ def test_shipped_scenarios_load(name: str) -> None:
     assert spec.concrete and spec.road is not None and spec.ego is not None
 
 
-def test_standard_suite_lists_the_seven_scenarios() -> None:
+def test_standard_suite_lists_its_eight_scenarios() -> None:
     suite = load_suite(SCENARIO_DIR / "standard.toml")
     assert suite.name == "standard"
     assert [p.stem for p in suite.paths] == STANDARD
@@ -278,7 +287,7 @@ def test_apply_overrides() -> None:
 
 
 # -- the hard suite and the vehicle sizes and maneuvers it needs ----------------------------------
-HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
+HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic", "urban-parked"]
 
 
 def test_hard_suite_lists_its_scenarios_and_is_not_standard(capsys: pytest.CaptureFixture[str]) -> None:
@@ -418,3 +427,119 @@ def test_road_grade_and_bank(tmp_path: Path) -> None:
     assert "road.grade = 0.2" in message and "less than or equal to 0.15" in message
     closed = load_error(tmp_path, load_scenario("circuit").source.read_text().replace("[road]\n", "[road]\ngrade = 0.01\n"))
     assert "road.grade = 0.01: a closed road cannot climb" in closed
+
+
+# -- two-way roads and parking lanes --------------------------------------------------------------
+TWO_WAY = GOOD.replace("lane_width = 3.5\n", "lane_width = 3.5\noncoming = 1\n").replace(
+    'behaviour = "scripted"\nmaneuvers = [{ t = 1.0, kind = "lane_change", lane = 0, duration = 3.0 }]\n', "")
+PARKED = TWO_WAY.replace("oncoming = 1\n", 'oncoming = 1\nparking = "both"\n').replace("lane = 1\ns = 60.0", "lane = 2\ns = 90.0").replace(
+    "[ego]\nlane = 0", "[ego]\nlane = 1")
+
+
+def test_two_way_road_lanes_and_directions(tmp_path: Path) -> None:
+    spec = load_scenario(write(tmp_path, TWO_WAY))
+    road = spec.build_road()
+    assert road.two_way and road.lane_directions.tolist() == [1, -1] and road.lane_centers.tolist() == [-1.75, 1.75]
+    left = RoadSpec.model_validate({**spec.road.to_config(), "drive_on": "left"})
+    assert left.build().lane_directions.tolist() == [-1, 1]
+    # parking lanes of 2.5 m outside the driving lanes, of the direction of their neighbour
+    parked = load_scenario(write(tmp_path, PARKED)).build_road()
+    assert parked.lanes == 4 and parked.layout.kinds == ("parking", "driving", "driving", "parking")
+    assert parked.lane_directions.tolist() == [1, 1, -1, -1]
+    assert parked.layout.boundaries[0].tolist() == [-6.0, -3.5, 0.0, 3.5, 6.0]
+    assert (parked.right_edge, parked.left_edge) == (-6.0, 6.0)
+    one_side = load_scenario(write(tmp_path, PARKED.replace('"both"', '"right"').replace("parking = ", "parking_width = 2.2\nparking = ")))
+    assert one_side.build_road().layout.boundaries[0].tolist() == pytest.approx([-5.7, -3.5, 0.0, 3.5])
+
+
+def test_road_config_round_trips_and_one_way_roads_keep_their_config(tmp_path: Path) -> None:
+    left = {**load_scenario(write(tmp_path, PARKED)).road.to_config(), "drive_on": "left", "parking": "left"}
+    for road in (load_scenario(write(tmp_path, TWO_WAY)).road, load_scenario(write(tmp_path, PARKED)).road,
+                 RoadSpec.model_validate(left)):
+        again = RoadSpec.model_validate(road.to_config())
+        assert again == road and again.build().layout.boundaries.tolist() == road.build().layout.boundaries.tolist()
+    one_way = load_scenario(write(tmp_path, GOOD)).road.to_config()
+    assert set(one_way) == {"lanes", "lane_width", "closed", "segments"}
+
+
+@pytest.mark.parametrize(("change", "expected"), [
+    (("oncoming = 1", "oncoming = 3"), "road.oncoming = 3: at most road.lanes (2)"),
+    (("oncoming = 1\n", 'drive_on = "left"\n'), "road.drive_on applies to two-way roads"),
+    (("oncoming = 1\n", "oncoming = 1\nparking_width = 2.2\n"), "road.parking_width needs road.parking"),
+    (("oncoming = 1\n", 'oncoming = 1\nparking = "middle"\n'), "road.parking = 'middle'"),
+    (("speed = 16.0\n", 'speed = 16.0\nbehaviour = "scripted"\nmaneuvers = [{ t = 1.0, kind = "lane_change", lane = 0 }]\n'),
+     ("vehicles[0].maneuvers[0].lane = 0: lane 0 carries traffic along s and this vehicle's lane 1 against s; "
+      "lane changes stay within one direction")),
+    (("speed = 16.0\n", 'speed = 16.0\nfacing = "backward"\n'), 'facing = "backward" (against the lane\'s traffic) needs a standing vehicle'),
+])
+def test_two_way_errors_are_one_line(tmp_path: Path, change: tuple[str, str], expected: str) -> None:
+    message = load_error(tmp_path, TWO_WAY.replace(*change, 1))
+    assert expected in message and "\n" not in message
+
+
+def test_parking_lane_rules(tmp_path: Path) -> None:
+    parked = '\n[[vehicles]]\nlane = 0\ns = 60.0\nspeed = 0.0\nbehaviour = "constant"\nwidth = 1.8\nfacing = "backward"\n'
+    spec = load_scenario(write(tmp_path, PARKED + parked))
+    assert spec.vehicles[1].facing == "backward" and spec.vehicles[1].lane == 0
+    # a standing vehicle in a driving lane is allowed; a moving one in a parking lane is not
+    load_scenario(write(tmp_path, PARKED + parked.replace("lane = 0", "lane = 1")))
+    message = load_error(tmp_path, PARKED + parked.replace("speed = 0.0", "speed = 5.0").replace(
+        'behaviour = "constant"\n', "").replace('facing = "backward"\n', ""))
+    assert "vehicles[1].speed = 5.0: lane 0 is a parking lane; a vehicle there must start standing" in message
+    message = load_error(tmp_path, PARKED + parked.replace("width = 1.8", "width = 2.1"))
+    assert "vehicles[1].width = 2.1: must be <= 2 m (the parking lane's width - 0.5 m)" in message
+    message = load_error(tmp_path, PARKED.replace("[ego]\nlane = 1", "[ego]\nlane = 0\nwidth = 1.8"))
+    assert "ego.lane = 0: lane 0 is a parking lane; the ego drives in a driving lane" in message
+    # pulling out: a lane change from the parking lane into the driving lane of the same direction
+    puller = parked.replace('behaviour = "constant"\n', 'behaviour = "scripted"\n').replace('facing = "backward"\n', "")
+    puller += 'maneuvers = [{ t = 1.0, kind = "speed", speed = 8.0 }, { t = 1.5, kind = "lane_change", lane = 1 }]\n'
+    spec = load_scenario(write(tmp_path, PARKED + puller))
+    assert spec.vehicles[1].maneuvers[1].lane == 1
+    message = load_error(tmp_path, PARKED + puller.replace("lane = 1 }", "lane = 2 }"))
+    assert "vehicles[1].maneuvers[1].lane = 2: lane 2 carries traffic against s" in message
+
+
+def test_an_ego_driving_against_s_must_not_reach_the_start(tmp_path: Path) -> None:
+    text = TWO_WAY.replace("[ego]\nlane = 0\ns = 30.0", "[ego]\nlane = 1\ns = 330.0").replace("lane = 1\ns = 60.0", "lane = 0\ns = 60.0")
+    spec = load_scenario(write(tmp_path, text))
+    assert spec.ego.lane == 1
+    message = load_error(tmp_path, text.replace("s = 330.0", "s = 60.0").replace("lane = 0\ns = 60.0", "lane = 0\ns = 200.0"))
+    assert "driving against s in lane 1) could reach s = " in message and "beyond the start of this open road" in message
+
+
+def test_two_way_scenarios_have_what_they_are_designed_for() -> None:
+    from sim.world.world import World
+
+    # oncoming-winding: about 1 km, bends of R 80-200 m, one lane each way; every oncoming vehicle that
+    # passes the ego does so at a closing speed of 25-35 m/s, and nothing collides
+    spec = load_scenario("oncoming-winding")
+    road = spec.build_road()
+    arcs = sorted(1.0 / abs(k0) for _, k0, k1 in spec.road.segments if k0 == k1 != 0.0)  # the bends' radii (m)
+    assert road.length == pytest.approx(1000.0) and arcs == pytest.approx([80.0, 100.0, 125.0, 200.0])
+    assert road.lane_directions.tolist() == [1, -1] and spec.ego.lane == 0
+    assert any(v.length == 12.0 and v.lane == 1 for v in spec.vehicles)
+    world = World(spec)
+    closest: dict[int, tuple[float, float]] = {}
+    for t in np.arange(0.0, spec.duration + 1e-9, 0.1):
+        snap = world.truth_at(float(t))
+        d = np.hypot(*(snap.xy - (snap.ego.x, snap.ego.y)).T)
+        for vid, dist, v, xi in zip(snap.ids.tolist(), d, snap.v, snap.xi):
+            if np.cos(xi) < 0 and dist < closest.get(vid, (np.inf, 0.0))[0]:
+                closest[vid] = (float(dist), float(v + snap.ego.v))
+    passed = [closing for dist, closing in closest.values() if dist < 4.0]
+    assert len(passed) == 6 and all(25.0 <= c <= 35.0 for c in passed) and world.collisions == []
+    # urban-parked: 13-14 m/s, one lane each way and parking on both kerbs, parked cars on both, some
+    # facing against the traffic, and a car that pulls out of the right kerb into the ego's lane
+    spec = load_scenario("urban-parked")
+    road = spec.build_road()
+    assert road.layout.kinds == ("parking", "driving", "driving", "parking") and road.lane_directions.tolist() == [1, 1, -1, -1]
+    parked = [v for v in spec.vehicles if v.behaviour == "constant" and v.speed == 0.0]
+    assert {v.lane for v in parked} == {0, 3} and sum(v.facing == "backward" for v in parked) >= 4
+    moving = [v for v in spec.vehicles if v.speed > 0.0] + [spec.ego]
+    assert all(12.5 <= v.speed <= 14.0 for v in moving) and any(v.lane == 2 for v in moving)
+    puller = next(v for v in spec.vehicles if v.behaviour == "scripted")
+    assert puller.lane == 0 and puller.maneuvers[-1].lane == 1
+    world = World(spec)
+    world.advance(spec.duration)
+    k = list(world.truth_at(spec.duration).ids).index(spec.vehicles.index(puller) + 1)
+    assert abs(world.truth_at(spec.duration).n[k] - road.lane_center(1)) < 0.2 and world.collisions == []

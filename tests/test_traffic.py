@@ -12,7 +12,7 @@ from sim.world.traffic import MAX_REAR_AXLE, ScriptedCar
 from sim.world.truth import Snapshot, rectangle_corners
 from sim.world.world import World
 
-HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic"]
+HARD = ["truck-hairpin", "emergency-brake", "hard-accel", "stop-and-go", "standing-vehicle", "mixed-traffic", "urban-parked"]
 
 
 def scenario(vehicles: list[dict], **overrides: object) -> dict:
@@ -197,3 +197,119 @@ def test_emergency_brake_scenario_stops_at_7_and_8_mps2() -> None:
         expected = np.clip(20.0 - decel * (times - t0), 0.0, 20.0)
         np.testing.assert_allclose(v, expected, atol=decel * world.step + 1e-9)
     assert car[-1] == 0.0 and van[-1] == 0.0
+
+
+# -- two-way roads: traffic against s, parking lanes ----------------------------------------------
+def two_way(vehicles: list[dict], road: dict | None = None, **overrides: object) -> dict:
+    """A straight two-way road 800 m long (lane 0 along s, lane 1 against s), the ego in lane 0."""
+    return scenario(vehicles, road=road or {"lanes": 2, "oncoming": 1, "segments": [[800.0, 0.0, 0.0]]},
+                    ego={"lane": 0, "s": 20.0, "speed": 10.0}, **overrides)
+
+
+def truth_of(world: World, vid: int, t: float) -> tuple[float, float, float, float, float]:
+    """``(s, n, yaw, v, xi)`` of vehicle ``vid`` at ``t`` (s)."""
+    snap = world.truth_at(t)
+    k = list(snap.ids).index(vid)
+    return float(snap.s[k]), float(snap.n[k]), float(snap.yaw[k]), float(snap.v[k]), float(snap.xi[k])
+
+
+def test_an_oncoming_car_drives_against_s_in_its_lane_and_leaves_at_s_0() -> None:
+    # straight road heading +x: the oncoming car heads -x (yaw pi), s falls at its speed, n stays on
+    # its lane centre (+1.75 m), and it leaves the world once its centre passes s = 0 (at 120 / 15 = 8 s)
+    world = World(parse_scenario(two_way([{"lane": 1, "s": 120.0, "speed": 15.0, "behaviour": "constant"}])))
+    for t in (0.0, 2.0, 5.0, 7.9):
+        s, n, yaw, v, xi = truth_of(world, 1, t)
+        assert s == pytest.approx(120.0 - 15.0 * t, abs=1e-6) and n == pytest.approx(1.75, abs=1e-9)
+        assert abs(abs(yaw) - np.pi) < 1e-9 and abs(abs(xi) - np.pi) < 1e-9 and v == 15.0
+    world.advance(8.2)
+    assert 1 not in world.truth_at(8.2).ids and world.removed[1] == pytest.approx(8.05, abs=1e-9)
+
+
+def test_idm_follows_the_vehicle_ahead_in_its_own_direction() -> None:
+    # in the lane against s the vehicle ahead has the smaller s: a 20 m/s car 60 m behind (s larger)
+    # a 10 m/s car closes in and follows it without touching; gaps and MOBIL are in that direction
+    world = World(parse_scenario(two_way([
+        {"lane": 1, "s": 400.0, "speed": 10.0, "behaviour": "constant"},
+        {"lane": 1, "s": 460.0, "speed": 20.0, "behaviour": "idm"},
+    ])))
+    ahead, behind = world.traffic.vehicles[1], world.traffic.vehicles[2]
+    assert behind.lane_distance_to(ahead) == pytest.approx(60.0, abs=1e-6) and ahead.lane_distance_to(behind) < 0
+    assert world.traffic.neighbour_vehicles(behind) == (ahead, None)
+    gaps = []
+    for t in np.arange(0.5, 12.01, 0.5):
+        s1, s2 = truth_of(world, 1, t)[0], truth_of(world, 2, t)[0]
+        gaps.append(s2 - s1 - 4.8)
+    assert min(gaps) > 5.0 and world.collisions == []
+    assert truth_of(world, 2, 12.0)[3] == pytest.approx(10.0, abs=0.5)  # settled behind at its speed
+
+
+def test_mobil_never_changes_into_the_oncoming_lane() -> None:
+    # an IDM car with MOBIL stuck behind a slow car: on a one-way road it overtakes in lane 1; on the
+    # two-way road lane 1 carries oncoming traffic, so it stays in lane 0 behind the slow car
+    vehicles = [{"lane": 0, "s": 200.0, "speed": 6.0, "behaviour": "constant"},
+                {"lane": 0, "s": 150.0, "speed": 16.0, "behaviour": "idm", "lane_changes": True}]
+    one_way = World(parse_scenario(scenario(vehicles, ego={"lane": 0, "s": 20.0, "speed": 10.0})))
+    two = World(parse_scenario(two_way(vehicles)))
+    n_one = [truth_of(one_way, 2, t)[1] for t in np.arange(0.5, 12.01, 0.5)]
+    n_two = [truth_of(two, 2, t)[1] for t in np.arange(0.5, 12.01, 0.5)]
+    assert max(n_one) > 1.0  # overtook in the lane to the left
+    assert max(abs(n + 1.75) for n in n_two) < 0.05 and two.collisions == []
+    lanes = two.traffic.network
+    assert lanes.side_lanes(("a", "b", 0)) == [] and lanes.side_lanes(("a", "b", 1)) == []
+
+
+def test_oncoming_lane_frame_round_trips_and_points_against_s() -> None:
+    world = World(parse_scenario(two_way([], road={"lanes": 3, "oncoming": 2, "segments": [[300.0, 0.0, 0.01]]})))
+    road = world.road
+    lane = world.traffic.lanes[2]
+    assert lane.direction == -1 and world.traffic.lanes[0].direction == 1
+    for local, lateral in ((10.0, 0.3), (150.0, -0.5), (280.0, 0.0)):
+        xy = lane.position(local, lateral)
+        world.traffic.projector.clear()
+        back = lane.local_coordinates(xy)
+        assert back == pytest.approx((local, lateral), abs=1e-6)
+        # local = length - s, lateral to the left of the driving direction = right of s's direction
+        s, n = road.to_frenet(xy)
+        assert float(s) == pytest.approx(road.length - local, abs=1e-6)
+        assert float(n) == pytest.approx(road.lane_center(2) - lateral, abs=1e-6)
+        assert lane.heading_at(local) == pytest.approx(float(road.heading(road.length - local)) - np.pi, abs=1e-9)
+
+
+def test_oncoming_cars_keep_their_lane_on_a_curve_and_a_closed_road_wraps() -> None:
+    # a R 100 m left curve: an oncoming car keeps within 0.15 m of its lane centre, its yaw within
+    # 2 deg of the road heading + pi; on a closed ring the same car passes s = 0 and comes round again
+    bend = World(parse_scenario(two_way([{"lane": 1, "s": 250.0, "speed": 15.0, "behaviour": "constant"}],
+                                        road={"lanes": 2, "oncoming": 1, "segments": [[60.0, 0.0, 0.0], [300.0, 0.01, 0.01]]},
+                                        duration=10.0)))
+    for t in np.arange(1.0, 10.01, 1.0):
+        _, n, _, _, xi = truth_of(bend, 1, t)
+        assert abs(n - 1.75) < 0.15 and abs(abs(xi) - np.pi) < np.radians(2.0)
+    ring = {"lanes": 2, "oncoming": 1, "closed": True, "segments": [[2 * np.pi * 100.0, 0.01, 0.01]]}
+    world = World(parse_scenario(two_way([{"lane": 1, "s": 30.0, "speed": 15.0, "behaviour": "constant"}],
+                                         road=ring, duration=10.0)))
+    s = [truth_of(world, 1, t)[0] for t in np.arange(0.0, 10.01, 0.5)]
+    length = world.road.length
+    assert s[0] == 30.0 and s[2] < s[1] < 30.0 and s[4] > 600.0  # 30 - 15 t, past s = 0 at 2 s
+    # on the lane 1.75 m inside the R 100 m ring s runs at 15 / (1 - 0.01 x 1.75) m/s
+    assert s[-1] == pytest.approx(30.0 - 150.0 / (1.0 - 0.0175) + length, abs=0.2) and 1 not in world.removed
+
+
+def test_parked_cars_and_a_car_pulling_out() -> None:
+    # parking lanes (2.5 m) both sides: lanes 0 (right, along s) .. 3 (left, against s); a car parked
+    # backward stands facing -x; the scripted car pulls out of lane 0 into lane 1 and drives off
+    road = {"lanes": 2, "oncoming": 1, "parking": "both", "segments": [[800.0, 0.0, 0.0]]}
+    vehicles = [{"lane": 0, "s": 100.0, "speed": 0.0, "behaviour": "constant", "facing": "backward", "width": 1.8},
+                {"lane": 3, "s": 100.0, "speed": 0.0, "behaviour": "constant", "width": 1.8},
+                {"lane": 0, "s": 120.0, "speed": 0.0, "behaviour": "scripted", "width": 1.8,
+                 "maneuvers": [{"t": 1.0, "kind": "speed", "speed": 8.0}, {"t": 2.0, "kind": "lane_change", "lane": 1}]}]
+    data = two_way(vehicles, road=road)
+    data["ego"]["lane"] = 1
+    world = World(parse_scenario(data))
+    assert [round(c, 3) for c in world.road.lane_centers] == [-4.75, -1.75, 1.75, 4.75]
+    for t in (0.0, 6.0, 12.0):
+        s, n, yaw, v, _ = truth_of(world, 1, t)
+        assert (s, n, v) == (pytest.approx(100.0), pytest.approx(-4.75), 0.0) and abs(abs(yaw) - np.pi) < 1e-9
+        s, n, yaw, v, _ = truth_of(world, 2, t)
+        assert (s, n, v) == (pytest.approx(100.0), pytest.approx(4.75), 0.0) and abs(abs(yaw) - np.pi) < 1e-9
+    s, n, yaw, v, _ = truth_of(world, 3, 12.0)
+    assert abs(n + 1.75) < 0.1 and v == pytest.approx(8.0, abs=0.1) and s > 150.0 and world.collisions == []

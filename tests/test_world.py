@@ -77,6 +77,23 @@ def test_lane_config_round_trip() -> None:
     np.testing.assert_allclose(copy.position(200.0, 0.3), lane.position(200.0, 0.3), atol=1e-9)
 
 
+def test_two_way_lanes_with_parking_round_trip_and_end_at_s_0() -> None:
+    # lanes 0..3: parking (2.5 m, along s), driving along s, driving against s, parking (against s); the
+    # lanes against s run their local frame from the far end and end (after_end) near s = 0
+    road_table = {"lanes": 2, "oncoming": 1, "parking": "both", "segments": [[300.0, 0.0, 0.0]]}
+    spec = parse_scenario(scenario(road=road_table, vehicles=[], ego={"lane": 1, "s": 30.0, "speed": 10.0}))
+    network, _ = build_network(spec.build_road(), spec.road.to_config())
+    lanes = network.graph["a"]["b"]
+    assert [(lane.offset, lane.width, lane.direction, lane.kind) for lane in lanes] == [
+        (-4.75, 2.5, 1, "parking"), (-1.75, 3.5, 1, "driving"), (1.75, 3.5, -1, "driving"), (4.75, 2.5, -1, "parking")]
+    for k in (0, 3):
+        copy = lane_from_config(lanes[k].to_config())
+        assert (copy.direction, copy.width) == (lanes[k].direction, lanes[k].width)
+        np.testing.assert_allclose(copy.position(200.0, 0.3), lanes[k].position(200.0, 0.3), atol=1e-9)
+    assert lanes[2].position(0.0, 0.0) == pytest.approx([300.0, 1.75]) and lanes[2].position(300.0, 0.0) == pytest.approx([0.0, 1.75])
+    assert lanes[2].after_end(np.array([1.0, 1.75])) and not lanes[2].after_end(np.array([299.0, 1.75]))
+
+
 def test_closed_lane_never_ends() -> None:
     spec = load_scenario("circuit")
     network, _ = build_network(spec.build_road())

@@ -9,7 +9,8 @@
   another object's shadow: then the missing half may lie on either side, a spread instead of a
   shift), the fit's axes turned by the quarter turn that puts the heading closest to the road
   direction (``|xi| <= pi/4``: vehicles drive along the road), and the speed from an associated radar
-  detection when fused.
+  detection when fused (on a two-way road, not from one that points more than ``BACKWARD_SPEED``
+  against that heading: the detection of a vehicle passing in the other direction).
 
 Both return curvilinear means (B, 7) and covariances (B, 7, 7); ``to_cartesian_gaussians`` maps them to
 the Cartesian variant's state by the unscented transform.
@@ -35,6 +36,11 @@ import math
 from tracker.jit import njit
 from tracker.centerline import to_vehicle_kernel
 from tracker.detection import _occluded, _spans
+
+
+#: Speed (m/s) against its heading beyond which a cluster birth on a two-way road does not take its radar velocity:
+#: the heading follows the lane's traffic, so such a detection is a passing vehicle's in the other lane.
+BACKWARD_SPEED = 2.0
 
 
 def birth_covariance(config: BirthConfig, count: int) -> np.ndarray:
@@ -249,9 +255,10 @@ def cluster_births(
         levers.append(rotate(shifts, ego.yaw - theta[0]) * metric)
         spreads.append(rotate(either, ego.yaw - theta[0]) * metric)
         xi = lane_xi if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
-        if vel is not None:
-            speed, speed_std = float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)])), None
-        else:
+        along = None if vel is None else float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)]))
+        if along is not None and not (road.two_way and along < -BACKWARD_SPEED):
+            speed, speed_std = along, None
+        else:  # no radar, or (two-way road) a radar velocity against the lane's traffic: another vehicle's
             speed, speed_std = ego.v if config.speed is None else config.speed, config.speed_std
         means.append([s, n, speed, xi, 0.0, length, width])
         stds.append(speed_std if speed_std is not None else 1.0)

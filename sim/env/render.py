@@ -60,8 +60,12 @@ class Renderer:
         else:
             s = s[(s >= 0.0) & (s <= road.length)]
         if len(s) >= 2:
-            offsets = [road.right_edge + k * road.lane_width for k in range(road.lanes + 1)]
-            lines = [road.to_cartesian(s, np.full_like(s, n)) for n in offsets]
+            if getattr(road.layout, "_uniform", None) is not None:
+                offsets = [road.right_edge + k * road.lane_width for k in range(road.lanes + 1)]
+                lines = [road.to_cartesian(s, np.full_like(s, n)) for n in offsets]
+            else:  # lanes of different widths (parking lanes): the layout's boundaries
+                bounds = road.layout.boundaries_at(road.wrap_s(s))
+                lines = [road.to_cartesian(s, bounds[:, k]) for k in range(road.lanes + 1)]
             breaks = np.flatnonzero(np.abs(np.diff(s)) > 0.5 * road.length) + 1 if road.closed else []
             for k, xy in enumerate(lines):
                 edge = k in (0, road.lanes)

@@ -32,6 +32,8 @@ and ``pos_rmse_hidden_m`` split the position RMSE by whether the vehicle is visi
 track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidden`` counts those
 pairs); ``yaw`` errors are
 wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
+``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps``, ``oncoming_id_switches`` (``oncoming_metrics``):
+the same measures over the vehicles driving against ``s`` (two-way roads; ``None`` without any).
 ``long_sides_seen``, ``long_length_within_1m``, ``long_length_err_max_m`` (extended trackers): the hard
 suite's target, a long vehicle's length 3 s after its side is first seen (``sim.evaluation.long_vehicles``).
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
@@ -88,6 +90,8 @@ CLUTTER_STREAM = 0x434C5554  # "CLUT"
 TIMING_KEYS = frozenset({"tracker_ms_median", "tracker_ms_p95", "tracker_ms_mean", "wall_s"})
 #: Default fewest lidar points on a vehicle for it to count as visible in the second scoring.
 MIN_VISIBLE_POINTS = 1
+#: Speed (m/s) from which a vehicle heading against ``s`` counts as driving against it (``against_s``).
+ONCOMING_MIN_SPEED = 1.0
 
 
 class TrackerLike(Protocol):
@@ -398,6 +402,42 @@ def _seen_metrics(frames: list[FrameRecord], n_est: np.ndarray, n_vis: np.ndarra
     }
 
 
+def against_s(snap: Snapshot) -> np.ndarray:
+    """Boolean mask of the vehicles of ``snap`` driving against ``s`` (the oncoming traffic of a two-way
+    road): heading against the road (``cos xi < 0``) and moving (speed >= ``ONCOMING_MIN_SPEED``); a car
+    parked facing the other way is not driving. False where the snapshot has no road coordinates."""
+    with np.errstate(invalid="ignore"):
+        return (np.cos(snap.xi) < 0.0) & (snap.v >= ONCOMING_MIN_SPEED)
+
+
+def oncoming_metrics(frames: list[FrameRecord], extent: bool = True) -> dict[str, float | int | None]:
+    """The yaw and speed errors and identity switches of the vehicles driving against ``s`` (``against_s``
+    in the frame): ``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps`` over the GOSPA-assigned pairs
+    whose vehicle drives against ``s`` (as ``yaw_rmse_deg`` and ``speed_rmse_mps``), ``oncoming_matched_pairs``,
+    and ``oncoming_id_switches``: ``IdSwitchCounter`` over those pairs only. All ``None`` in a run with no
+    such pair (no oncoming traffic, or none within range)."""
+    yaw: list[np.ndarray] = []
+    speed: list[np.ndarray] = []
+    switches = IdSwitchCounter()
+    for f in frames:
+        truth_rows = np.flatnonzero(f.scored)[np.asarray(f.gospa.truth_index, dtype=int)]
+        oncoming = against_s(f.truth)[truth_rows]
+        if not oncoming.any():
+            continue
+        err = matched_errors(f.truth_state[f.scored], f.track_state, f.gospa, extent=extent)
+        yaw.append(err.yaw[oncoming])
+        speed.append(err.speed[oncoming])
+        labels = np.array([f.tracks[j].label for j in np.asarray(f.gospa.estimate_index, dtype=int)[oncoming]], dtype=int)
+        switches.update(f.truth.ids[truth_rows[oncoming]], labels)
+    pairs = int(sum(len(e) for e in yaw))
+    return {
+        "oncoming_yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
+        "oncoming_speed_rmse_mps": _rmse(speed),
+        "oncoming_id_switches": switches.switches if pairs else None,
+        "oncoming_matched_pairs": pairs,
+    }
+
+
 def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | None = None,
               extent: bool = True) -> dict[str, Any]:
     """The summary metrics (metrics.json, docs/architecture.md keys and more) of scored frames. ``extent=False``
@@ -451,6 +491,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "tracker_ms_median": float(np.median(ms)) if ms.size else None,
         "tracker_ms_p95": float(np.percentile(ms, 95)) if ms.size else None,
         "tracker_ms_mean": float(ms.mean()) if ms.size else None,
+        **oncoming_metrics(frames, extent),
     }
     if wall_s is not None:
         out["wall_s"] = float(wall_s)

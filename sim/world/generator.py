@@ -57,7 +57,7 @@ def _integer(rng: np.random.Generator, bounds: tuple[int, int]) -> int:
     return int(rng.integers(bounds[0], bounds[1] + 1))
 
 
-def draw_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, min_length: float) -> dict[str, Any]:
+def draw_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, min_length: float, oncoming: int = 0) -> dict[str, Any]:
     """A road table (``RoadSpec`` data): straights and curves until at least ``min_length`` m."""
     segments: list[list[float]] = []
     total = 0.0
@@ -73,7 +73,10 @@ def draw_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, min_leng
         segments += [[ramp_in, 0.0, kappa], [arc, kappa, kappa], [ramp_out, kappa, 0.0]]
         total += ramp_in + arc + ramp_out
     heading = _uniform(rng, (-math.pi, math.pi))
-    return {"lanes": lanes, "lane_width": gen.lane_width, "closed": False, "start": [0.0, 0.0, heading], "segments": segments}
+    road = {"lanes": lanes, "lane_width": gen.lane_width, "closed": False, "start": [0.0, 0.0, heading], "segments": segments}
+    if oncoming:
+        road["oncoming"] = oncoming
+    return road
 
 
 def self_clearance(road: Road, clearance: float) -> float:
@@ -94,13 +97,13 @@ def self_clearance(road: Road, clearance: float) -> float:
 
 
 def draw_clear_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, min_length: float,
-                    where: str = "generator") -> dict[str, Any]:
+                    where: str = "generator", oncoming: int = 0) -> dict[str, Any]:
     """``draw_road`` until the road keeps ``ROAD_SELF_CLEARANCE`` m between its edges wherever it
     winds back towards itself (``self_clearance`` of the centerline at least the road's width plus
     that); ``ScenarioError`` after ``ROAD_ATTEMPTS`` draws."""
     clearance = lanes * gen.lane_width + ROAD_SELF_CLEARANCE
     for _ in range(ROAD_ATTEMPTS):
-        road = draw_road(gen, rng, lanes, min_length)
+        road = draw_road(gen, rng, lanes, min_length, oncoming)
         spec = RoadSpec.model_validate(road)
         if self_clearance(spec.build(), clearance) >= clearance:
             return road
@@ -111,17 +114,18 @@ def draw_clear_road(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, mi
     )
 
 
-def _maneuvers(gen: GeneratorSpec, rng: np.random.Generator, lane: int, lanes: int, duration: float) -> list[dict[str, Any]]:
-    """Poisson-timed lane changes (to an adjacent lane, one at a time) and speed changes."""
+def _maneuvers(gen: GeneratorSpec, rng: np.random.Generator, lane: int, group: list[int], duration: float) -> list[dict[str, Any]]:
+    """Poisson-timed lane changes (to an adjacent lane of ``group``, the lanes of the vehicle's direction,
+    one at a time) and speed changes."""
     out: list[dict[str, Any]] = []
     t, current = 0.0, lane
-    if gen.lane_change_rate > 0 and lanes > 1:
+    if gen.lane_change_rate > 0 and len(group) > 1:
         while True:
             t += float(rng.exponential(1.0 / gen.lane_change_rate))
             length = _uniform(rng, LANE_CHANGE_DURATION)
             if t + length >= duration:
                 break
-            options = [k for k in (current - 1, current + 1) if 0 <= k < lanes]
+            options = [k for k in (current - 1, current + 1) if k in group]
             current = int(rng.choice(options))
             out.append({"kind": "lane_change", "t": round(t, 3), "lane": current, "duration": round(length, 3), "wait_for_gap": True})
             t += length + 1.0
@@ -137,13 +141,18 @@ def _maneuvers(gen: GeneratorSpec, rng: np.random.Generator, lane: int, lanes: i
 
 
 def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_length: float, closed: bool,
-                 duration: float, ego_s: float) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+                 duration: float, ego_s: float, directions: list[int] | None = None) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The ego (at ``ego_s``) and the other vehicles as scenario tables, without overlap. With
     ``gen.classes`` each vehicle first draws its class (one uniform number against the cumulative
     shares), then its length and width from that class; without, from ``gen.length`` / ``gen.width``
-    (the draws, and so the traffic of a seed, are then exactly those of a generator without classes)."""
+    (the draws, and so the traffic of a seed, are then exactly those of a generator without classes).
+    ``directions`` (per lane, +1 along ``s``, -1 against; default all +1): the ego drives in a lane along
+    ``s``; a vehicle drawn into a lane against ``s`` is placed ``gen.oncoming_spawn`` m ahead of the ego."""
+    directions = [1] * lanes if directions is None else list(directions)
+    along = [k for k in range(lanes) if directions[k] > 0]
+    against = [k for k in range(lanes) if directions[k] < 0]
     ego = {
-        "lane": _integer(rng, (0, lanes - 1)),
+        "lane": along[_integer(rng, (0, len(along) - 1))],
         "s": round(ego_s, 3),
         "speed": round(_uniform(rng, gen.ego_speed), 3),
         "behaviour": "idm",
@@ -165,7 +174,7 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
             height = gen.classes[k].height_of(length)  # type: ignore[index]  (no draw: the stream is unchanged)
         for _attempt in range(PLACEMENT_ATTEMPTS):
             lane = _integer(rng, (0, lanes - 1))
-            s = ego_s + _uniform(rng, gen.spawn)
+            s = ego_s + _uniform(rng, gen.spawn if directions[lane] > 0 else gen.oncoming_spawn)
             if closed:
                 s %= road_length
             elif not 0.5 * length <= s <= road_length - 0.5 * length:
@@ -193,7 +202,7 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
         if height is not None:
             vehicle["height"] = height
         if behaviour == "scripted":
-            vehicle["maneuvers"] = _maneuvers(gen, rng, lane, lanes, duration)
+            vehicle["maneuvers"] = _maneuvers(gen, rng, lane, along if directions[lane] > 0 else against, duration)
         placed.append((lane, vehicle["s"], length))
         vehicles.append(vehicle)
     return ego, vehicles
@@ -217,6 +226,7 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
     }
     if spec.faults is not None:
         data["faults"] = spec.faults.model_dump()
+    oncoming = 0
     if spec.road is not None:
         lanes = spec.road.lanes
     else:  # fixed traffic on a drawn road: draw only lane counts that hold every lane it uses
@@ -229,6 +239,8 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
                 f"used by the fixed traffic; raise its upper bound to at least {low}"
             )
         lanes = _integer(rng, (low, gen.lanes[1]))
+        if gen.oncoming != (0, 0):  # (no draw otherwise: one-way generators keep their streams)
+            oncoming = _integer(rng, gen.oncoming)
     ego_s = max(0.0, -gen.spawn[0]) + 10.0
     if spec.ego is not None:
         ego_s = spec.ego.s
@@ -239,7 +251,9 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
         half = 0.5 * lanes * gen.lane_width
         factor = 1.0 / (1.0 - half / gen.radius[0])
         needed = ego_s + factor * ego_speed * spec.duration + ROAD_MARGIN
-        road = draw_clear_road(gen, rng, lanes, needed, f"{spec.source or spec.name} (generator, seed {seed})")
+        if oncoming:  # oncoming vehicles are placed up to oncoming_spawn ahead of the ego
+            needed = max(needed, ego_s + gen.oncoming_spawn[1] + ROAD_MARGIN)
+        road = draw_clear_road(gen, rng, lanes, needed, f"{spec.source or spec.name} (generator, seed {seed})", oncoming)
     else:
         road = spec.road.to_config()
     data["road"] = road
@@ -247,9 +261,11 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
         if spec.road is not None:
             built = spec.build_road()
             length, closed = built.length, built.closed
+            lanes, directions = built.lanes, [int(d) for d in built.lane_directions]
         else:  # a curvature-profile road is exactly as long as its segments
             length, closed = float(sum(seg[0] for seg in road["segments"])), False
-        ego, vehicles = draw_traffic(gen, rng, lanes, length, closed, spec.duration, ego_s)
+            directions = [1] * (lanes - oncoming) + [-1] * oncoming
+        ego, vehicles = draw_traffic(gen, rng, lanes, length, closed, spec.duration, ego_s, directions)
         data["ego"], data["vehicles"] = ego, vehicles
     else:
         data["ego"] = spec.ego.model_dump(exclude_none=True)

@@ -8,6 +8,14 @@ id + 1, i.e. our next lane to the left. A lane's local coordinates are ``(s, n -
 coordinate is the centerline arc length ``s`` (shared by all lanes, so gaps between vehicles in
 different lanes compare directly) and the lateral one is the offset from the lane centre ``n_k``.
 
+Two-way roads: a lane whose direction is -1 (``Road.lane_directions``; the oncoming lanes) runs its local
+frame against ``s``: longitudinal ``length - s``, lateral ``n_k - n`` (still positive to the left of
+its driving direction), heading the centerline's + pi; so highway-env's controllers and IDM/MOBIL work
+unchanged in the lane's own frame. ``sim.world.traffic`` measures gaps along each vehicle's own
+direction, and MOBIL only considers adjacent driving lanes of the same direction
+(``FrenetNetwork.side_lanes``). Parking lanes (kind ``"parking"``) are lanes like the others, of their
+own width; MOBIL never enters them.
+
 Closed roads: each lane is one segment whose ``after_end`` is never true, and ``s`` wraps in
 ``[0, length)``; the wrap of distances between vehicles is handled by ``sim.world.traffic``. Open roads:
 positions beyond an end extrapolate along the end tangent (``tracker.Road``'s documented behaviour);
@@ -94,9 +102,12 @@ class FrenetLane(AbstractLane):
         self.road = road
         self.index = int(index)
         self.offset = road.lane_center(self.index)
-        self.width = road.lane_width
+        self.width = lane_width(road, self.index)
         self.length = road.length
         self.closed = road.closed
+        #: +1: traffic along ``s``; -1: against it (the local frame runs the other way, module notes)
+        self.direction = int(road.lane_directions[self.index])
+        self.kind = road.layout.kinds[self.index]
         self.projector = projector or FrenetProjector(road)
         self.road_config = road_config
         self.line_types = [
@@ -108,16 +119,26 @@ class FrenetLane(AbstractLane):
         self.speed_limit = speed_limit
 
     def position(self, longitudinal: float, lateral: float) -> np.ndarray:
-        """Point in G (m) at arc length ``longitudinal`` and offset ``lateral`` from the lane centre."""
+        """Point in G (m) at local ``longitudinal`` (the arc length ``s``; ``length - s`` against ``s``) and
+        ``lateral`` offset from the lane centre (to the left of the lane's driving direction)."""
+        if self.direction < 0:
+            return self.road.to_cartesian(self.length - float(longitudinal), float(self.offset - lateral), extrapolate=True)
         return self.road.to_cartesian(float(longitudinal), float(self.offset + lateral), extrapolate=True)
 
     def local_coordinates(self, position: np.ndarray) -> tuple[float, float]:
-        """``(s, n - n_k)`` (m) of a point in G; ``s`` wraps into ``[0, length)`` on a closed road."""
+        """``(s, n - n_k)`` (m) of a point in G (``(length - s, n_k - n)`` in a lane against ``s``); ``s``
+        wraps into ``[0, length)`` on a closed road."""
         s, n = self.projector.project(position)
+        if self.direction < 0:
+            return self.length - s, self.offset - n
         return s, n - self.offset
 
     def heading_at(self, longitudinal: float) -> float:
-        """Lane heading (rad) at arc length ``longitudinal`` (that of the centerline: lanes are parallel)."""
+        """Lane heading (rad) at local ``longitudinal``: the centerline's (lanes are parallel), turned by
+        pi in a lane against ``s``."""
+        if self.direction < 0:
+            _, _, c, sn, _ = self.road.frame1(self.length - float(longitudinal))
+            return math.atan2(-sn, -c)
         _, _, c, sn, _ = self.road.frame1(float(longitudinal))  # scalar fast path of tracker.Road
         return math.atan2(sn, c)
 
@@ -144,11 +165,34 @@ class FrenetLane(AbstractLane):
         return cls(**config)
 
 
+class FrenetNetwork(RoadNetwork):
+    """highway-env's ``RoadNetwork`` whose side lanes (MOBIL's candidates) are the adjacent driving
+    lanes of the same direction: no lane change into oncoming traffic or a parking lane."""
+
+    def side_lanes(self, lane_index: tuple[str, str, int]) -> list[tuple[str, str, int]]:
+        _from, _to, _id = lane_index
+        lanes = self.graph[_from][_to]
+        own = lanes[_id]
+        return [(_from, _to, k) for k in (_id - 1, _id + 1)
+                if 0 <= k < len(lanes) and lanes[k].direction == own.direction and lanes[k].kind == "driving"]
+
+
+def lane_width(road: Road, index: int) -> float:
+    """Width (m) of lane ``index`` of ``road``: ``road.lane_width`` on a road of equal lanes, else its
+    layout's (lanes that do not vary along ``s``)."""
+    if getattr(road.layout, "_uniform", None) is not None:
+        return float(road.lane_width)
+    b = road.layout.boundaries[0]
+    return float(b[index + 1] - b[index])
+
+
 def build_network(road: Road, road_config: dict[str, Any] | None = None) -> tuple[RoadNetwork, FrenetProjector]:
     """A ``RoadNetwork`` with one ``FrenetLane`` per lane of ``road`` (index k = our lane k) on the
     edge ``(NODE_FROM, NODE_TO)``, and the projector they share."""
+    if road.layout.varies:
+        raise ValueError("the simulator's traffic needs lanes that do not vary along s; this road's do")
     projector = FrenetProjector(road)
-    network = RoadNetwork()
+    network = FrenetNetwork()
     for k in range(road.lanes):
         network.add_lane(NODE_FROM, NODE_TO, FrenetLane(road, k, projector, road_config))
     return network, projector

@@ -83,6 +83,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr,
 
 from sim.world.truth import default_height, rectangle_corners
 from tracker import Road
+from tracker.lanes import LaneLayout
 
 StrictFloat = Annotated[float, Strict()]
 StrictInt = Annotated[int, Strict()]
@@ -95,6 +96,8 @@ MAX_CURVATURE = 0.05
 START_CLEARANCE = 0.5
 #: Largest allowed speed (m/s) anywhere in a scenario (highway-env's Vehicle.MAX_SPEED).
 MAX_SPEED = 40.0
+#: Default width (m) of a parking lane (``road.parking``).
+PARKING_WIDTH = 2.5
 
 
 def shipped_scenario_dir() -> Path:
@@ -131,7 +134,15 @@ class RoadSpec(_Model):
     ``grade`` (0; |grade| <= 0.15) and ``bank`` (0; |bank| <= 0.15): the road surface rises ``grade`` m
     per m of ``s`` and ``bank`` m per m of ``n`` (toward the left); beside the road the ground is level
     across (``sim.world.ground.RoadGround``). Only the 3-D lidar and the vehicles' heights see them (the
-    vehicles drive the 2-D road); a closed road cannot have a grade."""
+    vehicles drive the 2-D road); a closed road cannot have a grade.
+
+    Two-way roads: ``oncoming`` (0) of the ``lanes`` driving lanes carry traffic against ``s``: the
+    leftmost ones with ``drive_on = "right"`` (the default), the rightmost with ``"left"``; vehicles in
+    them drive against ``s``. ``parking`` (none; ``"right"``, ``"left"`` or ``"both"``) adds a parking
+    lane of ``parking_width`` m (2.5; 2-3.5) outside the driving lanes on that side, of the direction of
+    the driving lane next to it (``tracker.lanes.LaneLayout``, kind ``"parking"``). Lanes are numbered
+    across the whole road, 0 the rightmost, parking lanes included; the driving lanes stay centred on
+    the centerline."""
 
     lanes: StrictInt = Field(default=2, ge=1, le=6)
     lane_width: StrictFloat = Field(default=3.5, ge=2.5, le=5.0)
@@ -142,6 +153,20 @@ class RoadSpec(_Model):
     headings: list[StrictFloat] | None = None
     grade: StrictFloat = Field(default=0.0, ge=-0.15, le=0.15)
     bank: StrictFloat = Field(default=0.0, ge=-0.15, le=0.15)
+    oncoming: StrictInt = Field(default=0, ge=0, le=6)
+    drive_on: Literal["right", "left"] = "right"
+    parking: Literal["right", "left", "both"] | None = None
+    parking_width: StrictFloat = Field(default=PARKING_WIDTH, ge=2.0, le=3.5)
+
+    @model_validator(mode="after")
+    def _lanes(self) -> RoadSpec:
+        if self.oncoming > self.lanes:
+            raise ValueError(f"road.oncoming = {self.oncoming}: at most road.lanes ({self.lanes}) of the driving lanes can carry oncoming traffic")
+        if self.parking is None and self.parking_width != PARKING_WIDTH:
+            raise ValueError("road.parking_width needs road.parking (\"right\", \"left\" or \"both\")")
+        if self.drive_on != "right" and self.oncoming == 0:
+            raise ValueError("road.drive_on applies to two-way roads; give road.oncoming (the lanes against s) too")
+        return self
 
     @model_validator(mode="after")
     def _shape(self) -> RoadSpec:
@@ -159,7 +184,7 @@ class RoadSpec(_Model):
                     f"road.headings has {len(self.headings)} entries; it needs one per waypoint ({len(self.waypoints)})"
                 )
         if self.segments is not None:
-            half = 0.5 * self.lanes * self.lane_width
+            half = self.half_width
             limit = min(MAX_CURVATURE, 1.0 / (2.0 * half))
             for i, (length, k0, k1) in enumerate(self.segments):
                 if not length > 0:
@@ -179,24 +204,68 @@ class RoadSpec(_Model):
         for key in ("grade", "bank"):
             if out.get(key) == 0.0:
                 del out[key]
+        for key, default in (("oncoming", 0), ("drive_on", "right"), ("parking_width", PARKING_WIDTH)):
+            if out.get(key) == default:
+                del out[key]
         return out
+
+    # -- the lanes across the road ----------------------------------------------------------------
+    @property
+    def total_lanes(self) -> int:
+        """Lanes across the road: the driving ``lanes`` and the parking lanes (0, 1 or 2)."""
+        return self.lanes + {None: 0, "right": 1, "left": 1, "both": 2}[self.parking]
+
+    @property
+    def half_width(self) -> float:
+        """The largest distance (m) from the centerline to a road edge: the driving lanes are centred on
+        the centerline, the parking lanes lie outside them."""
+        half = 0.5 * self.lanes * self.lane_width
+        return half + (self.parking_width if self.parking is not None else 0.0)
+
+    def layout(self) -> LaneLayout | None:
+        """The ``tracker.lanes.LaneLayout`` of a road with parking lanes (``None`` without: the road is then
+        built from ``lanes``, ``lane_width``, ``oncoming`` and ``drive_on``). Driving lanes centred on the
+        centerline, the ``oncoming`` leftmost (rightmost with ``drive_on = "left"``) against ``s``; a
+        parking lane of ``parking_width`` on the right and/or left outside them, of the direction of the
+        driving lane next to it."""
+        if self.parking is None:
+            return None
+        driving = LaneLayout.uniform(self.lanes, self.lane_width, oncoming=self.oncoming, drive_on=self.drive_on)
+        bounds = list(driving.boundaries[0])
+        directions = [int(d) for d in driving.directions]
+        kinds = ["driving"] * self.lanes
+        if self.parking in ("right", "both"):
+            bounds.insert(0, bounds[0] - self.parking_width)
+            directions.insert(0, directions[0])
+            kinds.insert(0, "parking")
+        if self.parking in ("left", "both"):
+            bounds.append(bounds[-1] + self.parking_width)
+            directions.append(directions[-1])
+            kinds.append("parking")
+        return LaneLayout([0.0], [bounds], directions, kinds)
 
     def build(self) -> Road:
         """The ``tracker.Road`` this spec describes (raises ``ValueError`` if it cannot be built)."""
+        layout = self.layout()
+        lanes: dict[str, Any]
+        if layout is not None:
+            lanes = {"layout": layout}
+        elif self.oncoming:
+            lanes = {"lanes": self.lanes, "lane_width": self.lane_width, "oncoming": self.oncoming, "drive_on": self.drive_on}
+        else:
+            lanes = {"lanes": self.lanes, "lane_width": self.lane_width}
         if self.segments is not None:
             return Road.from_curvature(
                 self.segments,
                 start=self.start or (0.0, 0.0, 0.0),
-                lanes=self.lanes,
-                lane_width=self.lane_width,
                 closed=self.closed,
+                **lanes,
             )
         return Road.from_waypoints(
             np.asarray(self.waypoints, dtype=float),
             None if self.headings is None else np.asarray(self.headings, dtype=float),
-            lanes=self.lanes,
-            lane_width=self.lane_width,
             closed=self.closed,
+            **lanes,
         )
 
 
@@ -257,7 +326,12 @@ class VehicleSpec(_Model):
     motorcycle, a 6 x 2.1 m van, a 12-18 x 2.5 m truck or bus. ``height`` (m, 0.8-5; default by
     length, ``sim.world.truth.default_height``: motorcycle 1.2, car 1.5, van 2.0, truck 3.5) is seen only by
     the 3-D lidar. ``behaviour = "constant"`` with
-    ``speed = 0`` is a vehicle standing still on the road (broken down, parked)."""
+    ``speed = 0`` is a vehicle standing still on the road (broken down, parked); such a vehicle may
+    have ``facing = "backward"``: it stands facing against its lane's traffic (a car parked the other
+    way round). Every other vehicle drives in its lane's direction: along ``s``, or against it in the
+    oncoming lanes of a two-way road (``RoadSpec.oncoming``). A vehicle in a parking lane starts standing
+    (speed 0); a scripted one can pull out (a speed change and a lane change to the driving lane of
+    the same direction next to it). Lane changes stay within lanes of one direction."""
 
     lane: StrictInt = Field(ge=0)
     s: StrictFloat
@@ -269,9 +343,13 @@ class VehicleSpec(_Model):
     width: StrictFloat = Field(default=2.0, ge=0.6, le=3.0)
     height: StrictFloat | None = Field(default=None, ge=0.8, le=5.0)
     maneuvers: list[Maneuver] = Field(default_factory=list)
+    facing: Literal["forward", "backward"] = "forward"
 
     @model_validator(mode="after")
     def _behaviour_fields(self) -> VehicleSpec:
+        if self.facing == "backward" and not (self.behaviour == "constant" and self.speed == 0.0):
+            raise ValueError("facing = \"backward\" (against the lane's traffic) needs a standing vehicle: "
+                             "behaviour = \"constant\" and speed = 0")
         if self.maneuvers and self.behaviour != "scripted":
             raise ValueError(f"maneuvers need behaviour = \"scripted\"; this vehicle's behaviour is {self.behaviour!r}")
         if self.lane_changes and self.behaviour != "idm":
@@ -378,7 +456,12 @@ class GeneratorSpec(_Model):
     a lane; a vehicle that finds no room after 50 draws is dropped). A fraction ``scripted_fraction`` [0.4] is scripted, ``constant_fraction`` [0]
     constant, the rest idm with MOBIL. Scripted vehicles get Poisson-timed lane changes to an
     adjacent lane (``lane_change_rate`` [0.08] per second, 3-6 s long, waiting for a gap) and speed
-    changes (``speed_change_rate`` [0.04] per second, to a speed in ``speed``)."""
+    changes (``speed_change_rate`` [0.04] per second, to a speed in ``speed``).
+    Two-way roads: ``oncoming`` [0, 0] lanes of a drawn road (the leftmost; right-hand traffic) carry
+    traffic against ``s`` (at most ``lanes`` - 1: the ego drives along ``s``); a drawn vehicle placed in
+    one of them drives against ``s``, at ``oncoming_spawn`` [40, 400] m ahead of the ego (it meets the
+    ego during the run), and changes lanes only among the oncoming lanes. With ``[0, 0]`` nothing about
+    the drawn scenarios changes."""
 
     straight_length: FloatRange = (30.0, 150.0)
     arc_length: FloatRange = (40.0, 160.0)
@@ -397,6 +480,8 @@ class GeneratorSpec(_Model):
     lane_change_rate: StrictFloat = Field(default=0.08, ge=0.0, le=1.0)
     speed_change_rate: StrictFloat = Field(default=0.04, ge=0.0, le=1.0)
     classes: list[VehicleClass] | None = Field(default=None, min_length=1, max_length=16)
+    oncoming: IntRange = (0, 0)
+    oncoming_spawn: FloatRange = (40.0, 400.0)
 
     @model_validator(mode="after")
     def _classes(self) -> GeneratorSpec:
@@ -451,7 +536,7 @@ class GeneratorSpec(_Model):
     @model_validator(mode="after")
     def _ranges(self) -> GeneratorSpec:
         positive = {"straight_length", "arc_length", "ramp_length", "radius", "length", "width"}
-        nonneg = {"speed", "ego_speed", "vehicles"}
+        nonneg = {"speed", "ego_speed", "vehicles", "oncoming", "oncoming_spawn"}
         for name in type(self).model_fields:
             value = getattr(self, name)
             if not isinstance(value, tuple):
@@ -465,6 +550,9 @@ class GeneratorSpec(_Model):
                 raise ValueError(f"generator.{name} = {list(value)}: values must be >= 0")
         if self.lanes[0] < 1 or self.lanes[1] > 6:
             raise ValueError(f"generator.lanes = {list(self.lanes)}: lanes must be within 1..6")
+        if self.oncoming[0] < 0 or self.oncoming[1] >= self.lanes[0]:
+            raise ValueError(f"generator.oncoming = {list(self.oncoming)}: must lie within 0..{self.lanes[0] - 1} "
+                             f"(fewer than the fewest lanes drawn, generator.lanes = {list(self.lanes)}: the ego drives along s)")
         if self.speed[1] > MAX_SPEED or self.ego_speed[1] > MAX_SPEED:
             raise ValueError(f"generator speeds must be <= {MAX_SPEED} m/s")
         if self.scripted_fraction + self.constant_fraction > 1.0:
@@ -583,6 +671,9 @@ class ScenarioSpec(_Model):
                 raise ValueError("ego: missing; give [ego] and [[vehicles]] together, or neither (the generator draws both)")
             if self.road is not None and self.ego is not None:
                 raise ValueError("generator: nothing to draw; the file already has a road and traffic (drop [generator] or one of them)")
+            if self.road is not None and self.generator.oncoming != (0, 0):
+                raise ValueError(f"generator.oncoming = {list(self.generator.oncoming)}: applies to drawn roads; this "
+                                 "file's [road] sets its own (road.oncoming)")
         if self.generator is not None and self.generator.classes and self.road is not None:
             for i, c in enumerate(self.generator.classes):
                 if c.width[1] > self.road.lane_width - 0.5:
@@ -607,13 +698,24 @@ class ScenarioSpec(_Model):
 
     def _check_traffic(self, road: Road) -> None:
         assert self.road is not None
-        lanes = self.road.lanes
+        lanes = road.lanes
         allowed_lanes = f"this road has lanes 0..{lanes - 1} (0 is the rightmost)"
+        widths = lane_widths(road)
+        directions = [int(d) for d in road.lane_directions]
+        kinds = road.layout.kinds
         for where, v in self._all():
             if v.lane >= lanes:
                 raise ValueError(f"{where}.lane = {v.lane}: lane {v.lane} does not exist; {allowed_lanes}")
-            if v.width > road.lane_width - 0.5:
-                raise ValueError(f"{where}.width = {v.width}: must be <= {road.lane_width - 0.5} m (lane width - 0.5 m)")
+            if v.width > widths[v.lane] - 0.5:
+                what = "lane width" if kinds[v.lane] == "driving" else f"the {kinds[v.lane]} lane's width"
+                raise ValueError(f"{where}.width = {v.width}: must be <= {widths[v.lane] - 0.5:g} m ({what} - 0.5 m)")
+            if where == "ego" and kinds[v.lane] != "driving":
+                raise ValueError(f"ego.lane = {v.lane}: lane {v.lane} is a {kinds[v.lane]} lane; the ego drives in a driving lane")
+            if kinds[v.lane] != "driving" and v.speed != 0.0:
+                raise ValueError(f"{where}.speed = {v.speed}: lane {v.lane} is a {kinds[v.lane]} lane; a vehicle there "
+                                 "must start standing (speed = 0) and may pull out with maneuvers")
+            if v.facing == "backward" and where == "ego":
+                raise ValueError("ego.facing = 'backward': only a standing vehicle can face against its lane's traffic")
             if not road.closed and not (0.5 * v.length <= v.s <= road.length - 0.5 * v.length):
                 raise ValueError(
                     f"{where}.s = {v.s}: must be within [{0.5 * v.length:.2f}, {road.length - 0.5 * v.length:.2f}] m "
@@ -627,14 +729,26 @@ class ScenarioSpec(_Model):
                 if isinstance(m, LaneChange):
                     if m.lane >= lanes:
                         raise ValueError(f"{where}.maneuvers[{j}].lane = {m.lane}: lane {m.lane} does not exist; {allowed_lanes}")
+                    if directions[m.lane] != directions[v.lane]:
+                        raise ValueError(
+                            f"{where}.maneuvers[{j}].lane = {m.lane}: lane {m.lane} carries traffic "
+                            f"{_DIRECTION_WORDS[directions[m.lane]]} and this vehicle's lane {v.lane} "
+                            f"{_DIRECTION_WORDS[directions[v.lane]]}; lane changes stay within one direction")
         assert self.ego is not None
         if not road.closed:
             # s runs faster than the vehicle on the inside of a curve: s_dot = v / (1 - kappa n)
             kappa = np.abs(road.curvature(np.linspace(0.0, road.length, max(2, int(road.length) + 1))))
             edge = max(abs(road.right_edge), abs(road.left_edge))
             factor = 1.0 / max(1.0 - float(kappa.max()) * edge, 0.1)
-            reach = self.ego.s + factor * self.ego.max_speed() * self.duration + 0.5 * self.ego.length
-            if reach > road.length:
+            travel = factor * self.ego.max_speed() * self.duration + 0.5 * self.ego.length
+            if directions[self.ego.lane] < 0 and self.ego.s - travel < 0.0:
+                raise ValueError(
+                    f"duration = {self.duration}: the ego (s = {self.ego.s} m, up to {self.ego.max_speed()} m/s, "
+                    f"driving against s in lane {self.ego.lane}) could reach s = {self.ego.s - travel:.1f} m, beyond "
+                    "the start of this open road; start the ego further along or shorten the duration"
+                )
+            reach = self.ego.s + travel
+            if directions[self.ego.lane] > 0 and reach > road.length:
                 raise ValueError(
                     f"duration = {self.duration}: the ego (s = {self.ego.s} m, up to {self.ego.max_speed()} m/s) "
                     f"could reach s = {reach:.1f} m, beyond the end of this open road ({road.length:.1f} m); "
@@ -681,6 +795,17 @@ class ScenarioSpec(_Model):
         if self._road is None:
             self._road = self.road.build()
         return self._road
+
+
+_DIRECTION_WORDS = {1: "along s", -1: "against s"}
+
+
+def lane_widths(road: Road) -> list[float]:
+    """Each lane's width (m), lane 0 (rightmost) first: ``road.lane_width`` on a road of equal lanes, else
+    from its layout's boundaries at the first station (the scenarios' lanes do not vary along ``s``)."""
+    if getattr(road.layout, "_uniform", None) is not None:
+        return [float(road.lane_width)] * road.lanes
+    return [float(w) for w in np.diff(road.layout.boundaries[0])]
 
 
 def polygons_overlap(a: np.ndarray, b: np.ndarray) -> bool:

@@ -16,7 +16,8 @@ model's centre-to-rear-axle distance: ``min(length / 2, MAX_REAR_AXLE)``, so tru
 swing out of their lane on tight bends); after every step the vehicle's
 road coordinates ``frenet_s``, ``frenet_n`` are projected with a warm start and its lane is the one
 containing ``n`` (the same answer as highway-env's closest-lane search for parallel lanes, without
-projecting on every lane); distances along the road are differences of ``s``, wrapped on a closed road;
+projecting on every lane); distances along the road are differences of ``s``, wrapped on a closed road, taken in the vehicle's
+own direction (``direction`` -1 in an oncoming lane: the vehicle ahead has the smaller ``s``);
 speed never goes below 0 (a braking vehicle stops instead of reversing, and a vehicle at 0 m/s with
 nothing to accelerate it stays at 0: highway-env's ``MIN_SPEED`` of -40 m/s is never reached); the IDM
 jam distance is 5 m bumper to bumper whatever the vehicles' lengths (highway-env assumes 5 m cars), so
@@ -39,6 +40,7 @@ from typing import Any
 from highway_env import utils
 from highway_env.road.road import Road as HighwayRoad
 from highway_env.road.road import RoadNetwork
+from highway_env.utils import wrap_to_pi
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 
@@ -86,6 +88,12 @@ class TrafficRoad(HighwayRoad):
         self.lane_width = road.lane_width
         self.right_edge = road.right_edge
         self.lanes = network.graph[NODE_FROM][NODE_TO]
+        #: per lane: width (m), direction (+1 along s, -1 against), and the boundaries (m) of a road whose
+        #: lanes differ in width (``None`` when they are all ``lane_width``)
+        self.widths = [float(lane.width) for lane in self.lanes]
+        self.directions = [int(lane.direction) for lane in self.lanes]
+        uniform = getattr(road.layout, "_uniform", None) is not None
+        self._bounds = None if uniform else [float(b) for b in road.layout.boundaries[0]]
 
     def wrap(self, ds: float) -> float:
         """A difference of ``s`` (m) wrapped into ``[-length/2, length/2)`` on a closed road."""
@@ -96,6 +104,9 @@ class TrafficRoad(HighwayRoad):
 
     def lane_of(self, n: float) -> int:
         """The lane (0..lanes-1) whose span contains lateral offset ``n`` (clamped at the edges)."""
+        if self._bounds is not None:
+            k = sum(1 for b in self._bounds[1:-1] if n >= b)
+            return k
         k = math.floor((n - self.right_edge) / self.lane_width)
         return min(max(k, 0), len(self.centers) - 1)
 
@@ -113,7 +124,8 @@ class TrafficRoad(HighwayRoad):
         if not lane_index:
             return None, None
         centre = self.centers[lane_index[2]]
-        reach = 0.5 * self.lane_width + 1.0
+        reach = 0.5 * self.widths[lane_index[2]] + 1.0
+        backward = self.directions[lane_index[2]] < 0
         s = vehicle.frenet_s
         front = rear = None
         d_front = d_rear = math.inf
@@ -124,6 +136,8 @@ class TrafficRoad(HighwayRoad):
             ds = other.frenet_s - s
             if closed:
                 ds = (ds + half) % period - half
+            if backward:
+                ds = -ds
             if ds >= 0.0:
                 if ds < d_front:
                     d_front, front = ds, other
@@ -139,6 +153,8 @@ class _FrenetCar:
     vid: int
     frenet_s: float
     frenet_n: float
+    #: +1: drives along ``s``; -1: against it (a vehicle of an oncoming lane); lane changes keep it
+    direction: int = 1
 
     def _setup(self, vid: int, length: float, width: float) -> None:
         self.vid = int(vid)
@@ -183,6 +199,8 @@ class _FrenetCar:
         """Signed distance along the road (m) from this vehicle's centre to ``other``'s (wrapped)."""
         if not other:
             return math.nan
+        if self.direction < 0:
+            return -self.road.wrap(other.frenet_s - self.frenet_s)
         return self.road.wrap(other.frenet_s - self.frenet_s)
 
     def desired_gap(self, ego_vehicle: Any, front_vehicle: Any = None, projected: bool = True) -> float:
@@ -319,7 +337,7 @@ class ScriptedCar(IDMCar):
                 if m.wait_for_gap and not self.gap_is_clear(m.lane):
                     return  # try again next step; later maneuvers wait behind this one
                 target = lane_index(m.lane)
-                lat0 = self.frenet_n - self.road.centers[m.lane]
+                lat0 = self.direction * (self.frenet_n - self.road.centers[m.lane])  # in the lane's own frame
                 self.target_lane_index = target
                 self._profile = (self.road.time, m.duration, lat0)
             elif isinstance(m, SpeedChange):
@@ -341,7 +359,7 @@ class ScriptedCar(IDMCar):
         for other in road.vehicles:
             if other is self:
                 continue
-            if abs(other.frenet_n - centre) >= 0.5 * (road.lane_width + other.WIDTH):
+            if abs(other.frenet_n - centre) >= 0.5 * (road.widths[lane] + other.WIDTH):
                 continue
             if abs(road.wrap(other.frenet_s - self.frenet_s)) < 0.5 * (self.LENGTH + other.LENGTH) + GAP_CLEARANCE:
                 return False
@@ -384,10 +402,14 @@ class ScriptedCar(IDMCar):
 
 def make_vehicle(road: TrafficRoad, vid: int, spec: VehicleSpec, mobil: bool) -> _FrenetCar:
     """Build the vehicle ``spec`` (id ``vid``) on ``road``: placed at its lane centre at ``s``,
-    heading along the road, at ``speed``; ``mobil`` switches MOBIL on for ``idm``."""
+    heading in its lane's direction (along the road, or against it in an oncoming lane; turned round
+    when ``facing = "backward"``), at ``speed``; ``mobil`` switches MOBIL on for ``idm``."""
     lane = road.lanes[spec.lane]
-    position = lane.position(spec.s, 0.0)
-    heading = lane.heading_at(spec.s)
+    local = spec.s if lane.direction > 0 else lane.length - spec.s
+    position = lane.position(local, 0.0)
+    heading = lane.heading_at(local)
+    if spec.facing == "backward":
+        heading = float(wrap_to_pi(heading + math.pi))
     index = lane_index(spec.lane)
     vehicle: Any
     if spec.behaviour == "idm":
@@ -400,5 +422,6 @@ def make_vehicle(road: TrafficRoad, vid: int, spec: VehicleSpec, mobil: bool) ->
                               target_speed=spec.cruise_speed, enable_lane_change=False)
         vehicle.configure(spec.maneuvers)
     vehicle.target_speed = spec.speed if spec.behaviour == "constant" else spec.cruise_speed  # 0 is a valid target
+    vehicle.direction = lane.direction
     vehicle._setup(vid, spec.length, spec.width)
     return vehicle

@@ -10,7 +10,8 @@ over the remaining fraction of a step, without changing the simulation: so the t
 depend on when, or how often, it is observed (lidar at 10 Hz, radars at 14 Hz out of phase, or
 nothing), and the same scenario + seed gives bit-identical truth.
 
-Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped); ``v`` speed (m/s);
+Truth per vehicle: ``ids``; centre ``xy`` (m, G); ``yaw`` (rad, wrapped; the body's real heading, about
+``theta(s) + pi`` for a vehicle driving against ``s``, so its ``xi`` is about pi); ``v`` speed (m/s, >= 0);
 ``yaw_rate`` (rad/s) of the bicycle model over the current step; ``length``, ``width`` (m); ``s``, ``n``
 (``Road.to_frenet`` of the centre, warm-started); ``xi = yaw - theta(s)`` (wrapped) and
 ``xi_dot = yaw_rate - kappa(s) * s_dot`` with ``s_dot = v cos(xi + beta) / (1 - kappa n)``.
@@ -20,8 +21,9 @@ lane on a steady curve has ``xi ~ -beta ~ -l_r kappa`` with ``l_r = min(L / 2, 3
 rear axle distance (``sim.world.traffic.MAX_REAR_AXLE``; -0.04 rad for a 4.8 m car at R 60 m),
 while ``Snapshot.velocity`` (speed along ``yaw``) differs from the centre's true velocity by ``beta``.
 
-Open roads: a vehicle whose centre passes the end (``s > length``) leaves the world (its id no longer
-appears; ``removed`` records when). The ego never leaves: validation rejects scenarios where it could
+Open roads: a vehicle whose centre passes the end of the road in its direction (``s > length``; ``s < 0``
+for a vehicle driving against ``s`` in an oncoming lane, which enters the road at its far end) leaves
+the world (its id no longer appears; ``removed`` records when). The ego never leaves: validation rejects scenarios where it could
 reach the end, and if it does anyway ``advance`` raises ``ValueError``. Closed roads: ``s`` wraps.
 Collisions: highway-env's collision impulses are off (they would move vehicles outside their
 kinematics); overlapping rectangles are recorded in ``collisions`` as ``(t, id_a, id_b)`` when an
@@ -137,13 +139,13 @@ class World:
         traffic.time = now
         if not self.road.closed:
             end = self.road.length
-            if self.ego.frenet_s > end:
+            if self.ego.frenet_s > end or self.ego.frenet_s < 0.0:
                 name = self.spec.source or self.spec.name
                 raise ValueError(
-                    f"{name}: the ego reached the end of the open road (s = {self.ego.frenet_s:.1f} m > "
-                    f"{end:.1f} m) at t = {now:.2f} s; lengthen the road or shorten the duration"
+                    f"{name}: the ego reached the end of the open road (s = {self.ego.frenet_s:.1f} m, outside "
+                    f"[0, {end:.1f}] m) at t = {now:.2f} s; lengthen the road or shorten the duration"
                 )
-            leaving = [v for v in traffic.vehicles if v.frenet_s > end]
+            leaving = [v for v in traffic.vehicles if (v.frenet_s > end if v.direction > 0 else v.frenet_s < 0.0)]
             for v in leaving:
                 traffic.vehicles.remove(v)
                 self.removed[v.vid] = now
