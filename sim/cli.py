@@ -205,6 +205,11 @@ def summary_table(metrics: dict) -> str:
         ("tracker ms per frame (median / p95)",
          f"{_fmt_value(m.get('tracker_ms_median'), 1)} / {_fmt_value(m.get('tracker_ms_p95'), 1)}"),
     ]
+    if m.get("oncoming_matched_pairs"):  # a two-way road with traffic against s in view
+        rows.insert(rows.index(("ID switches", _fmt_value(m.get("id_switches")))) + 1, (
+            "oncoming vehicles: yaw (deg) / speed (m/s) RMSE, ID switches",
+            f"{_fmt_value(m.get('oncoming_yaw_rmse_deg'))} / {_fmt_value(m.get('oncoming_speed_rmse_mps'))}, "
+            f"{_fmt_value(m.get('oncoming_id_switches'))}"))
     width = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 

@@ -219,3 +219,15 @@ def test_run_and_montecarlo_with_the_vlp16_lidar(capsys, tmp_path):
     with pytest.raises(SystemExit) as info:  # argparse's own usage error
         cli.main(["run", "curve-single", "--lidar-model", "hdl64"])
     assert info.value.code == 2 and "invalid choice: 'hdl64'" in capsys.readouterr().err
+
+
+def test_summary_table_shows_oncoming_vehicles_only_where_there_are_some():
+    from sim.cli import summary_table
+
+    base = {"frames": 10, "id_switches": 0}
+    assert "oncoming" not in summary_table(base)
+    assert "oncoming" not in summary_table({**base, "oncoming_matched_pairs": 0})
+    text = summary_table({**base, "oncoming_matched_pairs": 40, "oncoming_yaw_rmse_deg": 0.61,
+                          "oncoming_speed_rmse_mps": 0.14, "oncoming_id_switches": 0})
+    row = next(line for line in text.splitlines() if line.startswith("oncoming"))
+    assert "0.61" in row and "0.14" in row
