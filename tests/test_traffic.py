@@ -313,3 +313,76 @@ def test_parked_cars_and_a_car_pulling_out() -> None:
         assert (s, n, v) == (pytest.approx(100.0), pytest.approx(4.75), 0.0) and abs(abs(yaw) - np.pi) < 1e-9
     s, n, yaw, v, _ = truth_of(world, 3, 12.0)
     assert abs(n + 1.75) < 0.1 and v == pytest.approx(8.0, abs=0.1) and s > 150.0 and world.collisions == []
+
+
+# -- lanes that vary along s (roads from lane maps) -------------------------------------------------
+def test_lane_table_follows_lanes_that_widen_and_begin() -> None:
+    """``LaneTable`` against the layout: a lane that widens from 3 to 4 m and an auxiliary lane on the right
+    that tapers in between s = 100 and 150 m; centres and widths at s, and the lane of an offset (a lane of
+    zero width holds nothing)."""
+    from sim.world.lanes import LaneTable
+    from tracker import LaneLayout, Road
+
+    stations = [0.0, 100.0, 150.0, 400.0]
+    bounds = [[-3.0, -3.0, 0.0, 3.0], [-3.0, -3.0, 0.0, 3.0], [-6.5, -3.0, 0.0, 4.0], [-6.5, -3.0, 0.0, 4.0]]
+    road = Road.from_curvature([(400.0, 0.0, 0.0)], layout=LaneLayout(stations, bounds))
+    table = LaneTable.of(road)
+    assert table.varies and LaneTable.of(road) is table
+    for s in (0.0, 50.0, 125.0, 200.0):
+        b = road.layout.boundaries_at(s)
+        for k in range(3):
+            assert table.centre(k, s) == pytest.approx(0.5 * (b[k] + b[k + 1]), abs=1e-9)
+            assert table.width(k, s) == pytest.approx(b[k + 1] - b[k], abs=1e-9)
+    assert table.lane_of(-3.5, 50.0) == 1  # no auxiliary lane yet: the right lane, clamped
+    assert table.lane_of(-3.5, 200.0) == 0
+    assert table.lane_of(3.9, 200.0) == 2 and table.lane_of(-1.0, 200.0) == 1
+
+
+MAP_SCENARIO = "scenarios/maps/freeway-us101.toml"
+
+
+def test_a_scenario_on_a_lane_map_keeps_its_vehicles_in_their_lanes() -> None:
+    """The shipped scenario on the US-101 lane map: every vehicle stays within 0.3 m of its lane's centre
+    at its ``s`` (the map's lanes are 3.2-3.9 m wide and curve slightly), and the one in the auxiliary
+    lane, which begins about 85 m along the route, drives in it."""
+    pytest.importorskip("commonroad")
+    from pathlib import Path
+
+    from sim.world.lanes import LaneTable
+
+    spec = load_scenario(Path(__file__).resolve().parents[1] / MAP_SCENARIO)
+    world = World(spec)
+    road = world.road
+    assert not road.uniform and road.lanes == 6
+    table = LaneTable.of(road)
+    lanes = {i + 1: v.lane for i, v in enumerate(spec.vehicles)}
+    worst = 0.0
+    for t in np.arange(0.0, spec.duration, 0.5):
+        snap = world.truth_at(float(t))
+        for vid, s, n in zip(snap.ids, snap.s, snap.n):
+            if vid in lanes:
+                worst = max(worst, abs(n - table.centre(lanes[vid], float(s))))
+    assert worst < 0.3
+
+
+def test_map_roads_in_scenario_files_are_checked() -> None:
+    pytest.importorskip("commonroad")
+    from pathlib import Path
+
+    from sim.world.scenario import ScenarioError, load_scenario as load
+
+    here = Path(__file__).resolve().parents[1] / "scenarios" / "maps"
+    base = {"name": "m", "description": "unit test", "duration": 4.0,
+            "road": {"map": str(here / "USA_US101-4_1_T-1.xml"), "route": {"start": [0.0, 0.0, -0.765]}},
+            "ego": {"lane": 5, "s": 15.0, "speed": 5.0}}
+    assert parse_scenario(base).build_road().lanes == 6
+    with pytest.raises(ScenarioError, match="road.lanes: a road from a lane map takes its lanes"):
+        parse_scenario({**base, "road": {**base["road"], "lanes": 3}})
+    with pytest.raises(ScenarioError, match="road.map and road.route go together"):
+        parse_scenario({**base, "road": {"map": base["road"]["map"]}})
+    with pytest.raises(ScenarioError, match="no such file"):
+        parse_scenario({**base, "road": {**base["road"], "map": str(here / "missing.xml")}})
+    with pytest.raises(ScenarioError, match="lane 0 does not exist at s = 20.0 m"):
+        parse_scenario({**base, "vehicles": [{"lane": 0, "s": 20.0, "speed": 5.0}]})
+    spec = load(here / "freeway-us101.toml")  # the map's path is relative to the file
+    assert Path(spec.road.map).is_absolute() and Path(spec.road.map).is_file()

@@ -101,8 +101,10 @@ class FrenetLane(AbstractLane):
             road = RoadSpec.model_validate(road_config).build()
         self.road = road
         self.index = int(index)
-        self.offset = road.lane_center(self.index)
-        self.width = lane_width(road, self.index)
+        self.table = LaneTable.of(road)
+        self.offset = self.table.centre(self.index, 0.0)  # the centre's offset n (m); on a varying road at s = 0
+        self.width = self.table.width(self.index, 0.0)
+        self._varies = self.table.varies
         self.length = road.length
         self.closed = road.closed
         #: +1: traffic along ``s``; -1: against it (the local frame runs the other way, module notes)
@@ -121,17 +123,20 @@ class FrenetLane(AbstractLane):
     def position(self, longitudinal: float, lateral: float) -> np.ndarray:
         """Point in G (m) at local ``longitudinal`` (the arc length ``s``; ``length - s`` against ``s``) and
         ``lateral`` offset from the lane centre (to the left of the lane's driving direction)."""
+        s = self.length - float(longitudinal) if self.direction < 0 else float(longitudinal)
+        offset = self.table.centre(self.index, s) if self._varies else self.offset
         if self.direction < 0:
-            return self.road.to_cartesian(self.length - float(longitudinal), float(self.offset - lateral), extrapolate=True)
-        return self.road.to_cartesian(float(longitudinal), float(self.offset + lateral), extrapolate=True)
+            return self.road.to_cartesian(s, float(offset - lateral), extrapolate=True)
+        return self.road.to_cartesian(s, float(offset + lateral), extrapolate=True)
 
     def local_coordinates(self, position: np.ndarray) -> tuple[float, float]:
         """``(s, n - n_k)`` (m) of a point in G (``(length - s, n_k - n)`` in a lane against ``s``); ``s``
         wraps into ``[0, length)`` on a closed road."""
         s, n = self.projector.project(position)
+        offset = self.table.centre(self.index, s) if self._varies else self.offset
         if self.direction < 0:
-            return self.length - s, self.offset - n
-        return s, n - self.offset
+            return self.length - s, offset - n
+        return s, n - offset
 
     def heading_at(self, longitudinal: float) -> float:
         """Lane heading (rad) at local ``longitudinal``: the centerline's (lanes are parallel), turned by
@@ -143,8 +148,11 @@ class FrenetLane(AbstractLane):
         return math.atan2(sn, c)
 
     def width_at(self, longitudinal: float) -> float:
-        """Lane width (m), constant."""
-        return self.width
+        """Lane width (m) at local ``longitudinal``."""
+        if not self._varies:
+            return self.width
+        s = self.length - float(longitudinal) if self.direction < 0 else float(longitudinal)
+        return self.table.width(self.index, s)
 
     def after_end(self, position: np.ndarray, longitudinal: float | None = None, lateral: float | None = None) -> bool:
         """Never on a closed road (the lane continues into itself); else highway-env's rule."""
@@ -177,20 +185,92 @@ class FrenetNetwork(RoadNetwork):
                 if 0 <= k < len(lanes) and lanes[k].direction == own.direction and lanes[k].kind == "driving"]
 
 
-def lane_width(road: Road, index: int) -> float:
-    """Width (m) of lane ``index`` of ``road``: ``road.lane_width`` on a road of equal lanes, else its
-    layout's (lanes that do not vary along ``s``)."""
-    if getattr(road.layout, "_uniform", None) is not None:
-        return float(road.lane_width)
-    b = road.layout.boundaries[0]
-    return float(b[index + 1] - b[index])
+#: Station spacing (m) of ``LaneTable``'s tables of a road whose lanes vary along ``s``.
+LANE_TABLE_STEP = 1.0
+
+
+class LaneTable:
+    """Each lane's centre offset and width (m) as functions of ``s``, in plain Python for the traffic's
+    hot path: constants on a road whose lanes do not vary (``road.lane_centers``, exactly), else linear
+    in tables every ``LANE_TABLE_STEP`` metres (held beyond the ends). A lane where it is absent (zero
+    width: before it begins, after it ends) has its centre on the boundary it tapers to, so a vehicle
+    left in a lane that ends is squeezed onto that boundary: scenarios place vehicles where their lane
+    exists (``sim.world.scenario``) and traffic does not merge out of ending lanes by itself."""
+
+    def __init__(self, road: Road) -> None:
+        self.varies = bool(road.layout.varies)
+        self.lanes = road.lanes
+        if not self.varies:
+            b = road.layout.boundaries[0]
+            uniform = getattr(road.layout, "_uniform", None)
+            self.centres = [float(c) for c in road.lane_centers]
+            self.widths = ([float(road.lane_width)] * road.lanes if uniform is not None
+                           else [float(b[k + 1] - b[k]) for k in range(road.lanes)])
+            self.bounds = [float(x) for x in b]
+            return
+        count = max(2, math.ceil(road.length / LANE_TABLE_STEP) + 1)
+        s = np.linspace(0.0, road.length, count)
+        b = road.layout.boundaries_at(s)
+        self._inv = (count - 1) / road.length
+        self._last = count - 1
+        self._centre = (0.5 * (b[:, 1:] + b[:, :-1])).T.tolist()  # per lane, per station
+        self._width = (b[:, 1:] - b[:, :-1]).T.tolist()
+        self._bounds = b.tolist()  # per station, the lane boundaries
+
+    @classmethod
+    def of(cls, road: Road) -> LaneTable:
+        """The road's table (built once per road and shared by its lanes)."""
+        table = road.__dict__.get("_sim_lane_table")
+        if table is None:
+            table = road.__dict__["_sim_lane_table"] = cls(road)
+        return table
+
+    def _at(self, s: float) -> tuple[int, float]:
+        u = min(max(s * self._inv, 0.0), float(self._last))
+        i = min(int(u), self._last - 1)
+        return i, u - i
+
+    def centre(self, lane: int, s: float) -> float:
+        """Offset ``n`` (m) of lane ``lane``'s centre at ``s``."""
+        if not self.varies:
+            return self.centres[lane]
+        i, t = self._at(s)
+        row = self._centre[lane]
+        return row[i] + t * (row[i + 1] - row[i])
+
+    def width(self, lane: int, s: float) -> float:
+        """Width (m) of lane ``lane`` at ``s`` (0 where it does not exist)."""
+        if not self.varies:
+            return self.widths[lane]
+        i, t = self._at(s)
+        row = self._width[lane]
+        return row[i] + t * (row[i + 1] - row[i])
+
+    def lane_of(self, n: float, s: float) -> int:
+        """The lane (0..lanes-1) whose span at ``s`` holds the offset ``n`` (clamped at the edges; a lane of
+        zero width holds nothing)."""
+        if not self.varies:
+            bounds = self.bounds
+        else:
+            i, t = self._at(s)
+            lo, hi = self._bounds[i], self._bounds[i + 1]
+            bounds = [a + t * (b - a) for a, b in zip(lo, hi)]
+        k = sum(1 for b in bounds[1:-1] if n >= b)
+        if bounds[k + 1] - bounds[k] <= 0.0:  # a lane of zero width: the nearest lane that exists
+            present = [j for j in range(len(bounds) - 1) if bounds[j + 1] - bounds[j] > 0.0]
+            if present:
+                k = min(present, key=lambda j: abs(0.5 * (bounds[j] + bounds[j + 1]) - n))
+        return k
+
+
+def lane_width(road: Road, index: int, s: float = 0.0) -> float:
+    """Width (m) of lane ``index`` of ``road`` at ``s``: ``road.lane_width`` on a road of equal lanes."""
+    return LaneTable.of(road).width(index, s)
 
 
 def build_network(road: Road, road_config: dict[str, Any] | None = None) -> tuple[RoadNetwork, FrenetProjector]:
     """A ``RoadNetwork`` with one ``FrenetLane`` per lane of ``road`` (index k = our lane k) on the
     edge ``(NODE_FROM, NODE_TO)``, and the projector they share."""
-    if road.layout.varies:
-        raise ValueError("the simulator's traffic needs lanes that do not vary along s; this road's do")
     projector = FrenetProjector(road)
     network = FrenetNetwork()
     for k in range(road.lanes):

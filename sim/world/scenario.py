@@ -70,6 +70,7 @@ generator draws every vehicle from its ``length`` / ``width`` ranges.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import tomllib
@@ -83,7 +84,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, PrivateAttr,
 
 from sim.world.truth import default_height, rectangle_corners
 from tracker import Road
-from tracker.lanes import LaneLayout
+from tracker.lanes import MIN_LANE_WIDTH, LaneLayout
 
 StrictFloat = Annotated[float, Strict()]
 StrictInt = Annotated[int, Strict()]
@@ -124,6 +125,16 @@ class _Model(BaseModel):
 
 
 # -- road ----------------------------------------------------------------------------------------
+class RouteSpec(_Model):
+    """The route through a lane map (``road.map``): from ``start = (x m, y m, yaw rad)`` in the map's frame
+    to the optional ``goal = (x m, y m)``, through the optional ``via`` points (m); without a goal the
+    route goes on straightest to the end of the map (``tracker.maps.route_road``)."""
+
+    start: tuple[StrictFloat, StrictFloat, StrictFloat]
+    goal: tuple[StrictFloat, StrictFloat] | None = None
+    via: list[tuple[StrictFloat, StrictFloat]] | None = Field(default=None, min_length=1)
+
+
 class RoadSpec(_Model):
     """The road: ``lanes`` lanes of ``lane_width`` m, from a curvature profile (``segments``: rows
     ``(length m, kappa_start 1/m, kappa_end 1/m)`` starting at ``start = (x m, y m, heading rad)``)
@@ -142,7 +153,13 @@ class RoadSpec(_Model):
     lane of ``parking_width`` m (2.5; 2-3.5) outside the driving lanes on that side, of the direction of
     the driving lane next to it (``tracker.lanes.LaneLayout``, kind ``"parking"``). Lanes are numbered
     across the whole road, 0 the rightmost, parking lanes included; the driving lanes stay centred on
-    the centerline."""
+    the centerline.
+
+    Roads from lane maps: ``map`` (a CommonRoad ``.xml``, Lanelet2 ``.osm`` or OpenDRIVE ``.xodr`` file,
+    relative to the scenario file; needs the ``maps`` extra) and ``route`` (``RouteSpec``) instead of
+    ``segments`` or ``waypoints``: the road is the route's corridor (``tracker.maps.route_road``), its
+    lanes those of the map along the route, which may begin and end (a vehicle must start where its lane
+    exists; traffic keeps its lane, so a lane that ends squeezes its vehicles onto its boundary)."""
 
     lanes: StrictInt = Field(default=2, ge=1, le=6)
     lane_width: StrictFloat = Field(default=3.5, ge=2.5, le=5.0)
@@ -157,6 +174,8 @@ class RoadSpec(_Model):
     drive_on: Literal["right", "left"] = "right"
     parking: Literal["right", "left", "both"] | None = None
     parking_width: StrictFloat = Field(default=PARKING_WIDTH, ge=2.0, le=3.5)
+    map: StrictStr | None = Field(default=None, min_length=1)
+    route: RouteSpec | None = None
 
     @model_validator(mode="after")
     def _lanes(self) -> RoadSpec:
@@ -172,8 +191,16 @@ class RoadSpec(_Model):
     def _shape(self) -> RoadSpec:
         if self.closed and self.grade != 0.0:
             raise ValueError(f"road.grade = {self.grade!r}: a closed road cannot climb all the way round; use 0 (bank is allowed)")
-        if (self.segments is None) == (self.waypoints is None):
-            raise ValueError("road: give exactly one of `segments` (curvature profile) or `waypoints`")
+        if (self.map is None) != (self.route is None):
+            raise ValueError("road.map and road.route go together: a lane map file and the route through it")
+        if sum(x is not None for x in (self.segments, self.waypoints, self.map)) != 1:
+            raise ValueError("road: give exactly one of `segments` (curvature profile), `waypoints` or `map` (with `route`)")
+        if self.map is not None:
+            fixed = [k for k in ("lanes", "lane_width", "closed", "start", "headings", "grade", "bank", "oncoming",
+                                 "drive_on", "parking", "parking_width") if k in self.model_fields_set]
+            if fixed:
+                raise ValueError(f"road.{fixed[0]}: a road from a lane map takes its lanes and shape from the map "
+                                 "(road.map, road.route); leave it out")
         if self.waypoints is not None and self.start is not None:
             raise ValueError("road.start applies to `segments` only; a waypoint road starts at its first waypoint")
         if self.headings is not None:
@@ -246,6 +273,10 @@ class RoadSpec(_Model):
 
     def build(self) -> Road:
         """The ``tracker.Road`` this spec describes (raises ``ValueError`` if it cannot be built)."""
+        if self.map is not None:
+            assert self.route is not None
+            return _map_road(self.map, self.route.start, self.route.goal,
+                             None if self.route.via is None else tuple(tuple(p) for p in self.route.via))
         layout = self.layout()
         lanes: dict[str, Any]
         if layout is not None:
@@ -700,12 +731,15 @@ class ScenarioSpec(_Model):
         assert self.road is not None
         lanes = road.lanes
         allowed_lanes = f"this road has lanes 0..{lanes - 1} (0 is the rightmost)"
-        widths = lane_widths(road)
         directions = [int(d) for d in road.lane_directions]
         kinds = road.layout.kinds
         for where, v in self._all():
             if v.lane >= lanes:
                 raise ValueError(f"{where}.lane = {v.lane}: lane {v.lane} does not exist; {allowed_lanes}")
+            widths = lane_widths(road, v.s)
+            if widths[v.lane] < MIN_LANE_WIDTH:
+                raise ValueError(f"{where}.lane = {v.lane}: lane {v.lane} does not exist at s = {v.s} m (it begins or "
+                                 "ends elsewhere along this road)")
             if v.width > widths[v.lane] - 0.5:
                 what = "lane width" if kinds[v.lane] == "driving" else f"the {kinds[v.lane]} lane's width"
                 raise ValueError(f"{where}.width = {v.width}: must be <= {widths[v.lane] - 0.5:g} m ({what} - 0.5 m)")
@@ -759,7 +793,7 @@ class ScenarioSpec(_Model):
     def _check_overlap(self, road: Road) -> None:
         items = self._all()
         s = np.array([v.s for _, v in items])
-        n = np.array([road.lane_center(v.lane) for _, v in items])
+        n = np.array([road.lane_center(v.lane, None if road.uniform else v.s) for _, v in items])
         xy = road.to_cartesian(s, n)
         yaw = road.heading(s)
         corners = rectangle_corners(
@@ -800,12 +834,28 @@ class ScenarioSpec(_Model):
 _DIRECTION_WORDS = {1: "along s", -1: "against s"}
 
 
-def lane_widths(road: Road) -> list[float]:
-    """Each lane's width (m), lane 0 (rightmost) first: ``road.lane_width`` on a road of equal lanes, else
-    from its layout's boundaries at the first station (the scenarios' lanes do not vary along ``s``)."""
+@functools.lru_cache(maxsize=8)
+def _map_road(path: str, start: tuple[float, float, float], goal: tuple[float, float] | None,
+              via: tuple[tuple[float, float], ...] | None) -> Road:
+    """The road of a route through the lane map ``path`` (``tracker.maps``; read once per process)."""
+    try:
+        from tracker.maps import read_map, route_road
+    except ImportError as exc:  # pragma: no cover - the maps extra is part of the package's dependencies
+        raise ValueError(str(exc)) from None
+    if not Path(path).is_file():
+        raise ValueError(f"road.map = {path!r}: no such file")
+    try:
+        return route_road(read_map(path), start, goal, via=via)
+    except ImportError as exc:
+        raise ValueError(f"road.map = {path!r}: {exc}") from None
+
+
+def lane_widths(road: Road, s: float = 0.0) -> list[float]:
+    """Each lane's width (m) at ``s``, lane 0 (rightmost) first: ``road.lane_width`` on a road of equal lanes,
+    else from its layout's boundaries (0 where a lane does not exist)."""
     if getattr(road.layout, "_uniform", None) is not None:
         return [float(road.lane_width)] * road.lanes
-    return [float(w) for w in np.diff(road.layout.boundaries[0])]
+    return [float(w) for w in np.diff(road.layout.boundaries_at(float(s)))]
 
 
 def polygons_overlap(a: np.ndarray, b: np.ndarray) -> bool:
@@ -917,6 +967,9 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
         raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
     if "scenarios" in data and "road" not in data and "generator" not in data:
         raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.world.scenario.load_suite")
+    road = data.get("road")
+    if isinstance(road, dict) and isinstance(road.get("map"), str) and not Path(road["map"]).is_absolute():
+        road["map"] = str((p.parent / road["map"]).resolve())  # a map file relative to the scenario file
     spec = parse_scenario(data, str(p))
     spec._source = p
     return spec

@@ -44,7 +44,7 @@ from highway_env.utils import wrap_to_pi
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 
-from sim.world.lanes import NODE_FROM, NODE_TO, FrenetProjector, lane_index
+from sim.world.lanes import NODE_FROM, NODE_TO, FrenetProjector, LaneTable, lane_index
 from sim.world.scenario import Brake, LaneChange, SpeedChange, VehicleSpec
 from tracker import Road
 
@@ -84,7 +84,7 @@ class TrafficRoad(HighwayRoad):
         self.dt = float(dt)
         self.closed = road.closed
         self.period = road.length
-        self.centers = [float(c) for c in road.lane_centers]
+        self.centers = [LaneTable.of(road).centre(k, 0.0) for k in range(road.lanes)]  # at s = 0 where lanes vary
         self.lane_width = road.lane_width
         self.right_edge = road.right_edge
         self.lanes = network.graph[NODE_FROM][NODE_TO]
@@ -94,6 +94,16 @@ class TrafficRoad(HighwayRoad):
         self.directions = [int(lane.direction) for lane in self.lanes]
         uniform = getattr(road.layout, "_uniform", None) is not None
         self._bounds = None if uniform else [float(b) for b in road.layout.boundaries[0]]
+        #: lanes that vary along s (a map's road): centres, widths and the lane of an offset at each s
+        self.table = LaneTable.of(road) if road.layout.varies else None
+
+    def center(self, lane: int, s: float) -> float:
+        """Offset ``n`` (m) of lane ``lane``'s centre at ``s``."""
+        return self.centers[lane] if self.table is None else self.table.centre(lane, s)
+
+    def width_of(self, lane: int, s: float) -> float:
+        """Width (m) of lane ``lane`` at ``s``."""
+        return self.widths[lane] if self.table is None else self.table.width(lane, s)
 
     def wrap(self, ds: float) -> float:
         """A difference of ``s`` (m) wrapped into ``[-length/2, length/2)`` on a closed road."""
@@ -102,8 +112,11 @@ class TrafficRoad(HighwayRoad):
             return (ds + half) % self.period - half
         return ds
 
-    def lane_of(self, n: float) -> int:
-        """The lane (0..lanes-1) whose span contains lateral offset ``n`` (clamped at the edges)."""
+    def lane_of(self, n: float, s: float = 0.0) -> int:
+        """The lane (0..lanes-1) whose span contains lateral offset ``n`` (at ``s`` where the lanes vary;
+        clamped at the edges)."""
+        if self.table is not None:
+            return self.table.lane_of(n, s)
         if self._bounds is not None:
             k = sum(1 for b in self._bounds[1:-1] if n >= b)
             return k
@@ -123,10 +136,10 @@ class TrafficRoad(HighwayRoad):
         lane_index = lane_index or vehicle.lane_index
         if not lane_index:
             return None, None
-        centre = self.centers[lane_index[2]]
-        reach = 0.5 * self.widths[lane_index[2]] + 1.0
-        backward = self.directions[lane_index[2]] < 0
         s = vehicle.frenet_s
+        centre = self.center(lane_index[2], s)
+        reach = 0.5 * self.width_of(lane_index[2], s) + 1.0
+        backward = self.directions[lane_index[2]] < 0
         front = rear = None
         d_front = d_rear = math.inf
         closed, period, half = self.closed, self.period, 0.5 * self.period
@@ -169,7 +182,7 @@ class _FrenetCar:
         road = self.road
         s, n = road.projector.prime(float(self.position[0]), float(self.position[1]), hint)
         self.frenet_s, self.frenet_n = s, n
-        k = road.lane_of(n)
+        k = road.lane_of(n, s)
         self.lane_index = (NODE_FROM, NODE_TO, k)
         self.lane = road.lanes[k]
 
@@ -337,7 +350,7 @@ class ScriptedCar(IDMCar):
                 if m.wait_for_gap and not self.gap_is_clear(m.lane):
                     return  # try again next step; later maneuvers wait behind this one
                 target = lane_index(m.lane)
-                lat0 = self.direction * (self.frenet_n - self.road.centers[m.lane])  # in the lane's own frame
+                lat0 = self.direction * (self.frenet_n - self.road.center(m.lane, self.frenet_s))  # in the lane's own frame
                 self.target_lane_index = target
                 self._profile = (self.road.time, m.duration, lat0)
             elif isinstance(m, SpeedChange):
@@ -355,11 +368,12 @@ class ScriptedCar(IDMCar):
         """Whether lane ``lane`` has room alongside: no vehicle overlapping it within half lengths +
         ``GAP_CLEARANCE`` m, and MOBIL's safe-braking test for this car and its new follower."""
         road = self.road
-        centre = road.centers[lane]
+        centre = road.center(lane, self.frenet_s)
+        width = road.width_of(lane, self.frenet_s)
         for other in road.vehicles:
             if other is self:
                 continue
-            if abs(other.frenet_n - centre) >= 0.5 * (road.widths[lane] + other.WIDTH):
+            if abs(other.frenet_n - centre) >= 0.5 * (width + other.WIDTH):
                 continue
             if abs(road.wrap(other.frenet_s - self.frenet_s)) < 0.5 * (self.LENGTH + other.LENGTH) + GAP_CLEARANCE:
                 return False

@@ -218,7 +218,7 @@ class World:
         xi = float(wrap_angle(heading - theta))
         s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
         return (vid, x, y, yaw, speed, yaw_rate, length, width, float(s), float(n), xi, yaw_rate - kappa * s_dot,
-                self.traffic.lane_of(float(n)))
+                self.traffic.lane_of(float(n), float(s)))
 
     def states(self) -> list[VehicleState]:
         """Truth of every vehicle in the world at the current time ``t``, the ego first."""
