@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 
 def check_real(cls_name: str, name: str, value: Any, *, low: float | None = None, high: float | None = None,
                low_open: bool = False, high_open: bool = False, unit: str = "") -> None:
@@ -22,3 +24,13 @@ def check_real(cls_name: str, name: str, value: Any, *, low: float | None = None
         hi = "" if high is None else (f"< {high}" if high_open else f"<= {high}")
         rng = " and ".join(part for part in (lo, hi) if part)
         raise ValueError(f"{where} must be {rng}{(' ' + unit) if unit else ''}; got {value!r}")
+
+
+def finite_array(value: Any, name: str) -> np.ndarray:
+    """``value`` as a float array; a ``ValueError`` naming ``name`` and the first non-finite entry if any."""
+    arr = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        index = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(f"{name} must be finite; got {arr[index]!r} at index {index}")
+    return arr

@@ -23,6 +23,7 @@ from typing import Literal
 
 import numpy as np
 
+from tracker.checks import finite_array
 from tracker.jit import njit
 
 #: The lane kinds a layout knows; all are road surface, road births use ``"driving"`` lanes only.
@@ -31,15 +32,6 @@ KINDS = ("driving", "parking", "shoulder")
 MIN_LANE_WIDTH = 0.5
 #: Station spacing of the edge table a ``Road`` samples from a layout whose lanes vary along ``s`` (m).
 EDGE_TABLE_STEP = 0.1
-
-
-def _float_array(value: object, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        index = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise ValueError(f"LaneLayout.{name} must be finite; got {arr[index]!r} at index {index}")
-    return arr
 
 
 class LaneLayout:
@@ -53,8 +45,8 @@ class LaneLayout:
 
     def __init__(self, stations: Sequence[float] | np.ndarray, boundaries: Sequence[Sequence[float]] | np.ndarray,
                  directions: Sequence[int] | np.ndarray | None = None, kinds: Sequence[str] | None = None) -> None:
-        st = _float_array(stations, "stations").reshape(-1)
-        bd = _float_array(boundaries, "boundaries")
+        st = finite_array(stations, "LaneLayout.stations").reshape(-1)
+        bd = finite_array(boundaries, "LaneLayout.boundaries")
         if bd.ndim == 1:
             bd = bd[None, :]
         if len(st) == 0:

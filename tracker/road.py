@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from tracker.angles import wrap_angle
+from tracker.checks import finite_array
 from tracker.lanes import MIN_LANE_WIDTH, LaneLayout
 from tracker.centerline import ClothoidCenterline, HermiteCenterline, node_seed_kernel, project_kernel, seed_kernel
 
@@ -56,15 +57,6 @@ POLY_SAMPLES = 61
 def _is_point(xy: object) -> bool:
     """Whether ``xy`` is one point given as a length-2 tuple or list of numbers."""
     return isinstance(xy, (tuple, list)) and len(xy) == 2 and all(isinstance(v, (int, float)) for v in xy)
-
-
-def _as_float_array(value: ArrayLike, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        index = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise ValueError(f"{name} must be finite; got {arr[index]!r} at index {index}")
-    return arr
 
 
 class Road:
@@ -137,7 +129,7 @@ class Road:
         of the C2 (curvature-continuous) cubic spline in the chord-length parameter. On a closed road
         the spline is periodic; a last waypoint equal to the first is dropped.
         """
-        pts = _as_float_array(xy, "waypoints xy")
+        pts = finite_array(xy, "waypoints xy")
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise ValueError(f"waypoints xy must have shape (M, 2); got {pts.shape}")
         if closed and len(pts) > 1 and np.allclose(pts[0], pts[-1], atol=1e-9):
@@ -155,7 +147,7 @@ class Road:
             raise ValueError(f"repeated consecutive waypoints: waypoints {i} and {j} coincide at {pts[i].tolist()}")
         th = None
         if headings is not None:
-            th = _as_float_array(headings, "headings")
+            th = finite_array(headings, "headings")
             if th.shape != (len(pts),):
                 raise ValueError(f"headings must have shape ({len(pts)},) like the waypoints; got {th.shape}")
         curve = HermiteCenterline.through(pts, th, closed)
@@ -184,13 +176,13 @@ class Road:
         ``(x, y, heading)`` of ``s = 0`` in G. A closed road must end where it starts, within
         ``closure_tolerance`` metres and ``closure_tolerance / 10`` rad.
         """
-        seg = _as_float_array(segments, "segments")
+        seg = finite_array(segments, "segments")
         if seg.ndim != 2 or seg.shape[1] != 3 or len(seg) == 0:
             raise ValueError(f"segments must be rows of (length, kappa_start, kappa_end); got shape {seg.shape}")
         if np.any(seg[:, 0] <= 0):
             i = int(np.argmax(seg[:, 0] <= 0))
             raise ValueError(f"segment {i} has non-positive length {seg[i, 0]!r}; lengths must be > 0 m")
-        st = _as_float_array(start, "start")
+        st = finite_array(start, "start")
         if st.shape != (3,):
             raise ValueError(f"start must be (x, y, heading); got shape {st.shape}")
         curve = ClothoidCenterline(seg, (float(st[0]), float(st[1]), float(st[2])), closed)
@@ -242,7 +234,7 @@ class Road:
     def edges(self, s: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """The right and left road edges (m, offsets ``n``) at arc lengths ``s``: the outermost boundaries of
         the lanes present there (on a closed road ``s`` wraps; on an open one the end values hold beyond)."""
-        s_arr = self.wrap_s(_as_float_array(s, "s"))
+        s_arr = self.wrap_s(finite_array(s, "s"))
         if len(self._edge_right) == 2 and self._edge_right[0] == self._edge_right[1] and \
                 self._edge_left[0] == self._edge_left[1]:
             return np.full(s_arr.shape, self._edge_right[0]), np.full(s_arr.shape, self._edge_left[0])
@@ -273,7 +265,7 @@ class Road:
     def lane_centers_at(self, s: ArrayLike) -> np.ndarray:
         """Every lane's centre offset ``n`` (m) at arc lengths ``s``: shape ``s.shape + (lanes,)``, NaN where
         the lane is absent (narrower than ``tracker.lanes.MIN_LANE_WIDTH``)."""
-        return self.layout.centers_at(self.wrap_s(_as_float_array(s, "s")))
+        return self.layout.centers_at(self.wrap_s(finite_array(s, "s")))
 
     def lane_center(self, lane: int, s: float | None = None) -> float:
         """Lateral offset ``n`` (m) of lane ``lane``'s centre (at ``s`` where the lanes vary); lane 0 is the
@@ -288,7 +280,7 @@ class Road:
         """Lane index of lateral offsets ``n`` (m) (at arc lengths ``s`` where the lanes vary); -1 right of
         the road, ``lanes`` left of it. Where lanes vary, a point between boundaries takes the lane whose
         span holds it (a lane of zero width holds nothing)."""
-        n_arr = _as_float_array(n, "n")
+        n_arr = finite_array(n, "n")
         uniform = getattr(self.layout, "_uniform", None)
         if s is None or uniform is not None:
             if uniform is None and self.layout.varies:
@@ -297,13 +289,13 @@ class Road:
                 idx = np.floor((n_arr - self.right_edge) / self.lane_width).astype(int)
                 return np.clip(idx, -1, self.lanes)
             s = np.zeros_like(n_arr)
-        b = self.layout.boundaries_at(self.wrap_s(np.broadcast_to(_as_float_array(s, "s"), n_arr.shape)))
+        b = self.layout.boundaries_at(self.wrap_s(np.broadcast_to(finite_array(s, "s"), n_arr.shape)))
         return (n_arr[..., None] >= b).sum(axis=-1) - 1
 
     def lane_direction(self, s: ArrayLike, n: ArrayLike) -> np.ndarray:
         """The direction (+1 along ``s``, -1 against) of the lane nearest each road point ``(s, n)`` (m)
         among the lanes present at ``s`` (a point off the road takes its nearest lane's)."""
-        s_arr, n_arr = np.broadcast_arrays(_as_float_array(s, "s"), _as_float_array(n, "n"))
+        s_arr, n_arr = np.broadcast_arrays(finite_array(s, "s"), finite_array(n, "n"))
         if not self.two_way:
             return np.ones(n_arr.shape, dtype=int)
         centres = self.lane_centers_at(s_arr)
@@ -369,7 +361,7 @@ class Road:
 
     def frame(self, s: ArrayLike, *, extrapolate: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Centerline position (..., 2) m in G, heading (...) rad and curvature (...) 1/m at ``s``."""
-        s_arr = _as_float_array(s, "s")
+        s_arr = finite_array(s, "s")
         xy, tangent, kappa = self._frame_flat(s_arr.reshape(-1), extrapolate)
         theta = np.arctan2(tangent[:, 1], tangent[:, 0])
         return xy.reshape(s_arr.shape + (2,)), theta.reshape(s_arr.shape), kappa.reshape(s_arr.shape)
@@ -430,8 +422,8 @@ class Road:
             if math.isfinite(sf) and math.isfinite(nf) and (self.closed or extrapolate or 0.0 <= sf <= self.length):
                 x, y, c, sn, _ = self.frame1(sf)
                 return np.array([x - nf * sn, y + nf * c])
-        s_arr = _as_float_array(s, "s")
-        n_arr = _as_float_array(n, "n")
+        s_arr = finite_array(s, "s")
+        n_arr = finite_array(n, "n")
         if n_arr.shape != s_arr.shape:
             if n_arr.ndim == 0:
                 n_arr = np.broadcast_to(n_arr, s_arr.shape)
@@ -490,13 +482,13 @@ class Road:
                             return both[0:1], both[1:2]
                         both = both.reshape((2,) + xy.shape[:-1])
                         return both[0], both[1]
-        pts = _as_float_array(xy, "xy")
+        pts = finite_array(xy, "xy")
         if pts.ndim == 0 or pts.shape[-1] != 2:
             raise ValueError(f"xy must have shape (..., 2); got {pts.shape}")
         if pts.size == 2:  # one point, as (2,), (1, 2), (1, 1, 2), ...: the pure-Python fast path
             hint = None
             if s_hint is not None:
-                h = _as_float_array(s_hint, "s_hint")
+                h = finite_array(s_hint, "s_hint")
                 if h.size != 1:
                     raise ValueError(f"s_hint for one point must be a scalar; got shape {h.shape}")
                 hint = float(h.reshape(-1)[0])
@@ -510,7 +502,7 @@ class Road:
         if s_hint is None:
             s_start = None
         else:
-            h = _as_float_array(s_hint, "s_hint")
+            h = finite_array(s_hint, "s_hint")
             if h.ndim == 0:
                 s_start = np.full(len(flat), float(h))
             elif h.shape == pts.shape[:-1]:
@@ -685,7 +677,7 @@ class Road:
         and headings ``s.shape`` (rad) at arc lengths ``s``, integrated in Euler steps of ``step`` metres
         from the centerline point at ``s0`` along the local cubic heading polynomial (``heading_poly``
         fitted over ``[s0 - horizon, s0 + horizon]``); the heading is the polynomial's. Vectorised."""
-        s_arr = _as_float_array(s, "s")
+        s_arr = finite_array(s, "s")
         if not step > 0:
             raise ValueError(f"step must be > 0 m; got {step!r}")
         shape = s_arr.shape

@@ -13,10 +13,9 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from tracker.maps.graph import Lanelet, LaneGraph
+from tracker.maps.graph import Lanelet, LaneGraph, xml_root
 
 #: CommonRoad lanelet types that are not "driving" (``LaneletType.value`` -> kind).
 KIND_OF_TYPE = {
@@ -55,12 +54,7 @@ def _quiet(name: str):
 def _precheck(path: Path) -> None:
     """Parse the XML with the standard library to report a broken file in one line naming the element."""
     name = path.name
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as err:
-        raise ValueError(f"{name}: not well-formed XML ({err})") from None
-    if root.tag != "commonRoad":
-        raise ValueError(f"{name}: root element is <{root.tag}>, not <commonRoad>")
+    root = xml_root(path, "commonRoad")
     ids = set()
     for el in root.findall("lanelet"):
         lid = el.get("id")

@@ -16,8 +16,10 @@ Pure numpy (scipy for the k-d tree); no map library is imported here.
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -252,3 +254,15 @@ def points_in_polygon(pts: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         x_cross = x1 + (py - y1) * (x2 - x1) / (y2 - y1)
     return (np.count_nonzero(straddle & (px < x_cross), axis=1) % 2) == 1
+
+
+def xml_root(path: Path, tag: str | None = None) -> ET.Element:
+    """The root element of the XML map file ``path`` (standard library), or a one-line ``ValueError``
+    naming the file: not well-formed, or a root other than ``<tag>``."""
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as err:
+        raise ValueError(f"{path.name}: not well-formed XML ({err})") from None
+    if tag is not None and root.tag != tag:
+        raise ValueError(f"{path.name}: root element is <{root.tag}>, not <{tag}>")
+    return root

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.maps.graph import Lanelet, LaneGraph
+from tracker.maps.graph import Lanelet, LaneGraph, xml_root
 
 KIND_OF_SUBTYPE = {
     "road": "driving", "highway": "driving", "play_street": "driving", "emergency_lane": "driving",
@@ -53,10 +53,7 @@ def _first_node(path: Path) -> tuple[float, float]:
 def _check_osm(path: Path) -> None:
     """Name the first broken element of an OSM file lanelet2 refused (one line)."""
     name = path.name
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as err:
-        raise ValueError(f"{name}: not well-formed XML ({err})") from None
+    root = xml_root(path)
     nodes = {n.get("id") for n in root.findall("node")}
     ways = {w.get("id"): w for w in root.findall("way")}
     for way in ways.values():

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracker.maps.graph import Lanelet, LaneGraph
+from tracker.maps.graph import Lanelet, LaneGraph, xml_root
 
 #: Spacing (m) of the boundary samples along the reference line.
 SAMPLE_SPACING = 0.5
@@ -214,12 +214,7 @@ def read_opendrive(path: str | Path) -> LaneGraph:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such map file")
     name = path.name
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as err:
-        raise ValueError(f"{name}: not well-formed XML ({err})") from None
-    if root.tag != "OpenDRIVE":
-        raise ValueError(f"{name}: root element is <{root.tag}>, not <OpenDRIVE>")
+    root = xml_root(path, "OpenDRIVE")
     roads = {}
     for el in root.findall("road"):
         road = _parse_road(el, name)
