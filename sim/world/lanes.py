@@ -230,21 +230,17 @@ class LaneTable:
         i = min(int(u), self._last - 1)
         return i, u - i
 
+    def _read(self, row: list[float], s: float) -> float:
+        i, t = self._at(s)
+        return row[i] + t * (row[i + 1] - row[i])
+
     def centre(self, lane: int, s: float) -> float:
         """Offset ``n`` (m) of lane ``lane``'s centre at ``s``."""
-        if not self.varies:
-            return self.centres[lane]
-        i, t = self._at(s)
-        row = self._centre[lane]
-        return row[i] + t * (row[i + 1] - row[i])
+        return self.centres[lane] if not self.varies else self._read(self._centre[lane], s)
 
     def width(self, lane: int, s: float) -> float:
         """Width (m) of lane ``lane`` at ``s`` (0 where it does not exist)."""
-        if not self.varies:
-            return self.widths[lane]
-        i, t = self._at(s)
-        row = self._width[lane]
-        return row[i] + t * (row[i + 1] - row[i])
+        return self.widths[lane] if not self.varies else self._read(self._width[lane], s)
 
     def lane_of(self, n: float, s: float) -> int:
         """The lane (0..lanes-1) whose span at ``s`` holds the offset ``n`` (clamped at the edges; a lane of
