@@ -164,3 +164,18 @@ def test_eot_closed_loop_command(tmp_path, capsys):
     assert len(rows) == 1 + 4 and rows[0].startswith("scenario,variant,seed,sim_s,collision,min_time_headway_s")
     assert main(["closed-loop", "cut-in", "--variant", "nope", "--out", str(out)]) == 2
     assert "unknown variant 'nope'" in capsys.readouterr().err
+
+
+def test_the_planner_changes_lanes_only_into_driving_lanes_of_its_own_direction():
+    """On a two-way road (lane 0 along s, lane 1 against) with a parking lane on the right, a planner
+    behind a slow lead has nowhere to go: no lane change into oncoming traffic or the parking lane; with
+    the directions unknown it would take the oncoming lane."""
+    from sim.env.planner import Planner, PlannerConfig
+
+    cfg = dict(lane_centers=(-4.0, -1.5, 1.5), set_speed=20.0, lane_changes=True)
+    two_way = Planner(PlannerConfig(**cfg, lane_directions=(1, 1, -1), lane_kinds=("parking", "driving", "driving")))
+    assert not two_way._may_enter(1, 2) and not two_way._may_enter(1, 0) and two_way._may_enter(1, 1)
+    blind = Planner(PlannerConfig(**cfg))
+    assert blind._may_enter(1, 2) and blind._may_enter(1, 0)
+    with pytest.raises(ValueError, match="lane_directions"):
+        PlannerConfig(**cfg, lane_directions=(1, 0, 1))

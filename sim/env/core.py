@@ -36,7 +36,8 @@ truncates at ``duration`` itself).
 
 ``info`` holds highway-env's ``speed``, ``crashed``, ``action``, ``rewards`` and: ``t`` (s),
 ``episode_seed``, ``on_road``, ``lane``, ``tracks`` (count), ``collisions`` (``(t, id_a, id_b)`` of
-the episode so far), ``lane_centers`` (m; the map a planner may use) and ``labels`` (int64,
+the episode so far), ``lane_centers`` (m), ``lane_directions`` (+1 along ``s``, -1 against) and
+``lane_kinds`` (``"driving"``, ``"parking"``, ``"shoulder"``): the map a planner may use; and ``labels`` (int64,
 ``1 + max_tracks``: each observation row's track label or vehicle id, -1 for the ego and padding;
 ``sim.env.observation``).
 """
@@ -286,6 +287,8 @@ class TrackedRoadEnv(AbstractEnv):
             "tracks": len(self.tracks),
             "collisions": list(world.collisions),
             "lane_centers": tuple(float(c) for c in world.road.lane_centers),
+            "lane_directions": tuple(int(d) for d in world.road.lane_directions),
+            "lane_kinds": tuple(world.road.layout.kinds),
             "labels": self.observation_type.labels.copy(),
         })
         return info

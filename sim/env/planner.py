@@ -47,6 +47,10 @@ class PlannerConfig:
     ``acceleration_range`` / ``steering_range``; ``period`` (s) its ``1 / policy_frequency``."""
 
     lane_centers: tuple[float, ...]
+    #: Each lane's traffic direction, +1 along ``s`` or -1 against it (default: all +1); lane changes stay within one direction.
+    lane_directions: tuple[int, ...] | None = None
+    #: Each lane's kind, "driving", "parking" or "shoulder" (default: all driving); lane changes go only into driving lanes.
+    lane_kinds: tuple[str, ...] | None = None
     set_speed: float | None = None
     accel_range: tuple[float, float] = (-8.0, 4.0)
     steering_range: tuple[float, float] = (-math.pi / 4, math.pi / 4)
@@ -73,6 +77,13 @@ class PlannerConfig:
         if len(self.lane_centers) < 1:
             raise ValueError("PlannerConfig.lane_centers needs at least one lane centre (m)")
         object.__setattr__(self, "lane_centers", tuple(float(c) for c in self.lane_centers))
+        lanes = len(self.lane_centers)
+        if self.lane_directions is not None:
+            if len(self.lane_directions) != lanes or any(d not in (-1, 1) for d in self.lane_directions):
+                raise ValueError(f"PlannerConfig.lane_directions = {self.lane_directions!r}: one +1 or -1 per lane ({lanes})")
+            object.__setattr__(self, "lane_directions", tuple(int(d) for d in self.lane_directions))
+        if self.lane_kinds is not None and len(self.lane_kinds) != lanes:
+            raise ValueError(f"PlannerConfig.lane_kinds = {self.lane_kinds!r}: one kind per lane ({lanes})")
         lo, hi = self.accel_range
         if not lo < 0.0 < hi:
             raise ValueError(f"PlannerConfig.accel_range = {self.accel_range!r}: must contain 0 (m/s^2)")
@@ -211,7 +222,7 @@ class Planner:
                 and v >= c.min_change_speed and accel > -c.comfort_decel and lead_decel < c.max_lead_decel
                 and lead[2] < c.change_lookahead and lead[3] < (self._set_speed or 0.0) - c.slow_margin):
             for k in (lane + 1, lane - 1):
-                if 0 <= k < len(c.lane_centers) and self._safe(rows, k, v, length, width, lead):
+                if 0 <= k < len(c.lane_centers) and self._may_enter(lane, k) and self._safe(rows, k, v, length, width, lead):
                     self._target = k
                     self._since_change = 0.0
                     changing = True
@@ -226,6 +237,13 @@ class Planner:
         lo, hi = c.accel_range
         slo, shi = c.steering_range
         return np.array([2.0 * (accel - lo) / (hi - lo) - 1.0, 2.0 * (steer - slo) / (shi - slo) - 1.0], dtype=np.float32)
+
+    def _may_enter(self, lane: int, k: int) -> bool:
+        """Whether a lane change from ``lane`` into ``k`` is allowed: a driving lane of the same direction."""
+        c = self.config
+        if c.lane_directions is not None and c.lane_directions[k] != c.lane_directions[lane]:
+            return False
+        return c.lane_kinds is None or c.lane_kinds[k] == "driving"
 
     def _safe(self, rows: np.ndarray, k: int, v: float, length: float, width: float,
               lead: tuple[int, str, float, float, float, float]) -> bool:
@@ -267,7 +285,8 @@ class Planner:
 
 def planner_for(env_settings: object, lane_centers: tuple[float, ...], **overrides: object) -> Planner:
     """A ``Planner`` matched to an env's ``EnvConfig`` (acceleration and steering ranges, period) and
-    its map's ``lane_centers`` (``info["lane_centers"]``); ``overrides`` set other ``PlannerConfig`` fields."""
+    its map's ``lane_centers`` (``info["lane_centers"]``; pass ``lane_directions=info["lane_directions"]``
+    and ``lane_kinds=info["lane_kinds"]`` on a two-way road); ``overrides`` set other ``PlannerConfig`` fields."""
     s = env_settings
     if getattr(s, "action", None) != "ContinuousAction":
         raise ValueError("the planner drives with action = 'ContinuousAction'; configure the env with it")

@@ -115,7 +115,8 @@ def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
 
     env = make_env(task.source, task.mode, task.duration)
     obs, info = env.reset(seed=task.seed)
-    planner = planner_for(env.settings, info["lane_centers"])
+    planner = planner_for(env.settings, info["lane_centers"], lane_directions=info["lane_directions"],
+                          lane_kinds=info["lane_kinds"])
     road = env.world.road
     half = 0.5 * road.length
 
