@@ -440,15 +440,18 @@ def test_oncoming_vehicle_keeps_its_lane_and_heading():
 
 
 def test_turn_around_is_the_same_vehicle_driving_the_other_way():
-    """``turn_around``: a state driving backwards faster than ``REVERSE_SPEED`` becomes the same rectangle
-    heading the other way at the opposite speed and acceleration; its covariance is ``T P T`` (an
-    independent construction here: the Jacobian of the map); the rest are left alone."""
+    """``turn_around``: a state driving backwards faster than ``REVERSE_SPEED`` with a settled speed
+    (standard deviation at most ``REVERSE_MAX_STD``) becomes the same rectangle heading the other way at
+    the opposite speed and acceleration; its covariance is ``T P T`` (an independent construction here:
+    the Jacobian of the map); the rest (slow, forward, or a backward speed not yet known) are left alone."""
     rng = np.random.default_rng(5)
     means = np.array([[10.0, 1.0, -8.0, 0.2, 0.01, 4.5, 1.8, 0.5],
                       [10.0, 1.0, -0.5, 3.0, 0.0, 4.5, 1.8, 0.0],
-                      [10.0, 1.0, 12.0, 3.1, 0.0, 4.5, 1.8, -1.0]])
-    a = rng.normal(size=(3, 8, 8))
-    covs = a @ a.transpose(0, 2, 1) + np.eye(8)
+                      [10.0, 1.0, 12.0, 3.1, 0.0, 4.5, 1.8, -1.0],
+                      [10.0, 1.0, -8.0, 3.1, 0.0, 4.5, 1.8, 0.0]])
+    a = rng.normal(size=(4, 8, 8))
+    covs = 0.02 * a @ a.transpose(0, 2, 1) + 0.1 * np.eye(8)
+    covs[3, 2, 2] = 4.0  # sd(v) = 2 m/s: not known well enough to turn round
     m0, p0 = means.copy(), covs.copy()
     turned = turn_around(means, covs)
     np.testing.assert_array_equal(turned, [0])

@@ -411,16 +411,20 @@ def make_motion(config: TrackerConfig, road: Road) -> FrenetMotion | PaperMotion
 
 #: A state whose speed lies below minus this (m/s) drives the other way round: ``turn_around`` turns it.
 REVERSE_SPEED = 3.0
+#: ... once its speed is known to this standard deviation or better (m/s): a newborn's or a coasting
+#: component's backward speed may be a wrong association's passing transient.
+REVERSE_MAX_STD = 1.0
 
 
-def turn_around(means: np.ndarray, covs: np.ndarray, min_speed: float = REVERSE_SPEED) -> np.ndarray:
+def turn_around(means: np.ndarray, covs: np.ndarray, min_speed: float = REVERSE_SPEED,
+                max_std: float = REVERSE_MAX_STD) -> np.ndarray:
     """Give states that drive backwards the heading they drive in, in place: where ``v < -min_speed``
-    (m/s), ``v -> -v``, the heading (``xi`` or ``psi``) ``-> + pi`` (wrapped) and the acceleration state
+    (m/s) and ``sd(v) <= max_std`` (m/s), ``v -> -v``, the heading (``xi`` or ``psi``) ``-> + pi`` (wrapped) and the acceleration state
     ``a -> -a``, their covariances ``P -> T P T`` with ``T`` the identity but -1 at ``v`` and ``a``. The
     rectangle, its centre and the yaw rate are unchanged; a track's heading is then the vehicle's
     (vehicles reverse only at walking pace; a backward speed beyond it means the heading was born the wrong
     way round, e.g. an oncoming vehicle on a road whose layout says one-way). Returns the indices turned."""
-    turned = np.flatnonzero(means[:, V] < -min_speed)
+    turned = np.flatnonzero((means[:, V] < -min_speed) & (covs[:, V, V] <= max_std * max_std))
     if len(turned):
         sign = np.ones(means.shape[1])
         sign[V] = -1.0
