@@ -17,7 +17,6 @@ from tracker.motion import (
     make_motion,
     predict,
     process_noise,
-    turn_around,
 )
 from tracker.track import curvilinear_to_cartesian
 from tracker.ukf import UnscentedTransform
@@ -438,31 +437,3 @@ def test_oncoming_vehicle_keeps_its_lane_and_heading():
     assert abs(np.mod(out[1, 3], 2 * np.pi) - np.pi) < 0.1 * np.exp(-1.0 * 4.0) * 3.0
     assert out[1, 0] < 260.0
 
-
-def test_turn_around_is_the_same_vehicle_driving_the_other_way():
-    """``turn_around``: a state driving backwards faster than ``REVERSE_SPEED`` with a settled speed
-    (standard deviation at most ``REVERSE_MAX_STD``) becomes the same rectangle heading the other way at
-    the opposite speed and acceleration; its covariance is ``T P T`` (an independent construction here:
-    the Jacobian of the map); the rest (slow, forward, or a backward speed not yet known) are left alone."""
-    rng = np.random.default_rng(5)
-    means = np.array([[10.0, 1.0, -8.0, 0.2, 0.01, 4.5, 1.8, 0.5],
-                      [10.0, 1.0, -0.5, 3.0, 0.0, 4.5, 1.8, 0.0],
-                      [10.0, 1.0, 12.0, 3.1, 0.0, 4.5, 1.8, -1.0],
-                      [10.0, 1.0, -8.0, 3.1, 0.0, 4.5, 1.8, 0.0]])
-    a = rng.normal(size=(4, 8, 8))
-    covs = 0.02 * a @ a.transpose(0, 2, 1) + 0.1 * np.eye(8)
-    covs[3, 2, 2] = 4.0  # sd(v) = 2 m/s: not known well enough to turn round
-    m0, p0 = means.copy(), covs.copy()
-    turned = turn_around(means, covs)
-    np.testing.assert_array_equal(turned, [0])
-    np.testing.assert_array_equal(means[1:], m0[1:])
-    np.testing.assert_array_equal(covs[1:], p0[1:])
-    assert means[0, 2] == 8.0 and means[0, 7] == -0.5
-    assert means[0, 3] == pytest.approx(0.2 - np.pi)
-    jac = np.diag([1.0, 1.0, -1.0, 1.0, 1.0, 1.0, 1.0, -1.0])
-    np.testing.assert_allclose(covs[0], jac @ p0[0] @ jac.T)
-    road = Road.from_curvature([(200.0, 0.0, 0.0)])
-    before = curvilinear_to_cartesian(road, m0[0, :7])
-    after = curvilinear_to_cartesian(road, means[0, :7])
-    np.testing.assert_allclose(after[:2], before[:2])  # the same centre
-    assert after[2] == -before[2] and np.cos(after[3] - before[3]) == pytest.approx(-1.0)

@@ -409,34 +409,6 @@ def make_motion(config: TrackerConfig, road: Road) -> FrenetMotion | PaperMotion
     return FrenetMotion(road, config.motion, config.process_noise)
 
 
-#: A state whose speed lies below minus this (m/s) drives the other way round: ``turn_around`` turns it.
-REVERSE_SPEED = 3.0
-#: ... once its speed is known to this standard deviation or better (m/s): a newborn's or a coasting
-#: component's backward speed may be a wrong association's passing transient.
-REVERSE_MAX_STD = 1.0
-
-
-def turn_around(means: np.ndarray, covs: np.ndarray, min_speed: float = REVERSE_SPEED,
-                max_std: float = REVERSE_MAX_STD) -> np.ndarray:
-    """Give states that drive backwards the heading they drive in, in place: where ``v < -min_speed``
-    (m/s) and ``sd(v) <= max_std`` (m/s), ``v -> -v``, the heading (``xi`` or ``psi``) ``-> + pi`` (wrapped) and the acceleration state
-    ``a -> -a``, their covariances ``P -> T P T`` with ``T`` the identity but -1 at ``v`` and ``a``. The
-    rectangle, its centre and the yaw rate are unchanged; a track's heading is then the vehicle's
-    (vehicles reverse only at walking pace; a backward speed beyond it means the heading was born the wrong
-    way round, e.g. an oncoming vehicle on a road whose layout says one-way). Returns the indices turned."""
-    turned = np.flatnonzero((means[:, V] < -min_speed) & (covs[:, V, V] <= max_std * max_std))
-    if len(turned):
-        sign = np.ones(means.shape[1])
-        sign[V] = -1.0
-        if means.shape[1] > ACCEL:
-            sign[ACCEL] = -1.0
-        m = means[turned] * sign
-        m[:, XI] = wrap_angle(m[:, XI] + np.pi)
-        means[turned] = m
-        covs[turned] = covs[turned] * sign[:, None] * sign[None, :]
-    return turned
-
-
 def relax_acceleration(mean: np.ndarray, cov: np.ndarray, relax: np.ndarray | None,
                        floor: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Gaussians ``mean (C, 8)``, ``cov (C, 8, 8)`` with each one's acceleration (state 7) scaled by

@@ -74,7 +74,7 @@ from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
-from tracker.motion import LENGTH, make_motion, predict, relax_acceleration, turn_around
+from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points
 from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
@@ -695,8 +695,6 @@ class Tracker:
         road's length; then ``_drop_inside_updated`` and ``absorb_overlapping``."""
         red = self.config.reduction
         mix = self.mixture
-        if len(mix):  # a backward speed is a heading the wrong way round (tracker.motion.turn_around)
-            self.stats["components_turned"] += len(turn_around(mix.means, mix.covs))
         s_period = self.road.length if self.road.closed and not self.cartesian else None
         if len(mix):
             rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
