@@ -40,9 +40,11 @@ pytest.importorskip("lanelet2")
 
 DATA = Path(__file__).resolve().parent / "data"
 SHARED = Path("/work/shared/data/commonroad")
-COPIES = sorted(DATA.glob("*.xml"))
+#: the map the shipped scenario scenarios/maps/freeway-us101.toml runs on (one copy in the repository)
+US101_4 = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "USA_US101-4_1_T-1.xml"
+COPIES = sorted([*DATA.glob("*.xml"), US101_4])
 SHARED_FILES = sorted(SHARED.glob("*.xml")) if SHARED.is_dir() else []
-US101_1, US101_4, LANKER = DATA / "USA_US101-1_1_T-1.xml", DATA / "USA_US101-4_1_T-1.xml", DATA / "USA_Lanker-1_1_T-1.xml"
+US101_1, LANKER = DATA / "USA_US101-1_1_T-1.xml", DATA / "USA_Lanker-1_1_T-1.xml"
 #: The Lanelet2 copy's origin (tests/data/make_maps.py).
 OSM_ORIGIN = (34.1398, -118.3703)
 

@@ -142,4 +142,4 @@ def write_lanelet2(source: Path, target: Path) -> None:
 
 if __name__ == "__main__":
     write_opendrive(HERE / "USA_US101-1_1_T-1.xml", HERE / "USA_US101-1_1_T-1.xodr")
-    write_lanelet2(HERE / "USA_US101-4_1_T-1.xml", HERE / "USA_US101-4_1_T-1.osm")
+    write_lanelet2(HERE.parents[1] / "scenarios" / "maps" / "USA_US101-4_1_T-1.xml", HERE / "USA_US101-4_1_T-1.osm")
