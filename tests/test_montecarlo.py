@@ -197,3 +197,18 @@ def test_write_runs_leaves_the_old_file_when_interrupted(tmp_path, monkeypatch):
         montecarlo.write_runs(rows, path)
     monkeypatch.undo()
     assert [r["seed"] for r in read_runs(path)] == [0] and sorted(p.name for p in tmp_path.iterdir()) == ["runs.csv"]
+
+
+def test_a_scenario_on_a_lane_map_runs_in_a_study():
+    """A study reads the scenario file itself: the lane map's path, relative to the file, resolves there
+    too (the task carries it absolute, so a worker anywhere finds the map)."""
+    pytest.importorskip("commonroad")
+    from pathlib import Path
+
+    from sim.studies.montecarlo import plan, run_task
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "freeway-us101.toml"
+    tasks = plan([path], 1, duration=1.0)
+    assert Path(tasks[0].data["road"]["map"]).is_absolute()
+    row = run_task(tasks[0])
+    assert row["scenario"] == "freeway-us101" and row["frames"] > 5

@@ -43,7 +43,6 @@ import re
 import signal
 import tempfile
 import time
-import tomllib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -54,7 +53,7 @@ import numpy as np
 
 from sim.evaluation.runner import TIMING_KEYS, check_scenario_settings, run_scenario, with_lidar_model
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant
-from sim.world.scenario import ScenarioError, parse_scenario, resolve_scenario_path
+from sim.world.scenario import parse_scenario, read_scenario_data, resolve_scenario_path
 from tracker.warmup import warm_up
 
 BACKENDS = ("local", "ray")
@@ -84,11 +83,7 @@ class RunTask:
 def scenario_task_data(path: str | Path) -> tuple[str, str, dict[str, Any]]:
     """``(name, source, data)`` of a scenario file (or shipped name), validated once here."""
     p = resolve_scenario_path(path)
-    with open(p, "rb") as fh:
-        try:
-            data = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    data = read_scenario_data(p)
     spec = parse_scenario(data, str(p))
     return spec.name, str(p), data
 

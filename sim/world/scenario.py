@@ -960,19 +960,26 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
     Raises ``ScenarioError`` (a ``ValueError``) naming the file, the field, the value and what is
     allowed; unknown keys are errors."""
     p = resolve_scenario_path(path)
-    try:
-        with open(p, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    data = read_scenario_data(p)
     if "scenarios" in data and "road" not in data and "generator" not in data:
         raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.world.scenario.load_suite")
-    road = data.get("road")
-    if isinstance(road, dict) and isinstance(road.get("map"), str) and not Path(road["map"]).is_absolute():
-        road["map"] = str((p.parent / road["map"]).resolve())  # a map file relative to the scenario file
     spec = parse_scenario(data, str(p))
     spec._source = p
     return spec
+
+
+def read_scenario_data(path: Path) -> dict[str, Any]:
+    """The plain data of the scenario file ``path`` (TOML), with a lane map's path (``road.map``) made
+    absolute from the file's folder; ``ScenarioError`` for a file that is not TOML."""
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    road = data.get("road")
+    if isinstance(road, dict) and isinstance(road.get("map"), str) and not Path(road["map"]).is_absolute():
+        road["map"] = str((Path(path).parent / road["map"]).resolve())  # a map file relative to the scenario file
+    return data
 
 
 # -- suites --------------------------------------------------------------------------------------
