@@ -7,6 +7,7 @@ against lanelet2's and pyxodr's readings, and between equivalent maps in differe
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import sys
@@ -39,7 +40,9 @@ pytest.importorskip("commonroad")
 pytest.importorskip("lanelet2")
 
 DATA = Path(__file__).resolve().parent / "data"
-SHARED = Path("/work/shared/data/commonroad")
+#: More CommonRoad scenario files to check every route on (skipped where absent): $EOT_COMMONROAD_DIR, by
+#: default the workplace's shared data beside the repository (held-out recordings are checked the same way)
+SHARED = Path(os.environ.get("EOT_COMMONROAD_DIR", Path(__file__).resolve().parents[2] / "shared" / "data" / "commonroad"))
 #: the map the shipped scenario scenarios/maps/freeway-us101.toml runs on (one copy in the repository)
 US101_4 = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "USA_US101-4_1_T-1.xml"
 COPIES = sorted([*DATA.glob("*.xml"), US101_4])
