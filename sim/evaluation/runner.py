@@ -272,7 +272,7 @@ def truth_state(snap: Snapshot) -> np.ndarray:
 
 def truth_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     """Boolean mask of the vehicles scored at ``snap.t``: centre within ``max_range`` (m) of the ego
-    centre and on the road (``road.right_edge <= n <= road.left_edge``; open roads also
+    centre and on the road (between ``road.edges(s)``; open roads also
     ``0 <= s <= length``)."""
     if len(snap) == 0:
         return np.zeros(0, dtype=bool)
@@ -281,7 +281,8 @@ def truth_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     if np.isnan(s).any() or np.isnan(n).any():
         s, n = road.to_frenet(snap.xy)
         s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
-    on_road = (n >= road.right_edge) & (n <= road.left_edge)
+    right, left = road.edges(s)  # the edges at each vehicle's s (lanes may begin and end)
+    on_road = (n >= right) & (n <= left)
     if not road.closed:
         on_road &= (s >= 0.0) & (s <= road.length)
     return (d <= max_range) & on_road
