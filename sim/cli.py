@@ -84,6 +84,63 @@ def _bench_all(args: argparse.Namespace) -> int:
     return 0
 
 
+def _numbers(text: str, count: int, flag: str) -> tuple[float, ...]:
+    """``count`` comma-separated finite numbers of a CLI flag, or a ``UsageError`` naming it."""
+    import math
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{flag} {text!r}: expected {count} comma-separated numbers")
+    return values
+
+
+def _road(args: argparse.Namespace) -> int:
+    """``eot road MAP --start X,Y,YAW``: the road of a route through a lane map, as a figure over the map's
+    lanelets (``road.png``) and a summary (``road.json``), to check it before tracking on it."""
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from sim.evaluation.plots import route_figure
+    from tracker.maps import read_map, route_corridor
+
+    start = _numbers(args.start, 3, "--start")
+    goal = None if args.goal is None else _numbers(args.goal, 2, "--goal")
+    via = None if not args.via else [_numbers(v, 2, "--via") for v in args.via]
+    path = Path(args.map)
+    if not path.is_file():
+        raise UsageError(f"no such map file {path}")
+    try:
+        graph = read_map(path)
+        corridor = route_corridor(graph, start, goal, via=via)
+    except (ValueError, ImportError) as exc:  # a broken map, a start off every lanelet, a missing reader
+        raise UsageError(str(exc)) from None
+    road = corridor.road
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    s = np.linspace(0.0, road.length, max(2, int(road.length) + 1))
+    right, left = road.edges(s)
+    summary = {
+        "map": str(path), "start": list(start), "goal": None if goal is None else list(goal),
+        "route": [int(i) for i in corridor.route], "length_m": float(road.length), "lanes": int(road.lanes),
+        "lane_directions": [int(d) for d in road.lane_directions], "lane_kinds": list(road.layout.kinds),
+        "two_way": bool(road.two_way), "uniform": bool(road.uniform),
+        "width_min_m": float((left - right).min()), "width_max_m": float((left - right).max()),
+        "lanelets_in_road": len(corridor.members), "lanelets_in_map": len(graph.lanelets),
+    }
+    (out / "road.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    fig = route_figure(graph, corridor, start, goal)
+    fig.savefig(out / "road.png")
+    print(f"{path.name}: a route of {len(corridor.route)} lanelets, {road.length:.1f} m, up to {road.lanes} lanes "
+          f"({'two-way' if road.two_way else 'one-way'}), {summary['width_min_m']:.1f}-{summary['width_max_m']:.1f} m wide")
+    print(f"wrote {out / 'road.png'} and {out / 'road.json'}")
+    return 0
+
+
 def _scenarios(args: argparse.Namespace) -> int:
     """List the suites and the scenario files of a folder (name and one-line description)."""
     from pathlib import Path
@@ -720,6 +777,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report-only", action="store_true", help="rebuild REPORT.md from OUT/report/ without running")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_compare)
+    p = sub.add_parser("road", help=f"the road of a route through a lane map (CommonRoad, Lanelet2, OpenDRIVE): "
+                                    f"a figure and a summary to check it (default {OUTPUT_ROOT}/road/)")
+    p.add_argument("map", help="lane map file: .xml (CommonRoad), .osm (Lanelet2) or .xodr (OpenDRIVE)")
+    p.add_argument("--start", required=True, help="start pose X,Y,YAW (m, m, rad in the map's frame)")
+    p.add_argument("--goal", help="end of the route X,Y (m; default: straight on to the end of the map)")
+    p.add_argument("--via", action="append", help="a point X,Y (m) the route passes; repeat in order")
+    p.add_argument("--out", default=f"{OUTPUT_ROOT}/road", help="output folder (road.png, road.json)")
+    p.set_defaults(func=_road)
     p = sub.add_parser("scenarios", help="list the scenario suites and files (name and description)")
     p.add_argument("--dir", help="folder of scenario files (default: the shipped scenarios)")
     p.set_defaults(func=_scenarios)

@@ -231,3 +231,25 @@ def test_summary_table_shows_oncoming_vehicles_only_where_there_are_some():
                           "oncoming_speed_rmse_mps": 0.14, "oncoming_id_switches": 0})
     row = next(line for line in text.splitlines() if line.startswith("oncoming"))
     assert "0.61" in row and "0.14" in row
+
+
+def test_road_draws_and_summarises_a_route_through_a_lane_map(tmp_path, capsys):
+    """``eot road``: the route's road over the map (road.png) and its summary (road.json); a start off every
+    lanelet and a malformed flag are one-line usage errors."""
+    pytest.importorskip("commonroad")
+    import json
+    from pathlib import Path
+
+    from sim import cli
+
+    lane_map = Path(__file__).resolve().parent / "data" / "USA_US101-1_1_T-1.xml"
+    assert cli.main(["road", str(lane_map), "--start", "0,0,-0.765", "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "road.json").read_text())
+    assert summary["lanes"] == 6 and not summary["two_way"] and summary["length_m"] > 50.0
+    assert 18.0 < summary["width_min_m"] <= summary["width_max_m"] < 25.0  # six lanes of 3.2-3.9 m
+    assert (tmp_path / "road.png").stat().st_size > 10_000
+    assert cli.main(["road", str(lane_map), "--start", "5000,5000,0", "--out", str(tmp_path)]) == cli.USAGE_EXIT
+    assert cli.main(["road", str(lane_map), "--start", "0,0", "--out", str(tmp_path)]) == cli.USAGE_EXIT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith("eot road: ") and "lies on no lanelet" in err[0]
+    assert err[1] == "eot road: --start '0,0': expected 3 comma-separated numbers"

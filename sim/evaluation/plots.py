@@ -631,3 +631,51 @@ __all__ = [
     "birdseye_figure", "gospa_figure", "plot_birdseye", "plot_cloud_pipeline", "plot_gospa", "plot_targets", "targets_figure",
     "track_colors", "vehicle_color", "write_figures", "write_gif",
 ]  # fmt: skip
+
+
+# -- a route's road on its lane map -------------------------------------------------------------------
+def route_figure(graph, corridor, start: tuple[float, float, float], goal: tuple[float, float] | None = None) -> Figure:  # noqa: ANN001
+    """The road of a route (``tracker.maps.Corridor``) over its lane map (``tracker.maps.LaneGraph``): every
+    lanelet's outline (grey; the corridor's lanelets filled), the road's edges (black) and lane lines
+    (dashed, blue where the lane runs against the route), the start pose and the goal. Axes in metres
+    of the map's frame, equal scale, fitted to the road with a margin."""
+    road = corridor.road
+    fig = _figure(9.0, 7.5)
+    ax = fig.add_subplot(1, 1, 1)
+    outlines = [ll.polygon() for ll in graph.lanelets]
+    members = [ll.id in corridor.members for ll in graph.lanelets]
+    ax.add_collection(PolyCollection([p for p, m in zip(outlines, members) if not m], facecolors="none",
+                                     edgecolors="0.75", linewidths=0.5))
+    ax.add_collection(PolyCollection([p for p, m in zip(outlines, members) if m], facecolors="#cfe3f3",
+                                     edgecolors="0.55", linewidths=0.5))
+    s = np.linspace(0.0, road.length, max(2, int(road.length) + 1))
+    right, left = road.edges(s)
+    for n in (right, left):
+        xy = road.to_cartesian(s, n)
+        ax.plot(xy[:, 0], xy[:, 1], color="black", lw=1.2)
+    bounds = road.layout.boundaries_at(s)
+    for k in range(1, road.lanes):
+        inside = (bounds[:, k] > right + 0.05) & (bounds[:, k] < left - 0.05)
+        if inside.any():
+            xy = road.to_cartesian(s, bounds[:, k]) + np.where(inside, 0.0, np.nan)[:, None]
+            against = road.lane_directions[k] < 0 or road.lane_directions[k - 1] < 0
+            ax.plot(xy[:, 0], xy[:, 1], color="#1f77b4" if against else "0.35", lw=0.8, ls=(0, (5, 4)))
+    ax.annotate("", xy=(start[0] + 6.0 * math.cos(start[2]), start[1] + 6.0 * math.sin(start[2])),
+                xytext=(start[0], start[1]), arrowprops={"arrowstyle": "->", "color": "#2ca02c", "lw": 2.0})
+    if goal is not None:
+        ax.plot([goal[0]], [goal[1]], marker="*", ms=12, color="#d62728", ls="none")
+    pts = np.vstack([road.to_cartesian(s, right), road.to_cartesian(s, left)])
+    (x0, x1), (y0, y1) = _data_limits(pts)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (m, map frame)")
+    ax.set_ylabel("y (m, map frame)")
+    ax.set_title(f"{graph.source}: route of {len(corridor.route)} lanelets, {road.length:.0f} m, up to {road.lanes} lanes")
+    ax.legend(handles=[Line2D([], [], color="black", lw=1.2, label="road edges"),
+                       Line2D([], [], color="0.35", lw=0.8, ls=(0, (5, 4)), label="lane lines"),
+                       Line2D([], [], color="#1f77b4", lw=0.8, ls=(0, (5, 4)), label="beside an oncoming lane"),
+                       Patch(facecolor="#cfe3f3", edgecolor="0.55", label="lanelets of the road"),
+                       Patch(facecolor="none", edgecolor="0.75", label="other lanelets"),
+                       Line2D([], [], color="#2ca02c", lw=2.0, label="start")], loc="best", fontsize=8)
+    return fig
