@@ -780,7 +780,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("road", help=f"the road of a route through a lane map (CommonRoad, Lanelet2, OpenDRIVE): "
                                     f"a figure and a summary to check it (default {OUTPUT_ROOT}/road/)")
     p.add_argument("map", help="lane map file: .xml (CommonRoad), .osm (Lanelet2) or .xodr (OpenDRIVE)")
-    p.add_argument("--start", required=True, help="start pose X,Y,YAW (m, m, rad in the map's frame)")
+    p.add_argument("--start", required=True, help="start pose X,Y,YAW (m, m, rad in the map's frame); "
+                                                  "write --start=-1,2,0.5 when X is negative")
     p.add_argument("--goal", help="end of the route X,Y (m; default: straight on to the end of the map)")
     p.add_argument("--via", action="append", help="a point X,Y (m) the route passes; repeat in order")
     p.add_argument("--out", default=f"{OUTPUT_ROOT}/road", help="output folder (road.png, road.json)")

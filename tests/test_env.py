@@ -219,3 +219,14 @@ def test_rendered_frame_is_not_blank():
     green = ((frame[..., 1] > 100) & (frame[..., 0] < 100) & (frame[..., 2] < 100)).sum()  # lidar points
     assert dark > 100 and green > 5
     assert frame.std() > 10
+
+
+def test_a_scenario_on_a_lane_map_is_refused_with_one_line():
+    pytest.importorskip("commonroad")
+    from pathlib import Path
+
+    from sim.env.config import ConfigError
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "freeway-us101.toml"
+    with pytest.raises(ConfigError, match="a road from a lane map .* is not supported by the environment yet"):
+        TrackedRoadEnv({"scenario": str(path)})

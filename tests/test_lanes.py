@@ -58,6 +58,15 @@ def test_layout_validation_names_the_problem():
         Road.from_curvature([(100.0, 0.0, 0.0)], lanes=3, layout=LaneLayout([0.0], [[-1.0, 1.0]]))
     with pytest.raises(ValueError, match="oncoming"):
         Road.from_curvature([(100.0, 0.0, 0.0)], lanes=2, oncoming=3)
+    with pytest.raises(ValueError, match="not both"):
+        Road.from_curvature([(100.0, 0.0, 0.0)], drive_on="left", layout=LaneLayout([0.0], [[-1.0, 1.0]]))
+    with pytest.raises(ValueError, match="directions"):
+        LaneLayout([0.0], [[-1.0, 1.0, 3.0]], directions=[True, True])
+    with pytest.raises(ValueError, match="no lane at least"):
+        LaneLayout([0.0, 10.0], [[0.0, 0.2], [0.0, 0.1]])
+    ring = [(2 * np.pi * 100.0, 0.01, 0.01)]
+    with pytest.raises(ValueError, match="must meet themselves"):
+        Road.from_curvature(ring, closed=True, layout=LaneLayout([0.0, 600.0], [[-3.5, 3.5], [-5.0, 3.5]]))
 
 
 def test_edges_follow_the_layout(merge_road):

@@ -386,3 +386,11 @@ def test_map_roads_in_scenario_files_are_checked() -> None:
         parse_scenario({**base, "vehicles": [{"lane": 0, "s": 20.0, "speed": 5.0}]})
     spec = load(here / "freeway-us101.toml")  # the map's path is relative to the file
     assert Path(spec.road.map).is_absolute() and Path(spec.road.map).is_file()
+    config = spec.road.to_config()  # a map's road round-trips as its map and route
+    assert set(config) == {"map", "route"} and parse_scenario({**base, "road": config}).build_road().lanes == 6
+    with pytest.raises(ScenarioError, match="generator: cannot draw traffic on a road with a lane map's lanes"):
+        parse_scenario({"name": "m", "description": "unit test", "duration": 4.0, "road": base["road"],
+                        "generator": {}})
+    with pytest.raises(ScenarioError, match="generator: cannot draw traffic on a road with parking lanes"):
+        parse_scenario({"name": "m", "description": "unit test", "duration": 4.0, "generator": {},
+                        "road": {"lanes": 2, "parking": "both", "segments": [[400.0, 0.0, 0.0]]}})

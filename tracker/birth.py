@@ -76,7 +76,7 @@ def _lane_rows(road: Road, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     up: the rows' ``s`` and ``n`` (m) and heading ``xi`` (rad: 0 in a lane along ``s``, pi in an
     oncoming one)."""
     layout = road.layout
-    if not layout.varies and not layout.two_way and all(k == "driving" for k in layout.kinds):
+    if getattr(layout, "_uniform", None) is not None and not layout.two_way:  # equal driving lanes everywhere
         lanes = road.lane_centers
         return np.repeat(s, len(lanes)), np.tile(lanes, len(s)), np.zeros(len(s) * len(lanes))
     centres = road.lane_centers_at(s)  # (len(s), lanes), NaN where a lane is absent

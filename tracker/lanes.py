@@ -68,7 +68,7 @@ class LaneLayout:
             dirs = np.ones(lanes, dtype=np.int64)
         else:
             dirs = np.asarray(directions).reshape(-1)
-            if dirs.shape != (lanes,) or not np.isin(dirs, (-1, 1)).all():
+            if dirs.shape != (lanes,) or dirs.dtype.kind not in "iu" or not np.isin(dirs, (-1, 1)).all():
                 raise ValueError(f"LaneLayout.directions must be {lanes} values of +1 (along s) or -1 (against s); "
                                  f"got {np.asarray(directions).tolist()!r}")
             dirs = dirs.astype(np.int64)
@@ -81,6 +81,8 @@ class LaneLayout:
             for j, k in enumerate(kind_t):
                 if k not in KINDS:
                     raise ValueError(f"LaneLayout.kinds[{j}] must be one of {', '.join(KINDS)}; got {k!r}")
+        if not (np.diff(bd, axis=1) >= MIN_LANE_WIDTH).any(axis=1).any():
+            raise ValueError(f"LaneLayout.boundaries hold no lane at least {MIN_LANE_WIDTH} m wide anywhere")
         self.stations = st
         self.boundaries = np.maximum.accumulate(bd, axis=1)
         self.directions = dirs

@@ -87,13 +87,18 @@ class Road:
                                         right_edge, oncoming=oncoming, drive_on=drive_on)
         elif not isinstance(layout, LaneLayout):
             raise ValueError(f"layout must be a tracker.lanes.LaneLayout; got {type(layout).__name__}")
-        elif lanes is not None or lane_width is not None or right_edge is not None or oncoming:
-            raise ValueError("give either a layout or lanes/lane_width/right_edge/oncoming, not both: the layout "
-                             "holds the lanes")
+        elif lanes is not None or lane_width is not None or right_edge is not None or oncoming or drive_on != "right":
+            raise ValueError("give either a layout or lanes/lane_width/right_edge/oncoming/drive_on, not both: the "
+                             "layout holds the lanes and their directions")
         self._curve = centerline
         self.closed: bool = bool(centerline.closed)
         self.length: float = float(centerline.length)
         self._set_layout(layout)
+        if self.closed and layout.varies:
+            ends = layout.boundaries_at(np.array([0.0, self.length]))
+            if not np.allclose(ends[0], ends[1], atol=1e-6):
+                raise ValueError("a closed road's lanes must meet themselves: the layout's boundaries at s = 0 "
+                                 f"({np.round(ends[0], 3).tolist()}) and at s = length ({np.round(ends[1], 3).tolist()}) differ")
         self._nodes = centerline.nodes()
         node_xy, _, _ = centerline.frame(self._nodes)
         if self.closed:  # the last node repeats the first
@@ -238,8 +243,12 @@ class Road:
         if len(self._edge_right) == 2 and self._edge_right[0] == self._edge_right[1] and \
                 self._edge_left[0] == self._edge_left[1]:
             return np.full(s_arr.shape, self._edge_right[0]), np.full(s_arr.shape, self._edge_left[0])
-        grid = np.arange(len(self._edge_right)) / self._edge_inv_step
-        return np.interp(s_arr, grid, self._edge_right), np.interp(s_arr, grid, self._edge_left)
+        last = len(self._edge_right) - 1  # edge_at's interpolation, vectorised (no grid built per call)
+        u = np.clip(s_arr * self._edge_inv_step, 0.0, float(last))
+        i = np.minimum(u.astype(int), last - 1)
+        t = u - i
+        r, lf = self._edge_right, self._edge_left
+        return r[i] + t * (r[i + 1] - r[i]), lf[i] + t * (lf[i + 1] - lf[i])
 
     def edge_kernel_args(self) -> tuple[float, np.ndarray, np.ndarray]:
         """``(inv_step, right, left)``: the edge tables that compiled stages read with ``tracker.lanes.edge_at``."""

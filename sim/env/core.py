@@ -110,6 +110,10 @@ class TrackedRoadEnv(AbstractEnv):
         if settings.duration is not None and settings.duration > spec.duration + _EPS:
             raise ConfigError(f"config key 'duration' = {settings.duration!r}: must be at most the scenario's "
                               f"duration ({spec.duration:g} s)")
+        if spec.road is not None and spec.road.map is not None:
+            raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: a road from a lane map (road.map) is not "
+                              "supported by the environment yet; its observation and planner need lanes that do not "
+                              "change along the road")
         rig, _ = rig_config_for(spec)
         ratio = rig.lidar.rate_hz / settings.policy_frequency
         if abs(ratio - round(ratio)) > 1e-6 or rig.lidar.phase_s != 0.0:
@@ -230,8 +234,7 @@ class TrackedRoadEnv(AbstractEnv):
     def on_road(self) -> bool:
         """Whether the ego's centre lies between the road edges."""
         road = self.world.road  # type: ignore[union-attr]
-        n = self.vehicle.frenet_n
-        return bool(road.right_edge <= n <= road.left_edge)
+        return bool(road.within_bounds(np.array([self.vehicle.frenet_s]), np.array([self.vehicle.frenet_n]))[0])
 
     def _lane(self) -> int:
         v = self.vehicle

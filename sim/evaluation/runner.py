@@ -33,7 +33,8 @@ track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidd
 pairs); ``yaw`` errors are
 wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
 ``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps``, ``oncoming_id_switches`` (``oncoming_metrics``):
-the same measures over the vehicles driving against ``s`` (two-way roads; ``None`` without any).
+the same measures over the vehicles driving against ``s`` (two-way roads; ``None`` without any), over
+``oncoming_matched_pairs`` matched pairs.
 ``long_sides_seen``, ``long_length_within_1m``, ``long_length_err_max_m`` (extended trackers): the hard
 suite's target, a long vehicle's length 3 s after its side is first seen (``sim.evaluation.long_vehicles``).
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
@@ -415,8 +416,8 @@ def oncoming_metrics(frames: list[FrameRecord], extent: bool = True) -> dict[str
     """The yaw and speed errors and identity switches of the vehicles driving against ``s`` (``against_s``
     in the frame): ``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps`` over the GOSPA-assigned pairs
     whose vehicle drives against ``s`` (as ``yaw_rmse_deg`` and ``speed_rmse_mps``), ``oncoming_matched_pairs``,
-    and ``oncoming_id_switches``: ``IdSwitchCounter`` over those pairs only. All ``None`` in a run with no
-    such pair (no oncoming traffic, or none within range)."""
+    and ``oncoming_id_switches``: ``IdSwitchCounter`` over those pairs only. In a run with no such pair (no
+    oncoming traffic, or none within range) ``oncoming_matched_pairs`` is 0 and the others ``None``."""
     yaw: list[np.ndarray] = []
     speed: list[np.ndarray] = []
     switches = IdSwitchCounter()

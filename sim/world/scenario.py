@@ -228,6 +228,8 @@ class RoadSpec(_Model):
         """Plain-data form (JSON-serialisable) from which ``RoadSpec.model_validate`` rebuilds it (a
         level road leaves out ``grade`` and ``bank``)."""
         out = self.model_dump(exclude_none=True)
+        if self.map is not None:  # a lane map's road is its map and route, nothing else
+            return {"map": out["map"], "route": out["route"]}
         for key in ("grade", "bank"):
             if out.get(key) == 0.0:
                 del out[key]
@@ -702,6 +704,10 @@ class ScenarioSpec(_Model):
                 raise ValueError("ego: missing; give [ego] and [[vehicles]] together, or neither (the generator draws both)")
             if self.road is not None and self.ego is not None:
                 raise ValueError("generator: nothing to draw; the file already has a road and traffic (drop [generator] or one of them)")
+            if self.road is not None and self.ego is None and (self.road.map is not None or self.road.parking is not None):
+                what = "a lane map's lanes, which begin and end" if self.road.map is not None else "parking lanes"
+                raise ValueError(f"generator: cannot draw traffic on a road with {what}; the drawn traffic needs "
+                                 "driving lanes that exist along the whole road (give [ego] and [[vehicles]])")
             if self.road is not None and self.generator.oncoming != (0, 0):
                 raise ValueError(f"generator.oncoming = {list(self.generator.oncoming)}: applies to drawn roads; this "
                                  "file's [road] sets its own (road.oncoming)")
