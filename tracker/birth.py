@@ -76,7 +76,9 @@ def _lane_rows(road: Road, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     up: the rows' ``s`` and ``n`` (m) and heading ``xi`` (rad: 0 in a lane along ``s``, pi in an
     oncoming one)."""
     layout = road.layout
-    if getattr(layout, "_uniform", None) is not None and not layout.two_way:  # equal driving lanes everywhere
+    # equal driving lanes everywhere: Road.lane_centers, whose centres (right + (k + 1/2) w) are the lanes'
+    # own numbers to the last bit (the midpoints of the layout's boundaries can differ in it)
+    if getattr(layout, "_uniform", None) is not None and not layout.two_way:
         lanes = road.lane_centers
         return np.repeat(s, len(lanes)), np.tile(lanes, len(s)), np.zeros(len(s) * len(lanes))
     centres = road.lane_centers_at(s)  # (len(s), lanes), NaN where a lane is absent

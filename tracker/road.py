@@ -240,10 +240,8 @@ class Road:
         """The right and left road edges (m, offsets ``n``) at arc lengths ``s``: the outermost boundaries of
         the lanes present there (on a closed road ``s`` wraps; on an open one the end values hold beyond)."""
         s_arr = self.wrap_s(finite_array(s, "s"))
-        if len(self._edge_right) == 2 and self._edge_right[0] == self._edge_right[1] and \
-                self._edge_left[0] == self._edge_left[1]:
-            return np.full(s_arr.shape, self._edge_right[0]), np.full(s_arr.shape, self._edge_left[0])
-        last = len(self._edge_right) - 1  # edge_at's interpolation, vectorised (no grid built per call)
+        # edge_at's interpolation, vectorised; exactly the table's value where neighbouring entries are equal
+        last = len(self._edge_right) - 1
         u = np.clip(s_arr * self._edge_inv_step, 0.0, float(last))
         i = np.minimum(u.astype(int), last - 1)
         t = u - i
@@ -290,14 +288,13 @@ class Road:
         the road, ``lanes`` left of it. Where lanes vary, a point between boundaries takes the lane whose
         span holds it (a lane of zero width holds nothing)."""
         n_arr = finite_array(n, "n")
-        uniform = getattr(self.layout, "_uniform", None)
-        if s is None or uniform is not None:
-            if uniform is None and self.layout.varies:
+        if getattr(self.layout, "_uniform", None) is not None:  # equal lanes: one division
+            idx = np.floor((n_arr - self.right_edge) / self.lane_width).astype(int)
+            return np.clip(idx, -1, self.lanes)
+        if s is None:
+            if self.layout.varies:
                 raise ValueError("this road's lanes vary along s; pass s to lane_index")
-            if uniform is not None:
-                idx = np.floor((n_arr - self.right_edge) / self.lane_width).astype(int)
-                return np.clip(idx, -1, self.lanes)
-            s = np.zeros_like(n_arr)
+            s = 0.0
         b = self.layout.boundaries_at(self.wrap_s(np.broadcast_to(finite_array(s, "s"), n_arr.shape)))
         return (n_arr[..., None] >= b).sum(axis=-1) - 1
 

@@ -146,14 +146,19 @@ def _road_lines(result: Result, s_low: float, s_high: float, step: float = 1.0) 
         s = np.linspace(s_low, s_high, max(2, int((s_high - s_low) / step) + 1))
     right, left = road.edges(s)
     edges = [road.to_cartesian(s, right), road.to_cartesian(s, left)]
-    bounds = road.layout.boundaries_at(road.wrap_s(s))  # (K, lanes + 1): lane lines where they lie inside the edges
-    lanes = []
+    return edges, [xy for _, xy in _lane_lines(road, s, right, left)]
+
+
+def _lane_lines(road, s: np.ndarray, right: np.ndarray, left: np.ndarray) -> list[tuple[int, np.ndarray]]:  # noqa: ANN001
+    """The inner lane boundaries ``k`` of ``road`` at arc lengths ``s`` as polylines (K, 2) in G, NaN (a gap
+    in the line) where a boundary does not lie inside the edges ``right``, ``left`` (m) at ``s``."""
+    bounds = road.layout.boundaries_at(road.wrap_s(s))  # (K, lanes + 1)
+    lines = []
     for k in range(1, road.lanes):
         inside = (bounds[:, k] > right + 0.05) & (bounds[:, k] < left - 0.05)
         if inside.any():
-            n = np.where(inside, bounds[:, k], np.nan)
-            lanes.append(road.to_cartesian(s, np.nan_to_num(n, nan=0.0)) + np.where(inside, 0.0, np.nan)[:, None])
-    return edges, lanes
+            lines.append((k, road.to_cartesian(s, bounds[:, k]) + np.where(inside, 0.0, np.nan)[:, None]))
+    return lines
 
 
 def _draw_road(ax, edges: list[np.ndarray], lanes: list[np.ndarray]) -> None:  # noqa: ANN001
@@ -653,13 +658,9 @@ def route_figure(graph, corridor, start: tuple[float, float, float], goal: tuple
     for n in (right, left):
         xy = road.to_cartesian(s, n)
         ax.plot(xy[:, 0], xy[:, 1], color="black", lw=1.2)
-    bounds = road.layout.boundaries_at(s)
-    for k in range(1, road.lanes):
-        inside = (bounds[:, k] > right + 0.05) & (bounds[:, k] < left - 0.05)
-        if inside.any():
-            xy = road.to_cartesian(s, bounds[:, k]) + np.where(inside, 0.0, np.nan)[:, None]
-            against = road.lane_directions[k] < 0 or road.lane_directions[k - 1] < 0
-            ax.plot(xy[:, 0], xy[:, 1], color="#1f77b4" if against else "0.35", lw=0.8, ls=(0, (5, 4)))
+    for k, xy in _lane_lines(road, s, right, left):
+        against = road.lane_directions[k] < 0 or road.lane_directions[k - 1] < 0
+        ax.plot(xy[:, 0], xy[:, 1], color="#1f77b4" if against else "0.35", lw=0.8, ls=(0, (5, 4)))
     ax.annotate("", xy=(start[0] + 6.0 * math.cos(start[2]), start[1] + 6.0 * math.sin(start[2])),
                 xytext=(start[0], start[1]), arrowprops={"arrowstyle": "->", "color": "#2ca02c", "lw": 2.0})
     if goal is not None:

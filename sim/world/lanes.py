@@ -202,9 +202,10 @@ class LaneTable:
         self.lanes = road.lanes
         if not self.varies:
             b = road.layout.boundaries[0]
-            uniform = getattr(road.layout, "_uniform", None)
+            #: equal lanes: ``(right_edge, lane_width)`` for the lane of an offset by one division
+            self._equal = None if getattr(road.layout, "_uniform", None) is None else (road.right_edge, road.lane_width)
             self.centres = [float(c) for c in road.lane_centers]
-            self.widths = ([float(road.lane_width)] * road.lanes if uniform is not None
+            self.widths = ([float(road.lane_width)] * road.lanes if self._equal is not None
                            else [float(b[k + 1] - b[k]) for k in range(road.lanes)])
             self.bounds = [float(x) for x in b]
             return
@@ -246,6 +247,9 @@ class LaneTable:
         """The lane (0..lanes-1) whose span at ``s`` holds the offset ``n`` (clamped at the edges; a lane of
         zero width holds nothing)."""
         if not self.varies:
+            if self._equal is not None:
+                right, width = self._equal
+                return min(max(math.floor((n - right) / width), 0), self.lanes - 1)
             bounds = self.bounds
         else:
             i, t = self._at(s)
@@ -257,11 +261,6 @@ class LaneTable:
             if present:
                 k = min(present, key=lambda j: abs(0.5 * (bounds[j] + bounds[j + 1]) - n))
         return k
-
-
-def lane_width(road: Road, index: int, s: float = 0.0) -> float:
-    """Width (m) of lane ``index`` of ``road`` at ``s``: ``road.lane_width`` on a road of equal lanes."""
-    return LaneTable.of(road).width(index, s)
 
 
 def build_network(road: Road, road_config: dict[str, Any] | None = None) -> tuple[RoadNetwork, FrenetProjector]:

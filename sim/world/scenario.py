@@ -844,10 +844,8 @@ _DIRECTION_WORDS = {1: "along s", -1: "against s"}
 def _map_road(path: str, start: tuple[float, float, float], goal: tuple[float, float] | None,
               via: tuple[tuple[float, float], ...] | None) -> Road:
     """The road of a route through the lane map ``path`` (``tracker.maps``; read once per process)."""
-    try:
-        from tracker.maps import read_map, route_road
-    except ImportError as exc:  # pragma: no cover - the maps extra is part of the package's dependencies
-        raise ValueError(str(exc)) from None
+    from tracker.maps import read_map, route_road  # numpy and scipy only; the readers import their libraries
+
     if not Path(path).is_file():
         raise ValueError(f"road.map = {path!r}: no such file")
     try:

@@ -84,26 +84,19 @@ class TrafficRoad(HighwayRoad):
         self.dt = float(dt)
         self.closed = road.closed
         self.period = road.length
-        self.centers = [LaneTable.of(road).centre(k, 0.0) for k in range(road.lanes)]  # at s = 0 where lanes vary
-        self.lane_width = road.lane_width
-        self.right_edge = road.right_edge
         self.lanes = network.graph[NODE_FROM][NODE_TO]
-        #: per lane: width (m), direction (+1 along s, -1 against), and the boundaries (m) of a road whose
-        #: lanes differ in width (``None`` when they are all ``lane_width``)
-        self.widths = [float(lane.width) for lane in self.lanes]
+        #: per lane: direction (+1 along s, -1 against)
         self.directions = [int(lane.direction) for lane in self.lanes]
-        uniform = getattr(road.layout, "_uniform", None) is not None
-        self._bounds = None if uniform else [float(b) for b in road.layout.boundaries[0]]
-        #: lanes that vary along s (a map's road): centres, widths and the lane of an offset at each s
-        self.table = LaneTable.of(road) if road.layout.varies else None
+        #: the lanes' centres, widths and the lane of an offset at each s (``sim.world.lanes.LaneTable``)
+        self.table = LaneTable.of(road)
 
     def center(self, lane: int, s: float) -> float:
         """Offset ``n`` (m) of lane ``lane``'s centre at ``s``."""
-        return self.centers[lane] if self.table is None else self.table.centre(lane, s)
+        return self.table.centre(lane, s)
 
     def width_of(self, lane: int, s: float) -> float:
         """Width (m) of lane ``lane`` at ``s``."""
-        return self.widths[lane] if self.table is None else self.table.width(lane, s)
+        return self.table.width(lane, s)
 
     def wrap(self, ds: float) -> float:
         """A difference of ``s`` (m) wrapped into ``[-length/2, length/2)`` on a closed road."""
@@ -115,13 +108,7 @@ class TrafficRoad(HighwayRoad):
     def lane_of(self, n: float, s: float = 0.0) -> int:
         """The lane (0..lanes-1) whose span contains lateral offset ``n`` (at ``s`` where the lanes vary;
         clamped at the edges)."""
-        if self.table is not None:
-            return self.table.lane_of(n, s)
-        if self._bounds is not None:
-            k = sum(1 for b in self._bounds[1:-1] if n >= b)
-            return k
-        k = math.floor((n - self.right_edge) / self.lane_width)
-        return min(max(k, 0), len(self.centers) - 1)
+        return self.table.lane_of(n, s)
 
     def step(self, dt: float) -> None:
         """Move every vehicle by ``dt`` seconds (no collision handling; see the module notes)."""
