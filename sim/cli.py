@@ -1,4 +1,4 @@
-"""The ``eot`` command line: ``demo``, ``run``, ``inspect``, ``montecarlo``, ``compare``, ``closed-loop``,
+"""The ``eot`` command line: ``demo``, ``run``, ``replay``, ``inspect``, ``montecarlo``, ``compare``, ``closed-loop``,
 ``soak``, ``scenarios``, ``bench``. Every command writes under ``eot-output/`` unless ``--out`` names a folder.
 
 ``eot compare`` runs every study variant over a suite with the same seeds and writes ``REPORT.md``
@@ -36,6 +36,10 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sim.world.scenario import ScenarioSpec
 
 USAGE_EXIT = 2
 #: Default parent folder of every command's outputs (relative to the working directory; not tracked by git).
@@ -271,7 +275,7 @@ def summary_table(metrics: dict) -> str:
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
 
-def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: bool, duration: float | None,
+def _run_and_write(scenario: str | ScenarioSpec, *, seed: int, variant: str, out: str, gif: bool, duration: float | None,
                    roadside: bool | None, quiet: bool, lidar_model: str | None = None) -> int:
     import time
     from pathlib import Path
@@ -282,9 +286,9 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     from sim.evaluation.runner import check_scenario_settings, rig_config_for, run_scenario, with_lidar_model
     from sim.evaluation.variants import check_variant
     from sim.progress import ProgressBar
-    from sim.world.scenario import ScenarioError, load_scenario
+    from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
 
-    spec = load_scenario(scenario)
+    spec = scenario if isinstance(scenario, ScenarioSpec) else load_scenario(scenario)
     try:  # usage errors are checked here; an error inside the run is a bug and keeps its traceback
         if lidar_model is not None:
             spec = with_lidar_model(spec, lidar_model)
@@ -317,9 +321,47 @@ def _run_and_write(scenario: str, *, seed: int, variant: str, out: str, gif: boo
     print(f"{spec.name} / {variant} / seed {seed}: {result.duration:g} s simulated in {wall:.1f} s wall "
           f"(GOSPA: alpha 2, p 2, c 5 m; parts are p-th-power sums)")
     print(summary_table(result.metrics))
+    if "replay_recording" in result.metrics:
+        print(replay_line(result.metrics))
     print(f"diagnostics: {headline(insp)} (`eot inspect {out}` for the timelines)")
     print(f"wrote {len(paths)} files to {Path(out)}/: " + ", ".join(sorted(p.name for p in paths.values())))
     return 0
+
+
+def replay_line(metrics: dict) -> str:
+    """One line on a replay: the recording, its ego, and which truth (smoothed or raw) was used."""
+    m = metrics
+    text = f"replay: {m['replay_recording']}, ego {m['replay_ego']}, {m['replay_vehicles']} recorded vehicles, truth {m['replay_truth']}"
+    if m.get("replay_truth") == "smoothed":
+        text += (f" (RTS smoother moved the centres by {m['replay_position_change_rms_m']:.2f} m RMS; "
+                 f"{m['replay_widths_bounded']} car widths bounded at 2.1 m)")
+    return text
+
+
+def _replay(args: argparse.Namespace) -> int:
+    """``eot replay FILE``: a recorded CommonRoad scenario through the sensors and the tracker."""
+    from pathlib import Path
+
+    from sim.world.scenario import ScenarioError, parse_scenario
+
+    path = Path(args.file)
+    if not path.is_file():
+        raise UsageError(f"no such recording {args.file}")
+    if not path.name.lower().endswith((".xml", ".xml.gz")):
+        raise UsageError(f"{path.name}: a recording is a CommonRoad scenario file (.xml or .xml.gz)")
+    variant = _check_variants([args.variant])[0]
+    stem = path.name.split(".")[0]
+    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in stem).lstrip("-_") or "recording"
+    replay = {"file": str(path.resolve()), "truth": "raw" if args.raw else "smoothed"}
+    if args.ego is not None:
+        replay["ego"] = args.ego
+    try:
+        spec = parse_scenario({"name": name[:64], "description": f"replay of {path.name}", "replay": replay}, str(path))
+    except ScenarioError as exc:
+        raise UsageError(" ".join(str(exc).split())) from None
+    out = args.out or f"{OUTPUT_ROOT}/replay-{name}-{variant}-seed{args.seed}"
+    return _run_and_write(spec, seed=args.seed, variant=variant, out=out, gif=args.gif, duration=args.duration,
+                          roadside=False if args.no_roadside else None, quiet=args.quiet, lidar_model=args.lidar_model)
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -705,6 +747,22 @@ def build_parser() -> argparse.ArgumentParser:
                         "with the tracker's ground removal; writes cloud.png)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
+
+    p = sub.add_parser("replay", help="replay recorded traffic (a CommonRoad scenario) through the sensors and the tracker: "
+                                      "the outputs of `eot run`")
+    p.add_argument("file", metavar="FILE", help="CommonRoad scenario file with recorded vehicles (.xml or .xml.gz)")
+    p.add_argument("--ego", type=int, help="id of the recorded vehicle that carries the sensors (default: the one recorded "
+                                           "throughout with the most vehicles within 100 m)")
+    p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the sensors (default 0)")
+    p.add_argument("--lidar-model", choices=("2d", "vlp16"), help="lidar model (default: 2d)")
+    p.add_argument("--raw", action="store_true", help="the recorded samples as truth (default: smoothed, sim.world.smoothing)")
+    p.add_argument("--out", help=f"output folder (default: {OUTPUT_ROOT}/replay-NAME-VARIANT-seedN)")
+    p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
+    p.add_argument("--duration", type=float, help="replay only this many seconds (default: the ego's recorded time)")
+    p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_replay)
 
     p = sub.add_parser("inspect", help="why a run went wrong: per-vehicle event timelines and the worst GOSPA intervals")
     p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `eot run ... --out DIR`")

@@ -51,7 +51,11 @@ frames by ``sim.sensors.faults.FaultInjector`` (dropouts, spikes, duplicated fra
 the dropout measures (``sim.evaluation.dropouts.dropout_outcomes``: coasting and re-acquisition with the same
 label within ``sim.evaluation.dropouts.REACQUIRE_WINDOW_S``). A duplicated frame is scored twice.
 
-Randomness: ``World(spec, seed)`` seeds the traffic; the sensors, the clutter and the faults draw
+**Replays.** A scenario with a ``[replay]`` table (recorded traffic, ``sim.world.replay.ReplayWorld``) runs
+the same way on the recording's truth; its metrics add ``replay_recording``, ``replay_ego``,
+``replay_truth`` and what smoothing changed (``ReplayWorld.info``).
+
+Randomness: ``World(spec, seed)`` seeds the traffic (a replay's traffic is recorded); the sensors, the clutter and the faults draw
 from their own ``numpy.random.SeedSequence(seed, spawn_key=...)`` streams, so all are independent and
 fixed by the seed.
 """
@@ -76,6 +80,7 @@ from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.world.ground import Ground
+from sim.world.replay import ReplayWorld
 from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.world.truth import Snapshot
 from sim.world.world import World
@@ -546,7 +551,7 @@ def run_scenario(
     check_scenario_settings(spec, variant)
     rig_cfg, clutter_cfg = rig_config_for(spec)  # the file's overrides; errors name the file
     config = tracker_config_for(spec, variant, rig_cfg)
-    world = World(spec, seed)
+    world = ReplayWorld(spec, seed) if spec.replay is not None else World(spec, seed)
     spec = world.spec  # the realised scenario when a generator drew it
     road = world.road
     rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside, world.ground)
@@ -625,6 +630,8 @@ def run_scenario(
     if extent:  # the hard suite's target: a long vehicle's length 3 s after its side is seen
         metrics.update(long_vehicle_metrics(records, math.radians(rig_cfg.lidar.resolution_deg)))
     metrics.update(cloud_score.metrics())
+    if isinstance(world, ReplayWorld):
+        metrics.update(world.info())
     if injector is not None and faults is not None:
         metrics.update(fault_metrics(injector.counts))
         if faults.lidar_dropout:

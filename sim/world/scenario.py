@@ -657,6 +657,20 @@ class FaultsSpec(_Model):
                 raise ValueError(f"faults.duplicate_frames[{i}] = {t!r}: must be < duration ({duration} s)")
 
 
+# -- replayed traffic ----------------------------------------------------------------------------
+class ReplaySpec(_Model):
+    """Recorded traffic to replay (``sim.world.replay``) instead of simulated traffic: ``file`` a CommonRoad
+    scenario (``.xml`` or ``.xml.gz``, relative to the scenario file; needs the ``maps`` extra), its lane
+    map and recorded vehicles; ``ego`` the id of the recorded vehicle that carries the sensors (default:
+    the rule of ``sim.world.recording.Recording.pick_ego``); ``truth`` "smoothed" (default: the
+    recording through ``sim.world.smoothing``) or "raw" (as recorded). The road is the ego's route
+    through the map; the scenario's ``duration`` defaults to the ego's recorded time."""
+
+    file: StrictStr = Field(min_length=1)
+    ego: StrictInt | None = None
+    truth: Literal["smoothed", "raw"] = "smoothed"
+
+
 # -- the scenario --------------------------------------------------------------------------------
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 
@@ -682,12 +696,30 @@ class ScenarioSpec(_Model):
     tracker: dict[str, Any] = Field(default_factory=dict)
     faults: FaultsSpec | None = None
     generator: GeneratorSpec | None = None
+    replay: ReplaySpec | None = None
 
     _road: Road | None = PrivateAttr(default=None)
     _source: Path | None = PrivateAttr(default=None)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _replay_duration(cls, data: Any) -> Any:
+        """A replay's duration defaults to its ego's recorded time (read from the recording)."""
+        replay = data.get("replay") if isinstance(data, dict) else None
+        usable = (isinstance(replay, dict) and isinstance(replay.get("file"), str)
+                  and replay.get("truth", "smoothed") in ("smoothed", "raw")
+                  and (replay.get("ego") is None or (isinstance(replay.get("ego"), int) and not isinstance(replay.get("ego"), bool))))
+        if usable and "duration" not in data:  # otherwise the fields' own checks report what is wrong
+            try:
+                data = {**data, "duration": _replay_duration(replay["file"], replay.get("truth", "smoothed"), replay.get("ego"))}
+            except (OSError, ValueError, ImportError) as exc:
+                raise ValueError(f"replay.file = {replay['file']!r}: {' '.join(str(exc).split())}") from None
+        return data
+
     @model_validator(mode="after")
     def _consistent(self) -> ScenarioSpec:
+        if self.replay is not None:
+            return self._check_replay()
         if not _NAME.match(self.name):
             raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
         if "\n" in self.description:
@@ -726,6 +758,24 @@ class ScenarioSpec(_Model):
             self._road = road
             if self.ego is not None:
                 self._check_traffic(road)
+        return self
+
+    def _check_replay(self) -> ScenarioSpec:
+        assert self.replay is not None
+        if not _NAME.match(self.name):
+            raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
+        given = [k for k in ("road", "ego", "vehicles", "generator") if k in self.model_fields_set]
+        if given:
+            raise ValueError(f"{given[0]}: a replay takes its road and traffic from the recording (replay.file); leave it out")
+        if self.faults is not None:
+            self.faults.check_duration(self.duration)
+        longest = _replay_duration(self.replay.file, self.replay.truth, self.replay.ego)
+        if self.duration > longest + 1e-9:
+            raise ValueError(f"duration = {self.duration}: the ego is recorded for {longest:g} s; use at most that")
+        try:
+            self._road = _replay_road(self.replay.file, self.replay.truth, self.replay.ego)
+        except (OSError, ImportError) as exc:
+            raise ValueError(f"replay.file = {self.replay.file!r}: {exc}") from None
         return self
 
     # -- cross-field checks -------------------------------------------------------------------
@@ -830,6 +880,10 @@ class ScenarioSpec(_Model):
 
     def build_road(self) -> Road:
         """The ``tracker.Road`` of this scenario (built once at validation and shared)."""
+        if self.replay is not None:
+            if self._road is None:
+                self._road = _replay_road(self.replay.file, self.replay.truth, self.replay.ego)
+            return self._road
         if self.road is None:
             raise ValueError(f"scenario {self.name!r} has no road; draw one with sim.world.generator.realize(spec, seed)")
         if self._road is None:
@@ -838,6 +892,23 @@ class ScenarioSpec(_Model):
 
 
 _DIRECTION_WORDS = {1: "along s", -1: "against s"}
+
+
+def _replay_duration(path: str, truth: str, ego: int | None) -> float:
+    """The ego's recorded time (s) in the recording ``path`` (``sim.world.replay``)."""
+    from sim.world.replay import load_recording, replay_ego
+
+    recording, _ = load_recording(path, truth)
+    car = recording.vehicle(replay_ego(recording, ego))
+    return round(car.end - car.start, 9)
+
+
+def _replay_road(path: str, truth: str, ego: int | None) -> Road:
+    """The road of a replay: the ego's route through the recording's lane map (``sim.world.replay``)."""
+    from sim.world.replay import load_recording, replay_ego, replay_road
+
+    recording, _ = load_recording(path, truth)
+    return replay_road(path, truth, replay_ego(recording, ego))
 
 
 @functools.lru_cache(maxsize=8)
@@ -965,7 +1036,7 @@ def load_scenario(path: str | Path) -> ScenarioSpec:
     allowed; unknown keys are errors."""
     p = resolve_scenario_path(path)
     data = read_scenario_data(p)
-    if "scenarios" in data and "road" not in data and "generator" not in data:
+    if "scenarios" in data and "road" not in data and "generator" not in data and "replay" not in data:
         raise ScenarioError(f"{p}: this is a suite file (it lists scenarios); load it with sim.world.scenario.load_suite")
     spec = parse_scenario(data, str(p))
     spec._source = p
@@ -983,6 +1054,9 @@ def read_scenario_data(path: Path) -> dict[str, Any]:
     road = data.get("road")
     if isinstance(road, dict) and isinstance(road.get("map"), str) and not Path(road["map"]).is_absolute():
         road["map"] = str((Path(path).parent / road["map"]).resolve())  # a map file relative to the scenario file
+    replay = data.get("replay")
+    if isinstance(replay, dict) and isinstance(replay.get("file"), str) and not Path(replay["file"]).is_absolute():
+        replay["file"] = str((Path(path).parent / replay["file"]).resolve())  # a recording relative to the scenario file
     return data
 
 
@@ -1038,7 +1112,7 @@ def is_suite_file(path: Path) -> bool:
             data = tomllib.load(fh)
     except (OSError, tomllib.TOMLDecodeError):
         return False
-    return "scenarios" in data and "road" not in data and "generator" not in data
+    return "scenarios" in data and "road" not in data and "generator" not in data and "replay" not in data
 
 
 # -- overrides -----------------------------------------------------------------------------------

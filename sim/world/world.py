@@ -85,6 +85,8 @@ class World:
             raise ValueError(f"World needs a sim.world.scenario.ScenarioSpec; got {type(spec).__name__}")
         if not (isinstance(step, (int, float)) and 0.0 < step <= 0.1):
             raise ValueError(f"World step must be in (0, 0.1] s; got {step!r}")
+        if spec.replay is not None:
+            raise ValueError(f"{spec.name}: a replay of recorded traffic; its world is sim.world.replay.ReplayWorld")
         if spec.generator is not None:
             from sim.world.generator import realize
 

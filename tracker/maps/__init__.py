@@ -42,12 +42,16 @@ READERS = {".xml": read_commonroad, ".osm": read_lanelet2, ".xodr": read_opendri
 
 
 def read_map(path: str | Path, **kwargs) -> LaneGraph:
-    """The lane map of ``path``, read by its suffix: ``.xml`` CommonRoad, ``.osm`` Lanelet2,
-    ``.xodr`` OpenDRIVE (keywords go to the reader)."""
+    """The lane map of ``path``, read by its suffix: ``.xml`` CommonRoad (``.xml.gz`` gzip-compressed),
+    ``.osm`` Lanelet2, ``.xodr`` OpenDRIVE (keywords go to the reader)."""
     path = Path(path)
-    reader = READERS.get(path.suffix.lower())
+    suffix = path.suffix.lower()
+    if suffix == ".gz" and path.with_suffix("").suffix.lower() == ".xml":
+        suffix = ".xml"
+    reader = READERS.get(suffix)
     if reader is None:
-        raise ValueError(f"{path.name}: unknown map format {path.suffix!r}; expected one of {', '.join(READERS)}")
+        raise ValueError(f"{path.name}: unknown map format {path.suffix!r}; expected one of {', '.join(READERS)} "
+                         "(.xml.gz: a compressed CommonRoad file)")
     return reader(path, **kwargs)
 
 

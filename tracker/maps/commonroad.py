@@ -11,8 +11,12 @@ intersection...) -> driving. Traffic signs, lights, stop lines and the scenario'
 from __future__ import annotations
 
 import contextlib
+import gzip
 import io
 import logging
+import shutil
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from tracker.maps.graph import Lanelet, LaneGraph, xml_root
@@ -30,7 +34,8 @@ KIND_OF_TYPE = {
 }
 
 
-def _import_commonroad():
+def import_reader():
+    """commonroad-io's ``CommonRoadFileReader`` (``ImportError`` naming the extra without it)."""
     try:
         from commonroad.common.file_reader import CommonRoadFileReader
     except ImportError:
@@ -51,9 +56,33 @@ def _quiet(name: str):
         log.setLevel(level)
 
 
-def _precheck(path: Path) -> None:
-    """Parse the XML with the standard library to report a broken file in one line naming the element."""
-    name = path.name
+@contextlib.contextmanager
+def uncompressed(path: Path) -> Iterator[Path]:
+    """``path`` itself, or for a gzip-compressed ``.gz`` file a temporary uncompressed copy (commonroad-io
+    opens files by name); ``ValueError`` naming the file when it is not gzip."""
+    if path.suffix.lower() != ".gz":
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="eot-") as folder:
+        plain = Path(folder) / path.name[: -len(".gz")]
+        try:
+            with gzip.open(path, "rb") as src, open(plain, "wb") as dst:
+                shutil.copyfileobj(src, dst)
+        except (OSError, EOFError) as exc:
+            raise ValueError(f"{path.name}: not a readable gzip file ({exc})") from None
+        yield plain
+
+
+@contextlib.contextmanager
+def quiet():
+    """Silence commonroad-io's notices on older formats while inside (stdout and its logger)."""
+    with contextlib.redirect_stdout(io.StringIO()), _quiet("commonroad"):
+        yield
+
+
+def _precheck(path: Path, name: str) -> None:
+    """Parse the XML with the standard library to report a broken file ``name`` in one line naming the
+    element."""
     root = xml_root(path, "commonRoad")
     ids = set()
     for el in root.findall("lanelet"):
@@ -99,7 +128,8 @@ def graph_from_lanelet_network(network, source: str = "map") -> LaneGraph:
 
 
 def read_commonroad(path: str | Path) -> LaneGraph:
-    """The lane map of the CommonRoad file ``path`` (XML, formats 2018b-2020a and later).
+    """The lane map of the CommonRoad file ``path`` (XML, formats 2018b-2020a and later; ``.xml.gz``:
+    gzip-compressed).
 
     Raises ``FileNotFoundError`` for a missing file and ``ValueError`` (one line naming the file and
     the element) for a broken one; ``ImportError`` without commonroad-io.
@@ -107,12 +137,13 @@ def read_commonroad(path: str | Path) -> LaneGraph:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such map file")
-    reader = _import_commonroad()
-    try:
-        with contextlib.redirect_stdout(io.StringIO()), _quiet("commonroad"):  # notices on older formats
-            network = reader(str(path)).open_lanelet_network()
-    except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
-        _precheck(path)  # names the broken element when it finds one
-        first = str(err).splitlines()[0] if str(err) else ""
-        raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
+    reader = import_reader()
+    with uncompressed(path) as plain:
+        try:
+            with quiet():  # notices on older formats
+                network = reader(str(plain)).open_lanelet_network()
+        except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
+            _precheck(plain, path.name)  # names the broken element when it finds one
+            first = str(err).splitlines()[0] if str(err) else ""
+            raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
     return graph_from_lanelet_network(network, source=path.name)

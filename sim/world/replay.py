@@ -1,0 +1,161 @@
+"""A world that replays recorded traffic: the truth the sensors see and the tracker is scored against.
+
+``ReplayWorld(spec, seed)`` serves a scenario with a ``[replay]`` table (``sim.world.scenario.ReplaySpec``)
+the way ``sim.world.world.World`` serves simulated traffic: ``truth_at(t)`` and ``poses_at(t)`` give a
+``Snapshot`` at any time ``t`` (s) of the run, ``road`` is the scenario's road. The run's time 0 is the
+ego's first sample; each vehicle is present between its first and last sample and linear between
+samples (``RecordedVehicle.state_at``; the samples are 0.1 s apart in the CommonRoad recordings). The
+ego is one of the recorded vehicles (``ReplaySpec.ego``, default ``Recording.pick_ego`` with
+``EGO_RANGE``); it is not among the snapshot's vehicles. Recorded vehicles do not react to anything.
+
+The truth is the smoothed recording by default (``sim.world.smoothing``; ``truth = "raw"`` keeps the
+recorded samples). The road is the route through the recording's lane map from the ego's first pose
+to its last position (``tracker.maps.route_road``). The seed does not change the traffic (it is
+recorded); it seeds the sensors as in every run.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim.world.recording import Recording, read_commonroad_recording
+from sim.world.smoothing import SmoothingReport, smooth_recording
+from sim.world.truth import CLASS_HEIGHTS, EgoPose, Snapshot, default_height
+from tracker import Road
+from tracker.angles import wrap_angle
+
+if TYPE_CHECKING:
+    from sim.world.scenario import ScenarioSpec
+
+#: Range (m) within which the default ego rule counts neighbours (the default lidar's range).
+EGO_RANGE = 100.0
+#: Slack (s) on the ends of a vehicle's samples.
+TIME_TOLERANCE = 1e-6
+
+
+@functools.lru_cache(maxsize=16)
+def load_recording(path: str, truth: str = "smoothed") -> tuple[Recording, SmoothingReport | None]:
+    """The recording of the CommonRoad file ``path`` (read once per process), smoothed (``truth =
+    "smoothed"``, with what smoothing changed) or as recorded (``"raw"``, no report)."""
+    if truth not in ("smoothed", "raw"):
+        raise ValueError(f"truth must be 'smoothed' or 'raw'; got {truth!r}")
+    recording = read_commonroad_recording(path)
+    if truth == "raw":
+        return recording, None
+    return smooth_recording(recording)
+
+
+def replay_ego(recording: Recording, ego: int | None) -> int:
+    """The ego's id: ``ego`` when it is one of the recording's vehicles (``ValueError`` naming the ids
+    otherwise), else the default rule's (``Recording.pick_ego(EGO_RANGE)``)."""
+    if ego is None:
+        return recording.pick_ego(EGO_RANGE)
+    return recording.vehicle(int(ego)).id
+
+
+@functools.lru_cache(maxsize=16)
+def replay_road(path: str, truth: str, ego: int) -> Road:
+    """The road of the ego's route through the recording's lane map (module docstring)."""
+    from tracker.maps import read_map, route_road
+
+    recording, _ = load_recording(path, truth)
+    car = recording.vehicle(ego)
+    start = (float(car.xy[0, 0]), float(car.xy[0, 1]), float(car.yaw[0]))
+    goal = (float(car.xy[-1, 0]), float(car.xy[-1, 1]))
+    if math.hypot(goal[0] - start[0], goal[1] - start[1]) < 1.0:
+        goal = None  # a standing ego: the route goes on from its pose
+    try:
+        return route_road(read_map(recording.map_file or path), start, goal)
+    except ValueError as exc:
+        raise ValueError(f"{Path(path).name}: no road along ego {ego}'s route: {exc}") from None
+
+
+class ReplayWorld:
+    """Recorded traffic as a world (module docstring). ``spec`` has a ``replay`` table; ``seed`` is kept
+    (the traffic does not depend on it)."""
+
+    def __init__(self, spec: ScenarioSpec, seed: int = 0) -> None:
+        if spec.replay is None:
+            raise ValueError(f"ReplayWorld needs a scenario with a [replay] table; {spec.name!r} has none")
+        replay = spec.replay
+        self.spec = spec
+        self.seed = int(seed)
+        self.recording, self.smoothing = load_recording(replay.file, replay.truth)
+        self.ego_id = replay_ego(self.recording, replay.ego)
+        self.road = spec.build_road()
+        self.ground = None
+        self.removed: dict[int, float] = {}
+        self.collisions: list[tuple[float, int, int]] = []
+        ego = self.recording.vehicle(self.ego_id)
+        self._ego = ego
+        self.t0 = ego.start
+        self._others = [v for v in self.recording.vehicles if v.id != self.ego_id]
+        self._heights = {v.id: float(CLASS_HEIGHTS.get(v.kind, default_height(v.length))) for v in self._others}
+        self.t = 0.0
+
+    @property
+    def duration(self) -> float:
+        """The ego's recorded time (s): the longest run."""
+        return self._ego.end - self._ego.start
+
+    def info(self) -> dict[str, Any]:
+        """What a run reports of the replay (``metrics.json``): ``replay_recording`` (name), ``replay_ego``
+        (id), ``replay_truth`` ("smoothed" or "raw"), ``replay_vehicles`` (recorded vehicles besides the
+        ego) and, for smoothed truth, ``replay_widths_bounded`` and ``replay_position_change_rms_m``
+        (``sim.world.smoothing.SmoothingReport``)."""
+        out: dict[str, Any] = {"replay_recording": self.recording.name, "replay_ego": self.ego_id,
+                               "replay_truth": self.spec.replay.truth, "replay_vehicles": len(self._others)}
+        if self.smoothing is not None:
+            out["replay_widths_bounded"] = self.smoothing.widths_bounded
+            out["replay_position_change_rms_m"] = self.smoothing.position_change_rms_m
+        return out
+
+    def truth_at(self, t: float) -> Snapshot:
+        """The truth ``Snapshot`` at run time ``t`` (s), with the vehicles' road coordinates."""
+        return self._snapshot(t, road_coordinates=True)
+
+    def poses_at(self, t: float) -> Snapshot:
+        """The poses at ``t`` without road coordinates (NaN), as ``World.poses_at`` (what a radar needs)."""
+        return self._snapshot(t, road_coordinates=False)
+
+    def _snapshot(self, t: float, road_coordinates: bool) -> Snapshot:
+        if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
+            raise ValueError(f"ReplayWorld: t must be a finite number of seconds; got {t!r}")
+        self.t = float(t)
+        when = self.t0 + min(max(float(t), 0.0), self.duration)
+        ego = self._ego.state_at(when)
+        assert ego is not None
+        rows, ids = [], []
+        for v in self._others:
+            state = v.state_at(when)
+            if state is not None:
+                rows.append((*state, v.length, v.width, self._heights[v.id]))
+                ids.append(v.id)
+        cols = np.array(rows, dtype=float).reshape(-1, 8).T.copy()
+        xy = np.ascontiguousarray(cols[:2].T)
+        yaw = wrap_angle(cols[2])
+        road: dict[str, np.ndarray] = {}
+        if road_coordinates and len(ids):
+            s, n = self.road.to_frenet(xy)
+            s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
+            along = s if self.road.closed else np.clip(s, 0.0, self.road.length)
+            theta = self.road.heading(along)
+            kappa = self.road.curvature(along)
+            xi = wrap_angle(yaw - theta)
+            s_dot = cols[3] * np.cos(xi) / np.maximum(1.0 - kappa * n, 1e-6)
+            road = {"s": s, "n": n, "xi": xi, "xi_dot": cols[4] - kappa * s_dot}
+        return Snapshot(
+            t=self.t,
+            ego=EgoPose(x=ego[0], y=ego[1], yaw=float(wrap_angle(ego[2])), v=ego[3], yaw_rate=ego[4],
+                        length=self._ego.length, width=self._ego.width),
+            ids=np.array(ids, dtype=int), xy=xy, yaw=yaw, v=cols[3], yaw_rate=cols[4], length=cols[5],
+            width=cols[6], height=cols[7], **road,
+        )
+
+
+__all__ = ["EGO_RANGE", "ReplayWorld", "load_recording", "replay_ego", "replay_road"]
