@@ -203,11 +203,10 @@ def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
     file or shipped suite name. Unknown names raise ``UsageError`` listing the choices."""
     from pathlib import Path
 
-    from sim.world.scenario import SCENARIO_DIR, ScenarioError, is_suite_file, load_scenario, load_suite
+    from sim.world.scenario import ScenarioError, is_suite_file, load_scenario, load_suite, shipped_scenario
 
     path = Path(name)
-    candidates = [path] if path.exists() else [SCENARIO_DIR / (path.name if path.suffix == ".toml" else f"{path.name}.toml")]
-    found = next((p for p in candidates if p.exists()), None)
+    found = path if path.exists() else shipped_scenario(name)
     scenarios, suites = _shipped()
     if found is None:
         what = "scenario or suite" if allow_suite else "scenario"

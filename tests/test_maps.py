@@ -376,3 +376,18 @@ def test_missing_map_library_is_one_line(monkeypatch, tmp_path):
         read_map(target)
     assert _one_line(err) == "reading CommonRoad maps needs commonroad-io: pip install 'frenet-eot[maps]'"
 
+
+
+def test_route_onward_and_behind():
+    """``onward`` goes on past the goal's lanelet, ``behind`` begins before the start's (the road a sensor
+    at either end still sees): US-101-4's right lane is lanelet 2 (91 m) then lanelet 4 (31 m)."""
+    graph = graph_of(US101_4)
+    start_in_4, goal_in_4 = (28.87, -26.28, -0.72), (36.5, -32.94)
+    assert route_lanelets(graph, start_in_4, goal_in_4) == [4]
+    assert route_lanelets(graph, start_in_4, goal_in_4, behind=50.0) == [2, 4]
+    centre = graph.lanelet(2).center
+    start_in_2, goal_in_2 = (*centre[1], -0.75), tuple(centre[len(centre) // 2])
+    assert route_lanelets(graph, start_in_2, goal_in_2) == [2]
+    assert route_lanelets(graph, start_in_2, goal_in_2, onward=10.0) == [2, 4]
+    road = route_road(graph, start_in_4, goal_in_4, onward=100.0, behind=100.0)  # the whole map: 91 + 31 m
+    assert 118.0 < road.length < 126.0

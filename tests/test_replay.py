@@ -33,11 +33,17 @@ def test_truth_follows_the_recording_and_the_road():
     snap = world.truth_at(2.05)  # between two samples
     x, y, _, v, _ = ego.state_at(ego.start + 2.05)
     assert (snap.ego.x, snap.ego.y, snap.ego.v) == pytest.approx((x, y, v))
-    assert world.ego_id not in snap.ids and len(snap) == sum(
-        1 for car in recording if car.id != world.ego_id and car.state_at(ego.start + 2.05) is not None)
+    when = ego.start + 2.05
+    recorded = {car.id for car in recording if car.id != world.ego_id and car.state_at(when) is not None}
+    assert world.ego_id not in snap.ids and recorded <= set(snap.ids.tolist())
     for row, vid in enumerate(snap.ids):
         car = recording.vehicle(int(vid))
-        state = car.state_at(ego.start + 2.05)
+        state = car.state_at(when)
+        if state is None:  # its recording ended on the road: carried on at its last speed and heading
+            assert car.end < when
+            gone = when - car.end
+            state = car.xy[-1] + car.v[-1] * gone * np.array([math.cos(car.yaw[-1]), math.sin(car.yaw[-1])])
+            assert world.road.on_road(state[None])[0]
         assert snap.xy[row] == pytest.approx(state[:2])
         assert (snap.length[row], snap.width[row]) == (car.length, car.width)
     # road coordinates are the road's own conversion, and the heading relative to the road is small on a freeway
@@ -51,6 +57,11 @@ def test_truth_follows_the_recording_and_the_road():
     right, left = world.road.edges(np.asarray(es).reshape(-1))
     assert right[0] < float(np.asarray(en).reshape(-1)[0]) < left[0]
     assert np.isnan(world.poses_at(2.05).s).all()
+    # late in the run vehicles whose recording ended are carried on, as long as they are on the road
+    late = world.truth_at(7.9)
+    carried = [vid for vid in late.ids if recording.vehicle(int(vid)).end < ego.start + 7.9]
+    assert carried and world.info()["replay_carried_on"] >= len(carried)
+    assert world.road.on_road(late.xy[np.isin(late.ids, carried)]).all()
 
 
 def test_smoothed_and_raw_truth():

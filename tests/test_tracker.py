@@ -1386,3 +1386,20 @@ def test_an_oncoming_car_on_a_two_way_curve_is_tracked_with_its_own_heading(rada
     assert np.degrees(np.sqrt(np.mean(np.square(yaw_err)))) < 2.0
     assert np.sqrt(np.mean(np.square(speed_err))) < 0.5
     assert tracker.stats["label_splits"] == 0
+
+
+def test_a_car_driving_past_an_open_roads_end_is_no_longer_tracked_there():
+    """Only objects on the road are tracked: past an open road's end (by ``ReductionConfig.road_margin``)
+    a track is dropped, as it is past an edge, instead of coasting on beyond the mapped road. The scene
+    goes on for 200 m; the tracker's road is its first 100 m."""
+    road = Road.from_curvature([(100.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    scene = Scene(Road.from_curvature([(200.0, 0.0, 0.0)], lanes=2, lane_width=3.5), Car(20.0, -1.75, 5.0),
+                  [Car(70.0, 1.75, 10.0)])  # 10 m/s ahead of the ego's 5 m/s: its centre passes s = 100 m at t = 3 s
+    tracker = Tracker(road, TrackerConfig())
+    rng = np.random.default_rng(0)
+    frames = [tracker.step(scene.frame(k * DT, rng)) for k in range(51)]
+    margin = TrackerConfig().reduction.road_margin
+    assert all(len(f) == 1 for f in frames[5:25])  # tracked while on the road
+    for k, tracks in enumerate(frames):
+        assert all(tr.mean[0] <= road.length + margin for tr in tracks), f"a track beyond the road's end at t = {k * DT:.1f} s"
+    assert frames[-1] == [] and tracker.stats["components_off_road"] > 0

@@ -690,7 +690,8 @@ class Tracker:
     def _reduce(self, ego: EgoState) -> None:
         """Targets that left the field of view (the range of the rectangle's nearest corner beyond the
         lidar's range and ``fov_margin``) or the road (the centre's lateral offset beyond an edge by
-        ``road_margin``: only objects on the road are tracked, the paper) are no longer tracked; the
+        ``road_margin``, or past an open road's end by as much: only objects on the road are tracked, the
+        paper) are no longer tracked; the
         rest is pruned, merged and capped (``reduction.reduce_in_view``), ``s`` taken modulo a closed
         road's length; then ``_drop_inside_updated`` and ``absorb_overlapping``."""
         red = self.config.reduction
@@ -743,13 +744,17 @@ class Tracker:
 
     def _lateral(self, means: np.ndarray, margin: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """Lateral road offset ``n`` (m) of state means (projected for the Cartesian state), and the road's
-        edges at their ``s`` widened by ``margin`` (m): ``(n, (right - margin, left + margin))``."""
+        edges at their ``s`` widened by ``margin`` (m): ``(n, (right - margin, left + margin))``; on an open
+        road, none (an empty interval) beyond its ends widened by ``margin``."""
         if not self.cartesian:
             s, n = means[:, 0], means[:, 1]
         else:
             s, n = self.road.to_frenet(means[:, :2])
             s, n = np.asarray(s).reshape(-1), np.asarray(n).reshape(-1)
         right, left = self.road.edges(s)
+        if not self.road.closed:  # past an open road's ends is off the road too: no edges there
+            beyond = (s < -margin) | (s > self.road.length + margin)
+            right, left = np.where(beyond, np.inf, right), np.where(beyond, -np.inf, left)
         return n, (right - margin, left + margin)
 
     def _extract(self, t: float, ego: EgoState) -> list[Track]:

@@ -4,13 +4,18 @@
 the way ``sim.world.world.World`` serves simulated traffic: ``truth_at(t)`` and ``poses_at(t)`` give a
 ``Snapshot`` at any time ``t`` (s) of the run, ``road`` is the scenario's road. The run's time 0 is the
 ego's first sample; each vehicle is present between its first and last sample and linear between
-samples (``RecordedVehicle.state_at``; the samples are 0.1 s apart in the CommonRoad recordings). The
+samples (``RecordedVehicle.state_at``; the samples are 0.1 s apart in the CommonRoad recordings).
+A vehicle whose recording ends while it is on the road (it drove out of the recorded area, which ends
+before the lane map does, but not out of the world) is carried on at its last speed and heading until its
+centre leaves the road (``MAX_CARRY`` at most): it does not vanish in front of the sensors (``info``
+counts these vehicles). The
 ego is one of the recorded vehicles (``ReplaySpec.ego``, default ``Recording.pick_ego`` with
 ``EGO_RANGE``); it is not among the snapshot's vehicles. Recorded vehicles do not react to anything.
 
 The truth is the smoothed recording by default (``sim.world.smoothing``; ``truth = "raw"`` keeps the
 recorded samples). The road is the route through the recording's lane map from the ego's first pose
-to its last position (``tracker.maps.route_road``). The seed does not change the traffic (it is
+to its last position, extended by ``EGO_RANGE`` ahead and behind where the map goes on
+(``tracker.maps.route_road`` with ``onward`` and ``behind``): the road the ego's sensors see. The seed does not change the traffic (it is
 recorded); it seeds the sensors as in every run.
 """
 
@@ -23,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sim.world.recording import Recording, read_commonroad_recording
+from sim.world.recording import RecordedVehicle, Recording, read_commonroad_recording
 from sim.world.smoothing import SmoothingReport, smooth_recording
 from sim.world.truth import CLASS_HEIGHTS, EgoPose, Snapshot, default_height
 from tracker import Road
@@ -36,6 +41,10 @@ if TYPE_CHECKING:
 EGO_RANGE = 100.0
 #: Slack (s) on the ends of a vehicle's samples.
 TIME_TOLERANCE = 1e-6
+#: Longest time (s) a vehicle whose recording ends on the road is carried on (``ReplayWorld``).
+MAX_CARRY = 20.0
+#: Step (s) of the search for where a carried-on vehicle leaves the road.
+CARRY_STEP = 0.1
 
 
 @functools.lru_cache(maxsize=16)
@@ -70,7 +79,7 @@ def replay_road(path: str, truth: str, ego: int) -> Road:
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < 1.0:
         goal = None  # a standing ego: the route goes on from its pose
     try:
-        return route_road(read_map(recording.map_file or path), start, goal)
+        return route_road(read_map(recording.map_file or path), start, goal, onward=EGO_RANGE, behind=EGO_RANGE)
     except ValueError as exc:
         raise ValueError(f"{Path(path).name}: no road along ego {ego}'s route: {exc}") from None
 
@@ -96,7 +105,27 @@ class ReplayWorld:
         self.t0 = ego.start
         self._others = [v for v in self.recording.vehicles if v.id != self.ego_id]
         self._heights = {v.id: float(CLASS_HEIGHTS.get(v.kind, default_height(v.length))) for v in self._others}
+        self._carry_until = {v.id: self._leaves_road(v) for v in self._others if v.end < self.t0 + self.duration}
         self.t = 0.0
+
+    def _carried(self, v: RecordedVehicle, when: float) -> tuple[float, float, float, float, float]:
+        """``v`` carried on from its last sample to time ``when`` (s): its last speed along its last heading."""
+        dt = when - v.end
+        yaw, speed = float(v.yaw[-1]), float(v.v[-1])
+        return (float(v.xy[-1, 0]) + speed * math.cos(yaw) * dt, float(v.xy[-1, 1]) + speed * math.sin(yaw) * dt,
+                yaw, speed, 0.0)
+
+    def _leaves_road(self, v: RecordedVehicle) -> float:
+        """The recording time (s) until which ``v`` is carried on after its last sample: when its centre
+        leaves the road (between the edges, ``0 <= s <= length`` on an open road), at most ``MAX_CARRY``."""
+        if not bool(self.road.on_road(v.xy[-1:])[0]):
+            return v.end  # it left the road before its recording ended
+        times = v.end + CARRY_STEP * np.arange(1, int(round(MAX_CARRY / CARRY_STEP)) + 1)
+        on = self.road.on_road(np.array([self._carried(v, t)[:2] for t in times]))
+        off = np.flatnonzero(~on)
+        if not off.size:
+            return float(times[-1])
+        return float(times[off[0] - 1]) if off[0] > 0 else v.end
 
     @property
     def duration(self) -> float:
@@ -106,10 +135,12 @@ class ReplayWorld:
     def info(self) -> dict[str, Any]:
         """What a run reports of the replay (``metrics.json``): ``replay_recording`` (name), ``replay_ego``
         (id), ``replay_truth`` ("smoothed" or "raw"), ``replay_vehicles`` (recorded vehicles besides the
-        ego) and, for smoothed truth, ``replay_widths_bounded`` and ``replay_position_change_rms_m``
+        ego), ``replay_carried_on`` (of them, those carried on after their recording ends) and, for smoothed truth, ``replay_widths_bounded`` and ``replay_position_change_rms_m``
         (``sim.world.smoothing.SmoothingReport``)."""
+        carried = sum(1 for v in self._others if self._carry_until.get(v.id, v.end) > v.end)
         out: dict[str, Any] = {"replay_recording": self.recording.name, "replay_ego": self.ego_id,
-                               "replay_truth": self.spec.replay.truth, "replay_vehicles": len(self._others)}
+                               "replay_truth": self.spec.replay.truth, "replay_vehicles": len(self._others),
+                               "replay_carried_on": carried}
         if self.smoothing is not None:
             out["replay_widths_bounded"] = self.smoothing.widths_bounded
             out["replay_position_change_rms_m"] = self.smoothing.position_change_rms_m
@@ -133,6 +164,8 @@ class ReplayWorld:
         rows, ids = [], []
         for v in self._others:
             state = v.state_at(when)
+            if state is None and v.end < when <= self._carry_until.get(v.id, v.end):
+                state = self._carried(v, when)
             if state is not None:
                 rows.append((*state, v.length, v.width, self._heights[v.id]))
                 ids.append(v.id)

@@ -1023,10 +1023,22 @@ def resolve_scenario_path(path: str | Path) -> Path:
     p = Path(path)
     if p.exists():
         return p
-    candidate = SCENARIO_DIR / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
-    if candidate.exists():
-        return candidate
-    raise ScenarioError(f"{path}: no such scenario file (nor {candidate})")
+    found = shipped_scenario(path)
+    if found is None:
+        raise ScenarioError(f"{path}: no such scenario file (nor a shipped scenario of that name in {SCENARIO_DIR})")
+    return found
+
+
+def shipped_scenario(name: str | Path) -> Path | None:
+    """The shipped scenario or suite file ``name`` names (``None``: none): ``scenarios/NAME.toml``, a path
+    inside ``scenarios/`` (``real/real-us101-3``), or a file of that name one folder down
+    (``real-us101-3`` -> ``scenarios/real/real-us101-3.toml``)."""
+    p = Path(name)
+    rel = p if p.suffix == ".toml" else p.with_name(f"{p.name}.toml")
+    for candidate in (SCENARIO_DIR / rel.name, SCENARIO_DIR / rel, *sorted(SCENARIO_DIR.glob(f"*/{rel.name}"))):
+        if candidate.is_file():
+            return candidate
+    return None
 
 
 def load_scenario(path: str | Path) -> ScenarioSpec:

@@ -150,6 +150,30 @@ def _straightest(graph: LaneGraph, first: int, max_length: float) -> list[int]:
     return route
 
 
+def _straightest_back(graph: LaneGraph, first: int, length: float) -> list[int]:
+    """Lanelets before ``first`` along the straightest predecessors, for ``length`` m or to the start of
+    the map (nearest last; ``first`` not included)."""
+    back: list[int] = []
+    covered, current = 0.0, first
+    while covered < length:
+        ll = graph.lanelet(current)
+        options = [p for p in ll.predecessors if p not in back and p != first]
+        if not options:
+            break
+        start = ll.center[1] - ll.center[0]
+        heading = np.arctan2(start[1], start[0])
+
+        def turn(pid: int) -> float:
+            c = graph.lanelet(pid).center
+            d = c[-1] - c[0]
+            return abs(float(np.angle(np.exp(1j * (np.arctan2(d[1], d[0]) - heading)))))
+
+        current = min(options, key=turn)
+        back.append(current)
+        covered += graph.lanelet(current).length
+    return back[::-1]
+
+
 def route_lanelets(
     graph: LaneGraph,
     start: Sequence[float],
@@ -157,11 +181,23 @@ def route_lanelets(
     *,
     via: Sequence[Sequence[float]] | None = None,
     max_length: float = MAX_ROUTE_LENGTH,
+    onward: float = 0.0,
+    behind: float = 0.0,
 ) -> list[int]:
     """Ids of the lanelets a vehicle drives from ``start`` = (x m, y m, yaw rad) through the ``via``
     points (x, y) m to ``goal`` (x, y) m; without goal and via, the straightest way on until the
-    map ends or ``max_length`` m."""
+    map ends or ``max_length`` m. ``onward`` (m, default 0): after the last point, on along the
+    straightest way for that far beyond the end of its lanelet, or to the end of the map (the road a
+    sensor at the goal still sees ahead). ``behind`` (m, default 0): the route begins that far before
+    the start of ``start``'s lanelet, along the straightest predecessors where the map has them (the
+    road a sensor at the start sees behind it)."""
     first = _start_lanelet(graph, start)
+    before = _straightest_back(graph, first, behind) if behind > 0.0 else []
+    return before + _route_from(graph, first, goal, via, max_length, onward)
+
+
+def _route_from(graph: LaneGraph, first: int, goal: Sequence[float] | None, via: Sequence[Sequence[float]] | None,
+                max_length: float, onward: float) -> list[int]:
     points = [tuple(p) for p in (via or ())] + ([tuple(goal)] if goal is not None else [])
     if not points:
         return _straightest(graph, first, max_length)
@@ -178,6 +214,8 @@ def route_lanelets(
         leg = _shortest(graph, matrix, sources, targets, f"the point ({x:.2f}, {y:.2f}) m")
         route.extend(leg if not route else leg[1:])
         sources = [route[-1]]
+    if onward > 0.0:
+        route.extend(_straightest(graph, route[-1], graph.lanelet(route[-1]).length + onward)[1:])
     return route
 
 
@@ -294,10 +332,13 @@ def route_corridor(
     smoothing: float = CENTERLINE_SMOOTHING,
     station_spacing: float = STATION_SPACING,
     max_length: float = MAX_ROUTE_LENGTH,
+    onward: float = 0.0,
+    behind: float = 0.0,
 ) -> Corridor:
     """The corridor of the route from ``start`` (x m, y m, yaw rad) to ``goal`` (x, y) m through
-    ``via`` (see ``route_lanelets``), or of the given lanelet ids ``route``."""
-    ids = list(route) if route is not None else route_lanelets(graph, start, goal, via=via, max_length=max_length)
+    ``via``, with ``onward`` and ``behind`` (see ``route_lanelets``), or of the given lanelet ids ``route``."""
+    ids = list(route) if route is not None else route_lanelets(graph, start, goal, via=via, max_length=max_length,
+                                                               onward=onward, behind=behind)
     for a, b in zip(ids[:-1], ids[1:]):
         if b not in graph.lanelet(a).successors and not _is_lateral(graph, a, b):
             raise ValueError(f"{graph.source}: lanelet {b} neither succeeds lanelet {a} nor lies beside it")
