@@ -1,7 +1,8 @@
 """frenet-eot simulation testbed: scenarios, traffic, sensors, evaluation, CLI.
 
-``sim`` imports ``tracker``; ``tracker`` never imports ``sim``. ``sim.run_scenario`` (and
-``sim.Result``) are imported on first use, so ``import sim`` stays light; it does register the
+``sim`` imports ``tracker``; ``tracker`` never imports ``sim``. ``sim.run_scenario``,
+``sim.run_recording`` (recorded traffic: ``sim.Recording``, ``sim.RecordedVehicle``,
+``sim.read_commonroad_recording``) and ``sim.Result`` are imported on first use, so ``import sim`` stays light; it does register the
 gymnasium environment ``eot/TrackedRoad-v0`` (``sim.env``, imported when the env is made).
 """
 
@@ -26,12 +27,17 @@ def _register_env() -> None:
 
 _register_env()
 
-__all__ = ["ENV_ID", "ENV_MAX_EPISODE_STEPS", "Result", "ScenarioError", "ScenarioSpec", "load_scenario", "load_suite", "run_scenario"]
+__all__ = ["ENV_ID", "ENV_MAX_EPISODE_STEPS", "RecordedVehicle", "Recording", "Result", "ScenarioError", "ScenarioSpec",
+           "load_scenario", "load_suite", "read_commonroad_recording", "run_recording", "run_scenario"]
 
 
 def __getattr__(name: str) -> Any:
-    if name in ("run_scenario", "Result"):
+    if name in ("run_scenario", "run_recording", "Result"):
         from sim.evaluation import runner
 
         return getattr(runner, name)
+    if name in ("Recording", "RecordedVehicle", "read_commonroad_recording"):
+        from sim.world import recording
+
+        return getattr(recording, name)
     raise AttributeError(f"module 'sim' has no attribute {name!r}")

@@ -26,7 +26,7 @@ def _spec(path=US101_1, **replay):
 
 def test_truth_follows_the_recording_and_the_road():
     spec = _spec(US101_3)
-    world = ReplayWorld(spec, seed=3)
+    world = ReplayWorld.from_spec(spec, seed=3)
     recording, _ = load_recording(str(US101_3))
     ego = recording.vehicle(world.ego_id)
     assert spec.duration == pytest.approx(ego.end - ego.start) == pytest.approx(8.0)
@@ -70,7 +70,7 @@ def test_smoothed_and_raw_truth():
     assert none is None and report.widths_bounded > 0 and 0.0 < report.position_change_rms_m < 0.3
     assert max(v.width for v in smoothed if v.length <= 6.0) <= 2.1 < max(v.width for v in raw if v.length <= 6.0)
     assert report.smoothed_accel_max < 5.0 < report.raw_accel_max
-    world = ReplayWorld(_spec(US101_3, truth="raw"))
+    world = ReplayWorld.from_spec(_spec(US101_3, truth="raw"))
     assert world.info()["replay_truth"] == "raw" and "replay_widths_bounded" not in world.info()
 
 
@@ -128,3 +128,24 @@ def test_cli_replay(tmp_path, capsys):
     assert err[0] == f"eot replay: no such recording {tmp_path / 'absent.xml'}"
     assert err[1] == "eot replay: README.md: a recording is a CommonRoad scenario file (.xml or .xml.gz)"
     assert math.isfinite(metrics["gospa_mean"])
+
+
+def test_run_recording_from_python():
+    """A recording built in code (any source) on the user's road: the car ahead is tracked where it is."""
+    import sim
+    from tracker import Road
+
+    t = np.round(np.arange(0.0, 5.01, 0.1), 6)
+    ego = sim.RecordedVehicle(1, t, np.column_stack([10 * t, 0 * t]), 0 * t, np.full(t.shape, 10.0), 4.6, 1.9)
+    car = sim.RecordedVehicle(2, t, np.column_stack([20 + 12 * t, 3.5 + 0 * t]), 0 * t, np.full(t.shape, 12.0), 4.4, 1.8)
+    recording = sim.Recording("mine", (ego, car))
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], start=(-50.0, 0.0, 0.0), lanes=3, lane_width=3.5, right_edge=-5.25)
+    result = sim.run_recording(recording, road, ego=1, seed=2)
+    m = result.metrics
+    assert m["frames"] == 51 and m["replay_ego"] == 1 and m["replay_truth"] == "smoothed" and m["replay_carried_on"] == 0
+    assert m["truth_count_mean"] == 1.0 and m["pos_rmse_m"] < 0.2 and m["id_switches"] == 0
+    assert abs(m["length_rmse_m"]) < 0.5
+    with pytest.raises(ValueError, match=r"recording 'mine' has no lane map \(map_file\); give its road"):
+        sim.run_recording(recording, ego=1)
+    with pytest.raises(ValueError, match="needs a sim.world.recording.Recording"):
+        sim.run_recording("recording.xml")

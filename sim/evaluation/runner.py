@@ -80,6 +80,7 @@ from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
 from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.world.ground import Ground
+from sim.world.recording import Recording
 from sim.world.replay import ReplayWorld
 from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
 from sim.world.truth import Snapshot
@@ -520,6 +521,7 @@ def run_scenario(
     progress: Callable[[int, int], None] | None = None,
     tracker_factory: TrackerFactory | None = None,
     lidar_model: str | None = None,
+    world: World | ReplayWorld | None = None,
 ) -> Result:
     """Run ``spec`` with ``seed`` through the tracker of ``variant`` and score it (module docstring).
 
@@ -529,7 +531,8 @@ def run_scenario(
     ``progress(done, total)`` is called with ``done = 0`` first, then after every frame;
     ``tracker_factory(road, config)`` builds the tracker (default: the variant's own factory,
     ``sim.evaluation.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or
-    ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``. Raises ``ValueError`` (``UnknownVariantError``,
+    ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``; ``world`` a world built already (its road
+and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
         raise ValueError(f"run_scenario needs a sim.world.scenario.ScenarioSpec; got {type(spec).__name__}")
@@ -551,8 +554,9 @@ def run_scenario(
     check_scenario_settings(spec, variant)
     rig_cfg, clutter_cfg = rig_config_for(spec)  # the file's overrides; errors name the file
     config = tracker_config_for(spec, variant, rig_cfg)
-    world = ReplayWorld(spec, seed) if spec.replay is not None else World(spec, seed)
-    spec = world.spec  # the realised scenario when a generator drew it
+    if world is None:
+        world = ReplayWorld.from_spec(spec, seed) if spec.replay is not None else World(spec, seed)
+    spec = world.spec or spec  # the realised scenario when a generator drew it
     road = world.road
     rig = build_rig(rig_cfg, clutter_cfg, road, seed, roadside, world.ground)
     objects = rig.roadside
@@ -659,6 +663,45 @@ def run_scenario(
     )
 
 
+def run_recording(
+    recording: Recording,
+    road: Road | None = None,
+    *,
+    ego: int | None = None,
+    smooth: bool = True,
+    seed: int = 0,
+    variant: str = DEFAULT_VARIANT,
+    sensors: dict[str, Any] | None = None,
+    tracker: dict[str, Any] | None = None,
+    **options: Any,
+) -> Result:
+    """Run the sensors, the tracker of ``variant`` and the scoring on recorded traffic: ``recording`` (a
+    ``sim.world.recording.Recording``, from any source) on ``road`` (default: the route of the ego through
+    the recording's lane map, ``sim.world.replay.route_of``), the vehicle ``ego`` carrying the sensors
+    (default: the rule of ``Recording.pick_ego``), smoothed first (``smooth``; ``sim.world.smoothing``).
+    ``sensors`` and ``tracker`` are a scenario's ``[sensors]`` and ``[tracker]`` override tables; the
+    other keywords are ``run_scenario``'s (``duration``, ``roadside``, ``lidar_model``, ...). The result's
+    metrics are ``run_scenario``'s plus the replay's (``ReplayWorld.info``)."""
+    from sim.world.replay import replay_ego, route_of
+    from sim.world.smoothing import smooth_recording
+
+    if not isinstance(recording, Recording):
+        raise ValueError(f"run_recording needs a sim.world.recording.Recording; got {type(recording).__name__}")
+    report = None
+    if smooth:
+        recording, report = smooth_recording(recording)
+    ego_id = replay_ego(recording, ego)
+    if road is None:
+        road = route_of(recording, ego_id)
+    world = ReplayWorld(recording, road, ego_id, truth="smoothed" if smooth else "raw", smoothing=report, seed=seed)
+    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in recording.name).lstrip("-_")[:64] or "recording"
+    spec = ScenarioSpec.model_construct(name=name, description=f"replay of {recording.name}",
+                                        duration=float(world.duration), sensors=dict(sensors or {}),
+                                        tracker=dict(tracker or {}))
+    spec._road = road
+    return run_scenario(spec, seed, variant, world=world, **options)
+
+
 def _plain(value: Any) -> Any:
     """``value`` with numpy scalars/arrays turned into JSON-serialisable Python values."""
     if isinstance(value, dict):
@@ -688,6 +731,7 @@ __all__ = [
     "default_tracker_factory",
     "normalize_tracker_events",
     "rig_config_for",
+    "run_recording",
     "run_scenario",
     "summarize",
     "tracker_config_for",

@@ -70,43 +70,64 @@ def replay_ego(recording: Recording, ego: int | None) -> int:
 @functools.lru_cache(maxsize=16)
 def replay_road(path: str, truth: str, ego: int) -> Road:
     """The road of the ego's route through the recording's lane map (module docstring)."""
+    recording, _ = load_recording(path, truth)
+    return route_of(recording, ego, path)
+
+
+def route_of(recording: Recording, ego: int, name: str = "") -> Road:
+    """The road of vehicle ``ego``'s route through ``recording.map_file`` (module docstring); ``ValueError``
+    naming the recording when it has no lane map or the route cannot be built."""
     from tracker.maps import read_map, route_road
 
-    recording, _ = load_recording(path, truth)
+    path = recording.map_file
+    if path is None:
+        raise ValueError(f"recording {recording.name!r} has no lane map (map_file); give its road")
     car = recording.vehicle(ego)
     start = (float(car.xy[0, 0]), float(car.xy[0, 1]), float(car.yaw[0]))
     goal = (float(car.xy[-1, 0]), float(car.xy[-1, 1]))
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < 1.0:
         goal = None  # a standing ego: the route goes on from its pose
     try:
-        return route_road(read_map(recording.map_file or path), start, goal, onward=EGO_RANGE, behind=EGO_RANGE)
+        return route_road(read_map(path), start, goal, onward=EGO_RANGE, behind=EGO_RANGE)
     except ValueError as exc:
-        raise ValueError(f"{Path(path).name}: no road along ego {ego}'s route: {exc}") from None
+        raise ValueError(f"{Path(name or path).name}: no road along ego {ego}'s route: {exc}") from None
 
 
 class ReplayWorld:
-    """Recorded traffic as a world (module docstring). ``spec`` has a ``replay`` table; ``seed`` is kept
-    (the traffic does not depend on it)."""
+    """Recorded traffic as a world (module docstring): ``recording`` as the sensors are to see it (already
+    smoothed or not; ``truth`` says which, ``smoothing`` what smoothing changed), on ``road``, with the
+    vehicle ``ego`` (default: ``replay_ego``'s rule) carrying the sensors. ``from_spec`` builds it for a
+    scenario with a ``[replay]`` table; ``spec`` is that scenario (``None`` when built from a recording
+    in code, ``sim.evaluation.runner.run_recording``)."""
 
-    def __init__(self, spec: ScenarioSpec, seed: int = 0) -> None:
-        if spec.replay is None:
-            raise ValueError(f"ReplayWorld needs a scenario with a [replay] table; {spec.name!r} has none")
-        replay = spec.replay
+    def __init__(self, recording: Recording, road: Road, ego: int | None = None, *, truth: str = "raw",
+                 smoothing: SmoothingReport | None = None, spec: ScenarioSpec | None = None, seed: int = 0) -> None:
+        if truth not in ("smoothed", "raw"):
+            raise ValueError(f"truth must be 'smoothed' or 'raw'; got {truth!r}")
         self.spec = spec
         self.seed = int(seed)
-        self.recording, self.smoothing = load_recording(replay.file, replay.truth)
-        self.ego_id = replay_ego(self.recording, replay.ego)
-        self.road = spec.build_road()
+        self.recording, self.smoothing, self.truth = recording, smoothing, truth
+        self.ego_id = replay_ego(recording, ego)
+        self.road = road
         self.ground = None
         self.removed: dict[int, float] = {}
         self.collisions: list[tuple[float, int, int]] = []
-        ego = self.recording.vehicle(self.ego_id)
-        self._ego = ego
-        self.t0 = ego.start
+        ego_car = self.recording.vehicle(self.ego_id)
+        self._ego = ego_car
+        self.t0 = ego_car.start
         self._others = [v for v in self.recording.vehicles if v.id != self.ego_id]
         self._heights = {v.id: float(CLASS_HEIGHTS.get(v.kind, default_height(v.length))) for v in self._others}
         self._carry_until = {v.id: self._leaves_road(v) for v in self._others if v.end < self.t0 + self.duration}
         self.t = 0.0
+
+    @classmethod
+    def from_spec(cls, spec: ScenarioSpec, seed: int = 0) -> ReplayWorld:
+        """The world of a scenario with a ``[replay]`` table (its recording read once per process)."""
+        if spec.replay is None:
+            raise ValueError(f"ReplayWorld needs a scenario with a [replay] table; {spec.name!r} has none")
+        replay = spec.replay
+        recording, smoothing = load_recording(replay.file, replay.truth)
+        return cls(recording, spec.build_road(), replay.ego, truth=replay.truth, smoothing=smoothing, spec=spec, seed=seed)
 
     def _carried(self, v: RecordedVehicle, when: float) -> tuple[float, float, float, float, float]:
         """``v`` carried on from its last sample to time ``when`` (s): its last speed along its last heading."""
@@ -139,7 +160,7 @@ class ReplayWorld:
         (``sim.world.smoothing.SmoothingReport``)."""
         carried = sum(1 for v in self._others if self._carry_until.get(v.id, v.end) > v.end)
         out: dict[str, Any] = {"replay_recording": self.recording.name, "replay_ego": self.ego_id,
-                               "replay_truth": self.spec.replay.truth, "replay_vehicles": len(self._others),
+                               "replay_truth": self.truth, "replay_vehicles": len(self._others),
                                "replay_carried_on": carried}
         if self.smoothing is not None:
             out["replay_widths_bounded"] = self.smoothing.widths_bounded
@@ -191,4 +212,4 @@ class ReplayWorld:
         )
 
 
-__all__ = ["EGO_RANGE", "ReplayWorld", "load_recording", "replay_ego", "replay_road"]
+__all__ = ["EGO_RANGE", "ReplayWorld", "load_recording", "replay_ego", "replay_road", "route_of"]
