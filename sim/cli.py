@@ -666,7 +666,8 @@ def _compare(args: argparse.Namespace) -> int:
         return 0
     variants = _check_variants(_split_variants(args.variants) if args.variants else list(STUDY_VARIANTS))
     _resolve_scenarios(args.suite, allow_suite=True)
-    for name, value, low in (("--runs", args.runs, 1), ("--workers", args.workers, 1), ("--hard-runs", args.hard_runs, 0)):
+    for name, value, low in (("--runs", args.runs, 1), ("--workers", args.workers, 1), ("--hard-runs", args.hard_runs, 0),
+                             ("--real-runs", args.real_runs, 0)):
         if value < low:
             raise UsageError(f"{name} must be >= {low}; got {value}")
     _check_backend(args)
@@ -676,7 +677,7 @@ def _compare(args: argparse.Namespace) -> int:
         raise UsageError(f"cannot write to the output folder {folder}: {exc.strerror or type(exc).__name__}") from None
     settings = CompareSettings(suite=args.suite, runs=args.runs, variants=tuple(variants), seed0=args.seed,
                                duration=args.duration, workers=args.workers, backend=args.backend, address=args.address,
-                               hard_runs=args.hard_runs)
+                               hard_runs=args.hard_runs, real_runs=args.real_runs)
     bars: list[ProgressBar] = []
 
     def progress(label: str, total: int) -> ProgressBar:
@@ -695,7 +696,8 @@ def _compare(args: argparse.Namespace) -> int:
                                      f"--workers {args.workers}", f"--backend {args.backend}", f"--out {shlex.quote(args.out)}",
                                      f"--variants {','.join(variants)}", f"--seed {args.seed}"]
                                     + ([f"--duration {args.duration:g}"] if args.duration is not None else [])
-                                    + ([f"--hard-runs {args.hard_runs}"] if args.hard_runs else []))
+                                    + ([f"--hard-runs {args.hard_runs}"] if args.hard_runs else [])
+                                    + ([f"--real-runs {args.real_runs}"] if args.real_runs else []))
     try:
         data.meta["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                                              cwd=Path(__file__).parent, timeout=10).stdout.strip() or None
@@ -831,6 +833,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run (quick checks)")
     p.add_argument("--hard-runs", type=int, default=0, help="also run the hard suite with this many seeds (default 0: no)")
+    p.add_argument("--real-runs", type=int, default=0,
+                   help="also run the real-traffic suite with this many seeds (default 0: no; needs .[maps])")
     p.add_argument("--report-only", action="store_true", help="rebuild REPORT.md from OUT/report/ without running")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_compare)

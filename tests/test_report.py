@@ -96,3 +96,31 @@ def test_seed_provenance_says_in_sample_or_held_out():
     text = seed_provenance(TUNING_SEEDS.stop - 3, 10)
     assert text.startswith("**in-sample**") and "3 of the 10 seeds" in text
     assert "20 of the 20 seeds" in seed_provenance(0, 20)
+
+
+def test_pooled_numbers_and_the_real_traffic_section():
+    """``pooled`` takes runs together as the hand computation does; the real-traffic section shows them
+    beside the simulated suite's."""
+    from sim.studies.report import pooled, render_report
+    from sim.studies.study import CompareData
+
+    def row(scenario, variant, seed, frames, gospa_seen, pos_seen, pairs, hidden, length, switches):
+        return {"scenario": scenario, "variant": variant, "seed": seed, "frames": frames, "gospa_seen_mean": gospa_seen,
+                "pos_rmse_seen_m": pos_seen, "matched_pairs": pairs, "matched_pairs_hidden": hidden, "length_rmse_m": length,
+                "width_rmse_m": 0.1, "yaw_rmse_deg": 1.0, "cardinality_error_seen_mean": 0.5, "id_switches": switches,
+                "tracker_ms_median": 2.0, "gospa_mean": gospa_seen}
+
+    real = [row("real-a", "curvilinear-fused", 0, 100, 2.0, 0.3, 50, 10, 1.0, 1),
+            row("real-b", "curvilinear-fused", 0, 300, 4.0, 0.6, 130, 10, 0.5, 3)]
+    p = pooled(real)
+    assert p["gospa_seen"] == pytest.approx((100 * 2.0 + 300 * 4.0) / 400)
+    assert p["pos_seen"] == pytest.approx(((40 * 0.3**2 + 120 * 0.6**2) / 160) ** 0.5)  # over the seen pairs
+    assert p["length"] == pytest.approx(((50 * 1.0 + 130 * 0.25) / 180) ** 0.5)
+    assert p["switches_per_1000"] == pytest.approx(10.0)
+    simulated = [row("curve-single", "curvilinear-fused", 0, 200, 0.1, 0.05, 200, 0, 0.1, 0)]
+    data = CompareData(simulated, [], [], {"settings": {"suite": "standard", "real_suite": "real", "real_runs": 1},
+                                           "variants": ["curvilinear-fused"]}, real)
+    text = render_report(data, [])
+    assert "## Real recorded traffic" in text and "| real-b | curvilinear-fused |" in text
+    assert "| standard | curvilinear-fused | 0.10 |" in text and "| real | curvilinear-fused | 3.50 |" in text
+    assert "## Real recorded traffic" not in render_report(CompareData(simulated, [], [], data.meta), [])

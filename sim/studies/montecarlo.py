@@ -113,6 +113,9 @@ def plan(
     if tracker_overrides:
         loaded = [(name, source, {**data, "tracker": merge_tables(data.get("tracker", {}), tracker_overrides)})
                   for name, source, data in loaded]
+    # a replay's duration is its recording's when the file gives none: every task carries its scenario's
+    loaded = [(name, source, data if "duration" in data else {**data, "duration": parse_scenario(data, source).duration})
+              for name, source, data in loaded]
     for name, source, data in loaded:  # bad [sensors] / [tracker] / [faults] settings: an error now, not in a worker
         spec = parse_scenario(data, source)
         if lidar_model is not None:

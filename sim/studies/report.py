@@ -301,22 +301,97 @@ def wall_time_table(rows: Sequence[dict[str, Any]], variants: Sequence[str]) -> 
     return "\n".join(out)
 
 
-def _hard_section(data: CompareData, variants: Sequence[str]) -> str:
-    if not data.hard_rows:
+def _suite_section(rows: Sequence[dict[str, Any]], title: str, what: str, metrics: Sequence[tuple[str, str]],
+                   variants: Sequence[str]) -> str:
+    """A per-scenario table (mean ± 95 % half-width) of ``metrics`` ((key, column title) pairs) over ``rows``."""
+    if not rows:
         return ""
-    metrics = (("gospa_mean", "GOSPA (m)"), ("pos_rmse_m", "pos. (m)"), ("yaw_rmse_deg", "yaw (deg)"),
-               ("length_rmse_m", "length (m)"), ("id_switches", "ID sw."))
-    tables = {m: interval_table(data.hard_rows, m) for m, _ in metrics}
-    runs = data.meta.get("settings", {}).get("hard_runs")
-    out = [f"## The hard suite\n\n{runs} runs per scenario and variant (`{data.meta.get('settings', {}).get('hard_suite')}`: "
-           "trucks, buses, motorcycles, emergency braking, stop-and-go, a standing vehicle, tight curves). "
-           "Mean ± 95 % half-width.\n",
+    tables = {m: interval_table(rows, m) for m, _ in metrics}
+    out = [f"## {title}\n\n{(what + ' ') if what else ''}Mean ± 95 % half-width.\n",
            "| scenario | variant | " + " | ".join(t for _, t in metrics) + " |", "|---|---|" + "---|" * len(metrics)]
-    for scenario in _scenarios(data.hard_rows):
+    for scenario in _scenarios(rows):
         for v in variants:
             cells = [_cell(tables[m].get((scenario, v), Interval(0, None, None, None))) for m, _ in metrics]
             out.append(f"| {scenario} | {v} | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
+
+
+def _hard_section(data: CompareData, variants: Sequence[str]) -> str:
+    settings = data.meta.get("settings", {})
+    metrics = (("gospa_mean", "GOSPA (m)"), ("pos_rmse_m", "pos. (m)"), ("yaw_rmse_deg", "yaw (deg)"),
+               ("length_rmse_m", "length (m)"), ("id_switches", "ID sw."))
+    return _suite_section(data.hard_rows, "The hard suite", f"{settings.get('hard_runs')} runs per scenario and variant "
+                          f"(`{settings.get('hard_suite')}`: trucks, buses, motorcycles, emergency braking, stop-and-go, "
+                          "a standing vehicle, tight curves).", metrics, variants)
+
+
+def pooled(rows: Sequence[dict[str, Any]]) -> dict[str, float | None]:
+    """Numbers of a set of runs taken together: frame-weighted means of ``gospa_seen_mean`` and
+    ``cardinality_error_seen_mean``, RMSEs over all their matched pairs (``pos_rmse_seen_m`` over the pairs
+    of visible vehicles; ``length_rmse_m``, ``width_rmse_m``, ``yaw_rmse_deg`` over all), ID switches per
+    1,000 frames and the median of the runs' median tracker ms per frame."""
+    def value(r: dict[str, Any], key: str) -> float:
+        v = r.get(key)
+        return float(v) if isinstance(v, (int, float)) and math.isfinite(float(v)) else float("nan")
+
+    frames = np.array([value(r, "frames") for r in rows])
+    pairs = np.array([value(r, "matched_pairs") for r in rows])
+    seen = pairs - np.nan_to_num(np.array([value(r, "matched_pairs_hidden") for r in rows]))
+
+    def mean(key: str) -> float | None:
+        v = np.array([value(r, key) for r in rows])
+        ok = np.isfinite(v) & (frames > 0)
+        return float(np.sum(v[ok] * frames[ok]) / np.sum(frames[ok])) if ok.any() else None
+
+    def rms(key: str, weight: np.ndarray) -> float | None:
+        v = np.array([value(r, key) for r in rows])
+        ok = np.isfinite(v) & (weight > 0)
+        return float(math.sqrt(np.sum(v[ok] ** 2 * weight[ok]) / np.sum(weight[ok]))) if ok.any() else None
+
+    total = float(np.nansum(frames))
+    ms = [value(r, "tracker_ms_median") for r in rows]
+    return {"gospa_seen": mean("gospa_seen_mean"), "pos_seen": rms("pos_rmse_seen_m", seen),
+            "yaw": rms("yaw_rmse_deg", pairs), "length": rms("length_rmse_m", pairs), "width": rms("width_rmse_m", pairs),
+            "card_seen": mean("cardinality_error_seen_mean"),
+            "switches_per_1000": 1000.0 * float(np.nansum([value(r, "id_switches") for r in rows])) / total if total else None,
+            "ms_median": float(np.nanmedian(ms)) if np.isfinite(ms).any() else None}
+
+
+def side_by_side_table(suites: Sequence[tuple[str, Sequence[dict[str, Any]]]], variants: Sequence[str]) -> str:
+    """One row per (suite, variant): the ``pooled`` numbers of its runs."""
+    cols = (("gospa_seen", "seen GOSPA (m)"), ("pos_seen", "pos., seen (m)"), ("yaw", "yaw (deg)"), ("length", "length (m)"),
+            ("width", "width (m)"), ("card_seen", "seen card. err."), ("switches_per_1000", "ID sw. / 1000 frames"),
+            ("ms_median", "tracker ms (median)"))
+    out = ["| suite | variant | " + " | ".join(t for _, t in cols) + " |", "|---|---|" + "---|" * len(cols)]
+    for name, rows in suites:
+        for v in variants:
+            mine = [r for r in rows if r.get("variant") == v]
+            if not mine:
+                continue
+            p = pooled(mine)
+            out.append(f"| {name} | {v} | " + " | ".join(fmt(p[k], 2) if p[k] is not None else "n/a" for k, _ in cols) + " |")
+    return "\n".join(out) + "\n"
+
+
+def _real_section(data: CompareData, variants: Sequence[str]) -> str:
+    settings = data.meta.get("settings", {})
+    if not data.real_rows:
+        return ""
+    metrics = (("gospa_seen_mean", "seen GOSPA (m)"), ("pos_rmse_seen_m", "pos. seen (m)"), ("length_rmse_m", "length (m)"),
+               ("width_rmse_m", "width (m)"), ("cardinality_error_seen_mean", "seen card. err."), ("id_switches", "ID sw."))
+    suites = [(settings.get("suite", "standard"), data.rows)]
+    if data.hard_rows:
+        suites.append((settings.get("hard_suite", "hard"), data.hard_rows))
+    suites.append((settings.get("real_suite", "real"), data.real_rows))
+    head = ("## Real recorded traffic\n\n"
+            f"{settings.get('real_runs')} runs per recording and variant (`{settings.get('real_suite')}`: NGSIM traffic "
+            "on its CommonRoad lane maps, US-101 freeway and Lankershim Boulevard, replayed through the simulated "
+            "sensors, smoothed truth; the seeds vary the sensor noise only). Side by side with the simulated suites, "
+            "every run of a suite taken together (means weighted by frames, RMSEs over all matched pairs; seen: the "
+            "vehicles the lidar sees, against the tracks not kept on hidden ones):\n\n"
+            + side_by_side_table(suites, variants) + "\n")
+    return head + _suite_section(data.real_rows, "Real recorded traffic, per recording", "Each recording's runs.", metrics,
+                                 variants)
 
 
 def _fmt_s(seconds: Any) -> str:
@@ -351,6 +426,7 @@ def render_report(data: CompareData, claims: Sequence[ClaimResult], figures_dir:
         f"{n_runs} runs; backend {settings.get('backend')}, {settings.get('workers')} worker(s)",
         f"- wall time: study {_fmt_s(meta.get('study_wall_s'))}, figure runs {_fmt_s(meta.get('figure_wall_s'))}"
         + (f", hard suite {_fmt_s(meta.get('hard_wall_s'))}" if meta.get("hard_wall_s") else "")
+        + (f", real-traffic suite {_fmt_s(meta.get('real_wall_s'))}" if meta.get("real_wall_s") else "")
         + f"; total {_fmt_s(meta.get('total_wall_s'))}",
         f"- variants: {', '.join(variants)}",
         f"- {seed_provenance(int(settings.get('seed0', 0)), int(settings.get('runs', 1)))}",
@@ -383,9 +459,9 @@ def render_report(data: CompareData, claims: Sequence[ClaimResult], figures_dir:
               f"Mean wall seconds of one run (world, sensors, tracker, scoring) with {settings.get('workers')} worker(s) "
               "sharing the machine; a study of R runs per scenario and variant on W workers takes about "
               "R x (sum over variants of the suite column) / W.", "", wall_time_table(data.rows, variants), ""]
-    hard = _hard_section(data, variants)
-    if hard:
-        lines += [hard]
+    for section in (_hard_section(data, variants), _real_section(data, variants)):
+        if section:
+            lines += [section]
     return "\n".join(lines).rstrip() + "\n"
 
 

@@ -6,8 +6,8 @@ here is skipped with its reason; any other failure to build a variant is an erro
 see the same simulated data for the same scenario and seed (the world, the sensors and the clutter
 are seeded by the seed alone), so differences between variants are *paired*: ``paired_difference``
 takes, per (scenario, seed), variant A's value minus variant B's and gives the mean and its 95 %
-Student t interval over the pairs (``mean_interval``). Optionally the hard suite runs too
-(``hard_runs`` seeds per scenario and variant).
+Student t interval over the pairs (``mean_interval``). Optionally the hard suite and the real-traffic suite run too
+(``hard_runs`` and ``real_runs`` seeds per scenario and variant).
 
 The figures need per-frame series of a few runs (``FIGURE_RUNS``: GOSPA and cardinality over time,
 fused vs lidar-only on curvy-multi; GOSPA and yaw, curvilinear vs Cartesian on curve-single; the
@@ -18,7 +18,7 @@ for the study's first seed (the paper's figures are single runs), in local proce
 the same runs as those of ``runs.csv`` for that seed (``run_compare`` checks the GOSPA mean).
 
 Files (``write_compare``, in ``OUT/report/``): ``runs.csv`` (the standard-suite rows, as
-``eot montecarlo`` writes them), ``hard_runs.csv`` (when the hard suite ran), ``series.csv`` and
+``eot montecarlo`` writes them), ``hard_runs.csv`` and ``real_runs.csv`` (when those suites ran), ``series.csv`` and
 ``study.json`` (settings, skipped variants with their reasons, wall times, the command line).
 ``read_compare`` reads them back, so the report can be rebuilt without rerunning (``--report-only``).
 """
@@ -229,8 +229,8 @@ def run_series(tasks: Sequence[SeriesTask], workers: int) -> list[tuple[list[dic
 # -- the study -------------------------------------------------------------------------------------
 @dataclass
 class CompareData:
-    """Everything the report needs: the standard-suite ``rows`` (runs.csv rows), the ``hard_rows``
-    (empty when the hard suite did not run), the figure ``series`` rows and ``meta`` (settings,
+    """Everything the report needs: the standard-suite ``rows`` (runs.csv rows), the ``hard_rows`` and
+    ``real_rows`` (empty when the hard or the real-traffic suite did not run), the figure ``series`` rows and ``meta`` (settings,
     ``variants`` run, ``skipped`` variant -> reason, ``curvature`` scenario -> max |kappa| 1/m, wall
     times s, command)."""
 
@@ -238,6 +238,7 @@ class CompareData:
     hard_rows: list[dict[str, Any]] = field(default_factory=list)
     series: list[dict[str, Any]] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    real_rows: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -245,7 +246,8 @@ class CompareSettings:
     """Settings of ``run_compare``: ``suite`` (name or file), ``runs`` (seeds per scenario and variant),
     ``variants`` (those asked for; unavailable ones are skipped), ``seed0`` (first seed), ``duration``
     (s per run; ``None``: each scenario's), ``workers``, ``backend`` (``local`` | ``ray``), ``address``
-    (Ray), ``hard_suite`` and ``hard_runs`` (0: no hard-suite section)."""
+    (Ray), ``hard_suite`` and ``hard_runs`` (0: no hard-suite section), ``real_suite`` and ``real_runs``
+    (0: no real-traffic section)."""
 
     suite: str = "standard"
     runs: int = 20
@@ -257,6 +259,8 @@ class CompareSettings:
     address: str | None = None
     hard_suite: str = "hard"
     hard_runs: int = 0
+    real_suite: str = "real"
+    real_runs: int = 0
 
 
 def split_available(variants: Sequence[str]) -> tuple[list[str], dict[str, str]]:
@@ -300,15 +304,17 @@ def run_compare(settings: CompareSettings, *, progress: Callable[[str, int], Pro
     study = run_study(tasks, workers=settings.workers, backend=settings.backend, address=settings.address,
                       progress=phase(f"{len(tasks)} runs ({settings.suite})", len(tasks)))
     meta["study_wall_s"] = study.wall_s
-    hard_rows: list[dict[str, Any]] = []
-    if settings.hard_runs > 0:
-        hard_paths = suite_paths(settings.hard_suite)
-        hard = plan(hard_paths, settings.hard_runs, variants, seed0=settings.seed0, duration=settings.duration)
-        result = run_study(hard, workers=settings.workers, backend=settings.backend, address=settings.address,
-                           progress=phase(f"{len(hard)} runs ({settings.hard_suite})", len(hard)))
-        hard_rows = result.rows
-        meta["hard_wall_s"] = result.wall_s
-        meta["hard_curvature"] = {load_scenario(p).name: max_curvature(p) for p in hard_paths}
+    extra: dict[str, list[dict[str, Any]]] = {"hard": [], "real": []}
+    for key, suite, runs in (("hard", settings.hard_suite, settings.hard_runs), ("real", settings.real_suite, settings.real_runs)):
+        if runs <= 0:
+            continue
+        extra_paths = suite_paths(suite)
+        extra_tasks = plan(extra_paths, runs, variants, seed0=settings.seed0, duration=settings.duration)
+        result = run_study(extra_tasks, workers=settings.workers, backend=settings.backend, address=settings.address,
+                           progress=phase(f"{len(extra_tasks)} runs ({suite})", len(extra_tasks)))
+        extra[key] = result.rows
+        meta[f"{key}_wall_s"] = result.wall_s
+        meta[f"{key}_curvature"] = {load_scenario(p).name: max_curvature(p) for p in extra_paths}
     series_tasks = figure_tasks(paths, variants, settings.seed0, settings.duration)
     t0 = time.perf_counter()
     bar = phase(f"{len(series_tasks)} figure runs", len(series_tasks))
@@ -319,7 +325,7 @@ def run_compare(settings: CompareSettings, *, progress: Callable[[str, int], Pro
     series = [row for rows, _ in outputs for row in rows]
     meta["figure_runs_match"] = _check_figure_runs(study.rows, series_tasks, outputs)
     meta["total_wall_s"] = time.perf_counter() - start
-    return CompareData(study.rows, hard_rows, series, meta)
+    return CompareData(study.rows, extra["hard"], series, meta, extra["real"])
 
 
 def _check_figure_runs(rows: list[dict[str, Any]], tasks: Sequence[SeriesTask],
@@ -374,15 +380,16 @@ def read_series(path: str | Path) -> list[dict[str, Any]]:
 
 
 def write_compare(data: CompareData, folder: str | Path) -> dict[str, Path]:
-    """Write runs.csv, hard_runs.csv (if any), series.csv and study.json into ``folder``."""
+    """Write runs.csv, hard_runs.csv and real_runs.csv (if any), series.csv and study.json into ``folder``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = {"runs": write_runs(data.rows, folder / "runs.csv"), "series": write_series(data.series, folder / "series.csv")}
-    hard = folder / "hard_runs.csv"
-    if data.hard_rows:
-        paths["hard_runs"] = write_runs(data.hard_rows, hard)
-    elif hard.exists():  # from an earlier study: it would describe other runs
-        hard.unlink()
+    for key, rows in (("hard_runs", data.hard_rows), ("real_runs", data.real_rows)):
+        path = folder / f"{key}.csv"
+        if rows:
+            paths[key] = write_runs(rows, path)
+        elif path.exists():  # from an earlier study: it would describe other runs
+            path.unlink()
     paths["study"] = folder / "study.json"
     paths["study"].write_text(json.dumps(data.meta, indent=2, default=str) + "\n", encoding="utf-8")
     return paths
@@ -394,12 +401,13 @@ def read_compare(folder: str | Path) -> CompareData:
     for name in ("runs.csv", "series.csv", "study.json"):
         if not (folder / name).exists():
             raise ValueError(f"{folder / name} is missing: run `eot compare` first (without --report-only)")
-    hard = folder / "hard_runs.csv"
+    hard, real = folder / "hard_runs.csv", folder / "real_runs.csv"
     return CompareData(
         read_runs(folder / "runs.csv"),
         read_runs(hard) if hard.exists() else [],
         read_series(folder / "series.csv"),
         json.loads((folder / "study.json").read_text(encoding="utf-8")),
+        read_runs(real) if real.exists() else [],
     )
 
 
