@@ -195,19 +195,10 @@ def read_commonroad_recording(path: str | Path) -> Recording:
     Raises ``FileNotFoundError`` for a missing file, ``ValueError`` (one line naming the file and the
     obstacle) for a broken one or a vehicle that is not a rectangle, ``ImportError`` without
     commonroad-io."""
-    from tracker.maps.commonroad import import_reader, quiet, uncompressed
+    from tracker.maps.commonroad import open_commonroad
 
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such recording")
-    reader = import_reader()
-    with uncompressed(path) as plain:
-        try:
-            with quiet():
-                scenario, _ = reader(str(plain)).open()
-        except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
-            first = str(err).splitlines()[0] if str(err) else ""
-            raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
+    scenario = open_commonroad(path, what="recording", lanelets_only=False)
     dt = float(scenario.dt)
     vehicles = []
     for ob in scenario.dynamic_obstacles:

@@ -127,6 +127,28 @@ def graph_from_lanelet_network(network, source: str = "map") -> LaneGraph:
     return LaneGraph([lanelet_from_commonroad(ll) for ll in network.lanelets], source=source)
 
 
+def open_commonroad(path: str | Path, *, what: str = "map file", lanelets_only: bool = True):
+    """commonroad-io's reading of the CommonRoad file ``path`` (``.xml`` or gzip-compressed ``.xml.gz``): its
+    ``LaneletNetwork`` (``lanelets_only``) or its whole ``Scenario``. Raises ``FileNotFoundError`` naming
+    ``what`` for a missing file, ``ValueError`` (one line naming the file, and for a map the broken
+    element where the standard library finds it) when commonroad-io cannot read it, ``ImportError``
+    without commonroad-io."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such {what}")
+    reader = import_reader()
+    with uncompressed(path) as plain:
+        try:
+            with quiet():  # notices on older formats
+                opened = reader(str(plain))
+                return opened.open_lanelet_network() if lanelets_only else opened.open()[0]
+        except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
+            if lanelets_only:
+                _precheck(plain, path.name)  # names the broken element when it finds one
+            first = str(err).splitlines()[0] if str(err) else ""
+            raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
+
+
 def read_commonroad(path: str | Path) -> LaneGraph:
     """The lane map of the CommonRoad file ``path`` (XML, formats 2018b-2020a and later; ``.xml.gz``:
     gzip-compressed).
@@ -134,16 +156,4 @@ def read_commonroad(path: str | Path) -> LaneGraph:
     Raises ``FileNotFoundError`` for a missing file and ``ValueError`` (one line naming the file and
     the element) for a broken one; ``ImportError`` without commonroad-io.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such map file")
-    reader = import_reader()
-    with uncompressed(path) as plain:
-        try:
-            with quiet():  # notices on older formats
-                network = reader(str(plain)).open_lanelet_network()
-        except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
-            _precheck(plain, path.name)  # names the broken element when it finds one
-            first = str(err).splitlines()[0] if str(err) else ""
-            raise ValueError(f"{path.name}: commonroad-io cannot read it ({type(err).__name__}: {first})") from None
-    return graph_from_lanelet_network(network, source=path.name)
+    return graph_from_lanelet_network(open_commonroad(path), source=Path(path).name)
