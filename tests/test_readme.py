@@ -122,3 +122,20 @@ if __name__ == "__main__":
     print(headline_table())
     print()
     print(speed_table())
+
+
+def test_readme_real_traffic_numbers_match_the_reference_outputs():
+    """The README's sentence on real recorded traffic quotes the committed real-suite runs, pooled as
+    REPORT.md pools them (``sim.studies.report.pooled``)."""
+    from sim.studies.montecarlo import read_runs
+    from sim.studies.report import pooled
+
+    text = " ".join(README.read_text().split())
+    real = pooled([r for r in read_runs(ROOT / "results/report/real_runs.csv") if r["variant"] == "curvilinear-fused"])
+    standard = pooled([r for r in read_runs(ROOT / "results/report/runs.csv") if r["variant"] == "curvilinear-fused"])
+    expected = (f"seen GOSPA is {real['gospa_seen']:.1f} m ({standard['gospa_seen']:.2f} m on the standard suite), its "
+                f"position error on seen vehicles {real['pos_seen']:.2f} m ({standard['pos_seen']:.2f} m), length "
+                f"{real['length']:.1f} m ({standard['length']:.2f} m), width {real['width']:.2f} m ({standard['width']:.2f} m), "
+                f"and it switches identities about {real['switches_per_1000']:.0f} times per 1,000 frames "
+                f"({standard['switches_per_1000']:.2f})")
+    assert expected in text, f"README's real-traffic sentence differs from the reference outputs: {expected}"
