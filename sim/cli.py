@@ -329,11 +329,13 @@ def _run_and_write(scenario: str | ScenarioSpec, *, seed: int, variant: str, out
 
 def replay_line(metrics: dict) -> str:
     """One line on a replay: the recording, its ego, and which truth (smoothed or raw) was used."""
+    from sim.world.smoothing import SmootherConfig
+
     m = metrics
     text = f"replay: {m['replay_recording']}, ego {m['replay_ego']}, {m['replay_vehicles']} recorded vehicles, truth {m['replay_truth']}"
     if m.get("replay_truth") == "smoothed":
         text += (f" (RTS smoother moved the centres by {m['replay_position_change_rms_m']:.2f} m RMS; "
-                 f"{m['replay_widths_bounded']} car widths bounded at 2.1 m)")
+                 f"{m['replay_widths_bounded']} car widths bounded at {SmootherConfig().max_car_width:g} m)")
     return text
 
 

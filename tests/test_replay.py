@@ -57,6 +57,17 @@ def test_truth_follows_the_recording_and_the_road():
     right, left = world.road.edges(np.asarray(es).reshape(-1))
     assert right[0] < float(np.asarray(en).reshape(-1)[0]) < left[0]
     assert np.isnan(world.poses_at(2.05).s).all()
+    # xi_dot is the rate of xi: against central differences over 0.02 s, vehicles on the road
+    dt = 0.01
+    before, after = world.truth_at(3.0 - dt), world.truth_at(3.0 + dt)
+    mid = world.truth_at(3.0)
+    both = np.intersect1d(np.intersect1d(before.ids, after.ids), mid.ids)
+    rows = [np.flatnonzero(snap.ids == vid)[0] for snap in (before, mid, after) for vid in both]
+    k = len(both)
+    xi_rate = np.angle(np.exp(1j * (after.xi[rows[2 * k:]] - before.xi[rows[:k]]))) / (2 * dt)
+    on = (mid.s[rows[k:2 * k]] > 5.0) & (mid.s[rows[k:2 * k]] < world.road.length - 5.0)
+    assert on.sum() > 10
+    np.testing.assert_allclose(mid.xi_dot[rows[k:2 * k]][on], xi_rate[on], atol=0.05)
     # late in the run vehicles whose recording ended are carried on, as long as they are on the road
     late = world.truth_at(7.9)
     carried = [vid for vid in late.ids if recording.vehicle(int(vid)).end < ego.start + 7.9]
@@ -82,10 +93,21 @@ def test_replay_spec_errors_name_the_field(tmp_path):
         parse_scenario({"name": "r", "description": "d", "duration": 60.0, "replay": {"file": str(US101_1)}}, "f.toml")
     with pytest.raises(ScenarioError, match=r"replay.file = .*absent.xml.*no such recording"):
         _spec(tmp_path / "absent.xml")
-    with pytest.raises(ScenarioError, match=r"no vehicle 12345; its vehicles are"):
+    with pytest.raises(ScenarioError, match=r"replay.ego = 12345: recording .* no vehicle 12345; its vehicles are"):
         _spec(US101_1, ego=12345)
-    with pytest.raises(ScenarioError, match=r"replay.truth"):
+    with pytest.raises(ScenarioError, match=r"replay.ego = 12345: "):  # the same with a duration given
+        parse_scenario({"name": "r", "description": "d", "duration": 2.0, "replay": {"file": str(US101_1), "ego": 12345}}, "f")
+    with pytest.raises(ScenarioError, match=r"replay.file = .*absent.xml.*no such recording"):
+        parse_scenario({"name": "r", "description": "d", "duration": 2.0, "replay": {"file": str(tmp_path / "absent.xml")}}, "f")
+    with pytest.raises(ScenarioError, match="description must be one line"):
+        parse_scenario({"name": "r", "description": "a\nb", "replay": {"file": str(US101_1)}}, "f")
+    corrupt = tmp_path / "corrupt.xml.gz"
+    corrupt.write_bytes(US101_1.read_bytes()[:200] + b"\x00" * 500)
+    with pytest.raises(ScenarioError, match=r"replay.file = .*corrupt.xml.gz.*not a readable gzip file"):
+        _spec(corrupt)
+    with pytest.raises(ScenarioError, match=r"replay.truth") as err:
         _spec(US101_1, truth="cleaned")
+    assert "duration" not in str(err.value)  # a replay's duration is optional: only the bad field is named
     with pytest.raises(ValueError, match=r"its world is sim.world.replay.ReplayWorld"):
         World(_spec())
 
@@ -100,6 +122,7 @@ def test_run_scores_the_replay():
     assert m["replay_ego"] in (v.id for v in load_recording(str(US101_1))[0])
     # one other car, seen throughout, close to its recorded place
     assert m["truth_count_mean"] == pytest.approx(1.0) and m["pos_rmse_m"] < 1.5
+    assert result.settings["roadside_objects"] == 0  # a replay's scene is the recording's: no simulated clutter
 
 
 def test_real_suite_lists_every_recording():

@@ -104,19 +104,26 @@ def test_pooled_numbers_and_the_real_traffic_section():
     from sim.studies.report import pooled, render_report
     from sim.studies.study import CompareData
 
-    def row(scenario, variant, seed, frames, gospa_seen, pos_seen, pairs, hidden, length, switches):
+    def row(scenario, variant, seed, frames, gospa_seen, pos_seen, pairs, hidden, length, switches, width=0.1, yaw=1.0,
+            card=0.5, ms=2.0):
         return {"scenario": scenario, "variant": variant, "seed": seed, "frames": frames, "gospa_seen_mean": gospa_seen,
                 "pos_rmse_seen_m": pos_seen, "matched_pairs": pairs, "matched_pairs_hidden": hidden, "length_rmse_m": length,
-                "width_rmse_m": 0.1, "yaw_rmse_deg": 1.0, "cardinality_error_seen_mean": 0.5, "id_switches": switches,
-                "tracker_ms_median": 2.0, "gospa_mean": gospa_seen}
+                "width_rmse_m": width, "yaw_rmse_deg": yaw, "cardinality_error_seen_mean": card, "id_switches": switches,
+                "tracker_ms_median": ms, "gospa_mean": gospa_seen}
 
-    real = [row("real-a", "curvilinear-fused", 0, 100, 2.0, 0.3, 50, 10, 1.0, 1),
-            row("real-b", "curvilinear-fused", 0, 300, 4.0, 0.6, 130, 10, 0.5, 3)]
+    real = [row("real-a", "curvilinear-fused", 0, 100, 2.0, 0.3, 50, 10, 1.0, 1, width=0.2, yaw=2.0, card=1.0, ms=1.0),
+            row("real-b", "curvilinear-fused", 0, 300, 4.0, 0.6, 130, 10, 0.5, 3, width=0.1, yaw=4.0, card=0.2, ms=5.0),
+            row("real-c", "curvilinear-fused", 0, 200, 3.0, None, 0, 0, None, 0, width=None, yaw=None, card=0.4, ms=3.0)]
     p = pooled(real)
-    assert p["gospa_seen"] == pytest.approx((100 * 2.0 + 300 * 4.0) / 400)
+    assert p["gospa_seen"] == pytest.approx((100 * 2.0 + 300 * 4.0 + 200 * 3.0) / 600)
     assert p["pos_seen"] == pytest.approx(((40 * 0.3**2 + 120 * 0.6**2) / 160) ** 0.5)  # over the seen pairs
     assert p["length"] == pytest.approx(((50 * 1.0 + 130 * 0.25) / 180) ** 0.5)
-    assert p["switches_per_1000"] == pytest.approx(10.0)
+    assert p["width"] == pytest.approx(((50 * 0.04 + 130 * 0.01) / 180) ** 0.5)
+    assert p["yaw"] == pytest.approx(((50 * 4.0 + 130 * 16.0) / 180) ** 0.5)
+    assert p["card_seen"] == pytest.approx((100 * 1.0 + 300 * 0.2 + 200 * 0.4) / 600)
+    assert p["switches_per_1000"] == pytest.approx(1000 * 4 / 600)
+    assert p["ms_median"] == pytest.approx(3.0)
+    real = real[:2]
     simulated = [row("curve-single", "curvilinear-fused", 0, 200, 0.1, 0.05, 200, 0, 0.1, 0)]
     data = CompareData(simulated, [], [], {"settings": {"suite": "standard", "real_suite": "real", "real_runs": 1},
                                            "variants": ["curvilinear-fused"]}, real)

@@ -6,7 +6,8 @@ tracker through every lidar frame and scores its tracks against the truth at eac
 
 **Scenario overrides.** The scenario's ``[sensors]`` table overrides ``RigConfig`` fields (``lidar``,
 ``radar`` sub-tables) plus one runner key, ``roadside``: ``false`` turns roadside clutter off,
-``true`` (the default) uses ``ClutterConfig()``, a table overrides ``ClutterConfig`` fields. The
+``true`` (the default; ``false`` for a replay, whose scene is the recording's) uses ``ClutterConfig()``,
+a table overrides ``ClutterConfig`` fields. The
 ``[tracker]`` table overrides the variant's ``TrackerConfig`` fields (nested tables for sections);
 before it, the tracker is told the lidar's range and resolution (``detection.lidar_range``,
 ``detection.lidar_resolution``) from the sensor configuration.
@@ -176,7 +177,8 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
     """The sensor rig configuration and the clutter configuration (``None``: no clutter) of ``spec``
     after its ``[sensors]`` overrides (module docstring)."""
     overrides = dict(spec.sensors)
-    roadside = overrides.pop("roadside", True)
+    # a replay's scene is the recording's: simulated roadside objects would stand where real traffic drives
+    roadside = overrides.pop("roadside", spec.replay is None)
     rig = apply_overrides(RigConfig(), overrides, f"{_where(spec)}: sensors")
     if roadside is True:
         clutter: ClutterConfig | None = ClutterConfig()
@@ -687,10 +689,10 @@ def run_recording(
 
     if not isinstance(recording, Recording):
         raise ValueError(f"run_recording needs a sim.world.recording.Recording; got {type(recording).__name__}")
+    ego_id = replay_ego(recording, ego)  # the rule on the recording as recorded
     report = None
     if smooth:
         recording, report = smooth_recording(recording)
-    ego_id = replay_ego(recording, ego)
     if road is None:
         road = route_of(recording, ego_id)
     world = ReplayWorld(recording, road, ego_id, truth="smoothed" if smooth else "raw", smoothing=report, seed=seed)

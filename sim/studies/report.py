@@ -386,7 +386,7 @@ def _real_section(data: CompareData, variants: Sequence[str]) -> str:
     head = ("## Real recorded traffic\n\n"
             f"{settings.get('real_runs')} runs per recording and variant (`{settings.get('real_suite')}`: NGSIM traffic "
             "on its CommonRoad lane maps, US-101 freeway and Lankershim Boulevard, replayed through the simulated "
-            "sensors, smoothed truth; the seeds vary the sensor noise only). Side by side with the simulated suites, "
+            "sensors, smoothed truth, no simulated roadside objects; the seeds vary the sensor noise only). Side by side with the simulated suites, "
             "every run of a suite taken together (means weighted by frames, RMSEs over all matched pairs; seen: the "
             "vehicles the lidar sees, against the tracks not kept on hidden ones):\n\n"
             + side_by_side_table(suites, variants) + "\n")

@@ -155,7 +155,7 @@ def max_curvature(path: str | Path, samples_per_m: float = 1.0) -> float | None:
     """The largest |curvature| (1/m) of a scenario's road (``None`` for a generated road, which is
     drawn per seed)."""
     spec = load_scenario(path)
-    if spec.road is None:
+    if spec.road is None and spec.replay is None:
         return None
     road = spec.build_road()
     s = np.linspace(0.0, road.length, max(2, int(road.length * samples_per_m)), endpoint=not road.closed)
@@ -300,18 +300,20 @@ def run_compare(settings: CompareSettings, *, progress: Callable[[str, int], Pro
         return progress(label, total) if progress is not None else None
 
     tasks = plan(paths, settings.runs, variants, seed0=settings.seed0, duration=settings.duration)
+    # the other suites are planned (and their files and settings checked) before anything runs
+    extra_plans = [(key, suite, suite_paths(suite)) for key, suite, runs in
+                   (("hard", settings.hard_suite, settings.hard_runs), ("real", settings.real_suite, settings.real_runs))
+                   if runs > 0]
+    extra_tasks = {key: plan(p, getattr(settings, f"{key}_runs"), variants, seed0=settings.seed0, duration=settings.duration)
+                   for key, _, p in extra_plans}
     start = time.perf_counter()
     study = run_study(tasks, workers=settings.workers, backend=settings.backend, address=settings.address,
                       progress=phase(f"{len(tasks)} runs ({settings.suite})", len(tasks)))
     meta["study_wall_s"] = study.wall_s
     extra: dict[str, list[dict[str, Any]]] = {"hard": [], "real": []}
-    for key, suite, runs in (("hard", settings.hard_suite, settings.hard_runs), ("real", settings.real_suite, settings.real_runs)):
-        if runs <= 0:
-            continue
-        extra_paths = suite_paths(suite)
-        extra_tasks = plan(extra_paths, runs, variants, seed0=settings.seed0, duration=settings.duration)
-        result = run_study(extra_tasks, workers=settings.workers, backend=settings.backend, address=settings.address,
-                           progress=phase(f"{len(extra_tasks)} runs ({suite})", len(extra_tasks)))
+    for key, suite, extra_paths in extra_plans:
+        result = run_study(extra_tasks[key], workers=settings.workers, backend=settings.backend, address=settings.address,
+                           progress=phase(f"{len(extra_tasks[key])} runs ({suite})", len(extra_tasks[key])))
         extra[key] = result.rows
         meta[f"{key}_wall_s"] = result.wall_s
         meta[f"{key}_curvature"] = {load_scenario(p).name: max_curvature(p) for p in extra_paths}

@@ -1,6 +1,6 @@
 """A world that replays recorded traffic: the truth the sensors see and the tracker is scored against.
 
-``ReplayWorld(spec, seed)`` serves a scenario with a ``[replay]`` table (``sim.world.scenario.ReplaySpec``)
+``ReplayWorld.from_spec(spec, seed)`` serves a scenario with a ``[replay]`` table (``sim.world.scenario.ReplaySpec``)
 the way ``sim.world.world.World`` serves simulated traffic: ``truth_at(t)`` and ``poses_at(t)`` give a
 ``Snapshot`` at any time ``t`` (s) of the run, ``road`` is the scenario's road. The run's time 0 is the
 ego's first sample; each vehicle is present between its first and last sample and linear between
@@ -15,7 +15,9 @@ ego is one of the recorded vehicles (``ReplaySpec.ego``, default ``Recording.pic
 The truth is the smoothed recording by default (``sim.world.smoothing``; ``truth = "raw"`` keeps the
 recorded samples). The road is the route through the recording's lane map from the ego's first pose
 to its last position, extended by ``EGO_RANGE`` ahead and behind where the map goes on
-(``tracker.maps.route_road`` with ``onward`` and ``behind``): the road the ego's sensors see. The seed does not change the traffic (it is
+(``tracker.maps.route_road`` with ``onward`` and ``behind``): the road the ego's sensors see. A lane map
+ends where the recorded area does (the US-101 maps end 10-30 m past some egos' last positions): beyond
+it nothing is scored, and the recorded vehicles leave there. The seed does not change the traffic (it is
 recorded); it seeds the sensors as in every run.
 """
 
@@ -48,22 +50,38 @@ CARRY_STEP = 0.1
 
 
 @functools.lru_cache(maxsize=16)
+def _recorded(path: str) -> Recording:
+    """The recording of the CommonRoad file ``path``, read once per process."""
+    return read_commonroad_recording(path)
+
+
+@functools.lru_cache(maxsize=16)
+def _smoothed(path: str) -> tuple[Recording, SmoothingReport]:
+    """The recording of ``path`` smoothed, once per process."""
+    return smooth_recording(_recorded(path))
+
+
 def load_recording(path: str, truth: str = "smoothed") -> tuple[Recording, SmoothingReport | None]:
     """The recording of the CommonRoad file ``path`` (read once per process), smoothed (``truth =
     "smoothed"``, with what smoothing changed) or as recorded (``"raw"``, no report)."""
     if truth not in ("smoothed", "raw"):
         raise ValueError(f"truth must be 'smoothed' or 'raw'; got {truth!r}")
-    recording = read_commonroad_recording(path)
-    if truth == "raw":
-        return recording, None
-    return smooth_recording(recording)
+    return (_recorded(path), None) if truth == "raw" else _smoothed(path)
 
 
-def replay_ego(recording: Recording, ego: int | None) -> int:
-    """The ego's id: ``ego`` when it is one of the recording's vehicles (``ValueError`` naming the ids
-    otherwise), else the default rule's (``Recording.pick_ego(EGO_RANGE)``)."""
+@functools.lru_cache(maxsize=16)
+def _default_ego(path: str) -> int:
+    return _recorded(path).pick_ego(EGO_RANGE)
+
+
+def replay_ego(source: str | Recording, ego: int | None) -> int:
+    """The ego's id in ``source`` (a CommonRoad file's path, or a recording): ``ego`` when it is one of the
+    recording's vehicles (``ValueError`` naming the ids otherwise), else the default rule's
+    (``Recording.pick_ego(EGO_RANGE)``), applied to the recording as recorded, so that smoothed and raw
+    truth replay the same ego."""
+    recording = _recorded(source) if isinstance(source, str) else source
     if ego is None:
-        return recording.pick_ego(EGO_RANGE)
+        return _default_ego(source) if isinstance(source, str) else recording.pick_ego(EGO_RANGE)
     return recording.vehicle(int(ego)).id
 
 
@@ -127,7 +145,8 @@ class ReplayWorld:
             raise ValueError(f"ReplayWorld needs a scenario with a [replay] table; {spec.name!r} has none")
         replay = spec.replay
         recording, smoothing = load_recording(replay.file, replay.truth)
-        return cls(recording, spec.build_road(), replay.ego, truth=replay.truth, smoothing=smoothing, spec=spec, seed=seed)
+        return cls(recording, spec.build_road(), replay_ego(replay.file, replay.ego), truth=replay.truth,
+                   smoothing=smoothing, spec=spec, seed=seed)
 
     def _carried(self, v: RecordedVehicle, when: float) -> tuple[float, float, float, float, float]:
         """``v`` carried on from its last sample to time ``when`` (s): its last speed along its last heading."""

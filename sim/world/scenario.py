@@ -704,28 +704,29 @@ class ScenarioSpec(_Model):
     @model_validator(mode="before")
     @classmethod
     def _replay_duration(cls, data: Any) -> Any:
-        """A replay's duration defaults to its ego's recorded time (read from the recording)."""
+        """A replay's duration defaults to its ego's recorded time (read from the recording): filled in
+        here when the ``[replay]`` table's fields are usable; otherwise those fields' own checks report what
+        is wrong, and a placeholder stands in for the duration (no replay spec validates without them)."""
         replay = data.get("replay") if isinstance(data, dict) else None
-        usable = (isinstance(replay, dict) and isinstance(replay.get("file"), str)
-                  and replay.get("truth", "smoothed") in ("smoothed", "raw")
-                  and (replay.get("ego") is None or (isinstance(replay.get("ego"), int) and not isinstance(replay.get("ego"), bool))))
-        if usable and "duration" not in data:  # otherwise the fields' own checks report what is wrong
-            try:
-                data = {**data, "duration": _replay_duration(replay["file"], replay.get("truth", "smoothed"), replay.get("ego"))}
-            except (OSError, ValueError, ImportError) as exc:
-                raise ValueError(f"replay.file = {replay['file']!r}: {' '.join(str(exc).split())}") from None
-        return data
+        if not isinstance(replay, dict) or "duration" in data:
+            return data
+        ego = replay.get("ego")
+        usable = (isinstance(replay.get("file"), str) and replay.get("truth", "smoothed") in ("smoothed", "raw")
+                  and (ego is None or (isinstance(ego, int) and not isinstance(ego, bool))))
+        if not usable:
+            return {**data, "duration": 1.0}
+        return {**data, "duration": _replay_checked(replay["file"], replay.get("truth", "smoothed"), ego)[0]}
 
     @model_validator(mode="after")
     def _consistent(self) -> ScenarioSpec:
-        if self.replay is not None:
-            return self._check_replay()
         if not _NAME.match(self.name):
             raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
         if "\n" in self.description:
             raise ValueError("description must be one line")
         if self.faults is not None:
             self.faults.check_duration(self.duration)
+        if self.replay is not None:
+            return self._check_replay()
         if self.generator is None:
             if self.road is None:
                 raise ValueError("road: missing; a scenario without a [generator] needs a [road] table")
@@ -762,20 +763,12 @@ class ScenarioSpec(_Model):
 
     def _check_replay(self) -> ScenarioSpec:
         assert self.replay is not None
-        if not _NAME.match(self.name):
-            raise ValueError(f"name = {self.name!r}: use letters, digits, '-' and '_' (starting with a letter or digit)")
         given = [k for k in ("road", "ego", "vehicles", "generator") if k in self.model_fields_set]
         if given:
             raise ValueError(f"{given[0]}: a replay takes its road and traffic from the recording (replay.file); leave it out")
-        if self.faults is not None:
-            self.faults.check_duration(self.duration)
-        longest = _replay_duration(self.replay.file, self.replay.truth, self.replay.ego)
+        longest, self._road = _replay_checked(self.replay.file, self.replay.truth, self.replay.ego)
         if self.duration > longest + 1e-9:
             raise ValueError(f"duration = {self.duration}: the ego is recorded for {longest:g} s; use at most that")
-        try:
-            self._road = _replay_road(self.replay.file, self.replay.truth, self.replay.ego)
-        except (OSError, ImportError) as exc:
-            raise ValueError(f"replay.file = {self.replay.file!r}: {exc}") from None
         return self
 
     # -- cross-field checks -------------------------------------------------------------------
@@ -882,7 +875,7 @@ class ScenarioSpec(_Model):
         """The ``tracker.Road`` of this scenario (built once at validation and shared)."""
         if self.replay is not None:
             if self._road is None:
-                self._road = _replay_road(self.replay.file, self.replay.truth, self.replay.ego)
+                self._road = _replay_checked(self.replay.file, self.replay.truth, self.replay.ego)[1]
             return self._road
         if self.road is None:
             raise ValueError(f"scenario {self.name!r} has no road; draw one with sim.world.generator.realize(spec, seed)")
@@ -894,21 +887,24 @@ class ScenarioSpec(_Model):
 _DIRECTION_WORDS = {1: "along s", -1: "against s"}
 
 
-def _replay_duration(path: str, truth: str, ego: int | None) -> float:
-    """The ego's recorded time (s) in the recording ``path`` (``sim.world.replay``)."""
-    from sim.world.replay import load_recording, replay_ego
-
-    recording, _ = load_recording(path, truth)
-    car = recording.vehicle(replay_ego(recording, ego))
-    return round(car.end - car.start, 9)
-
-
-def _replay_road(path: str, truth: str, ego: int | None) -> Road:
-    """The road of a replay: the ego's route through the recording's lane map (``sim.world.replay``)."""
+def _replay_checked(path: str, truth: str, ego: int | None) -> tuple[float, Road]:
+    """The ego's recorded time (s) in the recording ``path`` and the replay's road (``sim.world.replay``);
+    ``ValueError`` naming the field (``replay.file`` or ``replay.ego``) when either cannot be had."""
     from sim.world.replay import load_recording, replay_ego, replay_road
 
-    recording, _ = load_recording(path, truth)
-    return replay_road(path, truth, replay_ego(recording, ego))
+    try:
+        recording, _ = load_recording(path, truth)
+    except (OSError, ValueError, ImportError) as exc:
+        raise ValueError(f"replay.file = {path!r}: {' '.join(str(exc).split())}") from None
+    try:
+        car = recording.vehicle(replay_ego(path, ego))
+    except ValueError as exc:
+        raise ValueError(f"replay.ego = {ego!r}: {' '.join(str(exc).split())}") from None
+    try:
+        road = replay_road(path, truth, car.id)
+    except (OSError, ValueError, ImportError) as exc:
+        raise ValueError(f"replay.file = {path!r}: {' '.join(str(exc).split())}") from None
+    return round(car.end - car.start, 9), road
 
 
 @functools.lru_cache(maxsize=8)

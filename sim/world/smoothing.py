@@ -17,7 +17,7 @@ with white jerk ``j`` (``jerk_psd``), white yaw acceleration ``alpha`` (``yaw_ac
 white lateral velocity (``lateral_psd``: a vehicle does not move sideways, so the model allows only
 that much), observing the recorded centre (``position_std``) and heading (``yaw_std``). A centre that
 drifts across a stopped car's heading is then read as noise, a speed step as a brief acceleration.
-The recorded speeds are not used (NGSIM derives them from the same positions).
+The recorded speeds only start the filter (NGSIM derives them from the same positions).
 
 Widths: NGSIM overestimates them (cars 2.3-2.6 m wide are recorded; the widest passenger vehicles on
 US roads, full-size pickups and SUVs, are about 2.1 m without mirrors). ``SmootherConfig.max_car_width``
@@ -43,7 +43,7 @@ class SmootherConfig:
     jerk_psd: float = 2.0  #: m^2/s^5, spectral density of the white jerk
     yaw_accel_psd: float = 0.1  #: rad^2/s^3, spectral density of the white yaw acceleration
     lateral_psd: float = 0.01  #: m^2/s, spectral density of the white lateral velocity (side slip)
-    max_car_width: float = 2.1  #: m, the widest a vehicle of class "car" is taken to be (None: no bound)
+    max_car_width: float | None = 2.1  #: m, the widest a vehicle of class "car" is taken to be (None: no bound)
     car_max_length: float = 6.0  #: m, the longest vehicle the car width bound applies to
 
     def __post_init__(self) -> None:
@@ -51,7 +51,8 @@ class SmootherConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"SmootherConfig.{name} must be a positive number; got {value!r}")
-        if self.max_car_width is not None and not (math.isfinite(self.max_car_width) and self.max_car_width > 0):
+        width = self.max_car_width
+        if width is not None and not (isinstance(width, (int, float)) and math.isfinite(width) and width > 0):
             raise ValueError(f"SmootherConfig.max_car_width must be a positive number of metres or None; got {self.max_car_width!r}")
 
 

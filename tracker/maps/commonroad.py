@@ -16,6 +16,7 @@ import io
 import logging
 import shutil
 import tempfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -68,7 +69,7 @@ def uncompressed(path: Path) -> Iterator[Path]:
         try:
             with gzip.open(path, "rb") as src, open(plain, "wb") as dst:
                 shutil.copyfileobj(src, dst)
-        except (OSError, EOFError) as exc:
+        except (OSError, EOFError, zlib.error) as exc:
             raise ValueError(f"{path.name}: not a readable gzip file ({exc})") from None
         yield plain
 
