@@ -206,7 +206,7 @@ def _resolve_scenarios(name: str, *, allow_suite: bool) -> list[str]:
     from sim.world.scenario import ScenarioError, is_suite_file, load_scenario, load_suite, shipped_scenario
 
     path = Path(name)
-    found = path if path.exists() else shipped_scenario(name)
+    found = path if path.is_file() else shipped_scenario(name)
     scenarios, suites = _shipped()
     if found is None:
         what = "scenario or suite" if allow_suite else "scenario"

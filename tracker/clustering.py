@@ -672,11 +672,12 @@ def _grouped(key):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component,
-                        max_points):  # pragma: no cover - compiled
+def track_owners_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold,
+                        component, max_points):  # pragma: no cover - compiled
     """The first half of the tracker's grouping of a frame's points: per point the track group owning
     it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine and
-    sine of their headings, widened by ``margin``: half extents ``0.5 length + margin``; mapped to the
+    sine of their headings, widened by ``margin`` along and ``margin_across`` across: half extents
+    ``0.5 length + margin`` and ``0.5 width + margin_across``; mapped to the
     rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every rectangle
     then joins the group owning most points of its connected component, the first such group on a
     tie), whether it lay inside a rectangle, its connected component (``component`` where the caller
@@ -705,7 +706,7 @@ def track_owners_kernel(pts, ctr, c, s, length, width, margin, corners, labels, 
         half_w = np.empty(len(ctr))
         for k in range(len(ctr)):
             half_l[k] = 0.5 * length[k] + margin
-            half_w[k] = 0.5 * width[k] + margin
+            half_w[k] = 0.5 * width[k] + margin_across
         box = points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w)
         for i in range(count):
             if box[i] >= 0:
@@ -887,15 +888,16 @@ def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, w
 
 
 @njit
-def cluster_points_kernel(pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component,
-                          n, max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
+def cluster_points_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold,
+                          component, n, max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
     """The tracker's grouping of a frame's points into clusters: ``track_owners_kernel`` then, unless a
     fragment needs ``fragment_owners`` (in Python, in between) or the partition's grid did not hold
     the points, ``ordered_clusters_kernel``: returns ``(ok, done, groups, owner, inside, component,
     component_group, ordered, edges, owned, added)`` (``done`` False: the last four are empty and the
     caller finishes the grouping)."""
     ok, groups, owner, inside, component, component_group, fragments = track_owners_kernel(
-        pts, ctr, c, s, length, width, margin, corners, labels, track_labels, threshold, component, max_points)
+        pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold, component,
+        max_points)
     if not ok or fragments:
         return (ok, False, groups, owner, inside, component, component_group, np.empty((0, 2)),
                 np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int64), 0)

@@ -538,8 +538,8 @@ class ClusteringConfig:
     """Lidar preprocessing, clustering and radar association (``tracker.preprocess``, ``tracker.clustering``).
 
     Points off the road (plus ``road_margin``) are dropped, the bearing filter keeps the nearest point per
-    ``bearing_bin``; points inside a reported track's predicted rectangle (plus ``track_margin``) form its
-    cluster, the rest are partitioned into connected components at ``distance``; clusters wider across
+    ``bearing_bin``; points inside a reported track's predicted rectangle (plus ``track_margin`` along and
+    ``across_margin`` across it) form its cluster, the rest are partitioned into connected components at ``distance``; clusters wider across
     the road than one vehicle are cut; lone fragments continuing a track's side join it; radar
     detections join the nearest cluster (by its nearest point) within ``radar_gate``. Details:
     ``docs/tracker.md`` ("Clustering").
@@ -549,8 +549,10 @@ class ClusteringConfig:
     road_margin: float = 0.5
     #: The paper's bearing filter keeps the nearest point per bin of this width (rad; default 0.2 deg).
     bearing_bin: float = math.radians(0.2)
-    #: Points inside a reported track's predicted rectangle grown by this form its cluster (m; default 1.0).
+    #: Points inside a reported track's predicted rectangle grown by this along its length form its cluster (m; default 1.0).
     track_margin: float = 1.0
+    #: ... and by this across it (m; default 0.5: vehicles in the next lane come that close).
+    across_margin: float = 0.5
     #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
     #: Smaller clusters are dropped and counted (default 1).
@@ -569,7 +571,7 @@ class ClusteringConfig:
     fragment_side_tolerance: float | None = 0.5
 
     def __post_init__(self) -> None:
-        for name, unit in (("road_margin", "m"), ("track_margin", "m"), ("split_gap", "m")):
+        for name, unit in (("road_margin", "m"), ("track_margin", "m"), ("across_margin", "m"), ("split_gap", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, unit=unit)
         if self.fragment_points is not None:
             _check_int("ClusteringConfig", "fragment_points", self.fragment_points, 1)

@@ -442,7 +442,8 @@ class Tracker:
 
     def _grouped_points(self, points: np.ndarray, rect: Rectangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points grouped into clusters (``tracker.clustering.cluster_points_kernel``): points inside
-        a reported track's predicted rectangle (plus ``clustering.track_margin``) go to its group
+        a reported track's predicted rectangle (plus ``clustering.track_margin`` along it and
+        ``clustering.across_margin`` across it) go to its group
         (overlapping rectangles, ``_duplicate_groups``, are one); a connected component
         (``distance_partition``) that a group owns in part joins it entirely; lone fragments may continue
         a track (``_fragments_adopted``, between the kernel's two halves); all points a group owns form
@@ -462,7 +463,7 @@ class Tracker:
         fragment = cfg.fragment_points is not None and len(tracks)
         split = cfg.split_width is not None
         head = (points, rect.center, np.cos(rect.psi), np.sin(rect.psi), rect.length, rect.width, float(cfg.track_margin),
-                rect.corners(), labels, labels[tracks], float(cfg.distance))
+                float(cfg.across_margin), rect.corners(), labels, labels[tracks], float(cfg.distance))
         tail = (self._point_n, int(cfg.fragment_points) if fragment else -1, split,
                 float(cfg.split_width) if split else 0.0, float(cfg.split_gap), SPLIT_MAX_CUTS)
         ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(

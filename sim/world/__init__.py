@@ -1,4 +1,4 @@
-"""The simulated world: scenario files, the road and traffic on it, the ground, and the truth.
+"""The simulated world: scenario files, the road and traffic on it (simulated or recorded), the ground, and the truth.
 
 The lowest part of ``sim``: it imports only ``tracker`` and third-party packages, never another part
 of ``sim``. Modules:
@@ -9,5 +9,8 @@ of ``sim``. Modules:
 - ``sim.world.traffic``: highway-env vehicle classes per behaviour (IDM/MOBIL, constant, scripted);
 - ``sim.world.lanes``: highway-env lanes (``FrenetLane``) over our ``tracker.Road``;
 - ``sim.world.ground``: the ground surface (flat, planar, road-following with grade and bank);
+- ``sim.world.recording``: recorded traffic (``Recording``), the CommonRoad reader and the default ego;
+- ``sim.world.smoothing``: physical truth from noisy recordings (an RTS smoother, a car width bound);
+- ``sim.world.replay``: ``ReplayWorld``, recorded traffic as the truth of a run, and its road;
 - ``sim.world.truth``: ``Snapshot``, the truth handed to the sensors and the evaluator.
 """

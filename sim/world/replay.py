@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -35,9 +35,6 @@ from sim.world.smoothing import SmoothingReport, smooth_recording
 from sim.world.truth import CLASS_HEIGHTS, EgoPose, Snapshot, default_height
 from tracker import Road
 from tracker.angles import wrap_angle
-
-if TYPE_CHECKING:
-    from sim.world.scenario import ScenarioSpec
 
 #: Range (m) within which the default ego rule counts neighbours (the default lidar's range).
 EGO_RANGE = 100.0
@@ -119,7 +116,7 @@ class ReplayWorld:
     in code, ``sim.evaluation.runner.run_recording``)."""
 
     def __init__(self, recording: Recording, road: Road, ego: int | None = None, *, truth: str = "raw",
-                 smoothing: SmoothingReport | None = None, spec: ScenarioSpec | None = None, seed: int = 0) -> None:
+                 smoothing: SmoothingReport | None = None, spec: Any = None, seed: int = 0) -> None:
         if truth not in ("smoothed", "raw"):
             raise ValueError(f"truth must be 'smoothed' or 'raw'; got {truth!r}")
         self.spec = spec
@@ -139,8 +136,9 @@ class ReplayWorld:
         self.t = 0.0
 
     @classmethod
-    def from_spec(cls, spec: ScenarioSpec, seed: int = 0) -> ReplayWorld:
-        """The world of a scenario with a ``[replay]`` table (its recording read once per process)."""
+    def from_spec(cls, spec: Any, seed: int = 0) -> ReplayWorld:
+        """The world of a scenario (``sim.world.scenario.ScenarioSpec``; it imports this module) with a
+        ``[replay]`` table (its recording read once per process)."""
         if spec.replay is None:
             raise ValueError(f"ReplayWorld needs a scenario with a [replay] table; {spec.name!r} has none")
         replay = spec.replay

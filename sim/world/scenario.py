@@ -1017,7 +1017,7 @@ def resolve_scenario_path(path: str | Path) -> Path:
     """``path`` if it exists; else a scenario of that name in the repository's ``scenarios/``
     folder (``"cut-in"`` -> ``scenarios/cut-in.toml``)."""
     p = Path(path)
-    if p.exists():
+    if p.is_file():
         return p
     found = shipped_scenario(path)
     if found is None:
@@ -1091,7 +1091,7 @@ class Suite:
 def load_suite(path: str | Path) -> Suite:
     """Read a suite file (``scenarios = ["cut-in.toml", ...]``); every listed file must exist."""
     p = Path(path)
-    if not p.exists() and (SCENARIO_DIR / f"{p.name}.toml").exists():
+    if not p.is_file() and (SCENARIO_DIR / f"{p.name}.toml").exists():
         p = SCENARIO_DIR / f"{p.name}.toml"
     try:
         with open(p, "rb") as fh:

@@ -99,7 +99,7 @@ def split_clusters(key: np.ndarray, owner: np.ndarray, inside: np.ndarray, n: np
 def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray,
                    length_sd: np.ndarray, n: np.ndarray, config: ClusteringConfig) -> dict:
     """The tracker's grouping of a frame's points: the points in a track's rectangle (plus
-    ``track_margin``) go to its group (``duplicate_groups``); strays join their component's majority
+    ``track_margin`` along and ``across_margin`` across it) go to its group (``duplicate_groups``); strays join their component's majority
     group; small free fragments may continue a track's side (``fragment_owners``, with the length's sd
     ``length_sd`` per track); the clusters too wide across the road are cut (``split_clusters``).
     Returns the points ordered by key (ties by index), the clusters' edges, each cluster's owner group,
@@ -112,7 +112,9 @@ def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tra
         groups = duplicate_groups(rect)
         same = labels[:, None] == labels[tracks][None, :]  # (C, T)
         component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
-        box = points_in_rectangles(points, rect.center, rect.psi, rect.length, rect.width, config.track_margin)
+        # grown by track_margin along the length and across_margin across it
+        box = points_in_rectangles(points, rect.center, rect.psi, rect.length,
+                                   rect.width + 2.0 * (config.across_margin - config.track_margin), config.track_margin)
         owner = np.where(box >= 0, groups[np.maximum(box, 0)], -1)
     component = distance_partition(points, config.distance)
     inside = owner >= 0
