@@ -343,7 +343,7 @@ def _replay(args: argparse.Namespace) -> int:
     """``eot replay FILE``: a recorded CommonRoad scenario through the sensors and the tracker."""
     from pathlib import Path
 
-    from sim.world.scenario import ScenarioError, parse_scenario
+    from sim.world.scenario import ScenarioError, parse_scenario, scenario_name
 
     path = Path(args.file)
     if not path.is_file():
@@ -352,12 +352,12 @@ def _replay(args: argparse.Namespace) -> int:
         raise UsageError(f"{path.name}: a recording is a CommonRoad scenario file (.xml or .xml.gz)")
     variant = _check_variants([args.variant])[0]
     stem = path.name.split(".")[0]
-    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in stem).lstrip("-_") or "recording"
+    name = scenario_name(stem)
     replay = {"file": str(path.resolve()), "truth": "raw" if args.raw else "smoothed"}
     if args.ego is not None:
         replay["ego"] = args.ego
     try:
-        spec = parse_scenario({"name": name[:64], "description": f"replay of {path.name}", "replay": replay}, str(path))
+        spec = parse_scenario({"name": name, "description": f"replay of {path.name}", "replay": replay}, str(path))
     except ScenarioError as exc:
         raise UsageError(" ".join(str(exc).split())) from None
     out = args.out or f"{OUTPUT_ROOT}/replay-{name}-{variant}-seed{args.seed}"

@@ -83,7 +83,7 @@ from sim.sensors.lidar3d import LidarScan3D
 from sim.world.ground import Ground
 from sim.world.recording import Recording
 from sim.world.replay import ReplayWorld
-from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides
+from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides, scenario_name
 from sim.world.truth import Snapshot
 from sim.world.world import World
 from tracker import Frame, Road, Track, TrackerConfig
@@ -696,8 +696,7 @@ def run_recording(
     if road is None:
         road = route_of(recording, ego_id)
     world = ReplayWorld(recording, road, ego_id, truth="smoothed" if smooth else "raw", smoothing=report, seed=seed)
-    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in recording.name).lstrip("-_")[:64] or "recording"
-    spec = ScenarioSpec.model_construct(name=name, description=f"replay of {recording.name}",
+    spec = ScenarioSpec.model_construct(name=scenario_name(recording.name), description=f"replay of {recording.name}",
                                         duration=float(world.duration), sensors=dict(sensors or {}),
                                         tracker=dict(tracker or {}))
     spec._road = road

@@ -113,15 +113,16 @@ def plan(
     if tracker_overrides:
         loaded = [(name, source, {**data, "tracker": merge_tables(data.get("tracker", {}), tracker_overrides)})
                   for name, source, data in loaded]
-    # a replay's duration is its recording's when the file gives none: every task carries its scenario's
-    loaded = [(name, source, data if "duration" in data else {**data, "duration": parse_scenario(data, source).duration})
-              for name, source, data in loaded]
+    checked = []
     for name, source, data in loaded:  # bad [sensors] / [tracker] / [faults] settings: an error now, not in a worker
         spec = parse_scenario(data, source)
+        # a replay's duration is its recording's when the file gives none: every task carries its scenario's
+        checked.append((name, source, data if "duration" in data else {**data, "duration": spec.duration}))
         if lidar_model is not None:
             spec = with_lidar_model(spec, lidar_model)
         for v in variants:
             check_scenario_settings(spec, v)
+    loaded = checked
     if duration is not None:
         for name, _, data in loaded:
             if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= float(data["duration"])):

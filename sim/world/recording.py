@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from tracker.checks import finite_array
+
 #: Longest vehicle (m) the default ego rule takes (``Recording.pick_ego``).
 EGO_MAX_LENGTH = 6.0
 #: Samples of slack at either end for "recorded throughout" (``Recording.pick_ego``).
@@ -33,9 +35,7 @@ def _array(value: object, name: str, where: str, shape: tuple[int, ...]) -> np.n
     arr = np.asarray(value, dtype=float)
     if arr.shape != shape:
         raise ValueError(f"{where}: {name} has shape {arr.shape}, expected {shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{where}: {name} has non-finite values")
-    return arr
+    return finite_array(arr, f"{where}: {name}")
 
 
 @dataclass(frozen=True)

@@ -38,8 +38,6 @@ from tracker.angles import wrap_angle
 
 #: Range (m) within which the default ego rule counts neighbours (the default lidar's range).
 EGO_RANGE = 100.0
-#: Slack (s) on the ends of a vehicle's samples.
-TIME_TOLERANCE = 1e-6
 #: Longest time (s) a vehicle whose recording ends on the road is carried on (``ReplayWorld``).
 MAX_CARRY = 20.0
 #: Step (s) of the search for where a carried-on vehicle leaves the road.
@@ -159,7 +157,8 @@ class ReplayWorld:
         if not bool(self.road.on_road(v.xy[-1:])[0]):
             return v.end  # it left the road before its recording ended
         times = v.end + CARRY_STEP * np.arange(1, int(round(MAX_CARRY / CARRY_STEP)) + 1)
-        on = self.road.on_road(np.array([self._carried(v, t)[:2] for t in times]))
+        yaw, speed = float(v.yaw[-1]), float(v.v[-1])  # as _carried: the last speed along the last heading
+        on = self.road.on_road(v.xy[-1] + np.outer(speed * (times - v.end), [math.cos(yaw), math.sin(yaw)]))
         off = np.flatnonzero(~on)
         if not off.size:
             return float(times[-1])

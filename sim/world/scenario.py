@@ -675,6 +675,13 @@ class ReplaySpec(_Model):
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 
 
+def scenario_name(text: str, fallback: str = "recording") -> str:
+    """``text`` made a valid scenario name (``_NAME``, at most 64 characters): other characters become
+    "-", leading "-" and "_" go; ``fallback`` when nothing is left (a recording's file name as a name)."""
+    name = "".join(c if c.isalnum() or c in "-_" else "-" for c in text).lstrip("-_")[:64]
+    return name or fallback
+
+
 class ScenarioSpec(_Model):
     """A validated scenario: ``name``, one-line ``description``, ``duration`` (s), ``road``, ``ego``,
     ``vehicles``, optional ``sensors`` / ``tracker`` overrides (tables passed to the runner, applied
@@ -1091,8 +1098,8 @@ class Suite:
 def load_suite(path: str | Path) -> Suite:
     """Read a suite file (``scenarios = ["cut-in.toml", ...]``); every listed file must exist."""
     p = Path(path)
-    if not p.is_file() and (SCENARIO_DIR / f"{p.name}.toml").exists():
-        p = SCENARIO_DIR / f"{p.name}.toml"
+    if not p.is_file():
+        p = shipped_scenario(p) or p
     try:
         with open(p, "rb") as fh:
             data = tomllib.load(fh)

@@ -22,15 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 #: Kinds of lanelet. ``driving`` covers every lane motor vehicles drive in (urban, highway, ramps,
 #: bus lanes); ``parking`` and ``shoulder`` are drivable surface beside them; the rest are not road.
 KINDS = ("driving", "parking", "shoulder", "sidewalk", "bicycle", "crosswalk", "other")
 #: Kinds a route's corridor (``tracker.maps.route``) may hold: the lane kinds of ``tracker.lanes.LaneLayout``.
 ROAD_KINDS = ("driving", "parking", "shoulder")
-#: Spacing (m) of the centerline samples in the k-d tree that finds candidate lanelets of a point.
-LOOKUP_SPACING = 2.0
 
 
 def _polyline_lengths(xy: np.ndarray) -> np.ndarray:
@@ -133,9 +130,6 @@ class LaneGraph:
         self._index_ids = np.array([ll.id for ll in self.lanelets], dtype=np.int64)
         self._polygons = [ll.polygon() for ll in self.lanelets]
         self._boxes = np.array([[*p.min(axis=0), *p.max(axis=0)] for p in self._polygons])
-        samples = [densify(ll.center, LOOKUP_SPACING) for ll in self.lanelets]
-        self._sample_owner = np.repeat(np.arange(len(samples)), [len(s) for s in samples])
-        self._tree = cKDTree(np.vstack(samples)) if samples else None
 
     def _check(self, ll: Lanelet) -> None:
         where = f"{self.source}: {ll.source}"
@@ -208,11 +202,6 @@ class LaneGraph:
             cost[sel, k] = np.where(turn <= max_turn, turn, np.inf)
         best = np.argmin(cost, axis=1)
         return np.where(np.isfinite(cost[np.arange(len(pts)), best]), self._index_ids[best], -1)
-
-    def nearest(self, xy: np.ndarray, k: int = 8) -> np.ndarray:
-        """Ids (N, k) of the lanelets owning the ``k`` centerline samples nearest to each point."""
-        _, idx = self._tree.query(np.atleast_2d(xy), k=min(k, len(self._sample_owner)))
-        return self._index_ids[self._sample_owner[np.atleast_2d(idx)]]
 
     def heading_at(self, lanelet_id: int, xy: np.ndarray) -> np.ndarray:
         """Driving direction (N,) rad of lanelet ``lanelet_id`` at the centerline segment nearest to
