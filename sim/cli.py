@@ -790,7 +790,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="lidar model for every scenario, replacing sensors.lidar.model: 2d or vlp16 (3-D)")
     p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE",
                    help="a tracker setting for every run, over the scenarios' own [tracker] overrides "
-                        "(repeatable; e.g. measurement.grow_extent=false, birth.long_width=none)")
+                        "(repeatable; e.g. measurement.grow_extent=false, birth.classes=none)")
     p.add_argument("--resume", action="store_true",
                    help="keep the runs already in OUT/runs.csv (an interrupted study) and run only the missing ones")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -54,14 +54,15 @@ def run_reference() -> dict[str, np.ndarray]:
     # min_cluster_points_fused), no first-scan births (BirthConfig.first_scan), no dropping of tracks
     # inside a seen vehicle (ReductionConfig.drop_inside_updated), no radar-only updates of coasting
     # tracks (MeasurementConfig.radar_only_update), no absorption of overlapping labels (ReductionConfig.
-    # absorb_overlap), no narrow-vehicle prior (BirthConfig.narrow_width), no one-point fragments joined to
+    # absorb_overlap), no motorcycles among the vehicle classes (BirthConfig.classes), no one-point fragments joined to
     # the track they continue (ClusteringConfig.fragment_points): the reference guards the speed-ups
     # against unintended changes of the model
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
-                                  first_scan=False, narrow_width=None),
+                                  first_scan=False,
+                                  classes=tuple(c for c in base.birth.classes if c.name != "motorcycle")),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
                                         shadowed_lidar_sigma=None),
         motion=dataclasses.replace(base.motion, acceleration=False),

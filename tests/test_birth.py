@@ -52,18 +52,21 @@ def test_cluster_birth_from_an_l_shape(road):
     assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig())[0]) == 0
 
 
-@pytest.mark.parametrize("long_width", [2.35, None], ids=["long-vehicle-prior", "off"])
-def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(long_width):
-    """A 2.5 m wide rear straight ahead on a straight road (a bus): with the long-vehicle prior the birth
-    has its length (12 m, std 3.5 m) and its centre 6 m beyond the rear; without it a car's 4.5 m. A
-    2 m rear stays a car."""
+@pytest.mark.parametrize("classes", [True, False], ids=["vehicle-classes", "off"])
+def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(classes):
+    """A 2.55 m wide rear straight ahead on a straight road (a bus): with the vehicle classes' prior the
+    birth has a truck's or bus's length (the classes' mixture given the fitted width,
+    ``BirthConfig.fit_width_std``; 12-14 m, std 3-5 m) and its centre half of it beyond the rear;
+    without it a car's 4.5 m. A 1.8 m rear stays a car (4.5 m, std ``length_std``)."""
+    from oracles.update import class_length_prior as oracle_prior
+
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
     ego_s, n_lane = 40.0, road.lane_centers[1]
     ego_xy = road.to_cartesian(ego_s, n_lane)
     ego_yaw = float(road.heading(ego_s))
     ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 15.0)
-    cfg = BirthConfig(long_width=long_width)
-    for width, long in ((2.5, long_width is not None), (2.0, False)):
+    cfg = BirthConfig() if classes else BirthConfig(classes=None)
+    for width, long in ((2.55, classes), (1.8, False)):
         s_rear = 60.0  # the rear's arc length; the vehicle is 16 m long, only its rear in view
         centre = road.to_cartesian(s_rear + 8.0, n_lane)
         theta = float(road.heading(s_rear + 8.0))
@@ -72,9 +75,13 @@ def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(long_width):
         means, covs = cluster_births([points], [None], ego, road, cfg)
         s, n, _, _, _, length, w = means[0]
         assert w == pytest.approx(width, abs=0.15)
-        expected = cfg.long_length if long else cfg.length
-        assert length == pytest.approx(expected) and s == pytest.approx(s_rear + 0.5 * expected, abs=0.4)
-        assert covs[0, 5, 5] == pytest.approx((cfg.long_length_std if long else cfg.length_std) ** 2)
+        if long:
+            expected, var = oracle_prior(np.array([w]), np.array([cfg.fit_width_std**2]), cfg.classes)
+            assert 12.0 < expected[0] < 14.0 and 3.0 < var[0] ** 0.5 < 5.0
+            assert length == pytest.approx(expected[0], abs=0.05) and covs[0, 5, 5] == pytest.approx(var[0], rel=0.02)
+        else:
+            assert length == cfg.length and covs[0, 5, 5] == pytest.approx(cfg.length_std**2)
+        assert s == pytest.approx(s_rear + 0.5 * length, abs=0.4)
 
 
 @pytest.mark.parametrize("limits", [True, False], ids=["limits", "no-limits"])
@@ -199,8 +206,8 @@ def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_le
 def test_a_birth_seen_from_its_side_couples_its_lateral_position_with_its_unseen_width():
     """A car abeam in the next lane shows its whole side (longer than the prior length): no coupling
     with ``L``; the unseen width puts the centre half a width beyond the side, away from the ego:
-    ``cov(n, W) = var(W) / 2``. A wide rear (the long-vehicle prior) and a sparse cluster are left
-    uncoupled."""
+    ``cov(n, W) = var(W) / 2``. A wide rear (a truck's or bus's length from the vehicle classes, too
+    spread for a linear shift) and a sparse cluster are left uncoupled."""
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
     ego = EgoState(100.0, 0.0, 0.0, 15.0)
     corners = to_local(rectangle_corners(np.array([100.0, 4.0]), np.array(0.0), np.array(4.8), np.array(2.0)),
@@ -213,12 +220,12 @@ def test_a_birth_seen_from_its_side_couples_its_lateral_position_with_its_unseen
     assert p[1, 6] == pytest.approx(0.5 * cfg.width_std**2, rel=1e-3)
     assert p[1, 1] == pytest.approx(0.25 + 0.25 * cfg.width_std**2, rel=1e-3)
     assert np.all(p[:2, 5] == 0.0)
-    # a 2.55 m wide rear ahead: a bus, whose 12 m prior length is not coupled; two points: no coupling
+    # a 2.55 m wide rear ahead: a bus, whose long prior length is not coupled; two points: no coupling
     bus = to_local(rectangle_corners(np.array([130.0, 0.0]), np.array(0.0), np.array(12.0), np.array(2.55)),
                    np.array([100.0, 0.0]), 0.0)
     bus_points, _ = rectangle_scan(bus, np.arange(-np.pi, np.pi, np.radians(0.2)))
     means, covs = cluster_births([bus_points, bus_points[:2]], [None, np.array([15.0, 0.0])], ego, road, cfg)
-    assert means[0, 5] == pytest.approx(cfg.long_length) and np.all(covs[:, :2, 5:] == 0.0)
+    assert means[0, 5] > 12.0 and np.all(covs[:, :2, 5:] == 0.0)
 
 
 @pytest.mark.parametrize("near_end_shadowed", [True, False], ids=["near-end-shadowed", "far-end-shadowed"])

@@ -84,9 +84,9 @@ def test_a_bad_tracker_setting_fails_before_the_study_starts(capsys, tmp_path, o
 
 
 def test_tracker_settings_parse_toml_values():
-    assert cli._tracker_settings(["measurement.grow_extent=false", "birth.long_width=none", "reduction.prune_threshold=1e-3",
+    assert cli._tracker_settings(["measurement.grow_extent=false", "birth.classes=none", "reduction.prune_threshold=1e-3",
                                   "measurement.conversion=\"euler\""]) == {
-        "measurement": {"grow_extent": False, "conversion": "euler"}, "birth": {"long_width": None},
+        "measurement": {"grow_extent": False, "conversion": "euler"}, "birth": {"classes": None},
         "reduction": {"prune_threshold": 1e-3}}
 
 

@@ -6,7 +6,8 @@ import dataclasses
 
 import pytest
 
-from tracker.config import DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig, TrackerConfig, UKFParams
+from tracker.config import (BirthConfig, DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig,
+                            TrackerConfig, UKFParams, VehicleClass)
 
 
 def test_defaults_are_the_documented_ones() -> None:
@@ -86,3 +87,30 @@ def test_from_dict() -> None:
     with pytest.raises(ValueError, match="unknown tracker configuration key 'noise'"):
         TrackerConfig.from_dict({"noise": {}})
     assert dataclasses.replace(c, use_radar=False).use_radar is False
+
+
+def test_the_vehicle_classes_are_checked() -> None:
+    """``BirthConfig.classes`` takes ``VehicleClass`` es or tables of their fields (as a TOML file gives
+    them), rejects an empty or a bad table, repeated names and sizes that are not positive, each with a
+    one-line message naming the field."""
+    table = {"name": "car", "share": 1.0, "length": 4.5, "length_std": 0.4, "width": 1.8, "width_std": 0.08}
+    assert BirthConfig(classes=[table]).classes == (VehicleClass(**table),)
+    assert BirthConfig(classes=None).classes is None
+    for bad, message in (([], "at least one VehicleClass"), ("car", "a list of vehicle classes"),
+                         ([table, table], "distinct names"), ([dict(table, share=0.0)], "share must be > 0"),
+                         ([dict(table, width_std=-1.0)], "width_std must be > 0"),
+                         ([{"name": "car"}], "exactly the keys name, share"), ([dict(table, colour=1)], "got name, share")):
+        with pytest.raises(ValueError, match=message):
+            BirthConfig(classes=bad)
+    with pytest.raises(ValueError, match="fit_width_std"):
+        BirthConfig(fit_width_std=0.0)
+    with pytest.raises(ValueError, match="width_error_std must be >= 0"):
+        BirthConfig(width_error_std=-0.1)
+
+
+def test_default_vehicle_classes() -> None:
+    """The default classes (``tracker.config.VEHICLE_CLASSES``, sources in docs/tracker.md): car, van/SUV/
+    pickup, truck, bus and motorcycle; trucks and buses within the legal width limits (2.55 m EU, 2.6 m US)."""
+    classes = {c.name: c for c in BirthConfig().classes}
+    assert list(classes) == ["car", "van-suv-pickup", "truck", "bus", "motorcycle"]
+    assert all(c.width <= 2.6 for c in classes.values()) and sum(c.share for c in classes.values()) == pytest.approx(1.0, abs=0.01)

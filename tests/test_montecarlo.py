@@ -50,11 +50,11 @@ def test_plan_puts_tracker_overrides_over_the_scenarios_own():
     from sim.evaluation.runner import tracker_config_for
     from sim.world.scenario import parse_scenario
 
-    tasks = plan(["cut-in"], 1, tracker_overrides={"measurement": {"grow_extent": False}, "birth": {"long_width": None}})
+    tasks = plan(["cut-in"], 1, tracker_overrides={"measurement": {"grow_extent": False}, "birth": {"classes": None}})
     table = tasks[0].data["tracker"]
-    assert table == {"measurement": {"grow_extent": False}, "birth": {"long_width": None}}
+    assert table == {"measurement": {"grow_extent": False}, "birth": {"classes": None}}
     config = tracker_config_for(parse_scenario(tasks[0].data, tasks[0].source), tasks[0].variant)
-    assert config.measurement.grow_extent is False and config.birth.long_width is None
+    assert config.measurement.grow_extent is False and config.birth.classes is None
     with pytest.raises(ValueError, match="unknown key"):
         plan(["cut-in"], 1, tracker_overrides={"measurement": {"nope": 1}})
 

@@ -461,29 +461,29 @@ def _seen_from_behind(length: float, width: float, ahead: float, **birth) -> tup
     return vehicle, d_vehicle
 
 
-@pytest.mark.parametrize("long_width", [2.35, None], ids=["long-vehicle-prior", "car-prior"])
-def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(long_width):
+@pytest.mark.parametrize("classes", [True, False], ids=["vehicle-classes", "car-prior"])
+def test_a_bus_seen_only_from_behind_gets_a_long_vehicles_length(classes):
     """A 16 m, 2.5 m wide bus 25 m straight ahead in the ego's lane: only its rear is ever seen. With
-    the long-vehicle prior (BirthConfig.long_width) its track takes a truck's or bus's length and its
+    the vehicle classes' prior (BirthConfig.classes) its track takes a truck's or bus's length and its
     centre lies within a few metres of the bus's; with a car's prior it keeps 4.5 m and its centre
     trails the bus's by ~6 m (beyond GOSPA's 5 m cut-off). A car ahead keeps a car's length."""
-    bus, d_bus = _seen_from_behind(16.0, 2.5, 25.0, long_width=long_width)
-    if long_width is None:
+    bus, d_bus = _seen_from_behind(16.0, 2.5, 25.0, **({} if classes else {"classes": None}))
+    if not classes:
         assert bus.length < 6.0 and d_bus > 5.0
     else:
         assert bus.length > 10.0 and d_bus < 3.0 and abs(bus.width - 2.5) < 0.2
 
 
-@pytest.mark.parametrize("narrow_width", [1.2, None], ids=["narrow-vehicle-prior", "car-prior"])
-def test_a_motorcycle_seen_only_from_behind_gets_a_motorcycles_length(narrow_width):
+@pytest.mark.parametrize("classes", [True, False], ids=["vehicle-classes", "car-prior"])
+def test_a_motorcycle_seen_only_from_behind_gets_a_motorcycles_length(classes):
     """A 2.2 x 0.8 m motorcycle 20 m straight ahead in the ego's lane: only its rear is ever seen. With
-    the narrow-vehicle prior (BirthConfig.narrow_width) its track takes a motorcycle's length once its
+    the vehicle classes' prior (BirthConfig.classes) its track takes a motorcycle's length once its
     width is measured, and its centre lies within 0.4 m of the motorcycle's; with a car's prior it
     keeps ~4.5 m and its centre leads the motorcycle's by ~1.2 m. A car in the next lane keeps a car's
     length."""
-    moto, d_moto = _seen_from_behind(2.2, 0.8, 20.0, narrow_width=narrow_width)
+    moto, d_moto = _seen_from_behind(2.2, 0.8, 20.0, **({} if classes else {"classes": None}))
     assert abs(moto.width - 0.8) < 0.15
-    if narrow_width is None:
+    if not classes:
         assert moto.length > 4.0 and d_moto > 0.9
     else:
         assert abs(moto.length - 2.2) < 0.4 and d_moto < 0.4
@@ -495,7 +495,7 @@ def test_two_buses_side_by_side_are_two_tracks_not_one_wide_one(split_width):
     left bend (R 60 m, 4 m lanes, as in scenarios/stop-and-go.toml): the lidar sees the first bus's
     rear and left side and the second's rear as one line of points ~1 m apart, one connected
     component. Cut at its largest lateral gap (ClusteringConfig.split_width), each bus keeps one track
-    of a long vehicle's size (the second's length from the long-vehicle prior: only its rear is seen)
+    of a long vehicle's size (the second's length from the vehicle classes' prior: only its rear is seen)
     under one label; without the cut the component is one cluster whose track is one
     wide rectangle over both (or none at all), and neither bus is tracked."""
     road = Road.from_curvature([(2 * np.pi * 60.0, 1 / 60.0, 1 / 60.0)], closed=True, lanes=3, lane_width=4.0)

@@ -260,10 +260,12 @@ def test_unobserved_length_is_held_observed_length_is_updated() -> None:
     """A car straight ahead shows only its rear: ``s - L/2`` is measured, ``L`` is not. With
     ``hold_unobserved_extent`` (default) the update keeps the prior's ``L`` mean and variance (the
     Schmidt update), while the plain update splits the along-track innovation between ``s`` and ``L``. A car ahead in the next lane shows its right side too: ``L`` is updated."""
+    from tracker.config import BirthConfig
+
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
     ego = (100.0, -1.75, 0.0)
-    cfg = TrackerConfig()
-    plain = TrackerConfig(measurement=MeasurementConfig(hold_unobserved_extent=False))
+    cfg = TrackerConfig(birth=BirthConfig(classes=None))  # the hold alone, not the vehicle classes' prior
+    plain = TrackerConfig(measurement=MeasurementConfig(hold_unobserved_extent=False), birth=BirthConfig(classes=None))
     res = np.radians(0.2)
     cov = np.diag(INIT_STD**2)
     for n_target, seen in ((-1.75, False), (1.75, True)):
@@ -323,16 +325,16 @@ def test_a_truck_side_longer_than_the_prior_grows_the_length_and_passes_the_gate
     assert np.linalg.eigvalsh(res_grow.cov[0]).min() > 0.0
 
 
-def _extent_rules(mean, cov, corners, birth, length_seen=False):
+def _extent_rules(mean, cov, corners, birth, length_seen=False, width_seen=True):
     """``apply_extent_rules`` of posteriors ``mean``, ``cov`` equal to their priors (the Schmidt hold
-    changes nothing) whose parts show the rear whole (the width measured) and the long side whole only
-    with ``length_seen``; the largest vehicle off. Returns the result and the pairs whose length changed."""
+    changes nothing) whose parts show the rear whole (the width measured) only with ``width_seen`` and
+    the long side whole only with ``length_seen``; the largest vehicle off. Returns the result and the pairs whose length changed."""
     from tracker.measurement import FROM_A, FULL, Structure
     from tracker.update import UpdateResult, apply_extent_rules
 
     count = len(mean)
     structure = Structure(*([None] * 7), two_sided=None, sides=np.tile([1, 2], (count, 1)),
-                          mode=np.tile([FULL if length_seen else FROM_A, FULL], (count, 1)), radar=None, z=None, r=None,
+                          mode=np.tile([FULL if length_seen else FROM_A, FULL if width_seen else FROM_A], (count, 1)), radar=None, z=None, r=None,
                           mask=None, factors=None, excess=None)
     res = UpdateResult(mean.copy(), cov.copy(), np.zeros(count), np.zeros(count), np.zeros(count, dtype=int),
                        np.zeros((count, 2)), np.zeros((count, 2)))
@@ -341,62 +343,112 @@ def _extent_rules(mean, cov, corners, birth, length_seen=False):
     return res, res.mean[:, 5] != mean[:, 5]
 
 
-def test_long_vehicle_prior_applies_once_to_an_unmeasured_car_length():
-    """The long-vehicle prior (``apply_extent_rules``, ``BirthConfig.long_width``) replaces a car's
-    never-measured length by a long vehicle's (centre moved away from the sensor by half the change,
-    variance added along that direction), and leaves alone a track that already carries it and one
-    whose length was measured."""
+def test_vehicle_classes_give_a_wide_rear_a_trucks_length_and_a_cars_rear_a_cars():
+    """The vehicle classes' prior (``apply_extent_rules``, ``BirthConfig.classes``) replaces a never
+    measured length seen from behind by the classes' length given the measured width: a 2.55 m rear a
+    truck's or bus's (centre moved away from the sensor by half the change, the variance raised to the
+    classes' along that direction), a 0.8 m rear a motorcycle's (the length's deviation scaled down to
+    the motorcycle's spread), the end nearest the sensor kept with its variance in both;
+    it leaves alone a 1.8 m rear (a car's length, within the held prior's spread), a length that was
+    measured, a width not seen this update, and everything with the classes off. Applied again it
+    changes nothing."""
+    from oracles.update import class_length_prior as oracle_prior
+
     from tracker.config import BirthConfig
     from tracker.measurement import rectangle_corners
 
     cfg = BirthConfig()
-    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.5]] * 4)
-    mean[1, 5] = 12.0  # already long
-    mean[3, 6] = 2.0  # a car's width
-    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.01]), (4, 1, 1))
-    cov[2, 5, 5] = 0.05**2  # measured
+    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.55]] * 4)
+    mean[1, 6] = 0.8  # a motorcycle's width
+    mean[2, 6] = 1.8  # a car's width
+    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.03**2]), (4, 1, 1))
+    cov[3, 5, 5] = 0.05**2  # measured
     corners = rectangle_corners(np.array([[20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # ahead, in E
     res, hit = _extent_rules(mean, cov, corners, cfg)
-    np.testing.assert_array_equal(hit, [True, False, False, False])
-    e = cfg.long_length - 4.5
-    assert res.mean[0, 5] == pytest.approx(cfg.long_length) and res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
-    assert res.cov[0, 5, 5] == pytest.approx(cfg.length_std**2 + cfg.long_length_std**2)
-    assert res.cov[0, 0, 5] == pytest.approx(0.5 * cfg.long_length_std**2)
-    np.testing.assert_array_equal(res.mean[1:], mean[1:])
-    np.testing.assert_array_equal(res.cov[1:], cov[1:])
+    np.testing.assert_array_equal(hit, [True, True, False, False])
+    length, var = oracle_prior(mean[:3, 6], cov[:3, 6, 6], cfg.classes)
+    assert 12.0 < length[0] < 14.0 and 3.0 < var[0] ** 0.5 < 5.0  # a truck's or a bus's
+    assert abs(length[1] - 2.2) < 0.1 and var[1] < cfg.length_std**2  # a motorcycle's
+    assert abs(length[2] - 4.5) < 0.1  # a car's
+    e = length[0] - 4.5
+    assert res.mean[0, 5] == pytest.approx(length[0]) and res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
+    assert res.cov[0, 5, 5] == pytest.approx(var[0]) and res.cov[0, 0, 5] == pytest.approx(0.5 * (var[0] - 1.0))
+    for p in (0, 1):  # the rear s - L/2 keeps its variance: a face seen later moves it, not the length
+        near = np.array([1.0, 0, 0, 0, 0, -0.5, 0])
+        assert near @ res.cov[p] @ near == pytest.approx(near @ cov[p] @ near)
+    assert res.mean[1, 5] == pytest.approx(length[1]) and res.cov[1, 5, 5] == pytest.approx(var[1])
+    assert res.mean[1, 0] - 0.5 * res.mean[1, 5] == pytest.approx(100.0 - 0.5 * 4.5)  # the rear stays put
+    np.testing.assert_array_equal(res.mean[2:], mean[2:])
+    np.testing.assert_array_equal(res.cov[2:], cov[2:])
+    again, _ = _extent_rules(res.mean, res.cov, corners, cfg)
+    np.testing.assert_allclose(again.mean, res.mean, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(again.cov, res.cov, rtol=0, atol=1e-9)
     behind = rectangle_corners(np.array([[-20.0, 0.0]] * 4), np.zeros(4), mean[:, 5], mean[:, 6])  # the rear is far
     res2, _ = _extent_rules(mean, cov, behind, cfg)
     assert res2.mean[0, 0] == pytest.approx(100.0 - 0.5 * e)  # the front (nearest the sensor) stays put
     assert not _extent_rules(mean, cov, corners, cfg, length_seen=True)[1].any()  # the length was measured
-    assert not _extent_rules(mean, cov, corners, dataclasses.replace(cfg, long_width=None))[1].any()  # the rule off
+    assert not _extent_rules(mean, cov, corners, cfg, width_seen=False)[1].any()  # the width not measured
+    assert not _extent_rules(mean, cov, corners, dataclasses.replace(cfg, classes=None))[1].any()  # the rule off
 
 
-def test_narrow_vehicle_prior_gives_a_measured_narrow_rear_a_motorcycles_length():
-    """The narrow-vehicle prior (``apply_extent_rules``, ``BirthConfig.narrow_width``) replaces a car's
-    never-measured length by a motorcycle's where the width is measured narrow (centre moved towards the
-    sensor by half the change: the rear stays put), and leaves alone a narrow width that is only a
-    guess, a car's width, a length already short, and one that was measured."""
+def test_vehicle_classes_shorten_a_car_born_a_truck_but_not_a_grown_truck():
+    """A length still at the classes' wide prior (a birth on an oblique or merged cluster 2.6 m wide
+    took a truck's 12 ± 3.5 m) follows the width the updates measure: a rear now 2.0 m wide (a car's or
+    van's, the classes' spread under ``length_std``) takes the classes' length, the end nearest the
+    sensor staying put with its variance and the length's variance scaled down to the classes'; a
+    truck whose length a side it showed grew to 15.6 m (still uncertain beyond ``1.5 length_std``) and
+    whose rear is 2.5 m wide keeps it, and so does a length of a car's fitted spread (a lower bound).
+    Checked against the independent oracle of ``tests/oracles/update.py``."""
+    from oracles.update import class_length_prior as oracle_prior
+    from oracles.update import vehicle_class_prior
+
     from tracker.config import BirthConfig
     from tracker.measurement import rectangle_corners
+    from tracker.update import UpdateResult
 
     cfg = BirthConfig()
-    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 0.8]] * 5)
-    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.03**2]), (5, 1, 1))
-    cov[1, 6, 6] = 0.3**2  # the width not measured
-    mean[2, 6] = 1.8  # a car's width
-    mean[3, 5] = 2.3  # already a motorcycle's length
-    cov[4, 5, 5] = 0.05**2  # the length measured (a side seen)
-    corners = rectangle_corners(np.array([[20.0, 0.0]] * 5), np.zeros(5), mean[:, 5], mean[:, 6])  # ahead, in E
+    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 12.0, 2.0], [100.0, 0.0, 10.0, 0.0, 0.0, 15.6, 2.5],
+                     [100.0, 0.0, 10.0, 0.0, 0.0, 6.0, 2.0]])
+    cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, 3.5**2, 0.05**2]), (3, 1, 1))
+    cov[1, 5, 5] = 2.0**2
+    cov[2, 5, 5] = cfg.length_std**2  # a fitted length: a lower bound
+    corners = rectangle_corners(np.array([[20.0, 0.0]] * 3), np.zeros(3), mean[:, 5], mean[:, 6])  # ahead, in E
     res, hit = _extent_rules(mean, cov, corners, cfg)
-    np.testing.assert_array_equal(hit, [True, False, False, False, False])
-    e = cfg.narrow_length - 4.5  # -2.3 m
-    assert res.mean[0, 5] == pytest.approx(cfg.narrow_length)
-    assert res.mean[0, 0] - 0.5 * res.mean[0, 5] == pytest.approx(100.0 - 0.5 * 4.5)  # the rear stays put
-    assert res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
-    assert res.cov[0, 5, 5] == pytest.approx(cfg.length_std**2 + cfg.narrow_length_std**2)
+    np.testing.assert_array_equal(hit, [True, False, False])
+    length, var = oracle_prior(mean[:1, 6], cov[:1, 6, 6], cfg.classes)
+    assert 4.5 < length[0] < 5.5 and var[0] < cfg.length_std**2  # a car's or a van's
+    assert res.mean[0, 5] == pytest.approx(length[0]) and res.cov[0, 5, 5] == pytest.approx(var[0])
+    rear = np.array([1.0, 0, 0, 0, 0, -0.5, 0])  # the rear, nearest the sensor: kept, with its variance
+    assert res.mean[0] @ rear == pytest.approx(mean[0] @ rear)
+    assert rear @ res.cov[0] @ rear == pytest.approx(rear @ cov[0] @ rear)
+    assert np.all(np.linalg.eigvalsh(res.cov[0]) > 0.0)
     np.testing.assert_array_equal(res.mean[1:], mean[1:])
-    np.testing.assert_array_equal(res.cov[1:], cov[1:])
-    assert not _extent_rules(mean, cov, corners, cfg, length_seen=True)[1].any()  # the length was updated
+    oracle = UpdateResult(mean.copy(), cov.copy(), *([None] * 5))
+    vehicle_class_prior(oracle, np.ones(3, dtype=bool), np.zeros(3, dtype=bool), corners, cfg)
+    np.testing.assert_allclose(res.mean, oracle.mean, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(res.cov, oracle.cov, rtol=0, atol=1e-9)
+
+
+def test_vehicle_classes_weigh_an_ambiguous_width():
+    """Between the classes the length is the mixture's: the prior of a measured width rises from a car's
+    through a van's to a truck's as the width grows, its spread largest where the classes overlap, and a
+    less certain width gives a wider spread between the modes."""
+    from oracles.update import class_length_prior as oracle_prior
+
+    from tracker.config import VEHICLE_CLASSES
+
+    widths = np.array([0.8, 1.8, 2.0, 2.2, 2.3, 2.4, 2.55])
+    length, var = oracle_prior(widths, np.full(len(widths), 0.05**2), VEHICLE_CLASSES)
+    assert length[0] == pytest.approx(2.2, abs=0.05) and length[1] == pytest.approx(4.5, abs=0.1)
+    assert np.all(np.diff(length[1:]) > 0.0)  # longer with the width
+    assert 5.0 < length[2] < 5.4 and 5.3 < length[3] < 5.6 and length[-1] > 12.0
+    assert np.sqrt(var[4]) > 3.0  # 2.3 m: a van's or a truck's, its spread covers both
+    _, var_loose = oracle_prior(widths, np.full(len(widths), 0.2**2), VEHICLE_CLASSES)
+    assert var_loose[3] > var[3]
+    # widths that stray from the body's (BirthConfig.width_error_std: mirrors, label boxes): 2.4 m is no
+    # longer a truck's for sure, 2.55 m still mostly is
+    loose, _ = oracle_prior(widths, np.full(len(widths), 0.05**2), VEHICLE_CLASSES, 0.25)
+    assert loose[5] < 9.0 < loose[6] and loose[5] < length[5] - 4.0
 
 
 @pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])
@@ -412,7 +464,7 @@ def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None
     mean = np.array([126.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.5])
     cov = np.diag([0.5, 0.5, 1.0, 0.01, 0.01, 1.0, 9.0])
     base = TrackerConfig()
-    config = dataclasses.replace(base, birth=BirthConfig(long_width=None, max_width=max_width))
+    config = dataclasses.replace(base, birth=BirthConfig(classes=None, max_width=max_width))
     post, _, _ = update(mean, cov, cluster, ego, road, config)
     if max_width is None:
         assert post[6] > 6.0
@@ -612,13 +664,13 @@ def test_the_update_of_a_tracked_scene_equals_the_oracle(monkeypatch):
 @pytest.mark.parametrize("dim", [7, 8])
 def test_the_extent_rules_equal_the_oracle(dim):
     """``apply_extent_rules`` (``tracker.extent.extent_rules_kernel``) against ``oracles.update`` on
-    random pairs built to reach every rule: lengths and widths held or seen whole, trucks' widths with a
-    car's length (the long-vehicle prior), measured narrow widths (the narrow one), estimates beyond the
-    largest vehicle, the sensor ahead of and behind the rectangles; the same numbers, bit for bit, with
-    the rules on and off."""
+    random pairs built to reach every rule: lengths and widths held or seen whole, trucks', cars' and
+    motorcycles' widths with unmeasured lengths (the vehicle classes' prior), estimates beyond the
+    largest vehicle, the sensor ahead of and behind the rectangles; the same numbers (to 1e-12: the
+    mixture's sums run in another order) with the rules on and off."""
     from oracles.update import apply_extent_rules as oracle_extent_rules
 
-    from tracker.config import BirthConfig
+    from tracker.config import VEHICLE_CLASSES, BirthConfig
     from tracker.measurement import FROM_A, FULL, Structure
     from tracker.update import UpdateResult, apply_extent_rules
 
@@ -640,14 +692,16 @@ def test_the_extent_rules_equal_the_oracle(dim):
     structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=mode, radar=None, z=None, r=None,
                           mask=None, factors=None, excess=None)
     for birth, hold in ((BirthConfig(), True), (BirthConfig(), False),
-                        (BirthConfig(long_width=None, narrow_width=None, max_length=None, max_width=None), True),
-                        (BirthConfig(narrow_width_std=0.6, length_std=0.2), True)):
+                        (BirthConfig(classes=None, max_length=None, max_width=None), True),
+                        (BirthConfig(classes=VEHICLE_CLASSES[:3], length_std=0.2), True),
+                        (BirthConfig(width_error_std=0.25), True)):
         config = TrackerConfig(birth=birth, measurement=MeasurementConfig(hold_unobserved_extent=hold))
         got = apply_extent_rules(UpdateResult(post.copy(), post_cov.copy(), *([None] * 5)), prior, prior_cov, structure,
                                  corners, config)
         ref = oracle_extent_rules(UpdateResult(post.copy(), post_cov.copy(), *([None] * 5)), prior, prior_cov, structure,
                                   corners, config)
-        assert np.array_equal(got.mean, ref.mean) and np.array_equal(got.cov, ref.cov)
+        np.testing.assert_allclose(got.mean, ref.mean, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got.cov, ref.cov, rtol=1e-12, atol=1e-12)
         changed = ~np.isclose(got.mean[:, 5], post[:, 5])
         assert changed.sum() >= 20  # the rules did something
 

@@ -25,6 +25,7 @@ import numpy as np
 from tracker.angles import wrap_angle
 from tracker.config import BirthConfig
 from tracker.detection import occluded_fraction
+from tracker.extent import class_arrays, class_length_prior
 from tracker.frame import EgoState
 from tracker.measurement import MIN_EXTENT, Rectangles
 from tracker.road import Road
@@ -223,9 +224,13 @@ def cluster_births(
         if sparse_k:  # the points' extent along and across the road's direction
             fit_len, fit_wid = np.ptp((pts - fit.center) @ np.column_stack([axis, lateral]), axis=0)
         length, width = max(fit_len, config.length), max(fit_wid, config.width)
-        long = config.long_width is not None and fit_wid >= config.long_width and length < config.long_length
-        if long:  # a truck or a bus (module docstring of tracker.config.BirthConfig): its length is unseen
-            length = config.long_length
+        length_std, long = config.length_std, False
+        if config.classes is not None:  # the classes' length given the fitted width (tracker.extent.class_length_prior)
+            class_length, class_var = class_length_prior(float(fit_wid), config.fit_width_std**2,
+                                                         *class_arrays(config.classes, config.width_error_std))
+            if class_length - length > config.length_std:  # beyond the car prior's spread: the rest is unseen
+                length, length_std = class_length, math.sqrt(max(class_var, config.length_std**2))
+                long = class_var > config.length_std**2  # too wide a spread for the centre's linear shift
         # no road vehicle is longer or wider than the limits: a larger cluster is two vehicles' points (or
         # a vehicle's and a roadside object's); the birth keeps the end nearest the sensor, as the
         # update projects its estimates back onto the limits (tracker.update.update_pairs)
@@ -264,7 +269,7 @@ def cluster_births(
             speed, speed_std = ego.v if config.speed is None else config.speed, config.speed_std
         means.append([s, n, speed, xi, 0.0, length, width])
         stds.append(speed_std if speed_std is not None else 1.0)
-        length_stds.append(config.long_length_std if long else config.length_std)
+        length_stds.append(length_std)
         sparse.append(sparse_k)
     if not means:
         return np.zeros((0, 7)), np.zeros((0, 7, 7))

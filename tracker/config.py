@@ -344,15 +344,55 @@ class DetectionConfig:
 
 
 @dataclass(frozen=True)
+class VehicleClass:
+    """One class of road vehicle: its share of the traffic and its length and width distributions
+    (normal, mean and standard deviation of the body, mirrors excluded), for the size prior of
+    ``BirthConfig.classes``. The defaults' sources: ``docs/tracker.md`` ("Vehicle classes")."""
+
+    #: Name of the class, e.g. "car" (no default).
+    name: str
+    #: Share of the traffic, by vehicle-distance travelled; the classes' shares need not sum to 1 (> 0; no default).
+    share: float
+    #: Mean length (m; no default).
+    length: float
+    #: Std of the length (m; no default).
+    length_std: float
+    #: Mean width (m; no default).
+    width: float
+    #: Std of the width (m; no default).
+    width_std: float
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"VehicleClass.name must be a non-empty string; got {self.name!r}")
+        _check(f"VehicleClass {self.name!r}", "share", self.share, low=0.0, low_open=True)
+        for name in ("length", "length_std", "width", "width_std"):
+            _check(f"VehicleClass {self.name!r}", name, getattr(self, name), low=0.0, low_open=True, unit="m")
+
+
+#: The default classes (``docs/tracker.md``, "Vehicle classes", cites the sources): shares of the
+#: vehicle-distance travelled in FHWA Highway Statistics table VM-1; sizes from fleet statistics,
+#: typical models and the legal width limits of trucks and buses (2.55 m EU, 2.6 m US).
+VEHICLE_CLASSES: tuple[VehicleClass, ...] = (
+    VehicleClass("car", share=0.68, length=4.5, length_std=0.4, width=1.80, width_std=0.08),
+    VehicleClass("van-suv-pickup", share=0.21, length=5.4, length_std=0.5, width=2.02, width_std=0.10),
+    VehicleClass("truck", share=0.095, length=12.0, length_std=3.5, width=2.52, width_std=0.06),
+    VehicleClass("bus", share=0.005, length=12.5, length_std=2.0, width=2.55, width_std=0.03),
+    VehicleClass("motorcycle", share=0.007, length=2.2, length_std=0.25, width=0.80, width_std=0.10),
+)
+
+
+@dataclass(frozen=True)
 class BirthConfig:
     """Birth intensity and the vehicle-size priors (``tracker.birth``, ``tracker.update``).
 
     Road births: one component per lane near the lidar's range limit, ahead and behind (prior spreads
     ``position_std``, ``lateral_std``, ``speed_std``, ...). Cluster births: one component per cluster of
     the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
-    from a joined radar detection when fused. The long- and narrow-vehicle priors replace a car's
-    unmeasured length by a truck's or a motorcycle's when the measured width says so; ``max_length`` and
-    ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
+    from a joined radar detection when fused. The vehicle classes (``classes``) give an unmeasured length
+    its prior from the measured width: the classes weighed by their share and the width's likelihood,
+    the length their mixture's mean and variance (``tracker.extent.class_length_prior``); ``max_length``
+    and ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
     paper").
     """
 
@@ -392,20 +432,12 @@ class BirthConfig:
     first_scan: bool = True
     #: Use road births, per lane near the range limits (default True).
     road: bool = True
-    #: A vehicle at least this wide is a truck or bus and takes the long length prior (m; default 2.35; None: off).
-    long_width: float | None = 2.35
-    #: Prior length of a truck or bus (m; default 12.0).
-    long_length: float = 12.0
-    #: Std of that prior length (m; default 3.5).
-    long_length_std: float = 3.5
-    #: A measured width at most this is a motorcycle's and takes the narrow length prior (m; default 1.2; None: off).
-    narrow_width: float | None = 1.2
-    #: ... if that width is known to this std or better (m; default 0.1).
-    narrow_width_std: float = 0.1
-    #: Prior length of a motorcycle (m; default 2.2).
-    narrow_length: float = 2.2
-    #: Std of that prior length (m; default 0.4).
-    narrow_length_std: float = 0.4
+    #: Vehicle classes whose sizes and shares weigh an unmeasured length by the measured width (default ``VEHICLE_CLASSES``; None: off).
+    classes: tuple[VehicleClass, ...] | None = VEHICLE_CLASSES
+    #: Std of a cluster's fitted width as evidence of its class, at a cluster birth (m; default 0.1).
+    fit_width_std: float = 0.1
+    #: Std of a measured width about the body's, beyond the filter's variance: mirrors, label boxes (m; default 0.0).
+    width_error_std: float = 0.0
     #: Longest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 25.0; None: no limit).
     max_length: float | None = 25.0
     #: Widest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 3.0; None: no limit).
@@ -418,14 +450,23 @@ class BirthConfig:
         _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
         if self.min_cluster_points_fused is not None:
             _check_int("BirthConfig", "min_cluster_points_fused", self.min_cluster_points_fused, 1)
-        if self.long_width is not None:
-            _check("BirthConfig", "long_width", self.long_width, low=0.0, low_open=True, unit="m")
-        _check("BirthConfig", "long_length", self.long_length, low=0.0, low_open=True, unit="m")
-        _check("BirthConfig", "long_length_std", self.long_length_std, low=0.0, low_open=True, unit="m")
-        if self.narrow_width is not None:
-            _check("BirthConfig", "narrow_width", self.narrow_width, low=0.0, low_open=True, unit="m")
-        for name in ("narrow_width_std", "narrow_length", "narrow_length_std"):
-            _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
+        if self.classes is not None:
+            if isinstance(self.classes, (str, bytes, dict)) or not hasattr(self.classes, "__iter__"):
+                raise ValueError(f"BirthConfig.classes must be a list of vehicle classes or None; got {self.classes!r}")
+            fields = [f.name for f in dataclasses.fields(VehicleClass)]
+            for c in self.classes:
+                if isinstance(c, dict) and sorted(c) != sorted(fields):
+                    raise ValueError(f"BirthConfig.classes: a class table needs exactly the keys {', '.join(fields)}; "
+                                     f"got {', '.join(map(str, c)) or 'none'}")
+            classes = tuple(VehicleClass(**c) if isinstance(c, dict) else c for c in self.classes)
+            if not classes or not all(isinstance(c, VehicleClass) for c in classes):
+                raise ValueError(f"BirthConfig.classes must hold at least one VehicleClass (or a table of its fields); "
+                                 f"got {self.classes!r}")
+            if len({c.name for c in classes}) != len(classes):
+                raise ValueError(f"BirthConfig.classes must have distinct names; got {[c.name for c in classes]!r}")
+            object.__setattr__(self, "classes", classes)
+        _check("BirthConfig", "fit_width_std", self.fit_width_std, low=0.0, low_open=True, unit="m")
+        _check("BirthConfig", "width_error_std", self.width_error_std, low=0.0, unit="m")
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")

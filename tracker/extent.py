@@ -6,14 +6,17 @@ Before the update, ``grow_extent_kernel``: a part's chord longer than its predic
 stays put (``_growth_direction``; ``tracker.update.grow_extent``). After it, ``extent_rules_kernel``:
 the Schmidt hold of an extent no part shows whole (``L`` for the long sides, ``W`` for the short ones
 keep their prior mean and variance, both held: their joint block;
-``MeasurementConfig.hold_unobserved_extent``); where the length was held, a car's unmeasured length
-replaced by a long vehicle's where the width is a truck's or a bus's (``BirthConfig.long_width``), or
-by a motorcycle's where a measured width is narrow (``BirthConfig.narrow_width``), the end nearest the
-sensor staying put (``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``,
+``MeasurementConfig.hold_unobserved_extent``); where the length was held and is still unmeasured and
+the width was seen whole, the length prior of the vehicle classes given the measured width
+(``BirthConfig.classes``, ``class_length_prior``: the classes weighed by their share and the width's
+likelihood, their lengths' mixture mean and variance) where it lies beyond one standard deviation of
+the held length and is longer, or the length is still no more than a car's prior (``BirthConfig.length``), the end nearest the sensor staying put
+(``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``,
 ``max_width``: the estimate projected back onto them)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -49,18 +52,69 @@ def _growth_direction(corners, heading, index, d):  # pragma: no cover - compile
 @njit(inline="always")
 def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
     """A new length prior of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
-    its predicted mean rectangle in E): the length becomes ``length`` with ``variance`` added along
-    ``d`` (``_growth_direction``), the end nearest the sensor staying put: ``m += e d``,
-    ``P += variance d d^T`` with ``e = length - L``."""
+    its predicted mean rectangle in E): the length becomes ``length`` with variance ``variance``, the
+    end nearest the sensor staying put, with its uncertainty. With ``d`` the growth direction
+    (``_growth_direction``): ``m += (length - L) d``; a larger variance adds along ``d``,
+    ``P += (variance - P_LL) d d^T``; a smaller one scales the length's deviation about the near end,
+    ``P <- M P M^T`` with ``M = I + (r - 1) d e_L^T``, ``r = sqrt(variance / P_LL)`` (subtracting along
+    ``d`` could leave ``P`` indefinite). Either way a face measured later moves the near end, not a
+    length that the hold then discards."""
     dim = mean.shape[0]
     d = np.empty(dim)
     _growth_direction(corners, mean[XI], LENGTH, d)
     e = length - mean[LENGTH]
     for j in range(dim):
         mean[j] += e * d[j]
+    old = cov[LENGTH, LENGTH]
+    if variance >= old:  # more uncertain: the added variance along d
+        for j in range(dim):
+            for i in range(dim):
+                cov[j, i] += (variance - old) * d[j] * d[i]
+        return
+    k = math.sqrt(variance / old) - 1.0
+    col = cov[:, LENGTH].copy()
     for j in range(dim):
-        for k in range(dim):
-            cov[j, k] += variance * d[j] * d[k]
+        for i in range(dim):
+            cov[j, i] += k * (d[j] * col[i] + col[j] * d[i]) + k * k * old * d[j] * d[i]
+
+
+@functools.lru_cache(maxsize=16)
+def class_arrays(classes: tuple, width_error_std: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                                      np.ndarray]:
+    """The arrays ``(C,)`` of ``class_length_prior`` from ``tracker.config.VehicleClass`` es: their
+    shares, mean lengths, length variances, mean widths and width variances, the latter widened by
+    ``width_error_std^2`` (``BirthConfig.width_error_std``: how far a measured width strays from the
+    body's); cached: not to be written."""
+    return (np.array([c.share for c in classes], dtype=float), np.array([c.length for c in classes], dtype=float),
+           np.array([c.length_std**2 for c in classes], dtype=float), np.array([c.width for c in classes], dtype=float),
+           np.array([c.width_std**2 + width_error_std**2 for c in classes], dtype=float))
+
+
+@njit
+def class_length_prior(width, width_var, share, length, length_var, class_width, class_width_var):  # pragma: no cover - compiled
+    """The length prior of a vehicle whose width is ``N(width, width_var)`` (m, m^2): the classes
+    (``tracker.config.VehicleClass``; arrays ``(C,)`` of their shares, mean lengths, length variances,
+    mean widths and width variances) weighed by ``p(c | w) ∝ share_c N(width; class_width_c,
+    class_width_var_c + width_var)``, and the mixture of their lengths' mean and variance
+    ``(sum p_c mu_c, sum p_c (var_c + mu_c^2) - mean^2)`` returned."""
+    count = share.shape[0]
+    logw = np.empty(count)
+    top = -math.inf
+    for c in range(count):
+        var = class_width_var[c] + width_var
+        r = width - class_width[c]
+        logw[c] = math.log(share[c]) - 0.5 * math.log(var) - 0.5 * r * r / var
+        top = max(top, logw[c])
+    total = 0.0
+    first = 0.0
+    second = 0.0
+    for c in range(count):
+        w = math.exp(logw[c] - top)
+        total += w
+        first += w * length[c]
+        second += w * (length_var[c] + length[c] * length[c])
+    mean = first / total
+    return mean, max(second / total - mean * mean, 0.0)
 
 
 @njit
@@ -92,17 +146,25 @@ def grow_extent_kernel(means, covs, excess, sides, corners, min_excess, sigmas):
 
 
 @njit
-def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, hold, long_on, long_width,
-                        long_below, long_variance, long_length, narrow_on, narrow_width, narrow_width_var,
-                        narrow_above, narrow_variance, narrow_length, unmeasured_var, max_length,
-                        max_width):  # pragma: no cover - compiled
+def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, hold, classes_on, share, class_length,
+                        class_length_var, class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor,
+                        max_length, max_width):  # pragma: no cover - compiled
     """The posteriors ``mean (P, D)``, ``cov (P, D, D)`` after the extent rules, in place (module
     docstring). ``mode``, ``sides (P, 2)``: the structure's parts; ``corners (P, 4, 2)``: the predicted
     mean rectangles. With ``hold``: a length (width) no part shows whole keeps its prior mean and
-    variance (both held: their joint block), then, where the length was held, the long-vehicle prior
-    (``long_on``: width at least ``long_width``, length below ``long_below``, its variance at least
-    ``unmeasured_var``) and the narrow one (``narrow_on``: width at most ``narrow_width`` with variance at
-    most ``narrow_width_var``, length above ``narrow_above``). Then ``L <= max_length``, ``W <= max_width``."""
+    variance (both held: their joint block), then, with ``classes_on``, where the length was held and
+    is still unmeasured (its variance at least ``unmeasured_var``) and the width was seen whole, the
+    length prior of the vehicle classes given the width's posterior (``class_length_prior`` of the
+    arrays ``share``, ``class_length``, ``class_length_var``, ``class_width``, ``class_width_var``)
+    where it lies beyond one standard deviation of the held length (within it, the held prior already
+    covers it), and only where it is longer, or where the held length is no more than a car's prior
+    ``length_floor`` (a fitted side longer than that is a lower bound the classes may not undercut), or
+    where its variance exceeds ``class_prior_var`` (no fit gives so wide a spread: the length is the
+    classes' own prior, taken on an earlier width) and the classes' variance is at most ``short_var``
+    (the width now rules out the long classes; a long vehicle's length grown by a side it showed
+    is a lower bound, and stays):
+    the mean moved to the classes' mean and the variance to theirs (where longer, to theirs or the held one, the larger), the end
+    nearest the sensor kept (``_replace_length``). Then ``L <= max_length``, ``W <= max_width``."""
     pairs = mean.shape[0]
     for p in range(pairs):
         if hold:
@@ -123,13 +185,14 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
             if not seen_length and not seen_width:
                 cov[p, LENGTH, WIDTH] = prior_cov[p, LENGTH, WIDTH]
                 cov[p, WIDTH, LENGTH] = prior_cov[p, WIDTH, LENGTH]
-            if not seen_length:
-                if (long_on and mean[p, WIDTH] >= long_width and mean[p, LENGTH] < long_below
-                        and cov[p, LENGTH, LENGTH] >= unmeasured_var):
-                    _replace_length(mean[p], cov[p], corners[p], long_length, long_variance)
-                if (narrow_on and mean[p, WIDTH] <= narrow_width and cov[p, WIDTH, WIDTH] <= narrow_width_var
-                        and mean[p, LENGTH] > narrow_above and cov[p, LENGTH, LENGTH] >= unmeasured_var):
-                    _replace_length(mean[p], cov[p], corners[p], narrow_length, narrow_variance)
+            if classes_on and seen_width and not seen_length and cov[p, LENGTH, LENGTH] >= unmeasured_var:
+                length, variance = class_length_prior(mean[p, WIDTH], max(cov[p, WIDTH, WIDTH], 0.0), share,
+                                                      class_length, class_length_var, class_width, class_width_var)
+                e = length - mean[p, LENGTH]
+                if e * e > cov[p, LENGTH, LENGTH] and (e > 0.0 or mean[p, LENGTH] <= length_floor or (
+                        cov[p, LENGTH, LENGTH] > class_prior_var and variance <= short_var)):
+                    _replace_length(mean[p], cov[p], corners[p], length,
+                                    max(variance, cov[p, LENGTH, LENGTH]) if e > 0.0 else variance)
         if mean[p, LENGTH] > max_length:  # np.minimum (a NaN stays a NaN)
             mean[p, LENGTH] = max_length
         if mean[p, WIDTH] > max_width:

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tracker.config import MeasurementConfig, TrackerConfig
-from tracker.extent import extent_rules_kernel, grow_extent_kernel
+from tracker.config import VEHICLE_CLASSES, MeasurementConfig, TrackerConfig
+from tracker.extent import class_arrays, extent_rules_kernel, grow_extent_kernel
 from tracker.frame import EgoState
 from tracker.indices import unique_indices
 from tracker.kalman import kalman_kernel, measurement_update_kernel
@@ -213,17 +213,29 @@ def update_pairs(
     return apply_extent_rules(res, pair_means, pair_covs, structure, mean_corners[inverse], config)
 
 
+#: A held length is still unmeasured while its standard deviation is at least this fraction of
+#: ``BirthConfig.length_std``: every birth starts at ``length_std`` or wider, the vehicle classes' prior only
+#: widens it, and only a side seen whole narrows it.
+UNMEASURED = 0.9
+
+#: A held length whose standard deviation exceeds this multiple of ``BirthConfig.length_std`` is the
+#: vehicle classes' prior, not a fit: a birth's fitted length has ``length_std``, and only the classes'
+#: mixture (a truck's or bus's length among a car's) is wider. Such a length is the classes' prior given
+#: an earlier width, and follows the width as the updates measure it: longer, and shorter where the
+#: classes' spread is at most ``length_std`` (the width rules out the long classes).
+CLASS_PRIOR = 1.5
+
+
 def _extent_rule_args(config: TrackerConfig) -> tuple:
     """The settings' arguments of the compiled extent rules (``tracker.extent.extent_rules_kernel``
-    after its arrays): the hold, the long- and narrow-vehicle priors and the largest vehicle."""
+    after its arrays): the hold, the vehicle classes' size prior (with the car's prior length below
+    which the classes may shorten a held length) and the largest vehicle."""
     b = config.birth
-    return (bool(config.measurement.hold_unobserved_extent),
-            b.long_width is not None, float(b.long_width or 0.0), b.long_length - b.long_length_std,
-            b.long_length_std**2, float(b.long_length), b.narrow_width is not None, float(b.narrow_width or 0.0),
-            b.narrow_width_std**2, b.narrow_length + b.narrow_length_std, b.narrow_length_std**2,
-            float(b.narrow_length), 0.25 * b.length_std**2,
-            math.inf if b.max_length is None else float(b.max_length),
-            math.inf if b.max_width is None else float(b.max_width))
+    return ((bool(config.measurement.hold_unobserved_extent), b.classes is not None)
+            + class_arrays(b.classes or VEHICLE_CLASSES, b.width_error_std)
+            + ((UNMEASURED * b.length_std)**2, (CLASS_PRIOR * b.length_std)**2, b.length_std**2, float(b.length),
+               math.inf if b.max_length is None else float(b.max_length),
+               math.inf if b.max_width is None else float(b.max_width)))
 
 
 def _fused_update_applies(config: TrackerConfig, road: Road | None, wrapping: Wrapping) -> bool:
@@ -366,8 +378,8 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
     """The extent rules after the update, in place (``tracker.extent.extent_rules_kernel``): the
     Schmidt hold of an unobserved extent (``MeasurementConfig.hold_unobserved_extent``), then where a
-    length was held the long- and narrow-vehicle priors (``BirthConfig.long_width``, ``narrow_width``),
-    then the largest vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto
+    length was held and unmeasured and the width seen whole the vehicle classes' length prior
+    (``BirthConfig.classes``), then the largest vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto
     it); ``tracker.extent``'s module docstring says what each rule does. ``mean_corners (P, 4, 2)``: the
     pairs' predicted mean rectangles in E."""
     mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)

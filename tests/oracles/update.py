@@ -7,6 +7,7 @@ steps and ``oracles.measurement``'s conversion to E and measurement structure.""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from oracles.measurement import build_structure, shows_longer_side, to_vehicle
@@ -175,7 +176,7 @@ def extent_growth_direction(mean_corners: np.ndarray, heading: np.ndarray, dim: 
     return d
 
 
-def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> np.ndarray:
+def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> tuple[np.ndarray, np.ndarray]:
     """Keep ``L`` (``W``) of a pair at its prior mean and variance unless the cluster shows a long
     (short) side fully -- the Schmidt ("consider") update of an unobserved extent, in place.
 
@@ -187,12 +188,12 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
     everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
     the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite. Returns the
-    mask of pairs whose ``L`` was held."""
+    masks of pairs whose ``L`` and whose ``W`` were held."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
     hold_length, hold_width = ~(full & long_side).any(axis=1), ~(full & ~long_side).any(axis=1)
     hold_extent(res, prior_mean, prior_cov, hold_length, hold_width)
-    return hold_length
+    return hold_length, hold_width
 
 
 def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, hold_length: np.ndarray,
@@ -208,76 +209,107 @@ def hold_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray
     res.cov[both, WIDTH, LENGTH] = prior_cov[both, WIDTH, LENGTH]
 
 
-def long_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
-    """A car's length prior replaced by a truck's or a bus's where the width says so, in place.
+def class_length_prior(width: np.ndarray, width_var: np.ndarray, classes,
+                       width_error_std: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The length prior ``(mean, variance)`` of vehicles whose widths are ``N(width, width_var)`` (arrays
+    ``(P,)``), from the vehicle classes ``classes`` (``tracker.config.VehicleClass``), a measured width
+    straying from the body's by ``width_error_std`` beyond its variance (mirrors, label boxes).
+
+    The class of a vehicle is unknown; its width tells it: with the classes' shares as the prior and
+    their width distributions, widened by the width's own variance and its error, as the likelihood,
+    ``p(c | w) = share_c N(w; width_c, width_std_c^2 + err^2 + var_w) / sum_k share_k N(w; width_k, ...)``.
+    The length given the width is the mixture of the classes' lengths with those weights; its mean and
+    variance are ``sum_c p_c length_c`` and ``sum_c p_c (length_std_c^2 + length_c^2) - mean^2``."""
+    share = np.array([c.share for c in classes])
+    mu_w = np.array([c.width for c in classes])
+    var_w = (np.array([c.width_std**2 + width_error_std**2 for c in classes])
+             + np.asarray(width_var, dtype=float)[:, None])
+    log_w = np.log(share) - 0.5 * np.log(var_w) - 0.5 * (np.asarray(width, dtype=float)[:, None] - mu_w) ** 2 / var_w
+    p = np.exp(log_w - log_w.max(axis=1, keepdims=True))
+    p /= p.sum(axis=1, keepdims=True)
+    mu_l = np.array([c.length for c in classes])
+    mean = p @ mu_l
+    return mean, np.maximum(p @ (np.array([c.length_std for c in classes]) ** 2 + mu_l**2) - mean**2, 0.0)
+
+
+def vehicle_class_prior(res: UpdateResult, held_length: np.ndarray, held_width: np.ndarray, mean_corners: np.ndarray,
+                        config: BirthConfig) -> np.ndarray:
+    """A held, unmeasured length given the prior of the vehicle classes by a width seen whole, in place.
 
     Seen from behind, a bus is a 2.5 m wide rear: its width is measured, its length never (the Schmidt
     update holds it, ``hold_unobserved_extent``), and a track born with a car's 4.5 m puts the centre of
-    a 16 m bus ~6 m behind the bus's. Cars and vans are at most
-    ~2.2 m wide, trucks and buses 2.5-2.55 m, so a pair whose length was held this update, whose
-    posterior width is at least ``config.long_width`` and whose length is still a car's prior (below
-    ``long_length - long_length_std``, its standard deviation at least half of ``length_std``: never
-    measured) takes the length ``long_length``, with the variance ``long_length_std^2``, while the end
-    nearest the sensor stays put (``replace_length_prior``).
-    A track that already carries the long prior, or whose length was measured, is left alone (applied
-    again each frame, the added variance would let a truck's track drift off it).
-    Returns the mask of the pairs changed."""
-    hit = (held_length & (res.mean[:, WIDTH] >= config.long_width)
-           & (res.mean[:, LENGTH] < config.long_length - config.long_length_std)
-           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
-    return replace_length_prior(res, hit, mean_corners, config.long_length, config.long_length_std)
+    a 16 m bus ~6 m behind the bus's; a motorcycle's 0.8 m rear likewise puts it ~1.2 m ahead. A pair
+    whose length was held this update and never measured (its standard deviation at least
+    ``0.9 length_std``: births start at ``length_std`` or wider, and only a side seen whole narrows it) and whose width was seen whole takes the classes' length given its posterior
+    width (``class_length_prior``) where that lies beyond one standard deviation of the held length
+    (within it the held prior already covers the classes' guess, and a change would trade one guess for
+    another) and is longer, or where the length is still no more than a
+    car's prior (``config.length``: points that showed a longer side bound it from below, so the classes
+    may lengthen it but not undercut it), or where its standard deviation exceeds ``1.5 length_std`` (a
+    spread no fit gives: the length is the classes' prior on an earlier width) and the classes are
+    sure of a short vehicle (their spread at most ``length_std``; a car born on an oblique fit 2.6 m
+    wide is shortened once its rear shows 1.9 m, a truck grown by a side it showed is not): the mean moves there and the variance rises to the classes'
+    where it is lower, the end nearest the sensor staying put (``replace_length_prior``). Applied again in
+    later frames it moves the length with the width's posterior and adds no variance the length
+    already has. Returns the mask of the pairs changed."""
+    hit = held_length & ~held_width & (res.cov[:, LENGTH, LENGTH] >= (0.9 * config.length_std) ** 2)
+    if not hit.any():
+        return hit
+    mean, var = class_length_prior(res.mean[:, WIDTH], np.maximum(res.cov[:, WIDTH, WIDTH], 0.0), config.classes,
+                                   config.width_error_std)
+    e = mean - res.mean[:, LENGTH]
+    # no fit is that uncertain: the classes' own prior, undercut only where the width rules out the long classes
+    from_classes = (res.cov[:, LENGTH, LENGTH] > (1.5 * config.length_std) ** 2) & (var <= config.length_std**2)
+    hit &= ((e > 0.0) | (res.mean[:, LENGTH] <= config.length) | from_classes) & (e * e > res.cov[:, LENGTH, LENGTH])
+    if not hit.any():
+        return hit
+    target = np.where(e > 0.0, np.maximum(var, res.cov[:, LENGTH, LENGTH]), var)
+    return replace_length_prior(res, hit, mean_corners, mean[hit], target[hit])
 
 
-def narrow_vehicle_prior(res: UpdateResult, held_length: np.ndarray, mean_corners: np.ndarray, config: BirthConfig) -> np.ndarray:
-    """A car's length prior replaced by a motorcycle's where a measured width says so, in place.
+def replace_length_prior(res: UpdateResult, hit: np.ndarray, mean_corners: np.ndarray, length: np.ndarray,
+                         variance: np.ndarray) -> np.ndarray:
+    """Give the pairs ``hit`` the length ``length`` with variance ``variance`` (arrays over the pairs
+    hit) in place of their unmeasured one, the end nearest the sensor staying put with its uncertainty.
+    With ``d`` the direction of ``grow_extent`` (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in
+    the ``L`` slot) and ``a`` its position part: ``m += (length - L) d``; a larger variance is added
+    along ``d`` (``P += (variance - P_LL) d d^T``); a smaller one scales the length's deviation by
+    ``r = sqrt(variance / P_LL)`` in the coordinates ``y = T x`` of the near end and the length::
 
-    The mirror image of ``long_vehicle_prior``: seen from behind, a motorcycle is a 0.8 m wide rear
-    whose length is never measured, and a track born with a car's 4.5 m puts its centre ~1.2 m ahead of
-    the motorcycle's for as long as its side stays unseen. Cars are at least ~1.5 m wide, motorcycles
-    and bicycles at most ~1 m, so a pair whose length was held this update, whose posterior width is at
-    most ``config.narrow_width`` and known to ``config.narrow_width_std`` (measured, not a prior's
-    guess), and whose length is still a car's prior (above ``narrow_length + narrow_length_std``, its
-    standard deviation at least half of ``length_std``: never measured) takes the length
-    ``narrow_length``, with the variance ``narrow_length_std^2``, the end nearest the sensor staying put
-    (``replace_length_prior``).
-    Returns the mask of the pairs changed."""
-    hit = (held_length & (res.mean[:, WIDTH] <= config.narrow_width)
-           & (res.cov[:, WIDTH, WIDTH] <= config.narrow_width_std**2)
-           & (res.mean[:, LENGTH] > config.narrow_length + config.narrow_length_std)
-           & (res.cov[:, LENGTH, LENGTH] >= 0.25 * config.length_std**2))
-    return replace_length_prior(res, hit, mean_corners, config.narrow_length, config.narrow_length_std)
+        P <- T^-1 S T P T^T S T^-T,   T = I - a e_L^T,  S = I + (r - 1) e_L e_L^T
 
-
-def replace_length_prior(res: UpdateResult, hit: np.ndarray, mean_corners: np.ndarray, length: float, std: float) -> np.ndarray:
-    """Give the pairs ``hit`` the length ``length`` +- ``std`` in place of their unmeasured one, the end
-    nearest the sensor staying put: with ``e = length - L`` and ``d`` as in ``grow_extent``
-    (``0.5 sgn (cos h, sin h)`` in the position slots, 1 in the ``L`` slot)::
-
-        m += e d,   P += std^2 d d^T
-
-    (a shift of the length by an uncertain ``e``, the centre moving by half of it away from the sensor,
-    or towards it when the new length is shorter). Returns ``hit``."""
+    (written as the three matrices; the product kernel folds them into one). Returns ``hit``."""
     if not hit.any():
         return hit
     d = extent_growth_direction(np.asarray(mean_corners, dtype=float)[hit], res.mean[hit, XI], res.mean.shape[1], LENGTH)
     e = length - res.mean[hit, LENGTH]
     res.mean[hit] += e[:, None] * d
-    res.cov[hit] += std**2 * d[:, :, None] * d[:, None, :]
+    eye = np.eye(res.mean.shape[1])
+    for row, p in enumerate(np.flatnonzero(hit)):
+        target = float(np.ravel(variance)[row])
+        if target >= res.cov[p, LENGTH, LENGTH]:
+            res.cov[p] += (target - res.cov[p, LENGTH, LENGTH]) * np.outer(d[row], d[row])
+            continue
+        a = d[row].copy()
+        a[LENGTH] = 0.0
+        t = eye - np.outer(a, eye[LENGTH])
+        s = eye.copy()
+        s[LENGTH, LENGTH] = math.sqrt(target / res.cov[p, LENGTH, LENGTH])
+        m = np.linalg.inv(t) @ s @ t
+        res.cov[p] = m @ res.cov[p] @ m.T
     return hit
 
 
 def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
     """The extent rules after the update, in place: ``hold_unobserved_extent``, then where a length was
-    held ``long_vehicle_prior`` and ``narrow_vehicle_prior``, then the largest vehicle (the estimate
+    held and the width seen ``vehicle_class_prior``, then the largest vehicle (the estimate
     projected back onto ``BirthConfig.max_length``, ``max_width``)."""
     b = config.birth
     if config.measurement.hold_unobserved_extent:
-        held_length = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
-        if b.long_width is not None:
-            long_vehicle_prior(res, held_length, mean_corners, b)
-        if b.narrow_width is not None:
-            narrow_vehicle_prior(res, held_length, mean_corners, b)
+        held_length, held_width = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
+        if b.classes is not None:
+            vehicle_class_prior(res, held_length, held_width, mean_corners, b)
     for index, limit in ((LENGTH, b.max_length), (WIDTH, b.max_width)):
         if limit is not None:
             np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
