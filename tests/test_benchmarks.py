@@ -66,7 +66,7 @@ def test_quick_run_writes_every_section(quick):
     assert result["command"].startswith("eot bench --quick")
     assert set(result["section_wall_s"]) == set(SECTIONS)
     assert f"wrote {out}" in printed
-    assert "tracker ms per frame" in printed and "Monte Carlo curvy-multi" in printed and "VLP-16 scan" in printed
+    assert "tracker ms per frame" in printed and "Monte Carlo curvy-multi" in printed and "vlp16 scan" in printed and "os1-128 scan" in printed
 
 
 def test_quick_run_numbers_are_finite(quick):
@@ -100,10 +100,14 @@ def test_quick_run_tracker_rows(quick):
 def test_quick_run_other_sections(quick):
     result = json.loads(quick[1].read_text(encoding="utf-8"))
     assert _positive(result["lidar"]["scan_ms"]) and result["lidar"]["rays"] == 1800
-    v16 = result["lidar3d"]
-    assert v16["scene"]["rays"] == 28800 and v16["scene"]["ground_points"] > 1000 and v16["scene"]["vehicle_points"] > 100
-    assert _positive(v16["scan"]["median_ms"]) and _positive(v16["preprocess"]["median_ms"])
-    assert all(0.9 <= v <= 1.0 for v in v16["ground_removal"].values()), v16["ground_removal"]
+    assert list(result["lidar3d"]) == ["vlp16", "vlp32c", "hdl64e", "os1-128"]
+    rays = {"vlp16": 16 * 1800, "vlp32c": 32 * 1800, "hdl64e": 64 * 2000, "os1-128": 128 * 1024}
+    for name, row in result["lidar3d"].items():
+        assert row["model"] == name and row["scene"]["rays"] == rays[name]
+        assert row["scene"]["ground_points"] > 1000 and row["scene"]["vehicle_points"] > 100
+        assert _positive(row["scan"]["median_ms"]) and _positive(row["preprocess"]["median_ms"])
+        assert _positive(row["tracker_step"]["median_ms"]) and row["tracker_step"]["tracks"] >= 5
+        assert all(0.9 <= v <= 1.0 for v in row["ground_removal"].values()), (name, row["ground_removal"])
     assert set(result["world"]) == {"curvy-multi", "dense-highway"}
     assert all(_positive(w["ms_per_simulated_s"]) for w in result["world"].values())
     e2e = result["end_to_end"]

@@ -17,12 +17,12 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from sim.sensors.clutter import ClutterConfig, generate_roadside
-from sim.sensors.lidar3d import Prisms, Vlp16, Vlp16Config, cast_3d
+from sim.sensors.lidar3d import LIDAR3D_MODELS, Lidar3D, Lidar3DConfig, Prisms, cast_3d
 from sim.world.ground import FlatGround, GroundSurface, RoadGround
 from tracker.road import Road
 
 MAX_RANGE = 100.0
-COARSE = Vlp16Config(resolution_deg=1.0)  # 16 beams x 360 azimuths
+COARSE = Lidar3DConfig(resolution_deg=1.0)  # 16 beams x 360 azimuths
 
 
 def rot_z(yaw: float) -> np.ndarray:
@@ -299,10 +299,10 @@ def test_flat_surface_and_road_without_slope_are_exact():
 
 # -- the scan ---------------------------------------------------------------------------------------
 def test_mount_with_roll_pitch_yaw_matches_the_oracle():
-    cfg = Vlp16Config(resolution_deg=1.0, mount_x=1.2, mount_y=-0.3, mount_z=1.7, mount_roll_deg=4.0,
+    cfg = Lidar3DConfig(resolution_deg=1.0, mount_x=1.2, mount_y=-0.3, mount_z=1.7, mount_roll_deg=4.0,
                       mount_pitch_deg=-8.0, mount_yaw_deg=30.0, range_noise_std=0.0, dropout_probability=0.0,
                       min_range=0.0)
-    lidar = Vlp16(cfg)
+    lidar = Lidar3D(cfg)
     boxes = [(14.0, 3.0, 0.2, 4.5, 1.9, 0.3, 1.6, 0), (-9.0, -4.0, 1.0, 4.0, 1.8, 0.2, 1.5, 1),
              (25.0, -8.0, 0.0, 0.4, 0.4, 0.0, 6.0, 2)]
     origin, yaw = np.array([2.0, 1.0, 0.0]), 0.7
@@ -335,7 +335,7 @@ def box_distance(p: np.ndarray, box: tuple) -> np.ndarray:
 
 def test_scan_points_lie_on_the_hit_surfaces(sloped):
     road, _, ground = sloped
-    lidar = Vlp16(Vlp16Config(resolution_deg=1.0))
+    lidar = Lidar3D(Lidar3DConfig(resolution_deg=1.0))
     xy = np.asarray(road.to_cartesian(240.0, 1.75))
     origin = np.array([xy[0], xy[1], float(ground.height(xy[None])[0])])
     heading = math.radians(20.0)
@@ -358,7 +358,7 @@ def test_scan_points_lie_on_the_hit_surfaces(sloped):
 
 
 def test_same_seed_same_scan_and_scene_independent_stream():
-    lidar = Vlp16(Vlp16Config(resolution_deg=1.0))
+    lidar = Lidar3D(Lidar3DConfig(resolution_deg=1.0))
     prisms = box_prisms([(10.0, 0.0, 0.0, 4.5, 1.9, 0.2, 1.6, 0)])
     a = lidar.scan([0, 0, 0], 0.1, prisms, FlatGround(), vehicle_ids=[1], rng=np.random.default_rng(5), t=0.3)
     b = lidar.scan([0, 0, 0], 0.1, prisms, FlatGround(), vehicle_ids=[1], rng=np.random.default_rng(5), t=0.3)
@@ -381,7 +381,7 @@ def test_roadside_prisms_and_owner_convention():
     rebuilt = Prisms(scene.vertices, scene.sizes, scene.base, scene.top, scene.owner)  # validated and derived anew
     for name in ("vertices", "sizes", "base", "top", "owner", "centre", "radius", "normals", "offsets"):
         assert np.array_equal(getattr(scene, name), getattr(rebuilt, name))
-    lidar = Vlp16(Vlp16Config(resolution_deg=1.0, dropout_probability=0.0))
+    lidar = Lidar3D(Lidar3DConfig(resolution_deg=1.0, dropout_probability=0.0))
     scan = lidar.scan([0.0, 0.0, 0.0], 0.0, scene, FlatGround(), vehicle_ids=[21, 22], rng=np.random.default_rng(0))
     assert set(np.unique(scan.vehicle_id)) == {-1, 21, 22}
     side = scan.roadside_index >= 0
@@ -396,9 +396,9 @@ def test_roadside_prisms_and_owner_convention():
 
 
 def test_config_validation():
-    assert Vlp16Config().rays == 28_800
-    assert np.allclose(np.degrees(Vlp16Config().elevations), np.arange(-15, 16, 2))
-    assert np.allclose(np.linalg.norm(Vlp16Config().directions, axis=1), 1.0)
+    assert Lidar3DConfig().rays == 28_800
+    assert np.allclose(np.degrees(Lidar3DConfig().elevations), np.arange(-15, 16, 2))
+    assert np.allclose(np.linalg.norm(Lidar3DConfig().directions, axis=1), 1.0)
     for kwargs, field in (
         ({"beams": 0}, "beams"),
         ({"beams": 1}, "elevation_min_deg"),
@@ -415,9 +415,9 @@ def test_config_validation():
         ({"mount_pitch_deg": "5"}, "mount_pitch_deg"),
     ):
         with pytest.raises(ValueError, match=field):
-            Vlp16Config(**kwargs)
-    with pytest.raises(ValueError, match="Vlp16Config"):
-        Vlp16(object())
+            Lidar3DConfig(**kwargs)
+    with pytest.raises(ValueError, match="Lidar3DConfig"):
+        Lidar3D(object())
 
 
 def test_cast_and_prism_validation():
@@ -545,3 +545,52 @@ def test_convex_prisms_against_a_face_by_face_oracle():
     br, bo = oracle_polygon_prisms(origin, d, polygons, base, top, owners)
     assert_same(result, *combine(br, bo, oracle_flat(origin, d)))
     assert len(np.unique(result.owner)) > 20 and np.any(result.owner == owners[-1])
+
+
+# -- the models of real sizes ------------------------------------------------------------------------
+#: Per model: beams, lowest and highest elevation (deg), azimuths per revolution (the data sheets).
+SHEETS = {"vlp16": (16, -15.0, 15.0, 1800), "vlp32c": (32, -25.0, 15.0, 1800), "hdl64e": (64, -24.9, 2.0, 2000),
+          "os1-128": (128, -22.5, 22.5, 1024)}
+
+
+@pytest.mark.parametrize("name", list(SHEETS))
+def test_model_tables_follow_the_data_sheets(name):
+    beams, low, high, azimuths = SHEETS[name]
+    model = LIDAR3D_MODELS[name]
+    config = Lidar3DConfig.of_model(name, max_range=80.0)
+    table = np.asarray(model.elevations_deg)
+    assert len(table) == beams and table[0] == low and table[-1] == high and np.all(np.diff(table) > 0)
+    assert config.azimuth_count == azimuths and config.rays == beams * azimuths == model.rays
+    assert config.max_range == 80.0 and np.allclose(np.degrees(config.elevations), table)
+    if name == "vlp32c":  # densest around the horizon: 1/3 deg from -4 to +1.667 deg
+        near = table[(table >= -4.0) & (table <= 1.67)]
+        assert np.allclose(np.diff(near), 1.0 / 3.0, atol=0.002)
+    if name == "hdl64e":  # two blocks: ~1/3 deg above -8.33 deg, ~1/2 deg below
+        assert np.allclose(np.diff(table[32:]), 10.33 / 31, atol=1e-3) and np.allclose(np.diff(table[:32]), 16.03 / 31, atol=1e-3)
+
+
+@pytest.mark.parametrize("name", list(SHEETS))
+def test_each_models_beams_meet_flat_ground_at_their_rings(name):
+    """Over flat ground from 1.9 m, a beam at elevation ``e < 0`` returns a ring at horizontal range
+    ``1.9 / tan(-e)`` (geometry), within the range noise; beams that reach no ground within range and
+    upward beams return nothing."""
+    config = Lidar3DConfig.of_model(name, resolution_deg=2.0, range_noise_std=0.0, dropout_probability=0.0)
+    scan = Lidar3D(config).scan(np.zeros(3), 0.3, Prisms.empty(), FlatGround(), vehicle_ids=[], rng=np.random.default_rng(0))
+    assert scan.ground.all()
+    elevation = np.radians(np.asarray(LIDAR3D_MODELS[name].elevations_deg))
+    ring = 1.9 / np.tan(-np.minimum(elevation, -1e-9))
+    slant = 1.9 / np.sin(-np.minimum(elevation, -1e-9))
+    reaches = (elevation < 0) & (slant <= config.max_range) & (slant >= config.min_range)
+    assert sorted(set(scan.beam.tolist())) == np.flatnonzero(reaches).tolist()
+    assert np.all(np.bincount(scan.beam, minlength=len(elevation))[reaches] == config.azimuth_count)
+    np.testing.assert_allclose(np.hypot(scan.points[:, 0], scan.points[:, 1]), ring[scan.beam], rtol=1e-9)
+    np.testing.assert_allclose(scan.elevation, elevation[scan.beam], atol=1e-12)
+
+
+def test_of_model_errors():
+    with pytest.raises(ValueError, match="one of"):
+        Lidar3DConfig.of_model("vlp64")
+    with pytest.raises(ValueError, match="beams is the model's"):
+        Lidar3DConfig.of_model("vlp32c", beams=16)
+    with pytest.raises(ValueError, match="elevations_deg must hold beams"):
+        Lidar3DConfig(beams=3, elevation_min_deg=-10.0, elevation_max_deg=10.0, elevations_deg=(-10.0, 5.0, 0.0))

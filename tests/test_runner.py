@@ -290,7 +290,7 @@ def test_normalize_tracker_events_rejects_bad_entries():
         normalize_tracker_events([1])
 
 
-# -- the 3-D lidar (issue 15) --------------------------------------------------------------------
+# -- the 3-D lidar --------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["curve-single", "curvy-multi"])
 def test_the_vlp16_pipeline_tracks_as_well_as_the_2d_lidar(name: str) -> None:
     """8 s of each scenario with the 2-D lidar and with the VLP-16 (raw clouds through the tracker's
@@ -327,6 +327,14 @@ def test_with_lidar_model_sets_the_model_and_the_tracker_gets_the_mount() -> Non
     assert back.sensors == {"lidar": {"model": "2d"}}
     with pytest.raises(ValueError, match="lidar model must be one of"):
         with_lidar_model(spec, "hdl32")
+    data["sensors"] = {"lidar": {"model": "vlp16", "beams": 8, "resolution_deg": 0.4, "mount_z": 2.2}}
+    grid = parse_scenario(data, "grid")
+    os1 = with_lidar_model(grid, "os1-128")  # the VLP-16's grid and its azimuth step go; the mount stays
+    assert os1.sensors == {"lidar": {"model": "os1-128", "mount_z": 2.2}}
+    rig, _ = rig_config_for(os1)
+    assert rig.lidar.azimuth_step_deg == 360.0 / 1024
+    assert tracker_config_for(os1, "curvilinear-fused", rig).cloud.mount_z == 2.2
+    assert with_lidar_model(grid, "vlp16").sensors == grid.sensors  # the same model keeps its settings
 
 
 # -- vehicles driving against s ------------------------------------------------------------------

@@ -698,11 +698,26 @@ VLP16 = LidarConfig(model="vlp16", range_noise_std=0.0, dropout_probability=0.0)
 
 
 def test_lidar_config_keeps_3d_settings_for_the_vlp16_model():
-    assert VLP16.vlp16_config().rays == 28_800 and VLP16.vlp16_config().mount_z == 1.9
+    assert VLP16.lidar3d_config().rays == 28_800 and VLP16.lidar3d_config().mount_z == 1.9
     with pytest.raises(ValueError, match=r'LidarConfig.mount_z applies to the 3-D lidar only; set model = "vlp16"'):
         LidarConfig(mount_z=2.0)
     with pytest.raises(ValueError, match="LidarConfig.model must be one of"):
         LidarConfig(model="hdl64")
+
+
+def test_lidar_config_models_of_real_sizes_take_their_tables_and_azimuth_steps():
+    """A 3-D model's beams and azimuth step come from ``LIDAR3D_MODELS`` unless the azimuth step is set;
+    the mount and the ranges are the config's; the VLP-16's evenly spaced grid fields are refused for
+    the others (their tables are fixed)."""
+    assert LidarConfig().azimuth_step_deg == 0.2 and LidarConfig(model="vlp16").azimuth_step_deg == 0.2
+    os1 = LidarConfig(model="os1-128", mount_z=2.1, max_range=120.0)
+    assert os1.azimuth_step_deg == 360.0 / 1024 and os1.rays == 1024
+    c3 = os1.lidar3d_config()
+    assert (c3.beams, c3.azimuth_count, c3.mount_z, c3.max_range) == (128, 1024, 2.1, 120.0)
+    assert LidarConfig(model="hdl64e", resolution_deg=0.2).lidar3d_config().rays == 64 * 1800
+    assert LidarConfig(model="vlp32c").lidar3d_config().elevations_deg[0] == -25.0
+    with pytest.raises(ValueError, match="LidarConfig.beams sets the VLP-16's evenly spaced beams; model 'hdl64e'"):
+        LidarConfig(model="hdl64e", beams=32)
 
 
 def test_rig_with_the_vlp16_delivers_raw_clouds_labelled_by_what_they_hit():

@@ -10,7 +10,7 @@ line printed after the JSON. Benchmarks measure speed; tests never assert wall-c
 - ``tracker``: the multi-target tracker's ms per frame at 1 to 50 targets in view (``--compare-stonesoup``);
 - ``world``: traffic only, ms of wall time per simulated second;
 - ``sensors``: lidar ray casting (the compiled caster vs pymunk), radar cycles and rig frames;
-- ``lidar3d``: one VLP-16 scan over a sloped road with traffic and clutter;
+- ``lidar3d``: one scan per 3-D lidar model over a sloped road with traffic and clutter, and the tracker on it;
 - ``env``: ``eot/TrackedRoad-v0`` steps per second with the tracker in the loop;
 - ``montecarlo``: simulated seconds per wall second per worker.
 

@@ -91,12 +91,13 @@ def format_table(r: dict[str, Any]) -> str:
         x = r["lidar"]
         lines.append(f"lidar scan {_num(x['scan_ms'])} ms ({x['rays']} rays; {x['scene']}), radar cycle {_num(x['radar_cycle_ms'])} ms")
     if "lidar3d" in r:
-        x = r["lidar3d"]
-        g = x["ground_removal"]
-        lines.append(f"VLP-16 scan {_num(x['scan']['median_ms'])} ms median, p95 {_num(x['scan']['p95_ms'])} ms "
-                     f"({x['scene']['rays']} rays, grade {x['scene']['grade']}, bank {x['scene']['bank']}); tracker's 3-D "
-                     f"preprocessing {_num(x['preprocess']['median_ms'])} ms; ground removal recall {g['recall']:.4f}, "
-                     f"precision {g['precision']:.4f}, vehicle points kept {g['vehicle_points_kept']:.4f}")
+        for name, x in r["lidar3d"].items():
+            g, st = x["ground_removal"], x["tracker_step"]
+            lines.append(f"{name} scan {_num(x['scan']['median_ms'])} ms median ({x['scene']['rays']} rays, "
+                         f"{x['scene']['points']} points, grade {x['scene']['grade']}, bank {x['scene']['bank']}); "
+                         f"tracker: 3-D preprocessing {_num(x['preprocess']['median_ms'])} ms, whole step "
+                         f"{_num(st['median_ms'])} ms median, p95 {_num(st['p95_ms'])} ms; ground removal recall "
+                         f"{g['recall']:.4f}, precision {g['precision']:.4f}, vehicle points kept {g['vehicle_points_kept']:.4f}")
     if "world" in r:
         lines += _world(r["world"])
     if "end_to_end" in r:

@@ -52,7 +52,7 @@ def bench_config(variant: str) -> TrackerConfig:
     config = variant_config(variant)
     lidar = RigConfig().lidar
     detection = dataclasses.replace(config.detection, lidar_range=float(lidar.max_range),
-                                    lidar_resolution=math.radians(lidar.resolution_deg))
+                                    lidar_resolution=math.radians(lidar.azimuth_step_deg))
     return dataclasses.replace(config, detection=detection)
 
 

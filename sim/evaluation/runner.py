@@ -78,7 +78,7 @@ from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
 from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
-from sim.sensors.lidar import LIDAR_MODELS, VLP16_FIELDS, LidarScan
+from sim.sensors.lidar import GRID_FIELDS, LIDAR3D_FIELDS, LIDAR_MODELS, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.world.ground import Ground
 from sim.world.recording import Recording
@@ -194,14 +194,20 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
 
 
 def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
-    """``spec`` with its ``sensors.lidar.model`` set to ``model`` (``"2d"`` or ``"vlp16"``); with
-    ``"2d"`` the 3-D-only lidar settings are dropped."""
+    """``spec`` with its ``sensors.lidar.model`` set to ``model`` (``"2d"`` or a 3-D model of
+    ``sim.sensors.lidar.LIDAR_MODELS``); with ``"2d"`` the 3-D-only lidar settings are dropped, with a
+    model other than ``"vlp16"`` the VLP-16's beam grid (``GRID_FIELDS``), and a change of model drops
+    the azimuth step (the new model's own applies)."""
     if model not in LIDAR_MODELS:
         raise ValueError(f"lidar model must be one of {list(LIDAR_MODELS)}; got {model!r}")
     sensors = dict(spec.sensors)
     lidar = dict(sensors.get("lidar", {}) or {})
     if model == "2d":
-        lidar = {k: v for k, v in lidar.items() if k not in VLP16_FIELDS}
+        lidar = {k: v for k, v in lidar.items() if k not in LIDAR3D_FIELDS}
+    elif model != "vlp16":
+        lidar = {k: v for k, v in lidar.items() if k not in GRID_FIELDS}
+    if lidar.get("model", "2d") != model:
+        lidar.pop("resolution_deg", None)
     lidar["model"] = model
     sensors["lidar"] = lidar
     out = spec.model_copy(update={"sensors": sensors})
@@ -232,11 +238,11 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
         detection = replace(
             config.detection,
             lidar_range=float(rig.lidar.max_range),
-            lidar_resolution=math.radians(rig.lidar.resolution_deg),
+            lidar_resolution=math.radians(rig.lidar.azimuth_step_deg),
         )
         config = replace(config, detection=detection)
         lidar = rig.lidar
-        if lidar.model == "vlp16":  # the tracker is told where the lidar sits (its 3-D pipeline's mount transform)
+        if lidar.model != "2d":  # the tracker is told where the 3-D lidar sits (its cloud pipeline's mount transform)
             mount = {name: float(getattr(lidar, name)) for name in
                      ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")}
             config = replace(config, cloud=replace(config.cloud, **mount))
@@ -532,8 +538,8 @@ def run_scenario(
     on); ``keep_sensor_data`` keeps each frame's tracker input (lidar points, radar) for the GIF;
     ``progress(done, total)`` is called with ``done = 0`` first, then after every frame;
     ``tracker_factory(road, config)`` builds the tracker (default: the variant's own factory,
-    ``sim.evaluation.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or
-    ``"vlp16"``) replaces the scenario's ``sensors.lidar.model``; ``world`` a world built already (its road
+    ``sim.evaluation.variants.variant_factory``, else ``tracker.Tracker``); ``lidar_model`` (``"2d"`` or a
+    3-D model: ``"vlp16"``, ``"vlp32c"``, ``"hdl64e"``, ``"os1-128"``) replaces the scenario's ``sensors.lidar.model``; ``world`` a world built already (its road
 and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Raises ``ValueError`` (``UnknownVariantError``,
     ``ScenarioError``) for a bad variant, override or duration."""
     if not isinstance(spec, ScenarioSpec):
@@ -634,7 +640,7 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
     wall = time.perf_counter() - start
     metrics = summarize(records, switches.switches, wall_s=wall, extent=extent)
     if extent:  # the hard suite's target: a long vehicle's length 3 s after its side is seen
-        metrics.update(long_vehicle_metrics(records, math.radians(rig_cfg.lidar.resolution_deg)))
+        metrics.update(long_vehicle_metrics(records, math.radians(rig_cfg.lidar.azimuth_step_deg)))
     metrics.update(cloud_score.metrics())
     if isinstance(world, ReplayWorld):
         metrics.update(world.info())

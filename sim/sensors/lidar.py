@@ -18,17 +18,20 @@ from functools import cached_property
 import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
-from sim.sensors.lidar3d import Vlp16Config
+from sim.sensors.lidar3d import LIDAR3D_MODELS, Lidar3DConfig
 from sim.sensors.raycast import CASTERS, RayGrid, ray_returns
 from sim.sensors.scene import scene_segments
 from sim.world.truth import Snapshot
 
 
-#: Lidar models: the planar scan of this module, or the 3-D VLP-16 of ``sim.sensors.lidar3d``.
-LIDAR_MODELS = ("2d", "vlp16")
-#: ``LidarConfig`` fields that only the 3-D model uses.
-VLP16_FIELDS = ("beams", "elevation_min_deg", "elevation_max_deg", "mount_x", "mount_y", "mount_z",
-                "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")
+#: Lidar models: the planar scan of this module, or a 3-D one of ``sim.sensors.lidar3d.LIDAR3D_MODELS``.
+LIDAR_MODELS = ("2d",) + tuple(LIDAR3D_MODELS)
+#: Azimuth step of the planar scan when ``resolution_deg`` is not set (deg).
+PLANAR_RESOLUTION_DEG = 0.2
+#: ``LidarConfig`` fields of the evenly spaced beam grid: only ``"vlp16"`` takes them (the others have tables).
+GRID_FIELDS = ("beams", "elevation_min_deg", "elevation_max_deg")
+#: ``LidarConfig`` fields that only the 3-D models use.
+LIDAR3D_FIELDS = GRID_FIELDS + ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")
 
 
 def _positive(owner: str, name: str, value: float, *, allow_zero: bool = False) -> None:
@@ -42,24 +45,27 @@ def _positive(owner: str, name: str, value: float, *, allow_zero: bool = False) 
 class LidarConfig:
     """Lidar settings (SI units; angles in degrees where the name says so).
 
-    - ``resolution_deg`` (0.2): azimuth step; must divide 360 into whole rays (0.2 -> 1800 rays);
+    - ``resolution_deg`` (None: the model's, 0.2 for ``"2d"``): azimuth step; must divide 360 into whole
+      rays (0.2 -> 1800 rays);
     - ``max_range`` (100 m) and ``min_range`` (0.5 m): returns beyond / nearer are not reported;
     - ``range_noise_std`` (0.03 m): Gaussian noise on each range, along the ray;
     - ``dropout_probability`` (0.01): chance that a ray which hits returns nothing;
     - ``rate_hz`` (10 Hz) and ``phase_s`` (0 s): scans at ``t0 + phase_s + k / rate_hz``;
     - ``caster`` ("numpy"): ``"numpy"`` (``sim.sensors.raycast.cast``, the compiled caster) or
       ``"pymunk"`` (pymunk's segment queries, the oracle);
-    - ``model`` ("2d"): ``"2d"``, this planar scan at the E origin, or ``"vlp16"``, a 3-D Velodyne
-      VLP-16 (``sim.sensors.lidar3d``) that shares the fields above (resolution, ranges, noise, dropout,
-      rate, phase) and adds the fields below, which only it uses (setting them with ``"2d"`` is an error):
-    - ``beams`` (16), ``elevation_min_deg`` (-15) and ``elevation_max_deg`` (15): the beams, evenly
-      spaced (every 2 deg);
+    - ``model`` ("2d"): ``"2d"``, this planar scan at the E origin, or a 3-D spinning lidar of
+      ``sim.sensors.lidar3d.LIDAR3D_MODELS``: ``"vlp16"``, ``"vlp32c"``, ``"hdl64e"`` or ``"os1-128"``
+      (its beam table and azimuth step from the data sheet), which shares the fields above (resolution,
+      ranges, noise, dropout, rate, phase) and adds the fields below, which only the 3-D models use
+      (setting them with ``"2d"`` is an error):
+    - ``beams`` (16), ``elevation_min_deg`` (-15) and ``elevation_max_deg`` (15): an evenly spaced beam
+      grid (every 2 deg), ``"vlp16"`` only (the other models' tables are fixed);
     - ``mount_x``, ``mount_y`` (0 m), ``mount_z`` (1.9 m, the roof) and ``mount_roll_deg``,
       ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (origin on the ground under the
       ego's centre, z up), ``p_E = Rz(yaw) Ry(pitch) Rx(roll) p_sensor + t``.
     """
 
-    resolution_deg: float = 0.2
+    resolution_deg: float | None = None
     max_range: float = 100.0
     min_range: float = 0.5
     range_noise_std: float = 0.03
@@ -79,7 +85,10 @@ class LidarConfig:
     mount_yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
-        _positive("LidarConfig", "resolution_deg", self.resolution_deg)
+        if self.model not in LIDAR_MODELS:
+            raise ValueError(f"LidarConfig.model must be one of {list(LIDAR_MODELS)}; got {self.model!r}")
+        if self.resolution_deg is not None:
+            _positive("LidarConfig", "resolution_deg", self.resolution_deg)
         _positive("LidarConfig", "max_range", self.max_range)
         _positive("LidarConfig", "min_range", self.min_range, allow_zero=True)
         _positive("LidarConfig", "range_noise_std", self.range_noise_std, allow_zero=True)
@@ -92,27 +101,41 @@ class LidarConfig:
             raise ValueError(f"LidarConfig.dropout_probability must be in [0, 1]; got {p!r}")
         if self.caster not in CASTERS:
             raise ValueError(f"LidarConfig.caster must be one of {sorted(CASTERS)}; got {self.caster!r}")
-        RayGrid.full_circle(math.radians(self.resolution_deg))  # raises if 360 is not a whole number of rays
-        if self.model not in LIDAR_MODELS:
-            raise ValueError(f"LidarConfig.model must be one of {list(LIDAR_MODELS)}; got {self.model!r}")
+        RayGrid.full_circle(math.radians(self.azimuth_step_deg))  # raises if 360 is not a whole number of rays
         if self.model == "2d":
-            changed = [f.name for f in fields(self) if f.name in VLP16_FIELDS and getattr(self, f.name) != f.default]
+            changed = [f.name for f in fields(self) if f.name in LIDAR3D_FIELDS and getattr(self, f.name) != f.default]
             if changed:
                 raise ValueError(
                     f"LidarConfig.{changed[0]} applies to the 3-D lidar only; set model = \"vlp16\" or drop {changed[0]}"
                 )
         else:
-            self.vlp16_config()  # the 3-D fields' own checks
+            if self.model != "vlp16":
+                changed = [f.name for f in fields(self) if f.name in GRID_FIELDS and getattr(self, f.name) != f.default]
+                if changed:
+                    raise ValueError(f"LidarConfig.{changed[0]} sets the VLP-16's evenly spaced beams; model "
+                                     f"{self.model!r} has its own beam table: drop {changed[0]}")
+            self.lidar3d_config()  # the 3-D fields' own checks
 
-    def vlp16_config(self) -> Vlp16Config:
-        """The ``sim.sensors.lidar3d.Vlp16Config`` of these settings (``model = "vlp16"``)."""
-        shared = ("resolution_deg", "max_range", "min_range", "range_noise_std", "dropout_probability", "rate_hz", "phase_s")
-        return Vlp16Config(**{name: getattr(self, name) for name in shared + VLP16_FIELDS})
+    def lidar3d_config(self) -> Lidar3DConfig:
+        """The ``sim.sensors.lidar3d.Lidar3DConfig`` of these settings (a 3-D ``model``)."""
+        shared = ("max_range", "min_range", "range_noise_std", "dropout_probability", "rate_hz", "phase_s")
+        step = {"resolution_deg": self.azimuth_step_deg}
+        if self.model == "vlp16":  # the evenly spaced grid, which a scenario may change
+            return Lidar3DConfig(**step, **{name: getattr(self, name) for name in shared + LIDAR3D_FIELDS})
+        mount = tuple(name for name in LIDAR3D_FIELDS if name not in GRID_FIELDS)
+        return Lidar3DConfig.of_model(self.model, **step, **{name: getattr(self, name) for name in shared + mount})
+
+    @property
+    def azimuth_step_deg(self) -> float:
+        """The azimuth step (deg): ``resolution_deg``, or the model's own (0.2 for ``"2d"``)."""
+        if self.resolution_deg is not None:
+            return float(self.resolution_deg)
+        return PLANAR_RESOLUTION_DEG if self.model == "2d" else LIDAR3D_MODELS[self.model].resolution_deg
 
     @property
     def rays(self) -> int:
-        """Rays per scan."""
-        return round(360.0 / self.resolution_deg)
+        """Rays per scan (azimuths; a 3-D model fires ``beams`` at each)."""
+        return round(360.0 / self.azimuth_step_deg)
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,7 +173,7 @@ class Lidar:
     @cached_property
     def grid(self) -> RayGrid:
         """The scan's rays (E frame)."""
-        return RayGrid.full_circle(math.radians(self.config.resolution_deg))
+        return RayGrid.full_circle(math.radians(self.config.azimuth_step_deg))
 
     def scan(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> LidarScan:
         """One scan of ``snapshot`` (the other vehicles) and ``roadside`` from the ego pose, at the

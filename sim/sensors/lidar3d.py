@@ -1,4 +1,5 @@
-"""A 3-D ray-cast lidar (Velodyne VLP-16) over upright prisms and a ground surface.
+"""A 3-D ray-cast spinning lidar over upright prisms and a ground surface: the Velodyne VLP-16, VLP-32C
+and HDL-64E and the Ouster OS1-128 (``LIDAR3D_MODELS``), or any evenly spaced beam grid.
 
 Frames: G is the global frame (x, y in m, z up, m; angles counter-clockwise). The ego frame E has its
 origin at the ego's centre on the ground, x forward, y left, z up; the ego stands upright (yaw only,
@@ -6,9 +7,9 @@ no pitch or roll with the road), at the ground height under its centre. The sens
 lidar's own (x forward, y left, z up), mounted at ``(mount_x, mount_y, mount_z)`` (m) in E with
 ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``: ``p_E = R @ p_S + t``. So ``p_G = Rz(ego_yaw) @ p_E + origin``.
 
-The scan (``Vlp16.scan``) is instantaneous (no motion distortion): ``beams`` lasers at elevations
+The scan (``Lidar3D.scan``) is instantaneous (no motion distortion): ``beams`` lasers at elevations
 evenly spaced from ``elevation_min_deg`` to ``elevation_max_deg`` (16 from -15 to 15 deg, 2 deg
-apart) fire at every azimuth ``-180 + res .. 180`` deg (``res = resolution_deg``, 0.2 -> 1800
+apart), or at the model's table ``elevations_deg``, fire at every azimuth ``-180 + res .. 180`` deg (``res = resolution_deg``, 0.2 -> 1800
 azimuths, 28,800 rays). Ray ``i = a * beams + b`` is azimuth ``a`` and beam ``b`` (beam 0 the lowest),
 with direction ``(cos el cos az, cos el sin az, sin el)`` in S. Each ray's first hit within
 ``max_range`` (slant) returns a point at the true range plus Gaussian noise along the ray
@@ -17,7 +18,7 @@ with direction ``(cos el cos az, cos el sin az, sin el)`` in S. Each ray's first
 scene, so the random stream does not depend on it (as ``sim.sensors.lidar.Lidar.scan``).
 
 The scene (``Prisms``): upright convex prisms in G, each a counter-clockwise polygon footprint
-extruded from ``base`` to ``top`` (m), with an integer ``owner``. Owner convention of ``Vlp16.scan``
+extruded from ``base`` to ``top`` (m), with an integer ``owner``. Owner convention of ``Lidar3D.scan``
 (as ``sim.sensors.scene``): owners ``0 .. V-1`` are the vehicles ``vehicle_ids[0 .. V-1]``, owners
 ``V + j`` the roadside object ``j``; the ego is not in the scene. The ground (``sim.world.ground``) is the
 other thing a ray can hit (owner -1, ``ground`` True).
@@ -106,6 +107,49 @@ GROUND_MAX_MARCH = 1000
 BEARING_SLACK = 1e-9
 
 
+@dataclass(frozen=True)
+class Lidar3DModel:
+    """A spinning lidar's beam layout: its ``elevations_deg`` (deg in its own frame, ascending), its
+    azimuth step ``resolution_deg`` (deg) between firings at 10 Hz, and the ``source`` of both."""
+
+    #: Model name, as ``LidarConfig.model`` and ``--lidar-model`` take it (no default).
+    name: str
+    #: The beams' elevations, lowest first (deg; no default).
+    elevations_deg: tuple[float, ...]
+    #: Azimuth step at 10 Hz; divides 360 (deg; no default).
+    resolution_deg: float
+    #: Where the layout comes from (no default).
+    source: str
+
+    @property
+    def rays(self) -> int:
+        """Rays per revolution."""
+        return len(self.elevations_deg) * round(360.0 / self.resolution_deg)
+
+
+def _even(low: float, high: float, count: int) -> tuple[float, ...]:
+    return tuple(float(x) for x in np.round(np.linspace(low, high, count), 4))
+
+
+#: The 3-D lidar models (``LidarConfig.model``): beam tables of the data sheets and manuals.
+LIDAR3D_MODELS: dict[str, Lidar3DModel] = {m.name: m for m in (
+    Lidar3DModel("vlp16", _even(-15.0, 15.0, 16), 0.2,
+                 "Velodyne VLP-16 data sheet: 16 beams, -15 to +15 deg every 2 deg; 0.2 deg at 600 rpm (10 Hz)"),
+    Lidar3DModel("vlp32c", (-25.0, -15.639, -11.31, -8.843, -7.254, -6.148, -5.333, -4.667, -4.0, -3.667, -3.333,
+                            -3.0, -2.667, -2.333, -2.0, -1.667, -1.333, -1.0, -0.667, -0.333, 0.0, 0.333, 0.667, 1.0,
+                            1.333, 1.667, 2.333, 3.333, 4.667, 7.0, 10.333, 15.0), 0.2,
+                 "Velodyne VLP-32C user manual, laser elevation table: 32 beams, -25 to +15 deg, densest (1/3 deg) "
+                 "around the horizon; 0.2 deg at 600 rpm (10 Hz)"),
+    Lidar3DModel("hdl64e", _even(-24.9, -8.87, 32) + _even(-8.33, 2.0, 32), 0.18,
+                 "Velodyne HDL-64E S2 data sheet: 64 beams over +2 to -24.9 deg, an upper block of 32 about 1/3 deg "
+                 "apart above -8.33 deg and a lower block of 32 about 1/2 deg apart (evenly spaced here; a unit's "
+                 "calibration differs by about 0.1 deg); 0.18 deg (the sheet's 0.17, rounded to divide 360) at 10 Hz"),
+    Lidar3DModel("os1-128", _even(-22.5, 22.5, 128), 360.0 / 1024,
+                 "Ouster OS1-128 data sheet: 128 beams evenly over a 45 deg vertical field of view; 1024 columns "
+                 "per revolution at 10 Hz (0.35 deg)"),
+)}
+
+
 def _number(owner: str, name: str, value: float, *, low: float | None = None, allow_equal: bool = True) -> None:
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
     if ok and low is not None:
@@ -116,11 +160,14 @@ def _number(owner: str, name: str, value: float, *, low: float | None = None, al
 
 
 @dataclass(frozen=True)
-class Vlp16Config:
-    """VLP-16 settings (SI units; angles in degrees where the name says so).
+class Lidar3DConfig:
+    """3-D lidar settings (SI units; angles in degrees where the name says so); the defaults are a
+    VLP-16, ``Lidar3DConfig.of_model`` gives another model of ``LIDAR3D_MODELS``.
 
     - ``beams`` (16): lasers, at elevations evenly spaced from ``elevation_min_deg`` (-15) to
       ``elevation_max_deg`` (15) (2 deg apart); one beam needs the two equal;
+    - ``elevations_deg`` (None): the beams' elevations as a table instead (ascending, ``beams`` of them,
+      from ``elevation_min_deg`` to ``elevation_max_deg``: ``of_model`` fills all four);
     - ``resolution_deg`` (0.2): azimuth step; must divide 360 (0.2 -> 1800 azimuths, 28,800 rays);
     - ``rate_hz`` (10 Hz) and ``phase_s`` (0 s): scans at ``t0 + phase_s + k / rate_hz``;
     - ``max_range`` (100 m, slant) and ``min_range`` (0.5 m): returns beyond / nearer are not reported;
@@ -133,6 +180,7 @@ class Vlp16Config:
     beams: int = 16
     elevation_min_deg: float = -15.0
     elevation_max_deg: float = 15.0
+    elevations_deg: tuple[float, ...] | None = None
     resolution_deg: float = 0.2
     rate_hz: float = 10.0
     phase_s: float = 0.0
@@ -148,7 +196,7 @@ class Vlp16Config:
     mount_yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
-        name = "Vlp16Config"
+        name = "Lidar3DConfig"
         if isinstance(self.beams, bool) or not isinstance(self.beams, (int, np.integer)) or self.beams < 1:
             raise ValueError(f"{name}.beams must be a positive integer; got {self.beams!r}")
         for field_name in ("elevation_min_deg", "elevation_max_deg"):
@@ -166,6 +214,15 @@ class Vlp16Config:
                 f"{name}.elevation_min_deg ({self.elevation_min_deg}) must be below elevation_max_deg "
                 f"({self.elevation_max_deg})"
             )
+        if self.elevations_deg is not None:
+            table = np.asarray(self.elevations_deg, dtype=float).reshape(-1)
+            if (len(table) != self.beams or not np.all(np.isfinite(table)) or np.any(np.diff(table) <= 0.0)
+                    or table[0] != self.elevation_min_deg or table[-1] != self.elevation_max_deg):
+                raise ValueError(
+                    f"{name}.elevations_deg must hold beams ({self.beams}) ascending elevations from elevation_min_deg "
+                    f"({self.elevation_min_deg}) to elevation_max_deg ({self.elevation_max_deg}); got {self.elevations_deg!r}"
+                )
+            object.__setattr__(self, "elevations_deg", tuple(float(x) for x in table))
         _number(name, "resolution_deg", self.resolution_deg, low=0.0, allow_equal=False)
         _number(name, "rate_hz", self.rate_hz, low=0.0, allow_equal=False)
         _number(name, "phase_s", self.phase_s, low=0.0)
@@ -183,6 +240,21 @@ class Vlp16Config:
             RayGrid.full_circle(math.radians(self.resolution_deg))
         except ValueError as err:
             raise ValueError(f"{name}.resolution_deg: {err}") from None
+
+    @classmethod
+    def of_model(cls, model: str, **settings: object) -> Lidar3DConfig:
+        """The settings of ``LIDAR3D_MODELS[model]`` (its beams and azimuth step) with ``settings`` (the
+        other fields, e.g. ``max_range``, ``mount_z``; ``resolution_deg`` replaces the model's)."""
+        if model not in LIDAR3D_MODELS:
+            raise ValueError(f"3-D lidar model must be one of {sorted(LIDAR3D_MODELS)}; got {model!r}")
+        m = LIDAR3D_MODELS[model]
+        layout = {"beams": len(m.elevations_deg), "elevation_min_deg": m.elevations_deg[0],
+                  "elevation_max_deg": m.elevations_deg[-1], "elevations_deg": m.elevations_deg,
+                  "resolution_deg": m.resolution_deg}
+        clash = sorted(set(settings) & {"beams", "elevation_min_deg", "elevation_max_deg", "elevations_deg"})
+        if clash:
+            raise ValueError(f"Lidar3DConfig.of_model({model!r}): {clash[0]} is the model's; got {settings[clash[0]]!r}")
+        return cls(**{**layout, **settings})
 
     @property
     def azimuth_count(self) -> int:
@@ -202,6 +274,8 @@ class Vlp16Config:
     @cached_property
     def elevations(self) -> np.ndarray:
         """The beams' elevations (B,) in rad, lowest first."""
+        if self.elevations_deg is not None:
+            return np.radians(np.asarray(self.elevations_deg, dtype=float))
         return np.radians(np.linspace(self.elevation_min_deg, self.elevation_max_deg, int(self.beams)))
 
     @cached_property
@@ -815,13 +889,13 @@ class LidarScan3D:
         return self.points @ self.rotation.T + self.origin
 
 
-class Vlp16:
-    """The VLP-16 of ``config`` (``Vlp16Config()`` by default); ``scan`` makes one scan."""
+class Lidar3D:
+    """The 3-D lidar of ``config`` (``Lidar3DConfig()``, a VLP-16, by default); ``scan`` makes one scan."""
 
-    def __init__(self, config: Vlp16Config | None = None) -> None:
-        config = Vlp16Config() if config is None else config
-        if not isinstance(config, Vlp16Config):
-            raise ValueError(f"Vlp16 needs a Vlp16Config; got {type(config).__name__}")
+    def __init__(self, config: Lidar3DConfig | None = None) -> None:
+        config = Lidar3DConfig() if config is None else config
+        if not isinstance(config, Lidar3DConfig):
+            raise ValueError(f"Lidar3D needs a Lidar3DConfig; got {type(config).__name__}")
         self.config = config
 
     @cached_property
@@ -844,9 +918,9 @@ class Vlp16:
         (3,) (m, G) and heading ``ego_yaw`` (rad)."""
         o = np.asarray(origin, dtype=float).reshape(-1)
         if o.shape != (3,) or not np.all(np.isfinite(o)):
-            raise ValueError(f"Vlp16: origin must be 3 finite numbers (x, y, z in G); got {origin!r}")
+            raise ValueError(f"Lidar3D: origin must be 3 finite numbers (x, y, z in G); got {origin!r}")
         if not (isinstance(ego_yaw, (int, float, np.floating)) and math.isfinite(ego_yaw)):
-            raise ValueError(f"Vlp16: ego_yaw must be a finite angle in rad; got {ego_yaw!r}")
+            raise ValueError(f"Lidar3D: ego_yaw must be a finite angle in rad; got {ego_yaw!r}")
         rz = mount_rotation(0.0, 0.0, float(ego_yaw))
         return o + rz @ self.config.mount_translation, rz @ self.config.mount_rotation
 
@@ -866,7 +940,7 @@ class Vlp16:
         ``0 .. V-1`` are the vehicles ``vehicle_ids`` (V,), owners ``V + j`` roadside object ``j``.
         Noise and dropout from ``rng`` (two draws per ray)."""
         if not isinstance(rng, np.random.Generator):
-            raise ValueError(f"Vlp16.scan needs rng, a numpy.random.Generator; got {type(rng).__name__}")
+            raise ValueError(f"Lidar3D.scan needs rng, a numpy.random.Generator; got {type(rng).__name__}")
         cfg = self.config
         position, rotation = self.pose(origin, ego_yaw)
         rz = mount_rotation(0.0, 0.0, float(ego_yaw))

@@ -372,7 +372,7 @@ def ray_returns(hit: np.ndarray, true_range: np.ndarray, owner: np.ndarray, vehi
     Gaussian noise (``range_noise_std``). Returns the returning rays' indices, their measured ranges,
     ``vehicle_id`` (-1 unless a vehicle) and ``roadside_index`` (-1 unless a roadside object).
     ``config`` is any lidar configuration with those three fields (``ReturnSettings``: the 2-D
-    ``sim.sensors.lidar.LidarConfig`` or the ``sim.sensors.lidar3d.Vlp16Config``)."""
+    ``sim.sensors.lidar.LidarConfig`` or the ``sim.sensors.lidar3d.Lidar3DConfig``)."""
     count = len(hit)
     noise = rng.standard_normal(count)
     dropped = rng.random(count) < config.dropout_probability

@@ -9,9 +9,10 @@ the detection time into E at the frame time with the true ego poses (perfect odo
 after the last frame are not delivered. The truth ``Snapshot`` at the frame time travels beside the
 frame, never inside it.
 
-The lidar is the 2-D scan of ``sim.sensors.lidar`` or, with ``lidar.model = "vlp16"``, the 3-D VLP-16
-of ``sim.sensors.lidar3d`` over the rig's ``ground`` (``sim.world.ground``; level by default): the frame
-then carries the raw cloud ``(N, 3)`` in the lidar's frame, as a real VLP-16 driver delivers it, and
+The lidar is the 2-D scan of ``sim.sensors.lidar`` or, with a 3-D ``lidar.model`` (``"vlp16"``,
+``"vlp32c"``, ``"hdl64e"``, ``"os1-128"``), the 3-D lidar of ``sim.sensors.lidar3d`` over the rig's
+``ground`` (``sim.world.ground``; level by default): the frame then carries the raw cloud ``(N, 3)``
+in the lidar's frame, as a real driver delivers it, and
 the tracker's own 3-D pipeline (``tracker.cloud``) removes the ground.
 
 ``truth_at(t)`` is called with non-decreasing times, once per distinct time, so a world that can
@@ -30,7 +31,7 @@ import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
-from sim.sensors.lidar3d import LidarScan3D, Prisms, Vlp16
+from sim.sensors.lidar3d import Lidar3D, LidarScan3D, Prisms
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
 from sim.sensors.scene import vehicle_prisms
 from sim.world.ground import FlatGround, Ground
@@ -69,15 +70,15 @@ class SensorFrame:
     radar: RadarScan
 
 
-class SceneVlp16:
-    """The 3-D lidar (``LidarConfig.model = "vlp16"``) seeing a snapshot's vehicles (upright boxes,
+class SceneLidar3D:
+    """The 3-D lidar (a 3-D ``LidarConfig.model``) seeing a snapshot's vehicles (upright boxes,
     ``sim.sensors.scene.vehicle_prisms``) and the static ``roadside`` objects (prisms of their
     ``height`` standing on the ground at their centre) over ``ground``; ``scan`` has the 2-D
     ``Lidar.scan``'s signature (the roadside objects are fixed at construction)."""
 
     def __init__(self, config: LidarConfig, roadside: RoadsideObjects | None, ground: Ground) -> None:
         self.config = config
-        self.sensor = Vlp16(config.vlp16_config())
+        self.sensor = Lidar3D(config.lidar3d_config())
         self.ground = ground
         self.roadside_count = 0 if roadside is None else len(roadside)
         if self.roadside_count:
@@ -124,8 +125,8 @@ class SensorRig:
         self.config = config
         self.roadside = roadside
         self.ground = FlatGround() if ground is None else ground
-        self.lidar: Lidar | SceneVlp16 = (
-            Lidar(config.lidar) if config.lidar.model == "2d" else SceneVlp16(config.lidar, roadside, self.ground)
+        self.lidar: Lidar | SceneLidar3D = (
+            Lidar(config.lidar) if config.lidar.model == "2d" else SceneLidar3D(config.lidar, roadside, self.ground)
         )
         self.radars = [RadarUnit(unit, index) for index, unit in enumerate(config.radar.units)]
 
