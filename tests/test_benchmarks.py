@@ -108,6 +108,8 @@ def test_quick_run_other_sections(quick):
         assert _positive(row["scan"]["median_ms"]) and _positive(row["preprocess"]["median_ms"])
         assert _positive(row["tracker_step"]["median_ms"]) and row["tracker_step"]["tracks"] >= 5
         assert all(0.9 <= v <= 1.0 for v in row["ground_removal"].values()), (name, row["ground_removal"])
+        pw = row["patchworkpp"]  # Patchwork++ beside ours on the same cloud (the test extra installs it)
+        assert _positive(pw["median_ms"]) and all(0.5 <= pw[k] <= 1.0 for k in ("recall", "precision", "vehicle_points_kept"))
     assert set(result["world"]) == {"curvy-multi", "dense-highway"}
     assert all(_positive(w["ms_per_simulated_s"]) for w in result["world"].values())
     e2e = result["end_to_end"]

@@ -98,6 +98,10 @@ def format_table(r: dict[str, Any]) -> str:
                          f"tracker: 3-D preprocessing {_num(x['preprocess']['median_ms'])} ms, whole step "
                          f"{_num(st['median_ms'])} ms median, p95 {_num(st['p95_ms'])} ms; ground removal recall "
                          f"{g['recall']:.4f}, precision {g['precision']:.4f}, vehicle points kept {g['vehicle_points_kept']:.4f}")
+            pw = x.get("patchworkpp", {})
+            if "median_ms" in pw:
+                lines.append(f"  Patchwork++ on that cloud {_num(pw['median_ms'])} ms median; recall {pw['recall']:.4f}, "
+                             f"precision {pw['precision']:.4f}, vehicle points kept {pw['vehicle_points_kept']:.4f}")
     if "world" in r:
         lines += _world(r["world"])
     if "end_to_end" in r:

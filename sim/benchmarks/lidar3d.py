@@ -16,7 +16,9 @@ and the 300 roadside objects nearest to the ego from ``generate_roadside`` (guar
 the scan saw; the tracker's cloud preprocessing (``tracker.cloud.process_cloud``: mount transform,
 ground removal, height ceiling) with its ground-removal recall and precision and the share of vehicle
 returns kept; and ``tracker_step``: ``Tracker.step`` on frames of that cloud 0.1 s apart (the scene
-standing still, the ego at rest), the first ``TRACKER_WARM_UP`` steps (births) not timed.
+standing still, the ego at rest), the first ``TRACKER_WARM_UP`` steps (births) not timed; and
+Patchwork++ (``pypatchworkpp``, when installed: the ``baselines`` extra) on the same cloud, timed and
+scored the same way.
 ``bench_lidar3d_models`` runs every model. ``eot bench lidar3d`` runs it pinned to one core; set
 ``OMP_NUM_THREADS=1`` too (numpy's element-wise work is single-threaded anyway). The simulator's scan
 target is 15 ms on one core for the VLP-16; the tracker's step target is 30 ms (p95) on one core.
@@ -147,6 +149,7 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
         cloud = process_cloud(scan.points)  # the tracker's 3-D pipeline (its default mount is the models' 1.9 m roof)
         cloud_ms = _times_ms(lambda: process_cloud(scan.points), repeats)
         step_ms, tracks = _tracker_steps(scene, scan.points, repeats)
+        patchwork = _patchwork(scan, lidar.config.mount_z, lidar.config.max_range, repeats)
     removed = cloud.ground | cloud.below_ground
     vehicle = scan.vehicle_id >= 0
     result = {
@@ -168,11 +171,9 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
         "cast": _stats(cast_ms),
         "preprocess": _stats(cloud_ms),
         "tracker_step": {**_stats(step_ms), "tracks": tracks, "target_p95_ms": TRACKER_TARGET_MS},
-        "ground_removal": {
-            "recall": round(float((removed & scan.ground).sum() / max(int(scan.ground.sum()), 1)), 5),
-            "precision": round(float((removed & scan.ground).sum() / max(int(removed.sum()), 1)), 5),
-            "vehicle_points_kept": round(float((cloud.kept & vehicle).sum() / max(int(vehicle.sum()), 1)), 5),
-        },
+        "ground_removal": {**_scores(removed, scan),
+                           "vehicle_points_kept": round(float((cloud.kept & vehicle).sum() / max(int(vehicle.sum()), 1)), 5)},
+        "patchworkpp": patchwork,
         "ground_grid_build_s": round(build_s, 3),
         "repeats": repeats,
         "pinned_cpu": cpu,
@@ -198,6 +199,34 @@ def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int) -> tuple[list[f
     return times, len(tracks)
 
 
+def _scores(removed: np.ndarray, scan) -> dict[str, float]:
+    """Ground removal against the scan's labels: recall of the ground returns, precision of the removed
+    ones, and the share of vehicle returns kept."""
+    ground, vehicle = scan.ground, scan.vehicle_id >= 0
+    return {"recall": round(float((removed & ground).sum() / max(int(ground.sum()), 1)), 5),
+            "precision": round(float((removed & ground).sum() / max(int(removed.sum()), 1)), 5),
+            "vehicle_points_kept": round(float((~removed & vehicle).sum() / max(int(vehicle.sum()), 1)), 5)}
+
+
+def _patchwork(scan, sensor_height: float, max_range: float, repeats: int) -> dict:
+    """Patchwork++ (``pypatchworkpp``, C++; Lee et al. 2022) on the same cloud in the sensor frame, its
+    default parameters but the sensor's height and range: the median / p95 ms of ``estimateGround`` and
+    its ground-removal scores; ``{"skipped": ...}`` without the package."""
+    try:
+        import pypatchworkpp
+    except ImportError:
+        return {"skipped": 'pypatchworkpp is not installed: pip install -e ".[baselines]"'}
+    params = pypatchworkpp.Parameters()
+    params.sensor_height, params.max_range, params.verbose = float(sensor_height), float(max_range), False
+    segmenter = pypatchworkpp.patchworkpp(params)
+    cloud = np.column_stack([scan.points, np.zeros(len(scan))])  # x, y, z, intensity
+    segmenter.estimateGround(cloud)
+    times = _times_ms(lambda: segmenter.estimateGround(cloud), repeats)
+    removed = np.zeros(len(scan), dtype=bool)
+    removed[np.asarray(segmenter.getGroundIndices(), dtype=np.int64)] = True
+    return {**_stats(times), **_scores(removed, scan)}
+
+
 def bench_lidar3d_models(repeats: int = 50, seed: int = 0, *, models: list[str] | None = None, pin: bool = True,
                          verbose: bool = True) -> dict:
     """``bench_lidar3d`` of each of ``models`` (default: every one of ``LIDAR3D_MODELS``), by name."""
@@ -214,7 +243,15 @@ def _line(result: dict) -> str:
             f"{s['median_ms']:.2f} ms, p95 {s['p95_ms']:.2f} ms; the tracker: preprocessing (tracker.cloud) median "
             f"{result['preprocess']['median_ms']:.2f} ms, whole step median {st['median_ms']:.2f} ms, p95 "
             f"{st['p95_ms']:.2f} ms ({st['tracks']} tracks; target p95 {TRACKER_TARGET_MS:g} ms); ground removal "
-            f"recall {g['recall']:.4f}, precision {g['precision']:.4f}, vehicle points kept {g['vehicle_points_kept']:.4f}")
+            f"recall {g['recall']:.4f}, precision {g['precision']:.4f}, vehicle points kept {g['vehicle_points_kept']:.4f}"
+            + _patchwork_line(result["patchworkpp"]))
+
+
+def _patchwork_line(p: dict) -> str:
+    if "skipped" in p:
+        return f"; Patchwork++ skipped ({p['skipped']})"
+    return (f"; Patchwork++ on the same cloud {p['median_ms']:.2f} ms median, recall {p['recall']:.4f}, precision "
+            f"{p['precision']:.4f}, vehicle points kept {p['vehicle_points_kept']:.4f}")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
