@@ -100,15 +100,21 @@ def test_quick_run_tracker_rows(quick):
 def test_quick_run_other_sections(quick):
     result = json.loads(quick[1].read_text(encoding="utf-8"))
     assert _positive(result["lidar"]["scan_ms"]) and result["lidar"]["rays"] == 1800
-    assert list(result["lidar3d"]) == ["vlp16", "vlp32c", "hdl64e", "os1-128"]
+    assert list(result["lidar3d"]) == ["vlp16", "vlp32c", "hdl64e", "os1-128", "rig"]
     rays = {"vlp16": 16 * 1800, "vlp32c": 32 * 1800, "hdl64e": 64 * 2000, "os1-128": 128 * 1024}
+    rays["rig"] = rays["vlp32c"] + rays["os1-128"]
+    rig = result["lidar3d"]["rig"]
+    assert rig["model"] == "vlp32c+os1-128" and rig["scene"]["points"] > 100_000  # the merged cloud in E
     for name, row in result["lidar3d"].items():
-        assert row["model"] == name and row["scene"]["rays"] == rays[name]
+        assert row["model"] == (name if name != "rig" else "vlp32c+os1-128") and row["scene"]["rays"] == rays[name]
         assert row["scene"]["ground_points"] > 1000 and row["scene"]["vehicle_points"] > 100
         assert _positive(row["scan"]["median_ms"]) and _positive(row["preprocess"]["median_ms"])
         assert _positive(row["tracker_step"]["median_ms"]) and row["tracker_step"]["tracks"] >= 5
         assert all(0.9 <= v <= 1.0 for v in row["ground_removal"].values()), (name, row["ground_removal"])
         pw = row["patchworkpp"]  # Patchwork++ beside ours on the same cloud (the test extra installs it)
+        if name == "rig":
+            assert "skipped" in pw
+            continue
         assert _positive(pw["median_ms"]) and all(0.5 <= pw[k] <= 1.0 for k in ("recall", "precision", "vehicle_points_kept"))
     assert set(result["world"]) == {"curvy-multi", "dense-highway"}
     assert all(_positive(w["ms_per_simulated_s"]) for w in result["world"].values())

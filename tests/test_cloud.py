@@ -13,6 +13,7 @@ the road; intersected by marching along each ray and bisecting).
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -300,6 +301,7 @@ def test_config_defaults():
     (dict(height_ceiling=0.1), "height_ceiling"),
     (dict(seed=-1), "seed"),
     (dict(seed=True), "seed"),
+    (dict(frame="lidar"), "frame"),
 ])
 def test_config_rejects_bad_values_by_name(kwargs, field):
     with pytest.raises(ValueError, match=f"CloudConfig.{field}"):
@@ -387,6 +389,33 @@ def test_ground_removal_with_a_pitched_yawed_mount():
         side = (labels == k + 1) & (faces != 2)
         assert boundary_distance(res.points_2d[side[res.kept]], quad).max() < 0.05
         assert boundary_distance(wrong.points_2d[side[wrong.kept]], quad).max() > 0.5
+
+
+def test_a_cloud_in_the_vehicle_frame_merged_from_two_lidars():
+    """``CloudConfig.frame = "vehicle"``: a cloud already in E (two lidars' clouds, each moved by its
+    own mount, merged) gives the same result as each cloud through its own sensor-frame mount, point
+    for point; a cloud in the other frame than the config says is refused with a line that names it."""
+    roof = CloudConfig(mount_x=1.0, mount_pitch_deg=2.0, mount_yaw_deg=5.0)
+    high = CloudConfig(mount_x=1.0, mount_z=2.3)
+    a, labels_a, faces_a = scan(TILTED, TRAFFIC, config=roof, noise=0.0, az_step_deg=0.4)
+    b, labels_b, faces_b = scan(TILTED, TRAFFIC, config=high, noise=0.0, az_step_deg=0.4)
+    merged = np.concatenate([mount_transform(a, roof), mount_transform(b, high)])
+    vehicle = CloudConfig(frame="vehicle", mount_x=1.0)
+    res = process_cloud(merged, vehicle)
+    np.testing.assert_array_equal(res.points_e, merged)
+    removed, kept = removal_rates(res, np.concatenate([labels_a, labels_b]))
+    assert removed >= 0.99 and kept >= 0.99
+    sides = np.concatenate([faces_a, faces_b]) != 2  # not the roofs
+    for k, box in enumerate(TRAFFIC[:5]):  # the 2-D points of both lidars on the footprints in E
+        quad = footprint_xy(box, TILTED)
+        on = (np.concatenate([labels_a, labels_b]) == k + 1) & sides
+        assert boundary_distance(res.points_2d[on[res.kept]], quad).max() < 0.05
+    one = process_cloud(mount_transform(a, roof), dataclasses.replace(vehicle, mount_pitch_deg=2.0, mount_yaw_deg=5.0))
+    np.testing.assert_array_equal(one.kept, process_cloud(a, roof).kept)  # E given, or made from S: the same
+    with pytest.raises(ValueError, match=r"CloudConfig.frame = 'vehicle' .* is it in the sensor frame\?"):
+        process_cloud(a, vehicle)
+    with pytest.raises(ValueError, match=r"CloudConfig.frame = 'sensor' .* is it in the vehicle frame\?"):
+        process_cloud(merged, roof)
 
 
 def test_projected_points_lie_on_the_footprints():

@@ -61,6 +61,7 @@ import numpy as np
 from tracker.checks import check_real
 
 __all__ = [
+    "CLOUD_FRAMES",
     "CloudConfig",
     "CloudResult",
     "CloudStats",
@@ -71,6 +72,15 @@ __all__ = [
     "process_cloud",
     "to_ground_plane",
 ]
+
+#: The frames a cloud may come in (``CloudConfig.frame``): one lidar's own, or the vehicle frame E.
+CLOUD_FRAMES = ("sensor", "vehicle")
+#: The frame check (``CloudConfig.frame``): the ground within this band of horizontal distances from
+#: the lidar (m), its height the 10th percentile of theirs, checked with at least FRAME_CHECK_POINTS of
+#: them and a lidar at least FRAME_CHECK_MOUNT_Z high (m).
+FRAME_CHECK_BAND = (3.0, 8.0)
+FRAME_CHECK_POINTS = 30
+FRAME_CHECK_MOUNT_Z = 1.0
 
 #: The spread check (``CloudConfig.min_spread``) takes half the distance between these quantiles of the
 #: inliers' offsets across their main direction: stray inliers (under 10 % each side) do not make a line
@@ -120,6 +130,17 @@ def _integer(name: str, value: Any, low: int) -> int:
 @dataclass(frozen=True)
 class CloudConfig:
     """Every number of the 3-D preprocessing, with its unit; validated on construction.
+
+    The cloud's frame:
+
+    - ``frame`` (``"sensor"`` or ``"vehicle"``): ``"sensor"``, one lidar's cloud in its own frame, moved
+      into E by the mount pose below; ``"vehicle"``, a cloud already in E, e.g. the merged cloud of a
+      rig of several lidars (stacked on the roof, on the bumpers) as real drivers deliver it; the mount
+      pose is then the primary lidar's, whose position centres the patch layout. Default ``"sensor"``.
+      A cloud whose ground near the lidar lies where the other frame would put it (within 3-8 m of
+      ``(mount_x, mount_y)``, its 10th-percentile height more than ``mount_z / 2`` off 0 in E) is
+      refused with a ``ValueError`` that says so (checked where ``mount_z >= 1`` m and 30 such points
+      exist).
 
     Mount pose of the lidar in E (the sensor frame's origin and orientation):
 
@@ -229,6 +250,7 @@ class CloudConfig:
     when its free fit fails; see :class:`GroundModel` and :func:`fit_ground`.
     """
 
+    frame: str = "sensor"
     mount_x: float = 0.0
     mount_y: float = 0.0
     mount_z: float = 1.9
@@ -254,6 +276,8 @@ class CloudConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.frame not in CLOUD_FRAMES:
+            raise ValueError(f"CloudConfig.frame must be one of {list(CLOUD_FRAMES)}; got {self.frame!r}")
         for name in ("mount_x", "mount_y", "mount_z"):
             _real(name, getattr(self, name), unit="m")
         for name in ("mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg"):
@@ -1067,10 +1091,34 @@ class CloudResult:
     stats: CloudStats
 
 
-def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> CloudResult:
-    """One lidar cloud ``(N, 3)`` in the sensor frame through the whole pipeline.
+def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
+    """``ValueError`` when the cloud ``pe`` (N, 3), taken to be in E, has its ground near the lidar
+    where the other frame of ``CloudConfig.frame`` would put it (``CloudConfig``'s docstring)."""
+    if cfg.mount_z < FRAME_CHECK_MOUNT_Z or len(pe) < FRAME_CHECK_POINTS:
+        return
+    with np.errstate(invalid="ignore"):
+        rho = np.hypot(pe[:, 0] - cfg.mount_x, pe[:, 1] - cfg.mount_y)
+        near = pe[(rho >= FRAME_CHECK_BAND[0]) & (rho <= FRAME_CHECK_BAND[1]), 2]
+    near = near[np.isfinite(near)]
+    if len(near) < FRAME_CHECK_POINTS:
+        return
+    ground = float(np.percentile(near, 10.0))
+    if abs(ground) > 0.5 * cfg.mount_z:
+        said = "a lidar's own frame" if cfg.frame == "sensor" else "the vehicle frame E"
+        other = "vehicle" if cfg.frame == "sensor" else "sensor"
+        raise ValueError(
+            f"lidar cloud: CloudConfig.frame = {cfg.frame!r} takes it in {said}, but then the ground "
+            f"{FRAME_CHECK_BAND[0]:g}-{FRAME_CHECK_BAND[1]:g} m from the lidar lies at z = {ground:+.2f} m in E, "
+            f"not near 0 (mount_z {cfg.mount_z:g} m): is it in the {other} frame? set CloudConfig.frame = {other!r}"
+        )
 
-    1. ``p_E = R p_S + t`` (:func:`mount_transform`);
+
+def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> CloudResult:
+    """One lidar cloud ``(N, 3)`` in the sensor frame (or, with ``CloudConfig.frame = "vehicle"``, in
+    E) through the whole pipeline.
+
+    1. ``p_E = R p_S + t`` (:func:`mount_transform`; none for a cloud in E); the frame checked
+       (``CloudConfig``'s docstring);
     2. rows with a non-finite coordinate are dropped (``non_finite``);
     3. the ground model is fitted (:func:`fit_ground`) and each point's height above its patch's
        plane computed, ``h = n_k . p + d_k``;
@@ -1087,7 +1135,8 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
         raise TypeError(f"config must be a CloudConfig or None; got {type(cfg).__name__}")
     pts_s = _as_points(points_sensor, "points_sensor")
     n = len(pts_s)
-    pe = _transform(pts_s, cfg)
+    pe = _transform(pts_s, cfg) if cfg.frame == "sensor" else pts_s
+    _check_frame(pe, cfg)
     # a row with a NaN or inf has a non-finite sum (the exact test only runs when one is found)
     all_finite = bool(np.isfinite(pe @ np.ones(3)).all())
     finite = np.ones(n, dtype=bool) if all_finite else np.isfinite(pe).all(axis=1)

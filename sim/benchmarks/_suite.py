@@ -13,7 +13,8 @@ Sections (the keys of the JSON, in the order they run):
 - ``lidar``: one ``Lidar.scan`` (1800 rays, 20 vehicles, 300 roadside objects) and one radar cycle, ms;
 - ``lidar3d``: per 3-D lidar model (VLP-16, VLP-32C, HDL-64E, OS1-128), one scan (28,800 to 131,072
   rays, a sloped road, 20 vehicles, 300 roadside objects), the tracker's 3-D preprocessing of it and
-  its whole step on it, ms, with the ground removal's recall and precision (``sim.benchmarks.lidar3d``);
+  its whole step on it, ms, with the ground removal's recall and precision, and the same for a two-lidar
+  rig's merged cloud (``rig``; ``sim.benchmarks.lidar3d``);
 - ``world``: ms of wall time per simulated second, traffic only (``sim.benchmarks.world``);
 - ``end_to_end``: ``run_scenario`` (world + sensors + tracker + scoring) of ``curvy-multi`` and
   ``dense-highway``, simulated seconds per wall second on one core: the median over ``e2e_repeat``
@@ -141,9 +142,9 @@ def lidar_section(s: Settings) -> dict[str, Any]:
 
 
 def lidar3d_section(s: Settings) -> dict[str, Any]:
-    from sim.benchmarks.lidar3d import bench_lidar3d_models
+    from sim.benchmarks.lidar3d import bench_all
 
-    return bench_lidar3d_models(s.lidar_repeats if not s.quick else 3, pin=False, verbose=False)  # run_all pins
+    return bench_all(s.lidar_repeats if not s.quick else 3, pin=False, verbose=False)  # run_all pins
 
 
 def world_section(s: Settings) -> dict[str, Any]:

@@ -19,7 +19,10 @@ returns kept; and ``tracker_step``: ``Tracker.step`` on frames of that cloud 0.1
 standing still, the ego at rest), the first ``TRACKER_WARM_UP`` steps (births) not timed; and
 Patchwork++ (``pypatchworkpp``, when installed: the ``baselines`` extra) on the same cloud, timed and
 scored the same way.
-``bench_lidar3d_models`` runs every model. ``eot bench lidar3d`` runs it pinned to one core; set
+``bench_lidar3d_models`` runs every model; ``bench_rig`` a rig of two lidars (``RIG``: a VLP-32C on
+the roof at 1.9 m and an OS1-128 above it at 2.2 m) whose clouds are merged in the vehicle frame, as a
+real rig's driver delivers them, and go to the tracker as one cloud in E (``CloudConfig.frame =
+"vehicle"``); ``bench_all`` both. ``eot bench lidar3d`` runs it pinned to one core; set
 ``OMP_NUM_THREADS=1`` too (numpy's element-wise work is single-threaded anyway). The simulator's scan
 target is 15 ms on one core for the VLP-16; the tracker's step target is 30 ms (p95) on one core.
 """
@@ -30,6 +33,7 @@ import argparse
 import math
 import statistics
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,7 +42,7 @@ from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import LIDAR3D_MODELS, Lidar3D, Lidar3DConfig, Prisms, cast_3d
 from sim.world.ground import RoadGround
 from tracker import EgoState, Frame, Tracker, TrackerConfig
-from tracker.cloud import process_cloud
+from tracker.cloud import CloudConfig, process_cloud
 from tracker.road import Road
 
 TARGET_MS = 15.0
@@ -184,10 +188,76 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
     return result
 
 
-def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int) -> tuple[list[float], int]:
-    """``Tracker.step`` times (ms) on ``repeats`` frames of ``cloud`` (the lidar's frame) 0.1 s apart
-    after ``TRACKER_WARM_UP`` untimed ones, the ego at rest at the scene's pose; and the tracks at the end."""
-    tracker = Tracker(scene["road"], TrackerConfig())
+#: The two-lidar rig of ``bench_rig``: (model, mount height in m) per lidar, both over the ego's centre,
+#: the first the primary one; their clouds merged in the vehicle frame as a rig's driver delivers them.
+RIG = (("vlp32c", 1.9), ("os1-128", 2.2))
+
+
+def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bool = True) -> dict:
+    """``bench_lidar3d`` for the two-lidar rig ``RIG``: both scans of the benchmark scene merged into
+    one cloud in E (``CloudConfig.frame = "vehicle"``, the primary lidar's mount), the tracker's
+    preprocessing of it and its whole step on it, and the ground removal's scores (no Patchwork++:
+    it takes one sensor's cloud)."""
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"bench_rig: repeats must be a positive integer; got {repeats!r}")
+    scene = lidar3d_scene(seed)
+    lidars = [Lidar3D(Lidar3DConfig.of_model(model, mount_z=z)) for model, z in RIG]
+    rng = np.random.default_rng(seed)
+    prisms, ground = scene["prisms"], scene["ground"]
+    origin, yaw, ids = scene["origin"], scene["yaw"], scene["vehicle_ids"]
+    config = CloudConfig(frame="vehicle", mount_z=RIG[0][1])
+
+    def sweep():
+        scans = [lidar.scan(origin, yaw, prisms, ground, vehicle_ids=ids, rng=rng) for lidar in lidars]
+        cloud = np.concatenate([s.points @ lidar.config.mount_rotation.T + lidar.config.mount_translation
+                                for s, lidar in zip(scans, lidars)])
+        return scans, cloud
+
+    with one_core(pin) as cpu:
+        sweep()  # warm-up; builds the grid
+        scan_ms = _times_ms(sweep, repeats)
+        scans, cloud = sweep()
+        result_cloud = process_cloud(cloud, config)
+        cloud_ms = _times_ms(lambda: process_cloud(cloud, config), repeats)
+        step_ms, tracks = _tracker_steps(scene, cloud, repeats, config)
+    merged = _Merged(np.concatenate([s.ground for s in scans]), np.concatenate([s.vehicle_id for s in scans]))
+    removed = result_cloud.ground | result_cloud.below_ground
+    result = {
+        "model": "+".join(model for model, _ in RIG),
+        "scene": {"rays": sum(lidar.config.rays for lidar in lidars), "vehicles": scene["vehicles"],
+                  "roadside_objects": scene["roadside_objects"], "grade": GRADE, "bank": BANK, "points": len(cloud),
+                  "ground_points": int(merged.ground.sum()), "vehicle_points": int((merged.vehicle_id >= 0).sum()),
+                  "mounts_z_m": [z for _, z in RIG]},
+        "scan": _stats(scan_ms),
+        "preprocess": _stats(cloud_ms),
+        "tracker_step": {**_stats(step_ms), "tracks": tracks, "target_p95_ms": TRACKER_TARGET_MS},
+        "ground_removal": {**_scores(removed, merged),
+                           "vehicle_points_kept": round(float((result_cloud.kept & (merged.vehicle_id >= 0)).sum()
+                                                              / max(int((merged.vehicle_id >= 0).sum()), 1)), 5)},
+        "patchworkpp": {"skipped": "Patchwork++ takes one sensor's cloud"},
+        "repeats": repeats,
+        "pinned_cpu": cpu,
+    }
+    if verbose:
+        print(_line(result))
+    return result
+
+
+@dataclass(frozen=True)
+class _Merged:
+    """The labels of a merged cloud that ``_scores`` reads: ``ground`` and ``vehicle_id`` per point."""
+
+    ground: np.ndarray
+    vehicle_id: np.ndarray
+
+
+def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int,
+                   cloud_config: CloudConfig | None = None) -> tuple[list[float], int]:
+    """``Tracker.step`` times (ms) on ``repeats`` frames of ``cloud`` (the lidar's frame, or E with a
+    ``cloud_config`` that says so) 0.1 s apart after ``TRACKER_WARM_UP`` untimed ones, the ego at rest
+    at the scene's pose; and the tracks at the end."""
+    config = TrackerConfig() if cloud_config is None else TrackerConfig(cloud=cloud_config)
+    tracker = Tracker(scene["road"], config)
     ego = EgoState(x=float(scene["origin"][0]), y=float(scene["origin"][1]), yaw=float(scene["yaw"]), v=0.0)
     times, tracks = [], []
     for k in range(TRACKER_WARM_UP + repeats):
@@ -237,6 +307,15 @@ def bench_lidar3d_models(repeats: int = 50, seed: int = 0, *, models: list[str] 
     return {name: bench_lidar3d(repeats, seed, model=name, pin=pin, verbose=verbose) for name in names}
 
 
+def bench_all(repeats: int = 50, seed: int = 0, *, models: list[str] | None = None, rig: bool = True,
+              pin: bool = True, verbose: bool = True) -> dict:
+    """``bench_lidar3d_models`` and, with ``rig``, ``bench_rig`` under the key ``"rig"``."""
+    out = bench_lidar3d_models(repeats, seed, models=models, pin=pin, verbose=verbose)
+    if rig:
+        out["rig"] = bench_rig(repeats, seed, pin=pin, verbose=verbose)
+    return out
+
+
 def _line(result: dict) -> str:
     s, g, st = result["scan"], result["ground_removal"], result["tracker_step"]
     return (f"{result['model']} scan ({result['scene']['rays']} rays, {result['scene']['points']} points): median "
@@ -259,13 +338,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=50, help="timed scans and tracker steps per model (default 50)")
     parser.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
     parser.add_argument("--model", action="append", choices=list(LIDAR3D_MODELS),
-                        help="3-D lidar model, repeatable (default: every one)")
+                        help="3-D lidar model, repeatable (default: every one, and the two-lidar rig)")
 
 
 def run(args: argparse.Namespace) -> dict:
-    """``bench_lidar3d_models`` with the command line's options (the JSON is printed by ``eot bench``)."""
-    return bench_lidar3d_models(int(getattr(args, "repeats", 50)), int(getattr(args, "seed", 0)),
-                                models=getattr(args, "model", None), verbose=False)
+    """``bench_all`` with the command line's options (the JSON is printed by ``eot bench``): the models
+    named, else every model and the two-lidar rig."""
+    models = getattr(args, "model", None)
+    return bench_all(int(getattr(args, "repeats", 50)), int(getattr(args, "seed", 0)), models=models,
+                     rig=models is None, verbose=False)
 
 
 def summary(result: dict) -> str:
