@@ -81,6 +81,8 @@ CLOUD_FRAMES = ("sensor", "vehicle")
 FRAME_CHECK_BAND = (3.0, 8.0)
 FRAME_CHECK_POINTS = 30
 FRAME_CHECK_MOUNT_Z = 1.0
+#: The frame check looks at about this many of a cloud's points (a stride through it).
+FRAME_CHECK_SAMPLE = 8192
 
 #: The spread check (``CloudConfig.min_spread``) takes half the distance between these quantiles of the
 #: inliers' offsets across their main direction: stray inliers (under 10 % each side) do not make a line
@@ -138,9 +140,9 @@ class CloudConfig:
       rig of several lidars (stacked on the roof, on the bumpers) as real drivers deliver it; the mount
       pose is then the primary lidar's, whose position centres the patch layout. Default ``"sensor"``.
       A cloud whose ground near the lidar lies where the other frame would put it (within 3-8 m of
-      ``(mount_x, mount_y)``, its 10th-percentile height more than ``mount_z / 2`` off 0 in E) is
-      refused with a ``ValueError`` that says so (checked where ``mount_z >= 1`` m and 30 such points
-      exist).
+      ``(mount_x, mount_y)``, its 10th-percentile height more than ``mount_z / 2`` off 0 in E, among
+      about 8,192 points strided through the cloud) is refused with a ``ValueError`` that says so
+      (checked where ``mount_z >= 1`` m and 30 such points exist).
 
     Mount pose of the lidar in E (the sensor frame's origin and orientation):
 
@@ -1096,9 +1098,10 @@ def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
     where the other frame of ``CloudConfig.frame`` would put it (``CloudConfig``'s docstring)."""
     if cfg.mount_z < FRAME_CHECK_MOUNT_Z or len(pe) < FRAME_CHECK_POINTS:
         return
+    sample = pe[::max(1, len(pe) // FRAME_CHECK_SAMPLE)]  # a stride through the scan order: every azimuth
     with np.errstate(invalid="ignore"):
-        rho = np.hypot(pe[:, 0] - cfg.mount_x, pe[:, 1] - cfg.mount_y)
-        near = pe[(rho >= FRAME_CHECK_BAND[0]) & (rho <= FRAME_CHECK_BAND[1]), 2]
+        rho = np.hypot(sample[:, 0] - cfg.mount_x, sample[:, 1] - cfg.mount_y)
+        near = sample[(rho >= FRAME_CHECK_BAND[0]) & (rho <= FRAME_CHECK_BAND[1]), 2]
     near = near[np.isfinite(near)]
     if len(near) < FRAME_CHECK_POINTS:
         return
