@@ -163,3 +163,34 @@ def test_bearing_filter_kernel_against_the_oracle(bin_deg):
     rng.shuffle(pts)
     got = bearing_filter(pts, width)
     assert np.array_equal(got, oracle_bearing_filter(pts, width)) and len(got) >= len(rays) // 2
+
+
+@pytest.mark.parametrize("resolution_deg", [0.2, 360.0 / 1024])
+def test_nearest_per_ray_keeps_the_nearest_return_of_each_ray(resolution_deg):
+    """``nearest_per_ray``: of returns stacked along rays (a 3-D cloud's beams projected: up to 128 per
+    ray, and returns behind them), each ray keeps exactly its nearest, in ray order; against a
+    brute-force oracle per ray; where a ray's returns share its bearing (the beams of a spinning
+    lidar), the detection model's occlusion by the scan is the same with the kept returns as with all."""
+    from tracker.detection import scan_occluded_fraction
+    from tracker.measurement import Rectangles
+    from tracker.preprocess import nearest_per_ray
+
+    rng = np.random.default_rng(3)
+    res = np.radians(resolution_deg)
+    rays = rng.choice(round(2 * np.pi / res), 400, replace=False)
+    jitter = rng.uniform(-0.4 * res, 0.4 * res, 4800)  # within the ray's bin
+    r = rng.uniform(2.0, 90.0, 4800)
+    for bearing in (np.repeat(rays * res, 12) + jitter, np.repeat(rays * res, 12)):
+        pts = np.column_stack([r * np.cos(bearing), r * np.sin(bearing)])
+        kept = nearest_per_ray(pts, res)
+        assert len(kept) == len(rays)
+        bins = np.floor(np.arctan2(pts[:, 1], pts[:, 0]) / res + 0.5).astype(int) % round(2 * np.pi / res)
+        oracle = {b: pts[bins == b][np.argmin(np.hypot(*pts[bins == b].T))] for b in np.unique(bins)}
+        np.testing.assert_array_equal(kept, np.array([oracle[b] for b in sorted(oracle)]))
+    # a spinning lidar fires a ray's beams at its bearing: the occlusion by the kept returns is the same
+    cars = Rectangles(center=np.array([[40.0, 5.0], [-30.0, -20.0], [10.0, 60.0]]), psi=np.array([0.1, 1.0, 2.0]), v=np.zeros(3),
+                      length=np.array([4.5, 12.0, 5.0]), width=np.array([1.8, 2.5, 2.0]))
+    np.testing.assert_allclose(scan_occluded_fraction(cars, kept, res), scan_occluded_fraction(cars, pts, res))
+    assert len(nearest_per_ray(np.zeros((0, 2)), res)) == 0
+    with pytest.raises(ValueError, match="resolution"):
+        nearest_per_ray(pts, 0.0)

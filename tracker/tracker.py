@@ -76,7 +76,7 @@ from tracker.identity import LostTracks
 from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
 from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
-from tracker.preprocess import filter_points, lidar_points
+from tracker.preprocess import filter_points, lidar_points, nearest_per_ray
 from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
 from tracker.road import Road
 from tracker.track import Track
@@ -166,7 +166,7 @@ class Tracker:
         self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))  # cluster births for the next frame
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
-        self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E
+        self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E (of a 3-D cloud: the nearest per ray)
         self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
         self._reported_labels: set[int] = set()  # the labels reported in the last frame
         self._updated_labels: set[int] = set()
@@ -403,6 +403,8 @@ class Tracker:
         3-D cloud: any point left after ground removal; ``last_cloud`` keeps the pipeline's result)."""
         self._scan, removed, self.last_cloud = lidar_points(frame, self.config.cloud)
         points, counts, self._point_n = filter_points(self._scan, frame.ego, self.road, self.config.clustering)
+        if self.last_cloud is not None:  # a 3-D cloud: the occluders are the nearest return of each ray
+            self._scan = nearest_per_ray(self._scan, self.config.detection.lidar_resolution)
         self._points = points
         self.stats.update(removed)
         self.stats.update(counts)
