@@ -12,12 +12,18 @@ import json
 import math
 import os
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sim.benchmarks._machine import one_core
-from sim.benchmarks._suite import SECTIONS, Settings, mc_worker_counts, stonesoup_section
+from sim.benchmarks._suite import (
+    SECTIONS,
+    Settings,
+    mc_worker_counts,
+    stonesoup_section,
+)
 from sim.benchmarks._table import format_table
 from sim.benchmarks._tracking import in_view, sensor_frames
 from sim.benchmarks._traffic import MIN_GAP, layout
@@ -232,3 +238,26 @@ def test_one_core_pins_and_restores():
     assert os.sched_getaffinity(0) == before
     with one_core(False) as cpu:
         assert cpu is None and os.sched_getaffinity(0) == before
+
+
+def test_ground_removal_study_scores_ours_and_patchwork_on_the_same_clouds(tmp_path):
+    """``eot bench ground``'s study on a one-scenario suite, one seed, the VLP-16 (every 50th of 201 scans: 5): both methods scored
+    against the simulator's labels of the same scans; ours keeps the vehicles and removes the ground
+    (the real-lidar targets: >= 99.5 % and >= 99 %)."""
+    from sim.benchmarks.ground import (
+        GROUND_REMOVED_TARGET,
+        VEHICLE_KEPT_TARGET,
+        bench_ground,
+    )
+
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    suite = tmp_path / "one.toml"
+    suite.write_text(f'name = "one"\ndescription = "curve-single"\nscenarios = ["{scenarios / "curve-single.toml"}"]\n')
+    result = bench_ground(["vlp16"], str(suite), seeds=1, every=50, verbose=False)
+    assert result["scenarios"] == ["curve-single"] and list(result["models"]) == ["vlp16"]
+    ours, theirs = result["models"]["vlp16"]["ours"], result["models"]["vlp16"]["patchworkpp"]
+    assert ours["scans"] == theirs["scans"] == 5 and ours["ground_points"] == theirs["ground_points"] > 1000
+    assert ours["vehicle_kept"] >= VEHICLE_KEPT_TARGET and ours["ground_removed"] >= GROUND_REMOVED_TARGET
+    assert all(0.0 <= theirs[k] <= 1.0 for k in ("ground_removed", "precision", "vehicle_kept", "roadside_kept"))
+    with pytest.raises(ValueError, match="models must be some of"):
+        bench_ground(["vlp64"], str(suite))

@@ -97,7 +97,7 @@ def nearest_per_ray(points_e: np.ndarray, resolution: float) -> np.ndarray:
     pts = np.ascontiguousarray(np.asarray(points_e, dtype=float).reshape(-1, 2))
     if len(pts) == 0:
         return pts
-    count = max(int(round(2.0 * np.pi / resolution)), 1)
+    count = max(round(2.0 * np.pi / resolution), 1)
     return pts[nearest_per_ray_kernel(pts, float(resolution), count)]
 
 

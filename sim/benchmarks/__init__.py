@@ -11,6 +11,7 @@ line printed after the JSON. Benchmarks measure speed; tests never assert wall-c
 - ``world``: traffic only, ms of wall time per simulated second;
 - ``sensors``: lidar ray casting (the compiled caster vs pymunk), radar cycles and rig frames;
 - ``lidar3d``: one scan per 3-D lidar model over a sloped road with traffic and clutter, and the tracker on it;
+- ``ground``: per 3-D lidar model over a suite's runs, ground removal (ours and Patchwork++) against the labels;
 - ``env``: ``eot/TrackedRoad-v0`` steps per second with the tracker in the loop;
 - ``montecarlo``: simulated seconds per wall second per worker.
 

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.benchmarks._machine import one_core
+from sim.benchmarks._patchwork import MISSING, Patchwork
 from sim.sensors.clutter import ClutterConfig, generate_roadside
 from sim.sensors.lidar3d import LIDAR3D_MODELS, Lidar3D, Lidar3DConfig, Prisms, cast_3d
 from sim.world.ground import RoadGround
@@ -279,22 +280,14 @@ def _scores(removed: np.ndarray, scan) -> dict[str, float]:
 
 
 def _patchwork(scan, sensor_height: float, max_range: float, repeats: int) -> dict:
-    """Patchwork++ (``pypatchworkpp``, C++; Lee et al. 2022) on the same cloud in the sensor frame, its
-    default parameters but the sensor's height and range: the median / p95 ms of ``estimateGround`` and
-    its ground-removal scores; ``{"skipped": ...}`` without the package."""
-    try:
-        import pypatchworkpp
-    except ImportError:
-        return {"skipped": 'pypatchworkpp is not installed: pip install -e ".[baselines]"'}
-    params = pypatchworkpp.Parameters()
-    params.sensor_height, params.max_range, params.verbose = float(sensor_height), float(max_range), False
-    segmenter = pypatchworkpp.patchworkpp(params)
-    cloud = np.column_stack([scan.points, np.zeros(len(scan))])  # x, y, z, intensity
-    segmenter.estimateGround(cloud)
-    times = _times_ms(lambda: segmenter.estimateGround(cloud), repeats)
-    removed = np.zeros(len(scan), dtype=bool)
-    removed[np.asarray(segmenter.getGroundIndices(), dtype=np.int64)] = True
-    return {**_stats(times), **_scores(removed, scan)}
+    """Patchwork++ (``sim.benchmarks._patchwork``) on the same cloud in the sensor frame: the median /
+    p95 ms of one segmentation and its ground-removal scores; ``{"skipped": ...}`` without the package."""
+    segmenter = Patchwork.create(sensor_height, max_range)
+    if segmenter is None:
+        return {"skipped": MISSING}
+    segmenter.ground(scan.points)
+    times = _times_ms(lambda: segmenter.ground(scan.points), repeats)
+    return {**_stats(times), **_scores(segmenter.ground(scan.points), scan)}
 
 
 def bench_lidar3d_models(repeats: int = 50, seed: int = 0, *, models: list[str] | None = None, pin: bool = True,
