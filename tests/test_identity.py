@@ -142,8 +142,8 @@ def test_a_car_that_braked_while_hidden_keeps_its_label_not_the_bus_behind_it():
     # bus (label 8, last updated at 2.8 s), both hidden and coasting until lost; the car braked from 9 to
     # 3 m/s and re-appears at 6.2 s 12 m behind its prediction and 25 m ahead of the bus's. The reach
     # behind the car's prediction is what braking loses (14 m), the bus's ahead what 2 m/s^2 gains
-    # (12 m): the car's own label. With a symmetric 2 m/s^2 reach neither (before session 15 the
-    # allowance was a Gaussian spread, and the bus's, grown for longer, took the car).
+    # (12 m): the car's own label. With a symmetric 2 m/s^2 reach neither (and with a Gaussian spread
+    # as the allowance, the bus's, grown for longer, would take the car).
     bus, car = state(112.0, 3.9, 7.5), state(158.0, 3.9, 9.0)
     at = lambda x, t0, t: x + np.array([x[2] * (t - t0), 0, 0, 0, 0, 0, 0])  # noqa: E731 (coasting)
     for brake, expected in ((8.0, [5]), (None, [-1])):
