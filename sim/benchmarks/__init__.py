@@ -23,6 +23,7 @@ Modules whose names start with ``_`` are helpers, not targets:
 - ``_traffic``: the tracker benchmark's all-in-view scene;
 - ``_tracking``: timing trackers frame by frame on that scene;
 - ``_stonesoup``: Stone Soup's GM-PHD timed against ours;
+- ``_patchwork``: Patchwork++ (``pypatchworkpp``), the reference ground segmentation of ``lidar3d`` and ``ground``;
 - ``_timing``: the shared timing helper.
 
 Commands::
