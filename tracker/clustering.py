@@ -329,7 +329,7 @@ def continued_ends(ends: np.ndarray, outward: np.ndarray, half_gap: np.ndarray, 
 # rectangles' overlap groups, the points in rectangles, the partition, strays adopted, clusters cut
 # across the road, the points ordered by cluster; ``ordered_clusters_kernel`` for its second half), the
 # radar association (``associate_ranges``, ``cluster_radar_kernel``), and the scan's bearing searches
-# (``occluded_ends_kernel``, ``continued_ends_kernel``, ``bearing_filter_kernel``).
+# (``occluded_ends_kernel``, ``continued_ends_kernel``, ``nearest_in_bins_kernel``, ``bearing_filter_kernel``).
 # --------------------------------------------------------------------------------------------------
 
 
@@ -1036,32 +1036,37 @@ def continued_ends_sorted(ends, outward, start, reach, b, xy, offset):  # pragma
 
 
 @njit
-def bearing_filter_kernel(pts, bin_width, count, wrap):  # pragma: no cover - compiled
-    """``tracker.preprocess.bearing_filter``: indices of the closest point of each bearing bin (the
-    first by index among equal ranges), in increasing bearing order (ties by index). Bins ``floor(bearing
-    / bin_width + 1/2)``, taken modulo ``count`` when ``wrap``."""
+def nearest_in_bins_kernel(pts, bin_width, count, wrap):  # pragma: no cover - compiled
+    """The nearest of the points ``pts (N, 2)`` (seen from the origin) in each bearing bin ``floor(bearing
+    / bin_width + 1/2)``, taken modulo ``count`` when ``wrap``: the indices of the occupied bins' nearest
+    points (the first by index among equal ranges) in ascending bin order, and every point's bearing
+    (rad). One pass over the points and one over the bins."""
     size = pts.shape[0]
+    lo = np.int64(0) if wrap else np.int64(np.floor(-np.pi / bin_width + 0.5))
+    bins = np.int64(count) if wrap else np.int64(np.floor(np.pi / bin_width + 0.5)) - lo + 1
+    best = np.full(bins, -1, dtype=np.int64)
+    best_r = np.full(bins, np.inf)
     bearing = np.empty(size)
-    rng = np.empty(size)
-    bins = np.empty(size, dtype=np.int64)
     for i in range(size):
         bearing[i] = np.arctan2(pts[i, 1], pts[i, 0])
-        rng[i] = np.hypot(pts[i, 0], pts[i, 1])
+        r = np.hypot(pts[i, 0], pts[i, 1])
         b = np.int64(np.floor(bearing[i] / bin_width + 0.5))
-        bins[i] = b % count if wrap else b
-    order = np.argsort(bins, kind="mergesort")  # stable: by bin, then by index
-    kept = np.empty(size, dtype=np.int64)
-    n_kept = 0
-    i = 0
-    while i < size:
-        best = order[i]
-        j = i + 1
-        while j < size and bins[order[j]] == bins[order[i]]:
-            if rng[order[j]] < rng[best]:
-                best = order[j]
-            j += 1
-        kept[n_kept] = best
-        n_kept += 1
-        i = j
-    kept = kept[:n_kept]
+        k = b % count if wrap else b - lo
+        if r < best_r[k]:
+            best_r[k] = r
+            best[k] = i
+    kept = 0
+    for k in range(bins):
+        if best[k] >= 0:
+            best[kept] = best[k]
+            kept += 1
+    return best[:kept].copy(), bearing
+
+
+@njit
+def bearing_filter_kernel(pts, bin_width, count, wrap):  # pragma: no cover - compiled
+    """``tracker.preprocess.bearing_filter``: indices of the closest point of each bearing bin (the
+    first by index among equal ranges), in increasing bearing order (ties by bin). Bins ``floor(bearing
+    / bin_width + 1/2)``, taken modulo ``count`` when ``wrap`` (``nearest_in_bins_kernel``)."""
+    kept, bearing = nearest_in_bins_kernel(pts, bin_width, count, wrap)
     return kept[np.argsort(bearing[kept], kind="mergesort")]

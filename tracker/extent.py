@@ -10,9 +10,11 @@ keep their prior mean and variance, both held: their joint block;
 the width was seen whole, the length prior of the vehicle classes given the measured width
 (``BirthConfig.classes``, ``class_length_prior``: the classes weighed by their share and the width's
 likelihood, their lengths' mixture mean and variance) where it lies beyond one standard deviation of
-the held length and is longer, or the length is still no more than a car's prior (``BirthConfig.length``), the end nearest the sensor staying put
-(``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``,
-``max_width``: the estimate projected back onto them)."""
+the held length and is longer, or the length is still no more than a car's prior
+(``BirthConfig.length``), or the length is the classes' own wide prior and the width now rules out the
+long classes (``extent_rules_kernel``), the end nearest the sensor staying put with its uncertainty
+(``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``, ``max_width``:
+the estimate projected back onto them)."""
 
 from __future__ import annotations
 
@@ -161,10 +163,10 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     ``length_floor`` (a fitted side longer than that is a lower bound the classes may not undercut), or
     where its variance exceeds ``class_prior_var`` (no fit gives so wide a spread: the length is the
     classes' own prior, taken on an earlier width) and the classes' variance is at most ``short_var``
-    (the width now rules out the long classes; a long vehicle's length grown by a side it showed
-    is a lower bound, and stays):
-    the mean moved to the classes' mean and the variance to theirs (where longer, to theirs or the held one, the larger), the end
-    nearest the sensor kept (``_replace_length``). Then ``L <= max_length``, ``W <= max_width``."""
+    (the width now rules out the long classes; a long vehicle's length grown by a side it showed is a
+    lower bound, and stays): the mean moved to the classes' mean and the variance to theirs (where
+    longer, the larger of theirs and the held one), the end nearest the sensor kept
+    (``_replace_length``). Then ``L <= max_length``, ``W <= max_width``."""
     pairs = mean.shape[0]
     for p in range(pairs):
         if hold:

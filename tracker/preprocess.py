@@ -24,7 +24,7 @@ from tracker.frame import EgoState, Frame
 from tracker.road import Road
 from tracker.transforms import to_global
 from tracker.jit import njit
-from tracker.clustering import bearing_filter_kernel
+from tracker.clustering import bearing_filter_kernel, nearest_in_bins_kernel
 from tracker.centerline import project_kernel, seed_kernel
 from tracker.lanes import edge_at
 
@@ -91,33 +91,15 @@ def nearest_per_ray(points_e: np.ndarray, resolution: float) -> np.ndarray:
     order of the bins: the occluders of a projected 3-D cloud. The detection model and the shadow tests
     ask, per ray, whether some return lies nearer than an object; the nearest one answers it where the
     ray's returns share its bearing (a spinning lidar fires its beams together), so the other beams'
-    returns of the ray (up to 128) add nothing but time. One pass (``nearest_per_ray_kernel``)."""
+    returns of the ray (up to 128) add nothing but time. One pass (``tracker.clustering.nearest_in_bins_kernel``,
+    as the bearing filter's)."""
     if not resolution > 0:
         raise ValueError(f"resolution must be > 0 rad; got {resolution!r}")
     pts = np.ascontiguousarray(np.asarray(points_e, dtype=float).reshape(-1, 2))
     if len(pts) == 0:
         return pts
     count = max(round(2.0 * np.pi / resolution), 1)
-    return pts[nearest_per_ray_kernel(pts, float(resolution), count)]
-
-
-@njit
-def nearest_per_ray_kernel(pts, resolution, count):  # pragma: no cover - compiled
-    """``nearest_per_ray``: the index of the nearest return of each occupied ray, in ray order."""
-    best = np.full(count, -1, dtype=np.int64)
-    best_r = np.full(count, np.inf)
-    for i in range(pts.shape[0]):
-        r = np.hypot(pts[i, 0], pts[i, 1])
-        ray = np.int64(np.floor(np.arctan2(pts[i, 1], pts[i, 0]) / resolution + 0.5)) % count
-        if r < best_r[ray]:
-            best_r[ray] = r
-            best[ray] = i
-    kept = 0
-    for k in range(count):
-        if best[k] >= 0:
-            best[kept] = best[k]
-            kept += 1
-    return best[:kept].copy()
+    return pts[nearest_in_bins_kernel(pts, float(resolution), count, True)[0]]
 
 
 def preprocess_frame(frame: Frame, road: Road, config: ClusteringConfig,

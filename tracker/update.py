@@ -228,8 +228,10 @@ CLASS_PRIOR = 1.5
 
 def _extent_rule_args(config: TrackerConfig) -> tuple:
     """The settings' arguments of the compiled extent rules (``tracker.extent.extent_rules_kernel``
-    after its arrays): the hold, the vehicle classes' size prior (with the car's prior length below
-    which the classes may shorten a held length) and the largest vehicle."""
+    after its arrays): the hold, the vehicle classes' size prior (its arrays, the variances of an
+    unmeasured length (``UNMEASURED``) and of the classes' own prior (``CLASS_PRIOR``), the largest
+    classes' variance that may shorten it, the car's prior length below which the classes may shorten
+    a held length) and the largest vehicle."""
     b = config.birth
     return ((bool(config.measurement.hold_unobserved_extent), b.classes is not None)
             + class_arrays(b.classes or VEHICLE_CLASSES, b.width_error_std)

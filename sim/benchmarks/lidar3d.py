@@ -156,7 +156,6 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
         step_ms, tracks = _tracker_steps(scene, scan.points, repeats)
         patchwork = _patchwork(scan, lidar.config.mount_z, lidar.config.max_range, repeats)
     removed = cloud.ground | cloud.below_ground
-    vehicle = scan.vehicle_id >= 0
     result = {
         "model": model,
         "scene": {
@@ -176,8 +175,7 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
         "cast": _stats(cast_ms),
         "preprocess": _stats(cloud_ms),
         "tracker_step": {**_stats(step_ms), "tracks": tracks, "target_p95_ms": TRACKER_TARGET_MS},
-        "ground_removal": {**_scores(removed, scan),
-                           "vehicle_points_kept": round(float((cloud.kept & vehicle).sum() / max(int(vehicle.sum()), 1)), 5)},
+        "ground_removal": _scores(removed, scan, cloud.kept),
         "patchworkpp": patchwork,
         "ground_grid_build_s": round(build_s, 3),
         "repeats": repeats,
@@ -232,9 +230,7 @@ def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bo
         "scan": _stats(scan_ms),
         "preprocess": _stats(cloud_ms),
         "tracker_step": {**_stats(step_ms), "tracks": tracks, "target_p95_ms": TRACKER_TARGET_MS},
-        "ground_removal": {**_scores(removed, merged),
-                           "vehicle_points_kept": round(float((result_cloud.kept & (merged.vehicle_id >= 0)).sum()
-                                                              / max(int((merged.vehicle_id >= 0).sum()), 1)), 5)},
+        "ground_removal": _scores(removed, merged, result_cloud.kept),
         "patchworkpp": {"skipped": "Patchwork++ takes one sensor's cloud"},
         "repeats": repeats,
         "pinned_cpu": cpu,
@@ -270,13 +266,14 @@ def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int,
     return times, len(tracks)
 
 
-def _scores(removed: np.ndarray, scan) -> dict[str, float]:
+def _scores(removed: np.ndarray, scan, kept: np.ndarray | None = None) -> dict[str, float]:
     """Ground removal against the scan's labels: recall of the ground returns, precision of the removed
-    ones, and the share of vehicle returns kept."""
+    ones, and the share of vehicle returns ``kept`` (default: those not removed)."""
     ground, vehicle = scan.ground, scan.vehicle_id >= 0
+    kept = ~removed if kept is None else kept
     return {"recall": round(float((removed & ground).sum() / max(int(ground.sum()), 1)), 5),
             "precision": round(float((removed & ground).sum() / max(int(removed.sum()), 1)), 5),
-            "vehicle_points_kept": round(float((~removed & vehicle).sum() / max(int(vehicle.sum()), 1)), 5)}
+            "vehicle_points_kept": round(float((kept & vehicle).sum() / max(int(vehicle.sum()), 1)), 5)}
 
 
 def _patchwork(scan, sensor_height: float, max_range: float, repeats: int) -> dict:
