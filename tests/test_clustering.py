@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from oracles import clustering as oracle
-from tracker.clustering import (SPLIT_MAX_CUTS, associate_radar, continued_ends, distance_partition, fragment_owners,
+from tracker.clustering import (SPLIT_MAX_CUTS, along_cuts_kernel, associate_radar, continued_ends, distance_partition, fragment_owners,
                                 occluded_ends, ordered_clusters_kernel, points_in_rectangles)
 from tracker.preparation import prepare_batch
 
@@ -359,3 +359,91 @@ def test_cluster_radar_ranges_equals_cluster_radar():
         assert [v is None for v in got] == [v is None for v in velocities]
         assert all(a is None or (np.array_equal(a, b) and not b.flags.writeable) for a, b in zip(velocities, got))
         assert got_free.dtype == np.int64 and np.array_equal(got_free, np.setdiff1d(np.arange(count), index))
+
+
+# --- the cuts along a track's cluster (along_cuts_kernel) ---------------------------------------------
+
+STEP = np.radians(0.2)
+
+
+def _scan(boxes: list[tuple[float, float, float, float]], bearings: np.ndarray) -> np.ndarray:
+    """Exact 2-D lidar returns from the origin at ``bearings`` (rad): per ray the nearest hit of the
+    axis-aligned boxes ``(x0, x1, y0, y1)`` (slab method); rays that hit nothing return nothing."""
+    d = np.column_stack([np.cos(bearings), np.sin(bearings)])
+    best = np.full(len(d), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for x0, x1, y0, y1 in boxes:
+            tx = np.sort(np.column_stack([x0 / d[:, 0], x1 / d[:, 0]]), axis=1)
+            ty = np.sort(np.column_stack([y0 / d[:, 1], y1 / d[:, 1]]), axis=1)
+            near = np.maximum(tx[:, 0], ty[:, 0])
+            far = np.minimum(tx[:, 1], ty[:, 1])
+            hit = (near <= far) & (near > 0)
+            best = np.where(hit & (near < best), near, best)
+    keep = np.isfinite(best)
+    return d[keep] * best[keep, None]
+
+
+def _cut(points: np.ndarray, scan: np.ndarray, centre, length: float, width: float = 1.8):
+    """``along_cuts_kernel`` for one track (heading +x) owning all ``points``."""
+    return along_cuts_kernel(points, np.array([0, len(points)]), np.array([0]), np.array([centre], dtype=float),
+                             np.ones(1), np.zeros(1), np.array([0.5 * length]), np.array([0.5 * width]), scan, STEP,
+                             3.0, 1.0, 0.5, 3)
+
+
+BEARINGS = np.arange(-60.0, 0.0, 0.2) * np.pi / 180.0 + 1e-4
+
+
+def test_along_cut_splits_cars_nose_to_tail_and_bounds_the_kept_one():
+    # two parked cars 2 m apart, 3 m right of the sensor; a track grown over both owns their points
+    cars = [(12.0, 16.5, -4.8, -3.0), (18.5, 23.0, -4.8, -3.0)]
+    pts = _scan(cars, BEARINGS)
+    ordered, edges, owned, added, bounds = _cut(pts, pts, (17.5, -3.9), 11.0)
+    assert added == 1 and len(edges) == 3
+    first, second = ordered[edges[0]:edges[1]], ordered[edges[1]:edges[2]]
+    assert owned.tolist() == [0, -1]
+    # the nearer car, with more points, stays the track's; the other is a free cluster of its own
+    assert first[:, 0].max() <= 16.5 + 1e-9 and second[:, 0].min() >= 18.5 - 1e-9
+    assert len(first) + len(second) == len(pts)
+    # the bound: half a ray gap beyond the kept part's last point along the heading (t from x = 17.5)
+    last = first[np.argmax(first[:, 0])]
+    half = 0.5 * (last @ last) * STEP / abs(last[1])
+    assert bounds[0, 0] == -np.inf
+    assert bounds[0, 1] == pytest.approx(last[0] + half - 17.5)
+    assert 16.5 - 17.5 <= bounds[0, 1] < 18.5 - 17.5
+
+
+def test_along_cut_keeps_a_long_side_whole():
+    # one 11 m truck: its side's returns are spaced by a ray gap, never a hole
+    truck = [(12.0, 23.0, -5.5, -3.0)]
+    pts = _scan(truck, BEARINGS)
+    *_, added, bounds = _cut(pts, pts, (17.5, -4.25), 11.0)
+    assert added == 0 and np.all(np.isinf(bounds))
+    # a dropped return (one ray) leaves two ray gaps: still no hole
+    side = np.flatnonzero(np.abs(pts[:, 1] + 3.0) < 1e-9)
+    holed = np.delete(pts, side[len(side) // 2], axis=0)
+    assert _cut(holed, holed, (17.5, -4.25), 11.0)[3] == 0
+
+
+def test_along_cut_not_at_a_shadow_or_where_the_side_goes_on_in_another_cluster():
+    truck = (12.0, 23.0, -5.5, -3.5)
+    pole = (8.0, 8.4, -2.0, -1.6)  # nearer: its shadow cuts a hole in the truck's side
+    scan = _scan([truck, pole], BEARINGS)
+    pts = scan[scan[:, 1] < -3.0]  # the truck's returns
+    gaps = np.diff(np.sort(pts[np.abs(pts[:, 1] + 3.5) < 1e-9, 0]))
+    assert gaps.max() > 1.5  # the shadow is a hole in the points ...
+    assert _cut(pts, scan, (17.5, -4.5), 11.0)[3] == 0  # ... but not in the side
+    # the side's returns in the gap belong to another cluster: no hole either
+    side = _scan([truck], BEARINGS)
+    side = side[np.abs(side[:, 1] + 3.5) < 1e-9]
+    middle = (side[:, 0] > 15.0) & (side[:, 0] < 18.0)
+    assert middle.sum() >= 3
+    assert _cut(side[~middle], side, (17.5, -4.5), 11.0)[3] == 0
+    # without them in the scan, it is a hole
+    assert _cut(side[~middle], side[~middle], (17.5, -4.5), 11.0)[3] == 1
+
+
+def test_along_cut_leaves_a_lone_far_return():
+    # a part of fewer than min_part points is not cut off (a grazing side's last return)
+    cars = [(12.0, 16.5, -4.8, -3.0)]
+    pts = np.vstack([_scan(cars, BEARINGS), [[26.0, -3.0], [26.1, -3.0]]])
+    assert _cut(pts, pts, (17.5, -3.9), 11.0)[3] == 0

@@ -1302,7 +1302,10 @@ def test_clustering_equals_the_oracle(settings):
     none)."""
     from tracker.config import ClusteringConfig
 
-    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**_CLUSTER_CONFIGS[settings]))
+    # the oracle groups without the cuts along a track (``along_gap``: test_clustering checks them on
+    # ray-cast geometry)
+    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**{"along_gap": None,
+                                                                               **_CLUSTER_CONFIGS[settings]}))
     seen = dict.fromkeys(_COUNTS, 0)
     for seed in range(40):
         counts = _assert_clustered_as_the_oracle(*_cluster_scene(seed, config, tracks=0 if seed < 3 else None))
@@ -1324,8 +1327,10 @@ def test_clustering_equals_the_oracle_at_the_edges(case):
     every point inside one rectangle, and points too far apart for the partition's grid (their
     components from the whole graph)."""
     from tracker.measurement import Rectangles
+    from tracker.config import ClusteringConfig
 
-    tracker, points, frame, rect = _cluster_scene(7, TrackerConfig(), tracks=0 if case == "no-tracks" else 3)
+    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(along_gap=None))  # as above
+    tracker, points, frame, rect = _cluster_scene(7, config, tracks=0 if case == "no-tracks" else 3)
     if case == "one-point":
         points, tracker._point_n = points[:1], tracker._point_n[:1]
     if case == "no-radar":

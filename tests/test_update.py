@@ -905,3 +905,46 @@ def test_the_papers_euler_conversion_never_takes_the_fused_update(monkeypatch):
     for (label, mean), (ref_label, ref_mean) in zip(fused, staged):
         assert label == ref_label
         np.testing.assert_array_equal(mean, ref_mean)
+
+
+def test_bound_at_holes_shortens_to_the_seen_free_space_keeping_the_near_end():
+    """``tracker.extent.bound_at_holes_kernel``: E is the road frame (ego at the origin, heading along
+    s), so a component's ``(s, n)`` is its centre in E; its group's heading is +x from ``(17.5, -3.9)``."""
+    from tracker.extent import bound_at_holes_kernel
+    from tracker.measurement import rectangle_corners
+
+    # 0: an 11 m track over two parked cars ahead, its group cut 0.9 m past its first car's end (x = 16.6)
+    # 1: the same, behind the sensor (its far end is the rear: the bound ahead is on its near side)
+    # 2: a component of no group; 3: one turned 90 deg off its group's heading
+    mean = np.array([[17.5, -3.9, 0.0, 0.0, 0.0, 11.0, 1.8]] * 4)
+    mean[1, 0] = -17.5
+    mean[3, 3] = np.pi / 2
+    cov = np.broadcast_to(np.diag([0.25, 0.04, 1.0, 0.01, 0.01, 0.09, 0.01]), (4, 7, 7)).copy()
+    corners = rectangle_corners(mean[:, :2], mean[:, 3], mean[:, 5], mean[:, 6])
+    group = np.array([0, 0, -1, 0])
+    bounds = np.array([[-np.inf, 16.6 - 17.5]])
+    m, p = mean.copy(), cov.copy()
+    count = bound_at_holes_kernel(m, p, corners, group, np.array([[17.5, -3.9]]), np.ones(1), np.zeros(1), bounds, 1.0)
+    assert count == 1
+    np.testing.assert_allclose(m[1:], mean[1:])
+    np.testing.assert_allclose(p[1:], cov[1:])
+    # the near end (x = 12) stays, the far end moves to the bound: L = 4.6, the centre at 14.3
+    assert m[0, 5] == pytest.approx(4.6)
+    assert m[0, 0] - 0.5 * m[0, 5] == pytest.approx(12.0)
+    assert m[0, 0] == pytest.approx(14.3)
+    np.testing.assert_allclose(m[0, [1, 2, 3, 4, 6]], mean[0, [1, 2, 3, 4, 6]])
+    # the length's variance is raised to the floor along the growth direction d = (0.5, 0, ..., 1 at L):
+    # the near end s - L / 2 keeps its variance, s and L gain 0.25 x and 1 x the added variance
+    added = 1.0 - 0.09
+    assert p[0, 5, 5] == pytest.approx(1.0)
+    assert p[0, 0, 0] == pytest.approx(0.25 + 0.25 * added)
+    assert p[0, 0, 5] == pytest.approx(0.5 * added)
+    near = np.array([1.0, 0, 0, 0, 0, -0.5, 0])
+    assert near @ p[0] @ near == pytest.approx(near @ cov[0] @ near)
+    np.testing.assert_allclose(p[0], p[0].T)
+    assert np.all(np.linalg.eigvalsh(p[0]) > 0)
+    # a bound the rectangle does not reach changes nothing
+    m, p = mean.copy(), cov.copy()
+    assert bound_at_holes_kernel(m, p, corners, group, np.array([[17.5, -3.9]]), np.ones(1), np.zeros(1),
+                                 np.array([[-np.inf, 6.0]]), 1.0) == 0
+    np.testing.assert_allclose(m, mean)

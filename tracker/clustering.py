@@ -21,6 +21,7 @@ The stage's numba kernels are at the end of the module.
 
 from __future__ import annotations
 
+import math
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -1070,3 +1071,198 @@ def bearing_filter_kernel(pts, bin_width, count, wrap):  # pragma: no cover - co
     / bin_width + 1/2)``, taken modulo ``count`` when ``wrap`` (``nearest_in_bins_kernel``)."""
     kept, bearing = nearest_in_bins_kernel(pts, bin_width, count, wrap)
     return kept[np.argsort(bearing[kept], kind="mergesort")]
+
+
+@njit(inline="always")
+def _ray_gap(points, i, k, c, s, step):  # pragma: no cover - compiled
+    """The spacing of a scan's returns (bearing step ``step``, rad) at point ``k`` along a side through
+    it: ``r^2 step / d`` with ``r`` its range and ``d`` the line's distance from the sensor; the line
+    runs from point ``i`` to ``k`` (of ``points``), or along ``(c, s)`` where they coincide. 0 where
+    the line is across the heading ``(c, s)`` by more than 45 deg (no side along it)."""
+    x = points[k, 0]
+    y = points[k, 1]
+    ux = x - points[i, 0]
+    uy = y - points[i, 1]
+    norm = math.sqrt(ux * ux + uy * uy)
+    if norm > 0.0:
+        ux /= norm
+        uy /= norm
+        if abs(ux * c + uy * s) < SQRT_HALF:
+            return 0.0
+    else:
+        ux = c
+        uy = s
+    d = abs(x * uy - y * ux)
+    return (x * x + y * y) * step / d if d > 0.0 else np.inf
+
+
+#: cos 45 deg.
+SQRT_HALF = math.sqrt(0.5)
+
+
+@njit
+def along_cuts_kernel(ordered, edges, owned, ctr, c, s, half_l, half_w, scan, step, rays, min_gap, margin,
+                      min_part):  # pragma: no cover - compiled
+    """The cuts along a track's length (``tracker.Tracker._grouped_points``): per cluster a track group
+    owns (``owned[k] >= 0``; ``ordered`` the points in cluster order, ``edges (K + 1,)``), its points
+    sorted by their offset ``t`` along the group's heading (cosine ``c[g]``, sine ``s[g]``, centre
+    ``ctr[g]``) are cut between two consecutive points whose gap in ``t`` is a hole a solid side cannot
+    have:
+
+    - at least ``min_gap`` (m), and at least ``rays`` ray gaps ``r^2 step / d`` at either point (range
+      ``r``, lidar bearing step ``step`` in rad, distance ``d`` of the line along the heading through the
+      point from the sensor: the spacing of a scan's returns along such a side);
+    - no return of ``scan`` in the bearings strictly between the two points lies nearer than the nearer
+      of them less ``margin`` (then the gap is another object's shadow on one side, not a hole), or
+      within the gap along the heading, more than ``min_gap / 2`` from both points (the side goes on
+      there in returns another cluster holds, or that the road filter dropped);
+    - both parts hold at least ``min_part`` points (a lone far return is more likely the end of a side
+      seen at a grazing angle, whose ray gap the heading's error hides, than a vehicle of its own).
+
+    Of a cut cluster the part with most points inside the group's rectangle (half extents ``half_l``,
+    ``half_w``; plus 1e-6 per point: ties to the larger part) stays the group's; the other parts become
+    free clusters, appended after the others. A cut is seen free space beyond the kept part: per group,
+    the bounds ``(lo, hi)`` in ``t`` its vehicle cannot reach past (``+-inf`` where nothing was cut),
+    half the ray gap beyond the kept part's extreme point on each cut side (where the next ray along
+    a side would have found it: ``tracker.extent.bound_at_holes``). Returns ``(ordered, edges, owned,
+    added, bounds (G, 2))``, the inputs themselves when nothing was cut."""
+    groups = len(ctr)
+    bounds = np.empty((groups, 2))
+    bounds[:, 0] = -np.inf
+    bounds[:, 1] = np.inf
+    clusters = len(edges) - 1
+    count = len(ordered)
+    part = np.zeros(count, dtype=np.int64)  # per point, its part within its cluster
+    parts = np.ones(clusters, dtype=np.int64)
+    keep = np.zeros(clusters, dtype=np.int64)  # the part that stays owned
+    sorted_scan = False
+    b = np.empty(0)
+    r = np.empty(0)
+    xy = np.empty((0, 2))
+    added = 0
+    for k in range(clusters):
+        g = owned[k]
+        lo = edges[k]
+        hi = edges[k + 1]
+        if g < 0 or hi - lo < 2 * min_part:
+            continue
+        n = hi - lo
+        t = np.empty(n)
+        for j in range(n):
+            t[j] = (ordered[lo + j, 0] - ctr[g, 0]) * c[g] + (ordered[lo + j, 1] - ctr[g, 1]) * s[g]
+        order = np.argsort(t, kind="mergesort")
+        cuts = 0
+        last = 0  # the first point of the current part
+        for j in range(min_part, n - min_part + 1):
+            if j - last < min_part:
+                continue
+            a = lo + order[j - 1]
+            z = lo + order[j]
+            gap = t[order[j]] - t[order[j - 1]]
+            if not gap >= min_gap:
+                continue
+            # the ray gap at either point along the heading, and along the line through it and its
+            # neighbour on its own side of the gap (the side's own direction, where the heading errs)
+            spacing = max(_ray_gap(ordered, a, a, c[g], s[g], step), _ray_gap(ordered, z, z, c[g], s[g], step))
+            if j >= 2:
+                spacing = max(spacing, _ray_gap(ordered, lo + order[j - 2], a, c[g], s[g], step))
+            if j + 1 < n:
+                spacing = max(spacing, _ray_gap(ordered, lo + order[j + 1], z, c[g], s[g], step))
+            if not gap >= rays * spacing:
+                continue
+            if not sorted_scan:
+                b, r, xy = bearing_sorted_scan(scan)
+                sorted_scan = True
+            ba = np.arctan2(ordered[a, 1], ordered[a, 0])
+            bz = np.arctan2(ordered[z, 1], ordered[z, 0])
+            d = bz - ba
+            d = d - 2.0 * np.pi * np.round(d / (2.0 * np.pi))
+            first = ba if d >= 0.0 else bz
+            width = abs(d)
+            nearer = min(np.hypot(ordered[a, 0], ordered[a, 1]), np.hypot(ordered[z, 0], ordered[z, 1])) - margin
+            shadow = False
+            inner_lo = t[order[j - 1]] + 0.5 * min_gap
+            inner_hi = t[order[j]] - 0.5 * min_gap
+            for start, stop in _window(b, first + WINDOW_PAD, first + width - WINDOW_PAD):
+                for i in range(start, stop):
+                    if r[i] < nearer:
+                        shadow = True
+                        break
+                    ti = (xy[i, 0] - ctr[g, 0]) * c[g] + (xy[i, 1] - ctr[g, 1]) * s[g]
+                    if ti > inner_lo and ti < inner_hi:  # the gap holds a return of another cluster
+                        shadow = True
+                        break
+                if shadow:
+                    break
+            if shadow:
+                continue
+            cuts += 1
+            last = j
+            for i in range(j, n):
+                part[lo + order[i]] += 1
+        if cuts == 0:
+            continue
+        parts[k] = cuts + 1
+        added += cuts
+        votes = np.zeros(cuts + 1)
+        for i in range(lo, hi):
+            dx = ordered[i, 0] - ctr[g, 0]
+            dy = ordered[i, 1] - ctr[g, 1]
+            votes[part[i]] += 1e-6
+            if abs(dx * c[g] + dy * s[g]) <= half_l[g] and abs(-dx * s[g] + dy * c[g]) <= half_w[g]:
+                votes[part[i]] += 1.0
+        keep[k] = np.argmax(votes)
+        # the kept part's extreme points toward the cut-off parts bound the vehicle
+        lo_t = np.inf
+        hi_t = -np.inf
+        lo_i = hi_i = -1
+        for i in range(lo, hi):
+            if part[i] == keep[k]:
+                ti = (ordered[i, 0] - ctr[g, 0]) * c[g] + (ordered[i, 1] - ctr[g, 1]) * s[g]
+                if ti < lo_t:
+                    lo_t = ti
+                    lo_i = i
+                if ti > hi_t:
+                    hi_t = ti
+                    hi_i = i
+        for side in range(2):
+            if (side == 0 and keep[k] == 0) or (side == 1 and keep[k] == cuts):
+                continue  # nothing was cut off on that side
+            i = lo_i if side == 0 else hi_i
+            x = ordered[i, 0]
+            y = ordered[i, 1]
+            d = abs(x * s[g] - y * c[g])
+            half = 0.5 * (x * x + y * y) * step / d if d > 0.0 else np.inf
+            if side == 0:
+                bounds[g, 0] = max(bounds[g, 0], lo_t - half)
+            else:
+                bounds[g, 1] = min(bounds[g, 1], hi_t + half)
+    if added == 0:
+        return ordered, edges, owned, 0, bounds
+    out = np.empty((count, 2))
+    new_edges = np.empty(clusters + added + 1, dtype=np.int64)
+    new_owned = np.empty(clusters + added, dtype=np.int64)
+    m = 0
+    for k in range(clusters):  # the clusters in their order, a cut one by its kept part
+        new_edges[k] = m
+        new_owned[k] = owned[k]
+        for i in range(edges[k], edges[k + 1]):
+            if parts[k] == 1 or part[i] == keep[k]:
+                out[m, 0] = ordered[i, 0]
+                out[m, 1] = ordered[i, 1]
+                m += 1
+    q = clusters
+    for k in range(clusters):  # then the cut-off parts, by cluster and part
+        for p in range(parts[k]):
+            if parts[k] == 1 or p == keep[k]:
+                continue
+            new_edges[q] = m
+            new_owned[q] = -1
+            for i in range(edges[k], edges[k + 1]):
+                if part[i] == p:
+                    out[m, 0] = ordered[i, 0]
+                    out[m, 1] = ordered[i, 1]
+                    m += 1
+            q += 1
+    new_edges[q] = m
+    return out, new_edges, new_owned, added, bounds

@@ -581,7 +581,8 @@ class ClusteringConfig:
     Points off the road (plus ``road_margin``) are dropped, the bearing filter keeps the nearest point per
     ``bearing_bin``; points inside a reported track's predicted rectangle (plus ``track_margin`` along and
     ``across_margin`` across it) form its cluster, the rest are partitioned into connected components at ``distance``; clusters wider across
-    the road than one vehicle are cut; lone fragments continuing a track's side join it; radar
+    the road than one vehicle are cut, and a track's cluster at a hole along the track (the track then
+    shortened to end there); lone fragments continuing a track's side join it; radar
     detections join the nearest cluster (by its nearest point) within ``radar_gate``. Details:
     ``docs/tracker.md`` ("Clustering").
     """
@@ -604,6 +605,10 @@ class ClusteringConfig:
     split_width: float | None = 3.0
     #: ... if that lateral gap is at least this (m; default 0.5).
     split_gap: float = 0.5
+    #: A track's cluster is cut along the track at a gap between consecutive points of at least this, unshadowed, parts of ``birth.min_cluster_points`` (m; default 1.0; None: off).
+    along_gap: float | None = 1.0
+    #: ... and of at least this many ray gaps ``r^2 step / d`` of a side there, ``step`` = ``detection.lidar_resolution`` (default 3.0).
+    along_gap_rays: float = 3.0
     #: A lone component of at most this many points continuing a track's side joins its cluster (default 1; None: off).
     fragment_points: int | None = 1
     #: The track's rectangle is stretched at its far end by this many std of its length (default 4.0).
@@ -621,6 +626,9 @@ class ClusteringConfig:
             _check("ClusteringConfig", "fragment_side_tolerance", self.fragment_side_tolerance, low=0.0, unit="m")
         if self.split_width is not None:
             _check("ClusteringConfig", "split_width", self.split_width, low=0.0, low_open=True, unit="m")
+        if self.along_gap is not None:
+            _check("ClusteringConfig", "along_gap", self.along_gap, low=0.0, low_open=True, unit="m")
+        _check("ClusteringConfig", "along_gap_rays", self.along_gap_rays, low=0.0)
         for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, low_open=True, unit=unit)
         _check_int("ClusteringConfig", "min_points", self.min_points, 1)

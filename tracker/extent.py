@@ -80,6 +80,53 @@ def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover -
             cov[j, i] += k * (d[j] * col[i] + col[j] * d[i]) + k * k * old * d[j] * d[i]
 
 
+@njit
+def bound_at_holes_kernel(means, covs, corners, component_group, ctr, c, s, bounds, variance):  # pragma: no cover - compiled
+    """The seen free space of the cuts along the tracks' clusters (``tracker.clustering.along_cuts_kernel``)
+    applied to the components, in place: a component of group ``component_group[i]`` (-1: none) whose
+    rectangle (``corners (N, 4, 2)`` in E) reaches past its group's bound on its far side (``bounds (G,
+    2)``: ``(lo, hi)`` along the group's heading, cosine ``c``, sine ``s``, from ``ctr (G, 2)``; the far
+    side the one away from the sensor, as the growth direction's) gets the length that ends there,
+    the end nearest the sensor staying put (``_replace_length``; at least its width), and a length
+    variance of at least ``variance``. A component whose body lies more than 30 deg off its group's
+    heading is left alone. Returns the number of components shortened."""
+    count = len(means)
+    shortened = 0
+    d = np.empty(means.shape[1])
+    for i in range(count):
+        g = component_group[i]
+        if g < 0 or (bounds[g, 0] == -np.inf and bounds[g, 1] == np.inf):
+            continue
+        bx, by = corners[i, 0, 0] - corners[i, 3, 0], corners[i, 0, 1] - corners[i, 3, 1]  # the body axis in E
+        norm = math.sqrt(bx * bx + by * by)
+        if norm <= 0.0:
+            continue
+        bx /= norm
+        by /= norm
+        cx = (((corners[i, 0, 0] + corners[i, 1, 0]) + corners[i, 2, 0]) + corners[i, 3, 0]) / 4.0
+        cy = (((corners[i, 0, 1] + corners[i, 1, 1]) + corners[i, 2, 1]) + corners[i, 3, 1]) / 4.0
+        if cx * bx + cy * by < 0.0:  # the far side: away from the sensor along the body
+            bx, by = -bx, -by
+        along = bx * c[g] + by * s[g]
+        if abs(along) < HOLE_MAX_COS_OFF:
+            continue
+        length = means[i, LENGTH]
+        far = (cx - ctr[g, 0]) * c[g] + (cy - ctr[g, 1]) * s[g] + 0.5 * length * along
+        excess = far - bounds[g, 1] if along > 0.0 else bounds[g, 0] - far
+        if not excess > 0.0:
+            continue
+        target = max(length - excess / abs(along), means[i, WIDTH])
+        if target >= length:
+            continue
+        _replace_length(means[i], covs[i], corners[i], target, max(covs[i, LENGTH, LENGTH], variance))
+        shortened += 1
+    return shortened
+
+
+#: ``bound_at_holes_kernel`` leaves a component alone whose body's cosine with its group's heading is below this (30 deg).
+HOLE_MAX_COS_OFF = math.cos(math.radians(30.0))
+
+
 @functools.lru_cache(maxsize=16)
 def class_arrays(classes: tuple, width_error_std: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                                                       np.ndarray]:

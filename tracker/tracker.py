@@ -83,7 +83,8 @@ from tracker.track import Track
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
-from tracker.clustering import cluster_points_kernel, ordered_clusters_kernel, overlap_groups_kernel
+from tracker.clustering import along_cuts_kernel, cluster_points_kernel, ordered_clusters_kernel, overlap_groups_kernel
+from tracker.extent import bound_at_holes_kernel
 from tracker.extraction import report_centres_kernel
 from tracker.gating import candidate_pairs_kernel
 from tracker.reduction import inside_updated_kernel
@@ -110,7 +111,9 @@ class Tracker:
     ``stats`` counts, over the tracker's life: ``frames``, ``predict_only_frames``,
     ``points_nonfinite``, ``points_off_road``, ``points_bearing_filtered``, ``clusters``,
     ``clusters_fused``, ``clusters_too_small``, ``clusters_split`` (parts added by cutting clusters wider
-    across the road than one vehicle, ``clustering.split_width``), ``fragment_points_adopted`` (lone returns
+    across the road than one vehicle, ``clustering.split_width``), ``clusters_cut_along`` (parts added by
+    cutting track clusters at a hole along the track, ``clustering.along_gap``),
+    ``components_shortened_at_holes`` (components shortened to end at such a hole), ``fragment_points_adopted`` (lone returns
     joined to the track whose side they continue, ``clustering.fragment_points``), ``pairs_pre_gated`` (centroid within the gating
     distance of the rectangle's circumscribed circle), ``pairs_updated``, ``own_clusters_past_gate``,
     ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
@@ -417,8 +420,11 @@ class Tracker:
         The grouping is ``_grouped_points``, the radar association
         ``tracker.clustering.cluster_radar_ranges``."""
         cfg = self.config.clustering
+        self._hole_bounds = None
         if len(points):
             ordered, edges, owned = self._grouped_points(points, rect)
+            if self._hole_bounds is not None:
+                self._bound_at_holes(frame.ego)
         else:
             self._component_group = np.full(len(self.mixture), -1)
             ordered, edges, owned = np.zeros((0, 2)), np.zeros(1, dtype=np.int64), np.zeros(0, dtype=int)
@@ -482,7 +488,37 @@ class Tracker:
                                                                    float(cfg.split_gap), SPLIT_MAX_CUTS)
         if added:
             self.stats["clusters_split"] += int(added)
+        if cfg.along_gap is not None and len(tracks) and (owned >= 0).any():
+            first = np.unique(groups, return_index=True)[1]  # per group, its first track
+            ordered, edges, owned, cut, bounds = along_cuts_kernel(
+                ordered, edges, owned, rect.center[first], np.cos(rect.psi[first]), np.sin(rect.psi[first]),
+                0.5 * rect.length[first], 0.5 * rect.width[first], self._scan, float(self.config.detection.lidar_resolution),
+                float(cfg.along_gap_rays), float(cfg.along_gap), float(self.config.measurement.shadow_margin),
+                int(self.config.birth.min_cluster_points))
+            self.stats["clusters_cut_along"] += int(cut)
+            if cut:
+                self._hole_bounds = (bounds, rect.center[first], np.cos(rect.psi[first]), np.sin(rect.psi[first]))
+        else:
+            self.stats["clusters_cut_along"] += 0  # the counter exists from the first clustered frame on
         return ordered, edges, owned
+
+    def _bound_at_holes(self, ego: EgoState) -> None:
+        """The components of the track groups whose clusters were cut along their length
+        (``clustering.along_gap``) shortened to end at the seen free space of the cut, the end nearest
+        the sensor staying put (``tracker.extent.bound_at_holes_kernel``, length variance at least
+        ``birth.length_std`` squared); counted in ``components_shortened_at_holes``."""
+        bounds, ctr, c, s = self._hole_bounds
+        mix = self.mixture
+        idx = np.flatnonzero(self._component_group >= 0)
+        if len(idx) == 0:
+            return
+        means, covs = mix.means[idx], mix.covs[idx]
+        corners = to_vehicle(means, ego, self.road, self.config.coordinates).corners()
+        shortened = bound_at_holes_kernel(means, covs, corners, self._component_group[idx], ctr, c, s, bounds,
+                                          float(self.config.birth.length_std) ** 2)
+        if shortened:
+            mix.means[idx], mix.covs[idx] = means, covs
+        self.stats["components_shortened_at_holes"] += int(shortened)
 
     def _fragments_adopted(self, points: np.ndarray, rect: Rectangles, groups: np.ndarray, component: np.ndarray,
                            owner: np.ndarray) -> np.ndarray:

@@ -253,11 +253,12 @@ def predict_share() -> None:
 def other_calls() -> None:
     """The kernels that a small scene may not reach: a closed road's frame, the Cartesian births'
     occlusion test, the points in rectangles, the grouping's second call and its hand-back's partition,
-    the reduce stage whatever the scene reached (the reduction in view, the test of the components
+    the cuts along a track's cluster and the bounds they set, the reduce stage whatever the scene reached (the reduction in view, the test of the components
     inside an updated one's rectangle, ``absorb_overlapping``'s screen along the road and in Cartesian
     axes), the report-range centres of the extraction."""
     from tracker.clustering import SPLIT_MAX_CUTS, distance_partition, points_in_rectangles
-    from tracker.clustering import ordered_clusters_kernel
+    from tracker.clustering import along_cuts_kernel, ordered_clusters_kernel
+    from tracker.extent import bound_at_holes_kernel
     from tracker.reduction import inside_updated_kernel
     from tracker.detection import occluded_fraction
     from tracker.frame import EgoState
@@ -279,6 +280,12 @@ def other_calls() -> None:
     distance_partition(pts, 1.0)
     ordered_clusters_kernel(pts, np.array([0, -1]), np.array([True, False]), np.zeros(2, dtype=np.int64), 1, np.zeros(2),
                             True, 3.0, 0.5, SPLIT_MAX_CUTS)
+    row = np.array([[10.0, -2.0], [11.0, -2.0], [12.0, -2.0], [16.0, -2.0], [17.0, -2.0], [18.0, -2.0]])
+    _, _, _, _, bounds = along_cuts_kernel(row, np.array([0, 6]), np.array([0]), np.array([[14.0, -3.0]]), np.ones(1),
+                                           np.zeros(1), np.full(1, 4.5), np.full(1, 1.0), row, 0.0035, 3.0, 1.0, 0.5, 3)
+    car = np.array([[14.0, -3.0, 10.0, 0.0, 0.0, 9.0, 1.9]])
+    bound_at_holes_kernel(car.copy(), np.eye(7)[None].copy(), rect.corners()[:1], np.zeros(1, dtype=np.int64),
+                          np.array([[14.0, -3.0]]), np.ones(1), np.zeros(1), bounds, 1.0)
     means = np.array([[130.0, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9], [130.5, 1.75, 10.0, 0.0, 0.0, 4.5, 1.9]])
     mix = Mixture(np.array([0.9, 0.6]), means, np.broadcast_to(np.eye(7), (2, 7, 7)).copy(), np.array([1, 1]))
     reduce_in_view(mix, np.full(2, 30.0), 102.0, means[:, 1], (-5.0, 5.0), prune_threshold=1e-4, merge_gate=4.0,
