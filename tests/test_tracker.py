@@ -1241,6 +1241,10 @@ def _cluster_scene(seed: int, config: TrackerConfig, tracks: int | None = None):
     points = np.concatenate(parts)
     points = points[rng.permutation(len(points))]
     tracker._point_n = points[:, 1] + rng.normal(0.0, 0.05, len(points))
+    # the lidar returns: the points, a few of them dropped (their gaps may be holes), and some others
+    # nearer or farther (shadows, or returns inside a gap)
+    tracker._scan = np.concatenate([points[rng.random(len(points)) > 0.2],
+                                    rng.uniform([-5.0, -12.0], [70.0, 12.0], (int(rng.integers(0, 10)), 2))])
     extra = int(rng.integers(0, 6))
     labels = np.concatenate([rng.permutation(np.arange(1, count + 1)), rng.integers(1, count + 4, extra)])
     covs = np.tile(np.eye(tracker.dim), (count + extra, 1, 1))
@@ -1254,7 +1258,8 @@ def _cluster_scene(seed: int, config: TrackerConfig, tracks: int | None = None):
     return tracker, points, Frame(1.0, EgoState(0.0, 0.0, 0.0, 10.0, 0.0), np.zeros((0, 2)), radar), rect
 
 
-_COUNTS = ("clusters", "clusters_fused", "clusters_too_small", "clusters_split", "fragment_points_adopted")
+_COUNTS = ("clusters", "clusters_fused", "clusters_too_small", "clusters_split", "clusters_cut_along",
+           "fragment_points_adopted")
 
 
 def _assert_clustered_as_the_oracle(tracker, points, frame, rect) -> dict:
@@ -1268,11 +1273,14 @@ def _assert_clustered_as_the_oracle(tracker, points, frame, rect) -> dict:
 
     tracker = copy.copy(tracker)
     tracker.stats = Counter()
-    clusters, velocities = tracker._cluster(points, frame, rect)
     tracks = tracker._reported
-    want = oracle.cluster(points, rect, tracker.mixture.labels, tracks,
-                          np.sqrt(np.maximum(tracker.mixture.covs[tracks, LENGTH, LENGTH], 0.0)), tracker._point_n,
-                          frame.radar, frame.t, tracker.config.clustering)
+    length_sd = np.sqrt(np.maximum(tracker.mixture.covs[tracks, LENGTH, LENGTH], 0.0))  # before the cuts' bounds
+    labels = tracker.mixture.labels.copy()
+    clusters, velocities = tracker._cluster(points, frame, rect)
+    config = tracker.config
+    want = oracle.cluster(points, rect, labels, tracks, length_sd, tracker._point_n, frame.radar, frame.t,
+                          config.clustering, scan=tracker._scan, step=config.detection.lidar_resolution,
+                          margin=config.measurement.shadow_margin, min_part=config.birth.min_cluster_points)
     assert len(clusters) == len(want[0])
     for a, b in zip(clusters, want[0]):
         assert a.dtype == b.dtype and np.array_equal(a, b)
@@ -1302,10 +1310,7 @@ def test_clustering_equals_the_oracle(settings):
     none)."""
     from tracker.config import ClusteringConfig
 
-    # the oracle groups without the cuts along a track (``along_gap``: test_clustering checks them on
-    # ray-cast geometry)
-    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**{"along_gap": None,
-                                                                               **_CLUSTER_CONFIGS[settings]}))
+    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(**_CLUSTER_CONFIGS[settings]))
     seen = dict.fromkeys(_COUNTS, 0)
     for seed in range(40):
         counts = _assert_clustered_as_the_oracle(*_cluster_scene(seed, config, tracks=0 if seed < 3 else None))
@@ -1313,6 +1318,7 @@ def test_clustering_equals_the_oracle(settings):
             seen[name] += counts[name]
     assert seen["clusters_fused"] > 0
     assert (seen["clusters_split"] > 0) == (config.clustering.split_width is not None)
+    assert seen["clusters_cut_along"] > 0
     if settings == "lenient-fragments":
         assert seen["fragment_points_adopted"] > 0
     if settings == "min-points":
@@ -1327,10 +1333,8 @@ def test_clustering_equals_the_oracle_at_the_edges(case):
     every point inside one rectangle, and points too far apart for the partition's grid (their
     components from the whole graph)."""
     from tracker.measurement import Rectangles
-    from tracker.config import ClusteringConfig
 
-    config = dataclasses.replace(TrackerConfig(), clustering=ClusteringConfig(along_gap=None))  # as above
-    tracker, points, frame, rect = _cluster_scene(7, config, tracks=0 if case == "no-tracks" else 3)
+    tracker, points, frame, rect = _cluster_scene(7, TrackerConfig(), tracks=0 if case == "no-tracks" else 3)
     if case == "one-point":
         points, tracker._point_n = points[:1], tracker._point_n[:1]
     if case == "no-radar":

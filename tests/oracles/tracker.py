@@ -138,22 +138,101 @@ def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tra
             "component_group": component_group, "clusters_split": split, "fragment_points_adopted": adopted}
 
 
+def _ray_gap(point: np.ndarray, other: np.ndarray | None, heading: np.ndarray, step: float) -> float:
+    """The spacing of a scan's returns (bearing step ``step``) at ``point`` along a side through it:
+    ``r^2 step / d``, the side along the line from ``other`` to ``point`` (None: along ``heading``, as
+    where the two coincide), 0 for a line more than 45 deg across ``heading``."""
+    direction = heading if other is None or not np.any(point != other) else (point - other) / np.linalg.norm(point - other)
+    if abs(direction @ heading) < np.sqrt(0.5):
+        return 0.0
+    d = abs(point[0] * direction[1] - point[1] * direction[0])
+    return float(point @ point) * step / d if d > 0.0 else np.inf
+
+
+def along_cuts(ordered: np.ndarray, edges: np.ndarray, owned: np.ndarray, rect: Rectangles, groups: np.ndarray,
+               scan: np.ndarray, step: float, rays: float, min_gap: float, margin: float, min_part: int) -> tuple:
+    """The cuts along a track group's cluster, from their definition: its points sorted by ``t`` along the
+    heading of the group's first track are cut between neighbours at least ``min_gap`` and ``rays`` ray
+    gaps apart (``_ray_gap`` at both, along the heading and along the line to the next point outward),
+    with no ``scan`` return strictly inside the bearings between them that is nearer than the nearer one
+    less ``margin`` or lies inside the gap along the heading (``min_gap / 2`` from both), each part at
+    least ``min_part`` points (cuts taken in order of ``t``). The part with most points inside the
+    rectangle (ties: the larger, then the first) stays owned, in place; the others follow all clusters.
+    Returns the ordered points, edges, owners and the number of parts added."""
+    kept, extra, added = [], [], 0
+    first_track = {int(g): int(np.flatnonzero(groups == g)[0]) for g in np.unique(groups)} if len(groups) else {}
+    for k in range(len(edges) - 1):
+        pts, g = ordered[edges[k]:edges[k + 1]], int(owned[k])
+        if g < 0 or len(pts) < 2 * min_part:
+            kept.append((pts, g))
+            continue
+        tr = first_track[g]
+        u = np.array([np.cos(rect.psi[tr]), np.sin(rect.psi[tr])])
+        t = (pts - rect.center[tr]) @ u
+        order = np.argsort(t, kind="stable")
+        part = np.zeros(len(pts), dtype=int)
+        last, cuts = 0, 0
+        for j in range(min_part, len(pts) - min_part + 1):
+            a, z = pts[order[j - 1]], pts[order[j]]
+            gap = t[order[j]] - t[order[j - 1]]
+            if j - last < min_part or not gap >= min_gap:
+                continue
+            spacing = max(_ray_gap(a, None, u, step), _ray_gap(z, None, u, step),
+                          _ray_gap(a, pts[order[j - 2]], u, step) if j >= 2 else 0.0,
+                          _ray_gap(z, pts[order[j + 1]], u, step) if j + 1 < len(pts) else 0.0)
+            if not gap >= rays * spacing:
+                continue
+            ba, bz = np.arctan2(a[1], a[0]), np.arctan2(z[1], z[0])
+            width = (bz - ba + np.pi) % (2 * np.pi) - np.pi
+            start = ba if width >= 0 else bz
+            offset = (np.arctan2(scan[:, 1], scan[:, 0]) - start) % (2 * np.pi)
+            between = (offset > 1e-6) & (offset < abs(width) - 1e-6)
+            ts = (scan - rect.center[tr]) @ u
+            nearer = np.hypot(*scan.T) < min(np.hypot(*a), np.hypot(*z)) - margin
+            inside = (ts > t[order[j - 1]] + 0.5 * min_gap) & (ts < t[order[j]] - 0.5 * min_gap)
+            if (between & (nearer | inside)).any():
+                continue
+            part[order[j:]] += 1
+            last, cuts = j, cuts + 1
+        if cuts == 0:
+            kept.append((pts, g))
+            continue
+        added += cuts
+        d = pts - rect.center[tr]
+        inside = (np.abs(d @ u) <= 0.5 * rect.length[tr]) & (np.abs(d @ np.array([-u[1], u[0]])) <= 0.5 * rect.width[tr])
+        votes = np.bincount(part[inside], minlength=cuts + 1) + 1e-6 * np.bincount(part, minlength=cuts + 1)
+        keep = int(np.argmax(votes))
+        kept.append((pts[part == keep], g))
+        extra += [(pts[part == p], -1) for p in range(cuts + 1) if p != keep]
+    parts = kept + extra
+    sizes = [len(p) for p, _ in parts]
+    return (np.concatenate([p for p, _ in parts]) if parts else ordered, np.concatenate([[0], np.cumsum(sizes)]),
+            np.array([g for _, g in parts], dtype=int), added)
+
+
 def cluster(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray, length_sd: np.ndarray,
-            n: np.ndarray, radar: RadarDetections, t: float, config: ClusteringConfig, use_radar: bool = True) -> tuple:
-    """``Tracker._cluster``: the clusters (``grouped_points``; those of fewer than ``min_points`` points
-    dropped), each one's radar velocity (``associate_radar`` of the detections moved to ``t``) or None,
-    each cluster's owner group, each component's group, the free detections and the counts."""
+            n: np.ndarray, radar: RadarDetections, t: float, config: ClusteringConfig, use_radar: bool = True,
+            scan: np.ndarray | None = None, step: float = 0.0, margin: float = 0.0, min_part: int = 1) -> tuple:
+    """``Tracker._cluster``: the clusters (``grouped_points``, then ``along_cuts`` in the lidar returns
+    ``scan`` of bearing step ``step`` with the shadow ``margin`` and parts of ``min_part`` points; those
+    of fewer than ``min_points`` points dropped), each one's radar velocity (``associate_radar`` of the
+    detections moved to ``t``) or None, each cluster's owner group, each component's group, the free
+    detections and the counts."""
     grouped = grouped_points(points, rect, labels, tracks, length_sd, n, config)
     edges = grouped["edges"]
-    clusters = [grouped["ordered"][a:b] for a, b in zip(edges[:-1], edges[1:])]
+    ordered, owned, cut = grouped["ordered"], grouped["owned"], 0
+    if config.along_gap is not None and len(tracks) and (owned >= 0).any():
+        ordered, edges, owned, cut = along_cuts(ordered, edges, owned, rect, duplicate_groups(rect),
+                                                np.zeros((0, 2)) if scan is None else scan, step,
+                                                config.along_gap_rays, config.along_gap, margin, min_part)
+    clusters = [ordered[a:b] for a, b in zip(edges[:-1], edges[1:])]
     big = np.diff(edges) >= config.min_points
     stats = Counter(clusters_too_small=int((~big).sum()) if config.min_points > 1 else 0,
-                    clusters_split=grouped["clusters_split"], fragment_points_adopted=grouped["fragment_points_adopted"])
+                    clusters_split=grouped["clusters_split"], fragment_points_adopted=grouped["fragment_points_adopted"],
+                    clusters_cut_along=cut)
     if config.min_points > 1:
         clusters = [c for c, keep in zip(clusters, big) if keep]
-        owned = grouped["owned"][big]
-    else:
-        owned = grouped["owned"]
+        owned = owned[big]
     velocities: list = [None] * len(clusters)
     free = np.arange(len(radar))
     if use_radar and clusters and len(radar):
