@@ -601,8 +601,8 @@ class ClusteringConfig:
     min_points: int = 1
     #: A radar detection joins a cluster whose nearest point lies within this, greedily by distance (m; default 3.0).
     radar_gate: float = 3.0
-    #: A cluster spanning more than this across the road (in ``n``) is cut at its largest gap (m; default 3.0; None: off).
-    split_width: float | None = 3.0
+    #: A cluster spanning more than this across the road (in ``n``) is cut at its largest gap (m; default 2.6: the widest class, a bus, is 2.55; None: off).
+    split_width: float | None = 2.6
     #: ... if that lateral gap is at least this (m; default 0.5).
     split_gap: float = 0.5
     #: A track's cluster is cut along the track at a gap between consecutive points of at least this, unshadowed, parts of ``birth.min_cluster_points`` (m; default 1.0; None: off).
