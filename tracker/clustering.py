@@ -1229,10 +1229,7 @@ def along_cuts_kernel(ordered, edges, owned, ctr, c, s, half_l, half_w, scan, st
             if (side == 0 and keep[k] == 0) or (side == 1 and keep[k] == cuts):
                 continue  # nothing was cut off on that side
             i = lo_i if side == 0 else hi_i
-            x = ordered[i, 0]
-            y = ordered[i, 1]
-            d = abs(x * s[g] - y * c[g])
-            half = 0.5 * (x * x + y * y) * step / d if d > 0.0 else np.inf
+            half = 0.5 * _ray_gap(ordered, i, i, c[g], s[g], step)
             if side == 0:
                 bounds[g, 0] = max(bounds[g, 0], lo_t - half)
             else:

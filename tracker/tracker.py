@@ -490,14 +490,14 @@ class Tracker:
             self.stats["clusters_split"] += int(added)
         if cfg.along_gap is not None and len(tracks) and (owned >= 0).any():
             first = np.unique(groups, return_index=True)[1]  # per group, its first track
+            axes = (rect.center[first], np.cos(rect.psi[first]), np.sin(rect.psi[first]))  # centre, heading
             ordered, edges, owned, cut, bounds = along_cuts_kernel(
-                ordered, edges, owned, rect.center[first], np.cos(rect.psi[first]), np.sin(rect.psi[first]),
-                0.5 * rect.length[first], 0.5 * rect.width[first], self._scan, float(self.config.detection.lidar_resolution),
-                float(cfg.along_gap_rays), float(cfg.along_gap), float(self.config.measurement.shadow_margin),
-                int(self.config.birth.min_cluster_points))
+                ordered, edges, owned, *axes, 0.5 * rect.length[first], 0.5 * rect.width[first], self._scan,
+                float(self.config.detection.lidar_resolution), float(cfg.along_gap_rays), float(cfg.along_gap),
+                float(self.config.measurement.shadow_margin), int(self.config.birth.min_cluster_points))
             self.stats["clusters_cut_along"] += int(cut)
             if cut:
-                self._hole_bounds = (bounds, rect.center[first], np.cos(rect.psi[first]), np.sin(rect.psi[first]))
+                self._hole_bounds = (bounds, *axes)
         else:
             self.stats["clusters_cut_along"] += 0  # the counter exists from the first clustered frame on
         return ordered, edges, owned
