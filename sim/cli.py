@@ -584,10 +584,19 @@ def _closed_loop(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sim.progress import ProgressBar
-    from sim.studies.closed_loop import plan, run_tasks, write_outputs
+    from sim.evaluation.variants import VARIANTS
+    from sim.studies.closed_loop import parse_mode, plan, run_tasks, write_outputs
 
     paths = _resolve_scenarios(args.target, allow_suite=True)
-    variants = _check_variants(_split_variants(args.variant or ["curvilinear-fused,curvilinear-lidar"]))
+    variants = []
+    for name in _split_variants(args.variant or ["curvilinear-fused,curvilinear-lidar"]):
+        variants += list(VARIANTS) if name == "all" else [name]
+    variants = list(dict.fromkeys(variants))
+    for name in variants:
+        try:
+            parse_mode(name)
+        except ValueError as exc:
+            raise UsageError(f"--variant: {exc}") from None
     if args.runs < 1:
         raise UsageError(f"--runs must be >= 1; got {args.runs}")
     if args.workers < 1:
@@ -814,8 +823,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs", type=int, default=20, help="seeds per scenario and mode (default 20)")
     p.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
     p.add_argument("--variant", action="append",
-                   help=f"tracker variant(s) for the tracks modes, repeat or comma-separate (default "
-                        f"curvilinear-fused,curvilinear-lidar): {', '.join(VARIANTS)}")
+                   help=f"tracker modes, repeat or comma-separate (default curvilinear-fused,curvilinear-lidar): a "
+                        f"variant ({', '.join(VARIANTS)}), 'all' for every one, or VARIANT+FAULT with a fault of "
+                        "radar-missing, lidar-dropout (e.g. curvilinear-fused+lidar-dropout)")
     p.add_argument("--no-truth", action="store_true", help="skip the ground-truth perception mode")
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run")

@@ -230,3 +230,33 @@ def test_a_scenario_on_a_lane_map_is_refused_with_one_line():
     path = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "freeway-us101.toml"
     with pytest.raises(ConfigError, match="a road from a lane map .* is not supported by the environment yet"):
         TrackedRoadEnv({"scenario": str(path)})
+
+
+def test_faults_key_overrides_the_scenarios_faults_and_is_validated():
+    """``faults`` replaces the scenario's ``[faults]`` (fault-radar-missing's radar comes back with ``{}``);
+    bad values, intervals beyond the episode and duplicated frames are one-line ``ConfigError``s."""
+    env = TrackedRoadEnv({"scenario": "fault-radar-missing", "duration": 1.0})
+    env.reset(seed=0)
+    env.step(2)
+    assert env.fault_injector is not None and env.fault_injector.counts["radar_detections_dropped"] > 0
+    env = TrackedRoadEnv({"scenario": "fault-radar-missing", "duration": 1.0, "faults": {}})
+    env.reset(seed=0)
+    env.step(2)
+    assert env.fault_injector is None and any(len(sf.frame.radar) for sf, _ in env.step_frames)
+    with pytest.raises(ConfigError, match=r"config key 'faults': .*lidar_spikes"):
+        TrackedRoadEnv({"faults": {"lidar_spikes": 2.0}})
+    with pytest.raises(ConfigError, match=r"config key 'faults' = .*duplicate_frames is not supported in the loop"):
+        TrackedRoadEnv({"faults": {"duplicate_frames": [1.0]}})
+    with pytest.raises(ConfigError, match=r"config key 'faults': faults.lidar_dropout\[0\] = \[5.0, 30.0\]: must end by"):
+        TrackedRoadEnv({"faults": {"lidar_dropout": [[5.0, 30.0]]}})
+
+
+def test_a_variant_with_its_own_tracker_runs_in_the_env():
+    """``stonesoup-gmphd`` steps Stone Soup's GM-PHD (its own factory), not ``tracker.Tracker``."""
+    pytest.importorskip("stonesoup")
+    from sim.baselines.stonesoup_gmphd import StoneSoupGMPHD
+
+    env = TrackedRoadEnv({"scenario": "curve-single", "variant": "stonesoup-gmphd", "duration": 1.0})
+    env.reset(seed=0)
+    env.step(1)
+    assert isinstance(env.tracker, StoneSoupGMPHD)

@@ -35,6 +35,10 @@ Fields (SI units):
   has ``episode_steps()`` = ``ceil(duration * policy_frequency)`` steps (100 for the defaults: the
   registered ``max_episode_steps``).
 - ``roadside`` (None: the scenario's ``sensors.roadside``): force roadside clutter on/off.
+- ``faults`` (None: the scenario's ``[faults]``): sensor faults for the episode, a dict of
+  ``sim.world.scenario.FaultsSpec`` fields (``lidar_dropout``, ``radar_dropout``, ``radar_missing``,
+  ``lidar_time_offset``, ``lidar_spikes``) that replaces the scenario's; ``{}`` runs without faults.
+  Duplicated frames are not supported in the loop (an observation falls on every lidar frame).
 - Reward (highway-env's ``highway-v0`` terms): ``collision_reward`` (-1), ``high_speed_reward`` (0.4,
   linear in the speed along the road over ``reward_speed_range`` (20, 30) m/s), ``right_lane_reward``
   (0.1, for the rightmost lane = our lane 0), ``normalize_reward`` (True: mapped onto [0, 1]),
@@ -98,6 +102,7 @@ class EnvConfig:
     policy_frequency: float = 5.0
     duration: float | None = None
     roadside: bool | None = None
+    faults: Mapping[str, Any] | None = None
     collision_reward: float = -1.0
     high_speed_reward: float = 0.4
     right_lane_reward: float = 0.1
@@ -127,6 +132,20 @@ class EnvConfig:
                 raise bad(key, "must be true or false")
         if self.roadside is not None and not isinstance(self.roadside, bool):
             raise bad("roadside", "must be true, false or None (the scenario's setting)")
+        if self.faults is not None:
+            from pydantic import ValidationError
+
+            from sim.world.scenario import FaultsSpec, format_validation_error
+
+            if not isinstance(self.faults, Mapping):
+                raise bad("faults", "must be a dict of sensor faults (sim.world.scenario.FaultsSpec fields) or None")
+            try:
+                spec = FaultsSpec.model_validate(dict(self.faults))
+            except ValidationError as exc:
+                raise ConfigError(f"config key 'faults': {' '.join(format_validation_error(exc, 'faults').split())}") from None
+            if spec.duplicate_frames:
+                raise bad("faults", "duplicate_frames is not supported in the loop (an observation falls on every lidar frame)")
+            object.__setattr__(self, "faults", spec.model_dump())
         if self.action not in ACTIONS:
             raise bad("action", f"must be one of {', '.join(map(repr, ACTIONS))}")
         speeds = self.target_speeds

@@ -7,8 +7,10 @@ One ``step(action)`` (period ``1 / policy_frequency``, 0.2 s by default):
 2. the world (``sim.world.world.World``) advances on its 0.05 s grid -- the other vehicles follow the
    scenario's behaviours (IDM/MOBIL, constant, scripted) -- while the sensor rig
    (``sim.sensors.SensorRig``: lidar at 10 Hz, radars at 14 Hz out of phase, roadside clutter, exactly
-   as ``sim.evaluation.runner`` uses it) makes a ``tracker.Frame`` at every lidar time and the ``tracker.Tracker``
-   of ``variant`` steps on each (``perception = "truth"`` skips the tracker);
+   as ``sim.evaluation.runner`` uses it; the scenario's ``[faults]`` or the ``faults`` key applied by
+   ``sim.sensors.faults.FaultInjector``) makes a ``tracker.Frame`` at every lidar time and the tracker
+   of ``variant`` (``sim.evaluation.variants``: its own factory, e.g. Stone Soup's, or ``tracker.Tracker``)
+   steps on each (``perception = "truth"`` skips the tracker);
 3. the observation (``sim.env.observation``) is built from the tracks (or the truth) at the last lidar
    frame, which falls on the end of the period.
 
@@ -56,10 +58,18 @@ from highway_env.envs.common.action import ContinuousAction
 from sim.env.config import ConfigError, EnvConfig, _steps
 from sim.env.observation import TrackObservation
 from sim.env.vehicles import MetaAction, install_ego
-from sim.evaluation.runner import SENSOR_STREAM, build_rig, default_tracker_factory, rig_config_for, tracker_config_for
+from sim.evaluation.runner import (
+    SENSOR_STREAM,
+    build_rig,
+    default_tracker_factory,
+    rig_config_for,
+    tracker_config_for,
+)
+from sim.evaluation.variants import variant_factory
 from sim.sensors import SensorRig
+from sim.sensors.faults import FAULT_STREAM, FaultInjector
 from sim.sensors.rig import SensorFrame
-from sim.world.scenario import ScenarioError, ScenarioSpec, load_scenario
+from sim.world.scenario import FaultsSpec, ScenarioError, ScenarioSpec, load_scenario
 from sim.world.world import DEFAULT_STEP, World
 from tracker import Track
 
@@ -110,6 +120,15 @@ class TrackedRoadEnv(AbstractEnv):
         if settings.duration is not None and settings.duration > spec.duration + _EPS:
             raise ConfigError(f"config key 'duration' = {settings.duration!r}: must be at most the scenario's "
                               f"duration ({spec.duration:g} s)")
+        faults = self._faults_for(spec, settings)
+        if faults is not None and faults.duplicate_frames:
+            raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: its faults.duplicate_frames is not supported "
+                              "in the loop (an observation falls on every lidar frame); override it with config key 'faults'")
+        if faults is not None:
+            try:
+                faults.check_duration(settings.duration if settings.duration is not None else spec.duration)
+            except ValueError as exc:
+                raise ConfigError(f"config key 'faults': {exc}") from None
         if spec.road is not None and spec.road.map is not None:
             raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: a road from a lane map (road.map) is not "
                               "supported by the environment yet; its observation and planner need lanes that do not "
@@ -129,6 +148,12 @@ class TrackedRoadEnv(AbstractEnv):
         self.spec_file = spec
         self.lidar_range = float(rig.lidar.max_range)
         self.config = settings.highway_config()
+
+    @staticmethod
+    def _faults_for(spec: ScenarioSpec, settings: EnvConfig) -> FaultsSpec | None:
+        """The episode's sensor faults: ``settings.faults`` when given, else the scenario's; None when none is set."""
+        faults = spec.faults if settings.faults is None else FaultsSpec.model_validate(dict(settings.faults))
+        return faults if faults is not None and faults.active else None
 
     def define_spaces(self) -> None:
         """Action type from ``action`` (``MetaAction`` or highway-env's ``ContinuousAction``) and the
@@ -190,9 +215,17 @@ class TrackedRoadEnv(AbstractEnv):
         self.rig = build_rig(rig_cfg, clutter_cfg, world.road, seed, s.roadside, world.ground)
         self.tracker = None
         if s.perception == "tracks":
-            self.tracker = default_tracker_factory(world.road, tracker_config_for(spec, s.variant, rig_cfg))
+            factory = variant_factory(s.variant) or default_tracker_factory
+            self.tracker = factory(world.road, tracker_config_for(spec, s.variant, rig_cfg))
+        faults = self._faults_for(spec, s)
         self._frames = self.rig.frames(world.truth_at, None, seed=np.random.SeedSequence(seed, spawn_key=(SENSOR_STREAM,)),
-                                       poses_at=world.poses_at)
+                                       poses_at=world.poses_at,
+                                       lidar_delay=faults.lidar_time_offset if faults is not None else 0.0)
+        self.fault_injector: FaultInjector | None = None
+        if faults is not None:  # the same streams as sim.evaluation.runner
+            fault_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(FAULT_STREAM,)))
+            self.fault_injector = FaultInjector(faults, rig_cfg.lidar, fault_rng)
+            self._frames = self.fault_injector.apply(self._frames)
         self._frame_k = 0
         self._policy_k = 0
         self._seen_collisions = 0

@@ -13,12 +13,15 @@ map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_cente
   clipped to ``accel_range``. **Flicker:** when the lead's row disappears, the planner keeps it for
   ``lead_hold_s`` seconds, predicted at its last speed, and uses the nearer of it and any other lead.
 - **Lane keeping.** A cascade on the ego's own ``n, xi, xi_dot``: lateral speed command
-  ``-(n - n_ref) / lateral_time`` (limited to ``min(lateral_speed, 0.1 v)``), heading command from it (minus the
-  bicycle model's slip angle), heading-error rate command ``(xi_ref - xi) / heading_time``, and the
+  ``-(n - n_ref) / lateral_time`` (limited to ``min(lateral_speed, 0.1 v)``), course command from it
+  (``course_ref = asin(n_dot / v)``; the course is ``xi + beta``, beta the bicycle model's slip angle), yaw
+  rate ``(road_turn + (course_ref - xi) / heading_time) / (1 + l_r / (v heading_time))`` (the slip of the
+  new command solved for with ``beta ~ yaw_rate l_r / v``, stable down to walking pace), with the
   road's turn rate as feed-forward: ``kappa s_dot = yaw_rate - xi_dot``, where ``yaw_rate`` follows
   from the planner's own last steering command (``v sin(beta) / l_r``, ``l_r = min(L / 2, 3 m)``).
 - **Lane change.** When the lead is within ``change_lookahead`` m and slower than ``set_speed -
-  slow_margin``, an adjacent lane (left first) is taken if every row in it leaves a safe gap
+  slow_margin``, an adjacent lane (left first) is taken if every row reaching into it (its rectangle
+  overlapping the lane: a motorcycle on the line between two lanes is in both) leaves a safe gap
   (ahead: ``max(min_change_gap, v_ego * change_headway + 2 s x closing speed)``; behind the same with
   the follower's speed) and its own lead, if any, is farther or faster than the current one; then no
   new change for ``change_cooldown`` s.
@@ -245,10 +248,17 @@ class Planner:
             return False
         return c.lane_kinds is None or c.lane_kinds[k] == "driving"
 
+    def _occupies(self, rows: np.ndarray, k: int) -> np.ndarray:
+        """Rows whose rectangle reaches into lane ``k`` (centre within half a lane + half their width of
+        its centre): a motorcycle on the line between two lanes is in both."""
+        centers = np.asarray(self.config.lane_centers)
+        half_lane = 0.5 * float(np.min(np.abs(np.diff(centers)))) if len(centers) > 1 else 1.75
+        return np.abs(rows[:, COL["n"]] - centers[k]) < half_lane + 0.5 * rows[:, COL["width"]]
+
     def _safe(self, rows: np.ndarray, k: int, v: float, length: float, width: float,
               lead: tuple[int, str, float, float, float, float]) -> bool:
         c = self.config
-        there = rows[self._in_lane(rows, k, width)] if len(rows) else rows
+        there = rows[self._occupies(rows, k)] if len(rows) else rows
         for row in there:
             ds, v_other = row[COL["ds"]], row[COL["v"]]
             gap = self._gap(ds, row[COL["length"]], length)
@@ -275,8 +285,10 @@ class Planner:
         road_turn = yaw_rate_last - xi_dot  # kappa * s_dot (rad/s)
         limit = min(c.lateral_speed, 0.1 * v)  # gentler at low speed
         n_dot = float(np.clip(-(n - n_ref) / c.lateral_time, -limit, limit))
-        xi_ref = math.asin(max(-0.5, min(0.5, n_dot / v))) - beta_last
-        yaw_rate = road_turn + (xi_ref - xi) / c.heading_time
+        course_ref = math.asin(max(-0.5, min(0.5, n_dot / v)))  # direction of travel relative to the road
+        # the course is xi + beta, and the new command's slip beta ~ yaw_rate l_r / v: solved for the new
+        # command (not the last one's slip, which feeds back with alternating sign at low speed)
+        yaw_rate = (road_turn + (course_ref - xi) / c.heading_time) / (1.0 + l_r / (v * c.heading_time))
         beta = math.asin(max(-1.0, min(1.0, yaw_rate * l_r / v)))
         steer = math.atan(2.0 * math.tan(beta))
         self._steer = float(np.clip(steer, *c.steering_range))

@@ -5,6 +5,7 @@ of ``sim``. Modules:
 
 - ``sim.world.scenario``: scenario files (TOML, validated into ``ScenarioSpec``); the shipped ones;
 - ``sim.world.generator``: random scenarios, a new road and/or traffic per seed (``[generator]``);
+- ``sim.world.families``: safety-critical scenario families, a new road, conflict and traffic per seed (``[family]``);
 - ``sim.world.world``: ``World``, highway-env traffic on our road advanced to any time, giving truth;
 - ``sim.world.traffic``: highway-env vehicle classes per behaviour (IDM/MOBIL, constant, scripted);
 - ``sim.world.lanes``: highway-env lanes (``FrenetLane``) over our ``tracker.Road``;

@@ -23,6 +23,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sim.world.families import LANE_WIDTH as FAMILY_LANE_WIDTH
+from sim.world.families import ROAD_MARGIN as FAMILY_ROAD_MARGIN
+from sim.world.families import draw_family
 from sim.world.scenario import GeneratorSpec, LaneChange, RoadSpec, ScenarioError, ScenarioSpec, parse_scenario
 from tracker.road import Road
 
@@ -208,14 +211,47 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
     return ego, vehicles
 
 
+def _realize_family(spec: ScenarioSpec, seed: int) -> ScenarioSpec:
+    """A ``[family]`` scenario's seed (``sim.world.families``): the conflict and traffic of
+    ``draw_family``, on a road drawn from the same stream with the family's bend radius, long enough for
+    the ego's drive at its speed over the duration and for every vehicle, plus ``families.ROAD_MARGIN``."""
+    fam = spec.family
+    assert fam is not None
+    drawn = draw_family(fam.kind, fam.params, seed)
+    where = f"{spec.source or spec.name} (family {fam.kind!r}, seed {seed})"
+    half = 0.5 * drawn.lanes * FAMILY_LANE_WIDTH
+    needed = drawn.ego_s + drawn.ego_speed * spec.duration / (1.0 - half / drawn.radius) + FAMILY_ROAD_MARGIN
+    needed = max([needed] + [v["s"] + FAMILY_ROAD_MARGIN for v in drawn.vehicles])
+    gen = GeneratorSpec(radius=(drawn.radius, drawn.radius), lanes=(drawn.lanes, drawn.lanes), lane_width=FAMILY_LANE_WIDTH,
+                        straight_length=(40.0, 120.0), arc_length=(60.0, 160.0), ramp_length=(20.0, 40.0))
+    data: dict[str, Any] = {
+        "name": f"{spec.name}-seed{int(seed)}"[:64],
+        "description": spec.description,
+        "duration": spec.duration,
+        "sensors": spec.sensors,
+        "tracker": spec.tracker,
+        "road": draw_clear_road(gen, drawn.rng, drawn.lanes, needed, where, drawn.oncoming),
+        "ego": {"lane": 0, "s": drawn.ego_s, "speed": round(drawn.ego_speed, 3)},
+        "vehicles": drawn.vehicles,
+    }
+    if drawn.hazard_t is not None and drawn.hazard_t < spec.duration:
+        data["hazard_t"] = round(drawn.hazard_t, 3)
+    if spec.faults is not None:
+        data["faults"] = spec.faults.model_dump()
+    return parse_scenario(data, where)
+
+
 def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
-    """The concrete scenario that ``seed`` draws from ``spec``'s generator (``spec`` itself when it
-    has none). See the module notes."""
-    gen = spec.generator
-    if gen is None:
+    """The concrete scenario that ``seed`` draws from ``spec``'s generator, or from its ``[family]``
+    (``sim.world.families.draw_family``, then the road); ``spec`` itself when it has neither. See the module notes."""
+    if spec.family is None and spec.generator is None:
         return spec
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    if spec.family is not None:
+        return _realize_family(spec, int(seed))
+    gen = spec.generator
+    assert gen is not None
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(GEN_STREAM,)))
     data: dict[str, Any] = {
         "name": f"{spec.name}-seed{int(seed)}"[:64],

@@ -5,6 +5,7 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     name = "cut-in"                       # identifier (letters, digits, "-", "_")
     description = "one line"              # shown by `eot scenarios`
     duration = 20.0                       # s, simulated time
+    hazard_t = 6.0                        # s, optional: the critical moment (a family sets it)
 
     [road]                                # exactly one of `segments` / `waypoints`
     lanes = 2                             # lane 0 is the rightmost
@@ -33,6 +34,7 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     length = 4.8                          # m; 2-20 (a 2.2 m motorcycle, an 18 m bus)
     width = 2.0                           # m; 0.6-3.0 and <= lane_width - 0.5
     height = 1.5                          # m; 0.8-5.0, optional (default by length); 3-D lidar only
+    offset = 0.0                          # m, path off the lane centre (left +), at most half the lane
 
     [sensors]                             # optional overrides, applied by the runner
     lidar = { model = "vlp16" }           #   "2d" (default) or "vlp16": the 3-D lidar (sim.sensors.lidar3d)
@@ -46,6 +48,9 @@ A scenario file holds (SI units: m, s, rad, m/s, 1/m)::
     lidar_spikes = 0.05                   # fraction of each scan's points moved to a random range
                                           #   (uniform in the lidar's [min_range, max_range]) on their ray
     duplicate_frames = [5.0]              # times s: the first frame at or after each is delivered twice
+    [family]                              # optional: a safety-critical family (sim.world.families), drawn
+    kind = "cut-in"                       #   per seed; no [road], [ego], [[vehicles]] or [generator] then
+    params = { gap_s = [0.5, 1.5], ... }  #   a range [low, high] for every parameter of the kind
     [generator]                           # optional: draw a new road and/or traffic per seed
     classes = [                           # optional vehicle classes of the drawn traffic
         { name = "car", length = [4.2, 5.2], width = [1.7, 2.1], share = 0.8 },
@@ -364,7 +369,9 @@ class VehicleSpec(_Model):
     way round). Every other vehicle drives in its lane's direction: along ``s``, or against it in the
     oncoming lanes of a two-way road (``RoadSpec.oncoming``). A vehicle in a parking lane starts standing
     (speed 0); a scripted one can pull out (a speed change and a lane change to the driving lane of
-    the same direction next to it). Lane changes stay within lanes of one direction."""
+    the same direction next to it). Lane changes stay within lanes of one direction. ``offset`` (0 m)
+    moves the vehicle's path off its lane's centre (to the left of its driving direction; at most half
+    the lane width): a motorcycle filtering between two lanes rides on the line between them."""
 
     lane: StrictInt = Field(ge=0)
     s: StrictFloat
@@ -377,6 +384,9 @@ class VehicleSpec(_Model):
     height: StrictFloat | None = Field(default=None, ge=0.8, le=5.0)
     maneuvers: list[Maneuver] = Field(default_factory=list)
     facing: Literal["forward", "backward"] = "forward"
+    #: Lateral offset (m) of the vehicle's path from its lane's centre, to the left of its driving direction
+    #: (0: the centre); at most half the lane width: a motorcycle riding on the line between two lanes.
+    offset: StrictFloat = Field(default=0.0, ge=-2.5, le=2.5)
 
     @model_validator(mode="after")
     def _behaviour_fields(self) -> VehicleSpec:
@@ -602,6 +612,24 @@ class GeneratorSpec(_Model):
         return self
 
 
+# -- families ------------------------------------------------------------------------------------
+class FamilySpec(_Model):
+    """A safety-critical scenario family (``sim.world.families``): ``kind`` names the family and
+    ``params`` gives, for every parameter of that kind, the range ``[low, high]`` each seed draws it
+    from (uniformly). Every parameter must be in the file: the ranges are the scenario's design.
+    ``sim.world.families.FAMILIES`` lists the kinds, their parameters, units and hard bounds."""
+
+    kind: StrictStr = Field(min_length=1)
+    params: dict[str, FloatRange]
+
+    @model_validator(mode="after")
+    def _known(self) -> FamilySpec:
+        from sim.world.families import check_family
+
+        check_family(self.kind, self.params)
+        return self
+
+
 # -- faults --------------------------------------------------------------------------------------
 #: A time interval ``[start, end)`` (s).
 Interval = tuple[StrictFloat, StrictFloat]
@@ -704,6 +732,10 @@ class ScenarioSpec(_Model):
     faults: FaultsSpec | None = None
     generator: GeneratorSpec | None = None
     replay: ReplaySpec | None = None
+    family: FamilySpec | None = None
+    #: Time (s) of the scenario's critical moment (a family's cut-in, reveal or brake; None: none named);
+    #: the closed loop's sensor-dropout modes silence the sensors around it.
+    hazard_t: StrictFloat | None = Field(default=None, ge=0.0)
 
     _road: Road | None = PrivateAttr(default=None)
     _source: Path | None = PrivateAttr(default=None)
@@ -734,6 +766,14 @@ class ScenarioSpec(_Model):
             self.faults.check_duration(self.duration)
         if self.replay is not None:
             return self._check_replay()
+        if self.hazard_t is not None and self.hazard_t >= self.duration:
+            raise ValueError(f"hazard_t = {self.hazard_t}: must be < duration ({self.duration} s)")
+        if self.family is not None:
+            given = [k for k in ("road", "ego", "vehicles", "generator") if k in self.model_fields_set]
+            if given:
+                raise ValueError(f"{given[0]}: a family draws its road and traffic per seed (family.kind = "
+                                 f"{self.family.kind!r}); leave it out")
+            return self
         if self.generator is None:
             if self.road is None:
                 raise ValueError("road: missing; a scenario without a [generator] needs a [road] table")
@@ -796,6 +836,9 @@ class ScenarioSpec(_Model):
             if widths[v.lane] < MIN_LANE_WIDTH:
                 raise ValueError(f"{where}.lane = {v.lane}: lane {v.lane} does not exist at s = {v.s} m (it begins or "
                                  "ends elsewhere along this road)")
+            if abs(v.offset) > 0.5 * widths[v.lane]:
+                raise ValueError(f"{where}.offset = {v.offset}: must be within half the lane's width "
+                                 f"({0.5 * widths[v.lane]:g} m) of its centre")
             if v.width > widths[v.lane] - 0.5:
                 what = "lane width" if kinds[v.lane] == "driving" else f"the {kinds[v.lane]} lane's width"
                 raise ValueError(f"{where}.width = {v.width}: must be <= {widths[v.lane] - 0.5:g} m ({what} - 0.5 m)")
@@ -849,7 +892,9 @@ class ScenarioSpec(_Model):
     def _check_overlap(self, road: Road) -> None:
         items = self._all()
         s = np.array([v.s for _, v in items])
-        n = np.array([road.lane_center(v.lane, None if road.uniform else v.s) for _, v in items])
+        directions = road.lane_directions
+        n = np.array([road.lane_center(v.lane, None if road.uniform else v.s) + directions[v.lane] * v.offset
+                      for _, v in items])
         xy = road.to_cartesian(s, n)
         yaw = road.heading(s)
         corners = rectangle_corners(
@@ -875,8 +920,8 @@ class ScenarioSpec(_Model):
 
     @property
     def concrete(self) -> bool:
-        """Whether the spec can be simulated as it is (no generator section)."""
-        return self.generator is None
+        """Whether the spec can be simulated as it is (no generator or family section)."""
+        return self.generator is None and self.family is None
 
     def build_road(self) -> Road:
         """The ``tracker.Road`` of this scenario (built once at validation and shared)."""

@@ -155,6 +155,8 @@ class _FrenetCar:
     frenet_n: float
     #: +1: drives along ``s``; -1: against it (a vehicle of an oncoming lane); lane changes keep it
     direction: int = 1
+    #: Lateral offset (m) of its path from the target lane's centre, to the left of its driving direction
+    lane_offset: float = 0.0
 
     def _setup(self, vid: int, length: float, width: float) -> None:
         self.vid = int(vid)
@@ -226,8 +228,8 @@ class _FrenetCar:
         return acc
 
     def lateral_reference(self) -> tuple[float, float]:
-        """Reference lateral offset from the target lane centre (m) and its rate (m/s): 0, 0."""
-        return 0.0, 0.0
+        """Reference lateral offset from the target lane centre (m) and its rate (m/s): ``lane_offset``, 0."""
+        return self.lane_offset, 0.0
 
     def steering_control(self, target_lane_index: tuple) -> float:
         """highway-env's cascaded lateral controller (lateral position -> lateral speed -> heading ->
@@ -373,16 +375,17 @@ class ScriptedCar(IDMCar):
         return True
 
     def lateral_reference(self) -> tuple[float, float]:
-        """The lane-change profile: offset from the target lane centre (m) and its rate (m/s)."""
+        """The lane-change profile: offset from the target lane centre (m) and its rate (m/s), from the
+        offset at the start of the change to ``lane_offset``."""
         if self._profile is None:
-            return 0.0, 0.0
+            return self.lane_offset, 0.0
         t0, duration, lat0 = self._profile
         u = (self.road.time - t0) / duration
         if u >= 1.0:
             self._profile = None
-            return 0.0, 0.0
+            return self.lane_offset, 0.0
         p, dp = _smoothstep(u)
-        return lat0 * (1.0 - p), -lat0 * dp / duration
+        return lat0 + (self.lane_offset - lat0) * p, (self.lane_offset - lat0) * dp / duration
 
     def acceleration(self, ego_vehicle: Any, front_vehicle: Any = None, rear_vehicle: Any = None) -> float:
         """For itself: rate-limited tracking of ``target_speed`` plus IDM's interaction term with the
@@ -404,10 +407,10 @@ class ScriptedCar(IDMCar):
 def make_vehicle(road: TrafficRoad, vid: int, spec: VehicleSpec, mobil: bool) -> _FrenetCar:
     """Build the vehicle ``spec`` (id ``vid``) on ``road``: placed at its lane centre at ``s``,
     heading in its lane's direction (along the road, or against it in an oncoming lane; turned round
-    when ``facing = "backward"``), at ``speed``; ``mobil`` switches MOBIL on for ``idm``."""
+    when ``facing = "backward"``), at ``speed``, ``offset`` m off the centre; ``mobil`` switches MOBIL on for ``idm``."""
     lane = road.lanes[spec.lane]
     local = spec.s if lane.direction > 0 else lane.length - spec.s
-    position = lane.position(local, 0.0)
+    position = lane.position(local, spec.offset)
     heading = lane.heading_at(local)
     if spec.facing == "backward":
         heading = float(wrap_to_pi(heading + math.pi))
@@ -424,5 +427,6 @@ def make_vehicle(road: TrafficRoad, vid: int, spec: VehicleSpec, mobil: bool) ->
         vehicle.configure(spec.maneuvers)
     vehicle.target_speed = spec.speed if spec.behaviour == "constant" else spec.cruise_speed  # 0 is a valid target
     vehicle.direction = lane.direction
+    vehicle.lane_offset = float(spec.offset)
     vehicle._setup(vid, spec.length, spec.width)
     return vehicle

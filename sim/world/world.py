@@ -76,7 +76,7 @@ class VehicleState:
 class World:
     """highway-env traffic on the scenario's road; see the module notes.
 
-    ``spec`` must be concrete or carry a generator (then ``sim.world.generator.realize(spec, seed)`` draws
+    ``spec`` must be concrete or carry a generator or family (then ``sim.world.generator.realize(spec, seed)`` draws
     the road/traffic first; ``world.spec`` is the drawn scenario). ``seed`` also seeds highway-env's
     ``np_random`` (``numpy.random.Generator``). ``step`` is the internal step (s, in (0, 0.1])."""
 
@@ -87,7 +87,7 @@ class World:
             raise ValueError(f"World step must be in (0, 0.1] s; got {step!r}")
         if spec.replay is not None:
             raise ValueError(f"{spec.name}: a replay of recorded traffic; its world is sim.world.replay.ReplayWorld")
-        if spec.generator is not None:
+        if not spec.concrete:
             from sim.world.generator import realize
 
             spec = realize(spec, seed)
