@@ -26,6 +26,7 @@ from sim.studies.closed_loop import (
 from sim.world.generator import realize
 from sim.world.scenario import load_scenario, resolve_scenario_path
 
+
 def test_closed_loop_run_reports_the_metrics():
     row, events = run_task(Task("emergency-brake", "emergency-brake", "truth", 0, duration=9.0))
     assert row["collision"] == 0 and row["sim_s"] == pytest.approx(9.0)
@@ -157,3 +158,13 @@ def test_outputs_hold_the_paired_table_and_a_figure_per_scenario(tmp_path):
     with open(paths["paired"], newline="") as fh:
         paired = list(csv.DictReader(fh))
     assert {p["metric"] for p in paired} == set(METRICS) and all(p["mode"] == "point-gnn" for p in paired)
+
+
+def test_a_brake_is_traced_against_the_truth_the_planner_decided_on():
+    """With truth as perception the planner's lead is the true vehicle: its traced error is exactly 0
+    (cut-out seed 2: the ego brakes hard for the revealed standing car)."""
+    row, events = run_task(Task("family-cut-out", "family-cut-out", "truth", 2))
+    hard = [e for e in events if e["kind"] == "hard_brake"]
+    assert row["hard_brake_events"] == len(hard) >= 1
+    for e in hard:
+        assert e["track_error_m"] == 0.0 and e["track_label"] == e["truth_id"]

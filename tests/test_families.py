@@ -9,7 +9,13 @@ import pytest
 
 from sim.world.families import FAMILIES, check_family
 from sim.world.generator import realize
-from sim.world.scenario import ScenarioError, load_scenario, load_suite, parse_scenario, resolve_scenario_path
+from sim.world.scenario import (
+    ScenarioError,
+    load_scenario,
+    load_suite,
+    parse_scenario,
+    resolve_scenario_path,
+)
 from sim.world.world import World
 
 SUITE = [p.name for p in load_suite(resolve_scenario_path("closed-loop")).paths]

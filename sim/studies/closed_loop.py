@@ -190,6 +190,8 @@ class _Episode:
         self.s_hint: float | None = None
         self.last_s: float | None = None
         self.dt = 1.0 / env.rig.config.lidar.rate_hz
+        #: (frame, ego s) of the planner's last decision
+        self.decided: tuple[Any, float] | None = None
 
     def wrap(self, ds: Any) -> Any:
         return (ds + self.half) % self.road.length - self.half if self.road.closed else ds
@@ -254,9 +256,11 @@ class _Episode:
                 if hard and not self.active["hard_brake"]:
                     self.counts["hard_brake"] += 1
                     d = self.planner.decision
+                    # the lead as the planner saw it, against the truth of the frame it decided on
+                    seen_sf, seen_s = self.decided if self.decided is not None else (sf, s)
                     self.event("hard_brake", float(snap.t), f"ego decelerates {decel:.1f} m/s^2; planner lead "
                                f"{d.lead_label}/{d.lead_source}, command {d.accel:.2f} m/s^2",
-                               lead_label=d.lead_label, **self.trace_lead(snap, sf, d, s))
+                               lead_label=d.lead_label, **self.trace_lead(seen_sf.truth, seen_sf, d, seen_s))
                 self.active["hard_brake"] = hard
             self.speeds.append(e.v)
             _, _, headway, ttc = _lead_truth(snap, s, n, e.v, self.ego_l, self.ego_w, self.wrap)
@@ -273,6 +277,7 @@ class _Episode:
         snap = sf.truth
         ego = env.world.ego_state()
         t = env.sim_time
+        self.decided = (sf, float(ego.s))
         ds = self.wrap(snap.s - ego.s) if len(snap) else np.zeros(0)
         lead_id, matched_in_lane = None, False
         if d.lead_label is not None and len(snap):
@@ -480,9 +485,10 @@ def _cell(item: dict[str, Any] | None, digits: int) -> str:
 
 
 def table_markdown(rows: Sequence[dict[str, Any]], summary: Sequence[dict[str, Any]], command: str,
-                   paired: Sequence[dict[str, Any]] | None = None) -> str:
+                   paired: Sequence[dict[str, Any]] | None = None, events: Sequence[dict[str, Any]] | None = None) -> str:
     """The Markdown tables: per scenario and mode, mean [95 % interval] of each metric; then the
-    differences to truth paired per seed (``paired_rows``; ``*`` where the interval excludes 0)."""
+    differences to truth paired per seed (``paired_rows``; ``*`` where the interval excludes 0); then the
+    events and what the tracker reported for them (``event_causes``)."""
     by = {(s["scenario"], s["variant"], s["metric"]): s for s in summary}
     scenarios = _order(rows, "scenario")
     modes = _order(rows, "variant")
@@ -544,7 +550,59 @@ def table_markdown(rows: Sequence[dict[str, Any]], summary: Sequence[dict[str, A
                         f"{p['diff']:+.{d}f} [{p['ci95_low']:+.{d}f}, {p['ci95_high']:+.{d}f}]{star}"
                     cells.append(text)
                 lines.append(f"| {sc} | {m} | " + " | ".join(cells) + " |")
+    if events is not None:
+        causes = event_causes(events)
+        order = {k: i for i, k in enumerate(("collision", "late_brake", "phantom_brake", "lateral_brake", "hard_brake"))}
+        rank = {sc: i for i, sc in enumerate(scenarios)}
+        mode_rank = {m: i for i, m in enumerate(modes)}
+        causes.sort(key=lambda c: (rank.get(c["scenario"], 99), mode_rank.get(c["mode"], 99), order.get(c["kind"], 9)))
+
+        def num(value: float | None, digits: int) -> str:
+            return "-" if value is None else f"{value:.{digits}f}"
+
+        lines += [
+            "",
+            "## Events and what the tracker reported",
+            "",
+            f"Per scenario, mode and kind (`events.csv` has every one): events; with a track within {GATE_S:g} m of the",
+            "true vehicle (for a late brake: the in-path lead; for a brake: the vehicle nearest to the planner's",
+            "lead); the median distance and lateral offset between that track and the vehicle; the median lidar",
+            "points on the vehicle.",
+            "",
+            "| scenario | mode | kind | events | with a track | track error (m) | lateral error (m) | lidar points |",
+            "|---|---|---|---:|---:|---:|---:|---:|",
+        ]
+        for c in causes:
+            lines.append(f"| {c['scenario']} | {c['mode']} | {c['kind']} | {c['events']} | {c['with_track']} | "
+                         f"{num(c['median_track_error_m'], 2)} | {num(c['median_n_error_m'], 2)} | "
+                         f"{num(c['median_lidar_points'], 0)} |")
     return "\n".join(lines) + "\n"
+
+
+def event_causes(events: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per scenario, mode and event kind: ``events``, how many had a track within ``GATE_S`` m of the true
+    vehicle (``with_track``; for a late brake, without one the tracker had not confirmed the vehicle),
+    the median distance between the reported track and the true vehicle (``median_track_error_m``), the
+    median lateral offset between them (``median_n_error_m``) and the median lidar points on the vehicle."""
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for e in events:
+        groups.setdefault((e["scenario"], e["variant"], e["kind"]), []).append(e)
+
+    def numbers(members: list[dict[str, Any]], key: str) -> np.ndarray:
+        return np.array([float(e[key]) for e in members if e.get(key) not in ("", None)], dtype=float)
+
+    out = []
+    for (scenario, mode, kind), members in groups.items():
+        err = numbers(members, "track_error_m")
+        n_err = np.array([abs(float(e["track_n"]) - float(e["truth_n"])) for e in members
+                          if e.get("track_n") not in ("", None) and e.get("truth_n") not in ("", None)], dtype=float)
+        points = numbers(members, "lidar_points")
+        out.append({"scenario": scenario, "mode": mode, "kind": kind, "events": len(members),
+                    "with_track": int(np.count_nonzero(err < GATE_S)),
+                    "median_track_error_m": float(np.median(err)) if len(err) else None,
+                    "median_n_error_m": float(np.median(n_err)) if len(n_err) else None,
+                    "median_lidar_points": float(np.median(points)) if len(points) else None})
+    return out
 
 
 def _estimate(rows: Sequence[dict[str, Any]], by: dict, scenario: str, mode: str, metric: str) -> tuple[float, float, float]:
@@ -661,12 +719,29 @@ def write_outputs(rows: list[dict[str, Any]], events: list[dict[str, Any]], out:
         writer.writeheader()
         writer.writerows({k: ("" if v is None else v) for k, v in p.items()} for p in paired)
     paths["table"] = folder / "table.md"
-    paths["table"].write_text(table_markdown(rows, summary, command, paired), encoding="utf-8")
+    paths["table"].write_text(table_markdown(rows, summary, command, paired, events), encoding="utf-8")
     paths["figure"] = plot_summary(summary, rows, folder / "closed_loop.png")
     for scenario in _order(rows, "scenario"):
         paths[f"figure_{scenario}"] = plot_family(summary, rows, scenario, folder / f"family_{scenario}.png")
     return paths
 
 
-__all__ = ["DEFAULT_VARIANTS", "FAULT_MODES", "METRICS", "TRUTH", "Task", "fault_config", "make_env", "paired_rows",
-           "parse_mode", "plan", "plot_family", "run_task", "run_tasks", "table_markdown", "wilson", "write_outputs"]
+__all__ = [
+    "DEFAULT_VARIANTS",
+    "FAULT_MODES",
+    "METRICS",
+    "TRUTH",
+    "Task",
+    "event_causes",
+    "fault_config",
+    "make_env",
+    "paired_rows",
+    "parse_mode",
+    "plan",
+    "plot_family",
+    "run_task",
+    "run_tasks",
+    "table_markdown",
+    "wilson",
+    "write_outputs",
+]
