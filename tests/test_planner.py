@@ -146,6 +146,24 @@ def test_lane_keeping_is_stable_at_walking_and_town_speeds():
         assert max(offsets) < 0.35  # no overshoot beyond the start
 
 
+def test_while_changing_lanes_a_standing_vehicle_in_the_lane_being_left_still_holds_the_ego_back():
+    """Mid-change (target lane 1, still in lane 0): a faster car 25 m ahead in lane 1 and a standing car
+    45 m ahead in lane 0. The lead is the one asking for the lower acceleration, the standing car, not
+    the nearer one."""
+    p = Planner(PlannerConfig(lane_centers=LANES, set_speed=20.0))
+    p.act(*obs_with(ego_v=20.0))
+    p._target = 1
+    obs, labels = obs_with((25.0, 1.75, 24.0, 3), (45.0, -1.75, 0.0, 4), ego_n=-1.2, ego_v=20.0)
+    p.act(obs, labels)
+    assert p.decision.lead_label == 4 and p.decision.accel == pytest.approx(-8.0)
+    p2 = Planner(PlannerConfig(lane_centers=LANES, set_speed=20.0))
+    p2.act(*obs_with(ego_v=20.0))
+    p2._target = 1
+    obs, labels = obs_with((25.0, 1.75, 15.0, 3), (80.0, -1.75, 19.0, 4), ego_n=-1.2, ego_v=20.0)
+    p2.act(obs, labels)
+    assert p2.decision.lead_label == 3  # the slower, nearer car in the target lane asks for less
+
+
 def test_a_motorcycle_on_the_lane_line_blocks_a_lane_change_into_either_lane():
     """A 0.8 m motorcycle riding on the line between lanes 0 and 1, 5 m behind and faster: the lane it
     straddles is not free (its rectangle reaches into it), although its centre is outside the ego's path."""

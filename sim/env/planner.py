@@ -7,7 +7,9 @@ track labels (the env's ``info["labels"]``: to recognise the same lead from step
 map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_centers"]``); never the world.
 
 - **Lead and ACC.** The lead is the nearest row ahead (``ds > 0``) whose centre lies within
-  ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre (of both lanes while changing lanes).
+  ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre; while changing lanes, of the nearest such
+  row in each of the two lanes the one asking for the lower acceleration (a slow vehicle further on in
+  the lane being left still holds the ego back until it has left that lane).
   The acceleration is the IDM law (``time_headway``, ``min_gap`` bumper to bumper, ``max_accel``,
   ``comfort_decel``, cruise at ``set_speed``: default the ego's speed at the first observation),
   clipped to ``accel_range``. **Flicker:** when the lead's row disappears, the planner keeps it for
@@ -188,20 +190,24 @@ class Planner:
         changing = self._target != lane or abs(n - c.lane_centers[self._target]) > 0.5
         self._since_change += c.period
 
-        # lead: nearest row ahead in the ego's lane(s), or the held one
-        lanes = {lane, self._target}
+        # lead: per lane of the ego (both while changing lanes) the nearest row ahead; of those the one
+        # that asks for the lower IDM acceleration (a slow row further on in the lane being left still
+        # counts), or the held one
         is_ahead = rows[:, COL["ds"]] > 0.0
         ahead, ahead_labels = rows[is_ahead], row_labels[is_ahead]
-        mask = np.zeros(len(ahead), dtype=bool)
-        for k in lanes:
-            mask |= self._in_lane(ahead, k, width)
-        cand, cand_labels = ahead[mask], ahead_labels[mask]
         lead: tuple[int, str, float, float, float, float] | None = None  # label, source, ds, v, length, n
-        if len(cand):
-            nearest = int(np.argmin(cand[:, COL["ds"]]))
-            row = cand[nearest]
-            lead = (int(cand_labels[nearest]), "row", float(row[COL["ds"]]), float(row[COL["v"]]),
-                    float(row[COL["length"]]), float(row[COL["n"]]))
+        lowest = math.inf
+        for k in sorted({lane, self._target}):
+            in_k = np.flatnonzero(self._in_lane(ahead, k, width))
+            if not len(in_k):
+                continue
+            j = int(in_k[np.argmin(ahead[in_k, COL["ds"]])])
+            row = ahead[j]
+            wanted = self._idm(v, self._gap(float(row[COL["ds"]]), float(row[COL["length"]]), length), float(row[COL["v"]]))
+            if wanted < lowest or (wanted == lowest and lead is not None and row[COL["ds"]] < lead[2]):
+                lowest = wanted
+                lead = (int(ahead_labels[j]), "row", float(row[COL["ds"]]), float(row[COL["v"]]),
+                        float(row[COL["length"]]), float(row[COL["n"]]))
         held = self._held
         if held is not None:
             held.age += c.period

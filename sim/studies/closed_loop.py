@@ -302,8 +302,13 @@ class _Episode:
                         "lateral_brake": "brake for a vehicle outside the ego's lanes",
                         "late_brake": "in-path lead needs braking but the planner's lead is not it"}[kind]
                 trace = self.trace_vehicle(snap, sf, i, ego.s) if kind == "late_brake" else self.trace_lead(snap, sf, d, ego.s)
-                self.event(kind, t, f"{what} (planner lead {d.lead_label}/{d.lead_source}, command {d.accel:.2f} m/s^2)",
-                           lead_label=d.lead_label, gap_m=gap, ttc_s=ttc, **trace)
+                detail = f"{what} (planner lead {d.lead_label}/{d.lead_source}, command {d.accel:.2f} m/s^2)"
+                if kind == "late_brake" and d.lead_label is not None:
+                    lead = self.trace_lead(snap, sf, d, ego.s)  # what the planner followed instead, and where it truly was
+                    if "truth_id" in lead:
+                        detail += (f"; its lead is vehicle {lead['truth_id']}, reported at ds {d.lead_ds:.1f} m, n {d.lead_n:.2f} m, "
+                                   f"truly at ds {lead['truth_ds']:.1f} m, n {lead['truth_n']:.2f} m")
+                self.event(kind, t, detail, lead_label=d.lead_label, gap_m=gap, ttc_s=ttc, **trace)
             self.active[kind] = on
 
     def finish(self) -> dict[str, Any]:
