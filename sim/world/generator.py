@@ -211,6 +211,16 @@ def draw_traffic(gen: GeneratorSpec, rng: np.random.Generator, lanes: int, road_
     return ego, vehicles
 
 
+def _drawn_header(spec: ScenarioSpec, seed: int) -> dict[str, Any]:
+    """What a drawn scenario keeps of its file: the name ``<name>-seed<seed>``, description, duration,
+    sensor and tracker overrides and faults."""
+    data: dict[str, Any] = {"name": f"{spec.name}-seed{int(seed)}"[:64], "description": spec.description,
+                            "duration": spec.duration, "sensors": spec.sensors, "tracker": spec.tracker}
+    if spec.faults is not None:
+        data["faults"] = spec.faults.model_dump()
+    return data
+
+
 def _realize_family(spec: ScenarioSpec, seed: int) -> ScenarioSpec:
     """A ``[family]`` scenario's seed (``sim.world.families``): the conflict and traffic of
     ``draw_family``, on a road drawn from the same stream with the family's bend radius, long enough for
@@ -224,20 +234,11 @@ def _realize_family(spec: ScenarioSpec, seed: int) -> ScenarioSpec:
     needed = max([needed] + [v["s"] + FAMILY_ROAD_MARGIN for v in drawn.vehicles])
     gen = GeneratorSpec(radius=(drawn.radius, drawn.radius), lanes=(drawn.lanes, drawn.lanes), lane_width=FAMILY_LANE_WIDTH,
                         straight_length=(40.0, 120.0), arc_length=(60.0, 160.0), ramp_length=(20.0, 40.0))
-    data: dict[str, Any] = {
-        "name": f"{spec.name}-seed{int(seed)}"[:64],
-        "description": spec.description,
-        "duration": spec.duration,
-        "sensors": spec.sensors,
-        "tracker": spec.tracker,
-        "road": draw_clear_road(gen, drawn.rng, drawn.lanes, needed, where, drawn.oncoming),
-        "ego": {"lane": 0, "s": drawn.ego_s, "speed": round(drawn.ego_speed, 3)},
-        "vehicles": drawn.vehicles,
-    }
+    data = _drawn_header(spec, seed)
+    data.update(road=draw_clear_road(gen, drawn.rng, drawn.lanes, needed, where, drawn.oncoming),
+                ego={"lane": 0, "s": drawn.ego_s, "speed": round(drawn.ego_speed, 3)}, vehicles=drawn.vehicles)
     if drawn.hazard_t is not None and drawn.hazard_t < spec.duration:
         data["hazard_t"] = round(drawn.hazard_t, 3)
-    if spec.faults is not None:
-        data["faults"] = spec.faults.model_dump()
     return parse_scenario(data, where)
 
 
@@ -253,15 +254,7 @@ def realize(spec: ScenarioSpec, seed: int = 0) -> ScenarioSpec:
     gen = spec.generator
     assert gen is not None
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(GEN_STREAM,)))
-    data: dict[str, Any] = {
-        "name": f"{spec.name}-seed{int(seed)}"[:64],
-        "description": spec.description,
-        "duration": spec.duration,
-        "sensors": spec.sensors,
-        "tracker": spec.tracker,
-    }
-    if spec.faults is not None:
-        data["faults"] = spec.faults.model_dump()
+    data = _drawn_header(spec, seed)
     oncoming = 0
     if spec.road is not None:
         lanes = spec.road.lanes
