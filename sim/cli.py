@@ -584,13 +584,21 @@ def _closed_loop(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sim.progress import ProgressBar
-    from sim.evaluation.variants import VARIANTS
+    from sim.evaluation.variants import VARIANTS, probe_variant
     from sim.studies.closed_loop import parse_mode, plan, run_tasks, write_outputs
 
     paths = _resolve_scenarios(args.target, allow_suite=True)
     variants = []
     for name in _split_variants(args.variant or ["curvilinear-fused,curvilinear-lidar"]):
-        variants += list(VARIANTS) if name == "all" else [name]
+        if name != "all":
+            variants.append(name)
+            continue
+        for variant in VARIANTS:  # every variant this installation can build
+            reason = probe_variant(variant)
+            if reason is None:
+                variants.append(variant)
+            else:
+                print(f"eot closed-loop: --variant all leaves out {variant}: {reason}", file=sys.stderr)
     variants = list(dict.fromkeys(variants))
     for name in variants:
         try:

@@ -168,3 +168,24 @@ def test_a_brake_is_traced_against_the_truth_the_planner_decided_on():
     assert row["hard_brake_events"] == len(hard) >= 1
     for e in hard:
         assert e["track_error_m"] == 0.0 and e["track_label"] == e["truth_id"]
+
+
+def test_an_unavailable_variant_is_refused_before_running_and_left_out_of_all(monkeypatch, tmp_path, capsys):
+    import sim.evaluation.variants as variants
+    import sim.studies.closed_loop as closed_loop
+    from sim.cli import main
+
+    def probe(name: str) -> str | None:
+        return "install the 'baselines' extra" if name == "stonesoup-gmphd" else None
+
+    monkeypatch.setattr(closed_loop, "probe_variant", probe)
+    monkeypatch.setattr(variants, "probe_variant", probe)
+    with pytest.raises(ValueError, match="variant stonesoup-gmphd is not available here: install the 'baselines' extra"):
+        plan(["family-cut-in"], 1, ["stonesoup-gmphd+radar-missing"])
+    out = tmp_path / "cl"
+    assert main(["closed-loop", "family-cut-in", "--runs", "1", "--duration", "0.4", "--variant", "all", "--no-truth",
+                 "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "--variant all leaves out stonesoup-gmphd: install the 'baselines' extra" in err
+    modes = {row.split(",")[1] for row in (out / "runs.csv").read_text().splitlines()[1:]}
+    assert modes == set(variants.VARIANTS) - {"stonesoup-gmphd"}

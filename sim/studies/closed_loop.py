@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.evaluation.variants import check_variant
+from sim.evaluation.variants import check_variant, probe_variant
 from sim.world.scenario import load_scenario, resolve_scenario_path
 from tracker.warmup import warm_up
 
@@ -378,7 +378,10 @@ def plan(scenarios: Sequence[str], runs: int, variants: Sequence[str] = DEFAULT_
         raise ValueError(f"runs must be an integer >= 1; got {runs!r}")
     modes = ([TRUTH] if truth else []) + [m for m in variants]
     for m in modes:
-        parse_mode(m)
+        variant = parse_mode(m)[0]
+        reason = None if variant == TRUTH else probe_variant(variant)
+        if reason is not None:
+            raise ValueError(f"mode {m!r}: variant {variant} is not available here: {reason}")
     if not modes:
         raise ValueError("nothing to run: no tracker variant and no truth mode")
     tasks = []
