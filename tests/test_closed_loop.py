@@ -171,9 +171,9 @@ def test_a_brake_is_traced_against_the_truth_the_planner_decided_on():
 
 
 def test_an_unavailable_variant_is_refused_before_running_and_left_out_of_all(monkeypatch, tmp_path, capsys):
-    import sim.evaluation.variants as variants
-    import sim.studies.closed_loop as closed_loop
     from sim.cli import main
+    from sim.evaluation import variants
+    from sim.studies import closed_loop
 
     def probe(name: str) -> str | None:
         return "install the 'baselines' extra" if name == "stonesoup-gmphd" else None
