@@ -162,10 +162,15 @@ def test_outputs_hold_the_paired_table_and_a_figure_per_scenario(tmp_path):
 
 def test_a_brake_is_traced_against_the_truth_the_planner_decided_on():
     """With truth as perception the planner's lead is the true vehicle: its traced error is exactly 0
-    (cut-out seed 2: the ego brakes hard for the revealed standing car)."""
-    row, events = run_task(Task("family-cut-out", "family-cut-out", "truth", 2))
-    hard = [e for e in events if e["kind"] == "hard_brake"]
-    assert row["hard_brake_events"] == len(hard) >= 1
+    (cut-out: the ego brakes hard for the revealed standing car in some seeds)."""
+    hard: list = []
+    for seed in range(12):
+        row, events = run_task(Task("family-cut-out", "family-cut-out", "truth", seed))
+        hard = [e for e in events if e["kind"] == "hard_brake"]
+        assert row["hard_brake_events"] == len(hard)
+        if hard:
+            break
+    assert hard
     for e in hard:
         assert e["track_error_m"] == 0.0 and e["track_label"] == e["truth_id"]
 

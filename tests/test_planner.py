@@ -164,6 +164,18 @@ def test_while_changing_lanes_a_standing_vehicle_in_the_lane_being_left_still_ho
     assert p2.decision.lead_label == 3  # the slower, nearer car in the target lane asks for less
 
 
+def test_a_vehicle_the_egos_body_still_overlaps_is_a_lead_after_its_centre_crossed_the_line():
+    """The ego's centre has crossed into lane 1 (n = 0.1 m), its right side still over lane 0: a car
+    standing 40 m ahead in lane 0 is still in its path."""
+    p = Planner(PlannerConfig(lane_centers=LANES, set_speed=20.0))
+    p.act(*obs_with(ego_v=20.0))
+    p._target = 1
+    p.act(*obs_with((40.0, -1.75, 0.0, 4), ego_n=0.1, ego_v=15.0))
+    assert p.lane_of(0.1) == 1 and p.decision.lead_label == 4 and p.decision.accel < -5.0
+    p.act(*obs_with((40.0, -1.75, 0.0, 4), ego_n=1.0, ego_v=15.0))  # 2.75 m across: passed
+    assert p.decision.lead_label is None
+
+
 def test_a_motorcycle_on_the_lane_line_blocks_a_lane_change_into_either_lane():
     """A 0.8 m motorcycle riding on the line between lanes 0 and 1, 5 m behind and faster: the lane it
     straddles is not free (its rectangle reaches into it), although its centre is outside the ego's path."""

@@ -7,9 +7,10 @@ track labels (the env's ``info["labels"]``: to recognise the same lead from step
 map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_centers"]``); never the world.
 
 - **Lead and ACC.** The lead is the nearest row ahead (``ds > 0``) whose centre lies within
-  ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre; while changing lanes, of the nearest such
-  row in each of the two lanes the one asking for the lower acceleration (a slow vehicle further on in
-  the lane being left still holds the ego back until it has left that lane).
+  ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre, or of the ego's own ``n`` (what its body
+  overlaps where it is, between lanes too); while changing lanes, of the nearest such row in each of
+  the two lanes and across the ego the one asking for the lower acceleration (a slow vehicle further
+  on in the lane being left still holds the ego back until the ego has left it).
   The acceleration is the IDM law (``time_headway``, ``min_gap`` bumper to bumper, ``max_accel``,
   ``comfort_decel``, cruise at ``set_speed``: default the ego's speed at the first observation),
   clipped to ``accel_range``. **Flicker:** when the lead's row disappears, the planner keeps it for
@@ -190,15 +191,17 @@ class Planner:
         changing = self._target != lane or abs(n - c.lane_centers[self._target]) > 0.5
         self._since_change += c.period
 
-        # lead: per lane of the ego (both while changing lanes) the nearest row ahead; of those the one
-        # that asks for the lower IDM acceleration (a slow row further on in the lane being left still
-        # counts), or the held one
+        # lead: per lane of the ego (both while changing lanes), and across the ego's own width where it
+        # is, the nearest row ahead; of those the one that asks for the lower IDM acceleration (a slow row
+        # further on in the lane being left still counts), or the held one
         is_ahead = rows[:, COL["ds"]] > 0.0
         ahead, ahead_labels = rows[is_ahead], row_labels[is_ahead]
         lead: tuple[int, str, float, float, float, float] | None = None  # label, source, ds, v, length, n
         lowest = math.inf
-        for k in sorted({lane, self._target}):
-            in_k = np.flatnonzero(self._in_lane(ahead, k, width))
+        paths = [self._in_lane(ahead, k, width) for k in sorted({lane, self._target})]
+        paths.append(np.abs(ahead[:, COL["n"]] - n) < 0.5 * (width + ahead[:, COL["width"]]) + c.path_margin)
+        for path in paths:
+            in_k = np.flatnonzero(path)
             if not len(in_k):
                 continue
             j = int(in_k[np.argmin(ahead[in_k, COL["ds"]])])
