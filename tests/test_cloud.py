@@ -656,23 +656,28 @@ def test_stats_add_up_and_masks_partition_the_cloud():
     below = np.column_stack([x, y, 0.04 * x + 0.03 * y - 1.0]) - [0, 0, 1.9]  # reflections 1 m under
     bridge = np.column_stack([x, y, 0.04 * x + 0.03 * y + 6.0]) - [0, 0, 1.9]  # 6 m up
     bad = np.array([[np.nan, 0, 0], [0, np.inf, 0], [0, 0, -np.inf], [np.nan] * 3])
-    cloud = np.vstack([points, below, bridge, bad])
+    # the ego's roof and bonnet (E: within 2.4 + 0.3 m along, 1.0 + 0.3 m across, up to 1.5 + 0.3 m)
+    body_e = np.column_stack([rng.uniform(-2.65, 2.65, 30), rng.uniform(-1.25, 1.25, 30), rng.uniform(0.9, 1.75, 30)])
+    cloud = np.vstack([points, below, bridge, bad, body_e - [0, 0, 1.9]])
     res = process_cloud(cloud)
     s = res.stats
     assert s.points_in == len(cloud)
-    assert s.non_finite == 4 and s.below_ground == 50 and s.above_ceiling == 50
+    assert s.non_finite == 4 and s.below_ground == 50 and s.above_ceiling == 50 and s.ego_body == 30
+    assert res.ego_body[-30:].all() and not res.ego_body[:-30].any()
     assert (s.ground, s.kept) == (clean.ground, clean.kept)
-    assert s.kept + s.ground + s.below_ground + s.above_ceiling + s.non_finite == s.points_in
-    assert s.as_dict() == {"points_in": len(cloud), "non_finite": 4, "ground": s.ground, "below_ground": 50,
-                           "above_ceiling": 50, "kept": s.kept, "segments_fallback": s.segments_fallback,
-                           "segments_hinged": s.segments_hinged}
-    occupied = np.bincount(res.model.patch_of(res.points_e[res.finite]), minlength=res.model.n_patches) > 0
+    assert s.kept + s.ground + s.below_ground + s.above_ceiling + s.non_finite + s.ego_body == s.points_in
+    assert s.as_dict() == {"points_in": len(cloud), "non_finite": 4, "ego_body": 30, "ground": s.ground,
+                           "below_ground": 50, "above_ceiling": 50, "kept": s.kept,
+                           "segments_fallback": s.segments_fallback, "segments_hinged": s.segments_hinged}
+    assert process_cloud(cloud, CloudConfig(ego_length=0.0)).stats.ego_body == 0  # the crop off
+    occupied = np.bincount(res.model.patch_of(res.points_e[res.finite & ~res.ego_body]), minlength=res.model.n_patches) > 0
     assert s.segments_fallback == (res.model.fallback & occupied).sum()
     assert s.segments_hinged == (res.model.hinged & occupied).sum() > 0
-    masks = np.stack([res.ground, res.below_ground, res.above_ceiling, res.kept, ~res.finite])
+    masks = np.stack([res.ground, res.below_ground, res.above_ceiling, res.kept, ~res.finite, res.ego_body])
     assert (masks.sum(axis=0) == 1).all()
     assert res.points_2d.shape == (s.kept, 2)
-    assert np.isnan(res.heights[~res.finite]).all() and np.isfinite(res.heights[res.finite]).all()
+    used = res.finite & ~res.ego_body
+    assert np.isnan(res.heights[~used]).all() and np.isfinite(res.heights[used]).all()
     # the 2-D points are the kept points' projections, in input order
     np.testing.assert_allclose(res.points_2d, res.model.project(res.points_e[res.kept])[:, :2])
 

@@ -30,6 +30,7 @@ from sim.sensors import (
     cast_pymunk,
     generate_roadside,
 )
+from sim.sensors.lidar3d import EGO_BODY_ID
 from sim.sensors.raycast import ray_returns
 from sim.sensors.scene import scene_segments
 from sim.world.truth import EgoPose, Snapshot
@@ -730,12 +731,41 @@ def test_rig_with_the_vlp16_delivers_raw_clouds_labelled_by_what_they_hit():
     assert frames[0].frame.lidar.shape == (len(scan), 3)
     assert np.array_equal(frames[0].frame.lidar, scan.points)
     assert scan.ground.sum() > 10_000 and (scan.vehicle_id == 1).sum() > 100
-    assert set(np.unique(scan.vehicle_id)) == {-1, 1}
+    assert set(np.unique(scan.vehicle_id)) == {EGO_BODY_ID, -1, 1}  # the ego's own roof, the ground, the car
     # ground returns lie on z = 0 in G (the sensor 1.9 m up), within the noise along slanted rays
     z = scan.points_global()[scan.ground, 2]
     assert np.abs(z).max() < 0.03 * 5
     again = SensorRig(RigConfig(lidar=replace(VLP16, range_noise_std=0.03))).run(lambda t: replace(snap, t=t), 0.2, seed=4)
     assert np.array_equal(again[1].frame.lidar, frames[1].frame.lidar)
+
+
+def test_a_roof_lidar_sees_the_egos_own_roof_where_its_low_beams_come_down_on_it():
+    """VLP-16 1.9 m up over the centre of a 4.8 x 2.0 x 1.5 m ego: a ray of elevation el < 0 and azimuth
+    az reaches the roof's height 0.4 m lower at the horizontal distance d = 0.4 / tan(-el); it returns
+    from the roof (``EGO_BODY_ID``, at z = 1.5 m in E) exactly when (d cos az, d sin az) lies on it. The
+    tracker's crop of the ego's box removes those returns and nothing else; a lidar inside the box
+    (set into the bumper) does not see the body."""
+    from tracker.cloud import CloudConfig, process_cloud
+
+    ego = EgoPose(0.0, 0.0, 0.4, length=4.8, width=2.0, height=1.5)
+    snap = snapshot([(14.0, -4.0, 0.3, 4.8, 2.0)], ego=ego)
+    scan = SensorRig(RigConfig(lidar=VLP16)).run(lambda t: replace(snap, t=t), 0.0, seed=1)[0].lidar
+    cfg = VLP16.lidar3d_config()
+    az = np.repeat(cfg.azimuths, cfg.beams)  # ray i = azimuth i // beams, beam i % beams
+    el = np.tile(cfg.elevations, cfg.azimuth_count)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(el < 0, 0.4 / np.tan(-el), np.inf)
+        on_roof = (np.abs(d * np.cos(az)) <= 2.4) & (np.abs(d * np.sin(az)) <= 1.0)
+    body = scan.vehicle_id == EGO_BODY_ID
+    assert body.sum() == on_roof.sum() > 1000
+    roof_e = scan.points[body] + [0.0, 0.0, 1.9]  # the sensor frame is E shifted up (no mount rotation)
+    np.testing.assert_allclose(roof_e[:, 2], 1.5, atol=1e-9)
+    result = process_cloud(scan.points, CloudConfig(ego_length=4.8, ego_width=2.0, ego_height=1.5))
+    assert (result.ego_body == body).all() and result.stats.ego_body == body.sum()
+    assert (result.kept == (scan.vehicle_id >= 0)).all()  # the car stays, the ground and the roof go
+    bumper = replace(VLP16, mount_x=2.3, mount_z=0.6)
+    scan = SensorRig(RigConfig(lidar=bumper)).run(lambda t: replace(snap, t=t), 0.0, seed=1)[0].lidar
+    assert not (scan.vehicle_id == EGO_BODY_ID).any() and (scan.vehicle_id == 1).sum() > 50
 
 
 def test_projected_3d_returns_of_a_box_agree_with_the_2d_lidar_of_its_rectangle():

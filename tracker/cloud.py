@@ -6,7 +6,8 @@ rectangle measurement model) takes points ``(x, y)`` in the vehicle frame E. Thi
 
 1. **Mount transform** (:func:`mount_transform`): sensor frame S -> vehicle frame E,
    ``p_E = R(roll, pitch, yaw) p_S + t``.
-2. **Non-finite points** dropped (counted).
+2. **Non-finite points** dropped (counted); **the ego's own body** (points inside its box, grown by a
+   margin: a roof lidar's lowest beams land on the roof and bonnet) dropped (counted).
 3. **Ground fit** (:func:`fit_ground`): a piecewise-planar ground, one plane per *patch* of a polar
    grid around the sensor (a disc under the ego, then concentric rings cut into sectors, after the
    concentric zones of Patchwork, Lim et al. 2021, "Patchwork: concentric zone-based region-wise
@@ -242,6 +243,16 @@ class CloudConfig:
     - ``seed`` (int >= 0): seed of the random draws (the fit subsample, the RANSAC samples): the
       same cloud and configuration give the same result.
 
+    The ego's own body: points in E with ``|x| <= ego_length / 2 + ego_margin``, ``|y| <= ego_width / 2
+    + ego_margin`` and ``z <= ego_height + ego_margin`` are returns from the ego itself (its roof, bonnet
+    and boot under a roof lidar's lowest beams, its mirrors) and are dropped before the ground fit:
+
+    - ``ego_length``, ``ego_width``, ``ego_height`` (m, >= 0): the ego's box, centred on E's origin
+      (the ego's centre on the ground). Default 4.8 x 2.0 x 1.5 m (a car; ``sim`` sets the scenario's
+      ego). ``ego_length = 0`` turns the crop off.
+    - ``ego_margin`` (m, >= 0): grows the box on every side but the bottom. Default 0.3: the mirrors
+      (0.2-0.25 m beyond the body), the range noise and a box that is not quite the body.
+
     Classification:
 
     - ``height_ceiling`` (m above the patch's plane): higher points are dropped. Default 4.0 (the
@@ -275,6 +286,10 @@ class CloudConfig:
     max_fit_points: int = 128
     column_width_deg: float = 0.2
     height_ceiling: float = 4.0
+    ego_length: float = 4.8
+    ego_width: float = 2.0
+    ego_height: float = 1.5
+    ego_margin: float = 0.3
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -319,6 +334,8 @@ class CloudConfig:
         if ceiling <= self.distance_threshold:
             raise ValueError(f"CloudConfig.height_ceiling must be > distance_threshold "
                              f"({self.distance_threshold!r} m); got {self.height_ceiling!r}")
+        for name in ("ego_length", "ego_width", "ego_height", "ego_margin"):
+            _real(name, getattr(self, name), low=0.0, unit="m")
         _integer("seed", self.seed, 0)
 
     @property
@@ -1046,7 +1063,7 @@ def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
 class CloudStats:
     """What each stage of :func:`process_cloud` did to one cloud (counts of points).
 
-    ``kept + ground + below_ground + above_ceiling + non_finite == points_in``.
+    ``kept + ground + below_ground + above_ceiling + non_finite + ego_body == points_in``.
     ``segments_fallback`` counts the patches (:class:`GroundModel`) holding finite points whose plane
     was borrowed (their own fits failed or were rejected), ``segments_hinged`` those whose plane is
     their own hinged fit; empty patches are not counted (``GroundModel.fallback`` and ``hinged``
@@ -1055,6 +1072,7 @@ class CloudStats:
 
     points_in: int = 0
     non_finite: int = 0
+    ego_body: int = 0
     ground: int = 0
     below_ground: int = 0
     above_ceiling: int = 0
@@ -1072,8 +1090,9 @@ class CloudResult:
 
     Per input row (length ``N``, input order): ``points_e`` (N, 3) the points in E (non-finite rows
     as given, transformed); ``finite`` (N,); ``heights`` (N,) the signed height above the patch's
-    plane (m, NaN where not finite); the disjoint masks ``ground``, ``below_ground``,
-    ``above_ceiling``, ``kept`` (all False on non-finite rows). ``points_2d`` (M, 2) are the kept
+    plane (m, NaN where not finite or on the ego's body); ``ego_body`` (N,) the returns from the ego's
+    own box (``CloudConfig.ego_length`` ...); the disjoint masks ``ground``, ``below_ground``,
+    ``above_ceiling``, ``kept`` (all False on non-finite and ego-body rows). ``points_2d`` (M, 2) are the kept
     points projected onto their plane along its normal, ``(x, y)`` in E, in input order
     (``M = kept.sum()``). ``model`` is the fitted :class:`GroundModel`, ``stats`` the counts.
 
@@ -1083,6 +1102,7 @@ class CloudResult:
 
     points_e: np.ndarray
     finite: np.ndarray
+    ego_body: np.ndarray
     heights: np.ndarray
     ground: np.ndarray
     below_ground: np.ndarray
@@ -1116,13 +1136,25 @@ def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
         )
 
 
+def _ego_body(pe: np.ndarray, cfg: CloudConfig) -> np.ndarray:
+    """Which rows of ``pe`` (N, 3) in E lie in the ego's box grown by ``ego_margin`` (``CloudConfig``);
+    none when ``ego_length`` is 0. (A row with an infinite coordinate may pass; the caller masks them.)"""
+    if cfg.ego_length <= 0.0 or len(pe) == 0:
+        return np.zeros(len(pe), dtype=bool)
+    m = cfg.ego_margin
+    with np.errstate(invalid="ignore"):
+        return ((np.abs(pe[:, 0]) <= 0.5 * cfg.ego_length + m) & (np.abs(pe[:, 1]) <= 0.5 * cfg.ego_width + m)
+                & (pe[:, 2] <= cfg.ego_height + m))
+
+
 def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> CloudResult:
     """One lidar cloud ``(N, 3)`` in the sensor frame (or, with ``CloudConfig.frame = "vehicle"``, in
     E) through the whole pipeline.
 
     1. ``p_E = R p_S + t`` (:func:`mount_transform`; none for a cloud in E); the frame checked
        (``CloudConfig``'s docstring);
-    2. rows with a non-finite coordinate are dropped (``non_finite``);
+    2. rows with a non-finite coordinate are dropped (``non_finite``), then the rows inside the ego's
+       box (``CloudConfig``: ``|x| <= L/2 + m``, ``|y| <= W/2 + m``, ``z <= H + m`` in E) (``ego_body``);
     3. the ground model is fitted (:func:`fit_ground`) and each point's height above its patch's
        plane computed, ``h = n_k . p + d_k``;
     4. with ``tau = distance_threshold`` and ``c = height_ceiling``: ``|h| <= tau`` is ground,
@@ -1143,7 +1175,13 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     # a row with a NaN or inf has a non-finite sum (the exact test only runs when one is found)
     all_finite = bool(np.isfinite(pe @ np.ones(3)).all())
     finite = np.ones(n, dtype=bool) if all_finite else np.isfinite(pe).all(axis=1)
-    pts = pe if all_finite else pe[finite]
+    body = _ego_body(pe, cfg)
+    if not all_finite:
+        body &= finite
+    has_body = bool(body.any())
+    every = all_finite and not has_body  # every row goes on
+    use = finite & ~body if has_body else finite
+    pts = pe if every else pe[use]
     model, patch = _fit_ground(pts, cfg)
     h = model._height(pts, patch)
     tau = cfg.distance_threshold
@@ -1155,22 +1193,23 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     points_2d = np.ascontiguousarray(projected[:, :2])
 
     def full(mask: np.ndarray) -> np.ndarray:
-        if all_finite:
+        if every:
             return mask
         out = np.zeros(n, dtype=bool)
-        out[finite] = mask
+        out[use] = mask
         return out
 
-    if all_finite:
+    if every:
         heights = h
     else:
         heights = np.full(n, np.nan)
-        heights[finite] = h
+        heights[use] = h
     occupied = np.zeros(model.n_patches, dtype=bool)
     occupied[patch] = True
     stats = CloudStats(
         points_in=n,
         non_finite=int(n - np.count_nonzero(finite)),
+        ego_body=int(np.count_nonzero(body)),
         ground=int(np.count_nonzero(ground_f)),
         below_ground=int(np.count_nonzero(below_f)),
         above_ceiling=int(np.count_nonzero(above_f)),
@@ -1178,7 +1217,7 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
         segments_fallback=int(np.count_nonzero(model.fallback & occupied)),
         segments_hinged=int(np.count_nonzero(model.hinged & occupied)),
     )
-    return CloudResult(points_e=pe, finite=finite, heights=heights, ground=full(ground_f),
+    return CloudResult(points_e=pe, finite=finite, ego_body=body, heights=heights, ground=full(ground_f),
                        below_ground=full(below_f), above_ceiling=full(above_f), kept=full(kept_f),
                        points_2d=points_2d, model=model, stats=stats)
 

@@ -232,7 +232,8 @@ def check_scenario_settings(spec: ScenarioSpec, variant: str = DEFAULT_VARIANT) 
 
 def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None = None) -> TrackerConfig:
     """The variant's ``TrackerConfig``, told the lidar's range and angular resolution of ``rig`` (as a
-    user configures a tracker for their sensor), then the scenario's ``[tracker]`` overrides."""
+    user configures a tracker for their sensor; a 3-D lidar's mount pose and the ego's box), then the
+    scenario's ``[tracker]`` overrides."""
     config = variant_config(variant)
     if rig is not None:
         detection = replace(
@@ -245,6 +246,9 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
         if lidar.model != "2d":  # the tracker is told where the 3-D lidar sits (its cloud pipeline's mount transform)
             mount = {name: float(getattr(lidar, name)) for name in
                      ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")}
+            if spec.ego is not None:  # and the ego's own box, whose returns it crops
+                mount.update(ego_length=float(spec.ego.length), ego_width=float(spec.ego.width),
+                             ego_height=float(spec.ego.box_height))
             config = replace(config, cloud=replace(config.cloud, **mount))
     if spec.tracker:
         config = apply_overrides(config, dict(spec.tracker), f"{_where(spec)}: tracker")

@@ -855,11 +855,16 @@ def cast_3d(
     return CastResult3D(range=t * inv_rho, owner=owner.astype(np.int64), ground=on_ground)
 
 
+#: ``LidarScan3D.vehicle_id`` of a return from the ego's own body (never a vehicle's id, which are >= 0).
+EGO_BODY_ID = -2
+
+
 @dataclass(frozen=True, eq=False)
 class LidarScan3D:
     """One scan at time ``t`` (s): ``M`` points, with per point ``points`` (M, 3) in the sensor frame
     (m), the ray's ``azimuth`` and ``elevation`` (rad, sensor frame) and ``beam`` (0 = lowest), the
-    measured ``range`` (m), and what it hit: ``vehicle_id`` (-1 unless a vehicle),
+    measured ``range`` (m), and what it hit: ``vehicle_id`` (-1 unless a vehicle; ``EGO_BODY_ID`` the
+    ego's own body, when the scene holds it: ``sim.sensors.rig.SceneLidar3D``),
     ``roadside_index`` (-1 unless a roadside object) and ``ground``. ``rays`` is the number of rays
     cast; ``origin`` (3,) and ``rotation`` (3, 3) are the sensor's pose in G
     (``p_G = rotation @ p_S + origin``)."""

@@ -31,11 +31,11 @@ import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
-from sim.sensors.lidar3d import Lidar3D, LidarScan3D, Prisms
+from sim.sensors.lidar3d import EGO_BODY_ID, Lidar3D, LidarScan3D, Prisms
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
-from sim.sensors.scene import vehicle_prisms
+from sim.sensors.scene import VEHICLE_CLEARANCE, vehicle_prisms
 from sim.world.ground import FlatGround, Ground
-from sim.world.truth import Snapshot
+from sim.world.truth import EgoPose, Snapshot
 from tracker.frame import EgoState, Frame, RadarDetections
 from tracker.transforms import rotate, to_global, to_local
 
@@ -87,17 +87,32 @@ class SceneLidar3D:
         else:
             self._static = Prisms.empty()
 
+    def sees_own_body(self, ego: EgoPose) -> bool:
+        """Whether the lidar sits outside the ego's box (above its roof, or beyond its footprint), so that
+        its rays can return from the ego's own body; a lidar inside the box (a sensor set into a bumper)
+        does not see it."""
+        x, y, z = self.sensor.config.mount_translation
+        return bool(z > ego.height or abs(x) > 0.5 * ego.length or abs(y) > 0.5 * ego.width)
+
     def scan(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> LidarScan3D:
         """One scan of ``snapshot`` from the ego pose at its ground height ``ego.z`` (``roadside`` is
-        ignored: the objects given at construction are seen)."""
+        ignored: the objects given at construction are seen). The ego's own body (its box, from
+        ``VEHICLE_CLEARANCE`` up to ``ego.height``) is in the scene when the lidar sits outside it
+        (``sees_own_body``): its returns have ``vehicle_id`` ``EGO_BODY_ID``."""
         ego = snapshot.ego
         vehicles = vehicle_prisms(snapshot, (ego.x, ego.y), self.config.max_range)
         parts = [vehicles]
+        ids = snapshot.ids
+        if self.sees_own_body(ego):  # owner V, its "vehicle id" EGO_BODY_ID
+            base = ego.z + min(VEHICLE_CLEARANCE, 0.5 * ego.height)
+            parts.append(Prisms.from_rectangles([[ego.x, ego.y]], ego.yaw, ego.length, ego.width, base, ego.z + ego.height,
+                                                owner=np.array([len(snapshot)])))
+            ids = np.append(np.asarray(snapshot.ids, dtype=np.int64), EGO_BODY_ID)
         if self.roadside_count:
-            st = self._static  # roadside object j is owner V + j
-            parts.append(st.relabel(st.owner + len(snapshot)))
+            st = self._static  # roadside object j is owner len(ids) + j
+            parts.append(st.relabel(st.owner + len(ids)))
         return self.sensor.scan(np.array([ego.x, ego.y, ego.z]), ego.yaw, Prisms.concatenate(parts), self.ground,
-                                vehicle_ids=snapshot.ids, rng=rng, t=float(snapshot.t))
+                                vehicle_ids=ids, rng=rng, t=float(snapshot.t))
 
 
 def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:

@@ -222,7 +222,8 @@ class ReplayWorld:
         return Snapshot(
             t=self.t,
             ego=EgoPose(x=ego[0], y=ego[1], yaw=float(wrap_angle(ego[2])), v=ego[3], yaw_rate=ego[4],
-                        length=self._ego.length, width=self._ego.width),
+                        length=self._ego.length, width=self._ego.width,
+                        height=float(CLASS_HEIGHTS.get(self._ego.kind, default_height(self._ego.length)))),
             ids=np.array(ids, dtype=int), xy=xy, yaw=yaw, v=cols[3], yaw_rate=cols[4], length=cols[5],
             width=cols[6], height=cols[7], **road,
         )

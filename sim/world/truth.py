@@ -32,7 +32,8 @@ def default_height(length: float | np.ndarray, name: str | None = None) -> float
 @dataclass(frozen=True)
 class EgoPose:
     """Ego pose in G: centre ``x, y`` (m), ``yaw`` (rad), speed ``v`` (m/s), ``yaw_rate`` (rad/s),
-    and the ego's own rectangle ``length, width`` (m)."""
+    the ego's own rectangle ``length, width`` (m), ``z`` the ground height under its centre (m) and
+    its ``height`` (m; its own body, which a 3-D lidar on its roof sees)."""
 
     x: float
     y: float
@@ -42,6 +43,7 @@ class EgoPose:
     length: float = 4.8
     width: float = 2.0
     z: float = 0.0
+    height: float = 1.5
 
 
 @dataclass(frozen=True)

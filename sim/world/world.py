@@ -261,7 +261,8 @@ class World:
         return Snapshot(
             t=self.t,
             ego=EgoPose(x=ego[1], y=ego[2], yaw=ego[3], v=ego[4], yaw_rate=ego[5], length=ego[6], width=ego[7],
-                        z=0.0 if self.ground is None else float(self.ground.height_at(ego[8], ego[9]))),
+                        z=0.0 if self.ground is None else float(self.ground.height_at(ego[8], ego[9])),
+                        height=self.heights[0]),
             ids=np.array([r[0] for r in others], dtype=int),
             xy=np.ascontiguousarray(cols[:2].T),
             yaw=cols[2],
