@@ -194,3 +194,11 @@ def test_an_unavailable_variant_is_refused_before_running_and_left_out_of_all(mo
     assert "--variant all leaves out stonesoup-gmphd: install the 'baselines' extra" in err
     modes = {row.split(",")[1] for row in (out / "runs.csv").read_text().splitlines()[1:]}
     assert modes == set(variants.VARIANTS) - {"stonesoup-gmphd"}
+
+
+def test_truth_never_brakes_for_a_misplaced_or_phantom_vehicle():
+    """With truth as perception every brake is for a true vehicle in the ego's lanes or its own path
+    (cut-out: the ego swerving past the revealed car brakes for it while its body still overlaps it)."""
+    for seed in range(6):
+        row, _ = run_task(Task("family-cut-out", "family-cut-out", "truth", seed))
+        assert row["lateral_brake_events"] == 0 and row["phantom_brake_events"] == 0 and row["late_brake_events"] == 0

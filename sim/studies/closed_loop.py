@@ -28,7 +28,8 @@ Per run (one row of ``runs.csv``; the ego's truth, sampled at every lidar frame,
   ``phantom_brake_events`` -- the planner brakes (command < ``-BRAKE_MPS2``) for a lead with no true
   vehicle within ``GATE_S`` m + half its length along the road and ``GATE_N`` m across;
   ``lateral_brake_events`` -- it brakes for a lead that is a true vehicle outside the ego's lanes
-  (misplaced across); ``late_brake_events`` -- the true in-path lead needs a reaction
+  (its lane and target lane) and off the ego's own path (more than the planner's ``path_margin``
+  beside the ego's body): misplaced across; ``late_brake_events`` -- the true in-path lead needs a reaction
   (``TTC < LATE_TTC_S`` or headway < ``LATE_HEADWAY_S``) but the planner's lead is not that vehicle
   (the tracker has not confirmed it, or put it elsewhere); ``unconfirmed_lead_s`` -- the time spent so.
 
@@ -286,7 +287,8 @@ class _Episode:
                 j = int(np.flatnonzero(near)[np.argmin(np.abs(ds[near] - d.lead_ds))])
                 lead_id = int(snap.ids[j])
                 lanes = [planner.config.lane_centers[k] for k in {planner.lane_of(ego.n), d.target_lane}]
-                matched_in_lane = any(abs(snap.n[j] - c) < self.lane_reach + 0.5 * snap.width[j] for c in lanes)
+                matched_in_lane = (any(abs(snap.n[j] - c) < self.lane_reach + 0.5 * snap.width[j] for c in lanes)
+                                   or abs(snap.n[j] - ego.n) < 0.5 * (snap.width[j] + self.ego_w) + planner.config.path_margin)
         braking = d.accel < -BRAKE_MPS2 and d.lead_label is not None
         now = {"phantom_brake": braking and lead_id is None,
                "lateral_brake": braking and lead_id is not None and not matched_in_lane}
