@@ -92,8 +92,9 @@ def test_the_lidar_dropout_is_centred_on_the_hazard_and_kept_in_the_run():
 
 
 def test_a_fault_mode_runs_the_faulty_sensors_and_traces_its_events():
-    """cut-out with the lidar silent around the reveal: 20 lidar frames carry no points, and every event
-    row names what the tracker reported against the truth."""
+    """cut-out with the lidar silent around the reveal: 20 lidar frames carry no points. Lane-splitting
+    with the lidar silent as the motorcycle passes: the ego brakes hard for the coasting track, and the
+    event row names what the tracker reported against the truth."""
     from sim.env import TrackedRoadEnv
 
     faults = fault_config("lidar-dropout", 14.0, realize(load_scenario("family-cut-out"), 1).hazard_t)
@@ -103,14 +104,17 @@ def test_a_fault_mode_runs_the_faulty_sensors_and_traces_its_events():
     while not env.step(np.zeros(2, dtype=np.float32))[3]:
         pass
     assert env.fault_injector.counts["lidar_frames_dropped"] == round(DROPOUT_S * 10)
-    source = str(resolve_scenario_path("family-cut-out"))
-    row, events = run_task(Task("family-cut-out", source, "curvilinear-fused+lidar-dropout", 1, None, faults))
-    assert set(METRICS) <= set(row) and row["progress_m"] > 100.0
-    for e in events:
+    faults = fault_config("lidar-dropout", 16.0, realize(load_scenario("family-lane-splitting"), 0).hazard_t)
+    source = str(resolve_scenario_path("family-lane-splitting"))
+    row, events = run_task(Task("family-lane-splitting", source, "curvilinear-fused+lidar-dropout", 0, None, faults))
+    assert set(METRICS) <= set(row) and row["progress_m"] > 50.0
+    traced = [e for e in events if e["kind"] in ("hard_brake", "phantom_brake", "lateral_brake", "late_brake")]
+    assert len(traced) == row["hard_brake_events"] + row["phantom_brake_events"] + row["lateral_brake_events"] \
+        + row["late_brake_events"] >= 1
+    for e in traced:
         assert list(e) == list(EVENT_COLUMNS)
-        if e["kind"] in ("hard_brake", "phantom_brake", "lateral_brake", "late_brake"):
-            assert e["track_label"] != "" and e["truth_id"] != ""  # the track and the vehicle it is compared with
-            assert e["track_error_m"] == pytest.approx(math.hypot(e["track_ds"] - e["truth_ds"], e["track_n"] - e["truth_n"]), abs=2e-3)
+        assert e["track_label"] != "" and e["truth_id"] != ""  # the track and the vehicle it is compared with
+        assert e["track_error_m"] == pytest.approx(math.hypot(e["track_ds"] - e["truth_ds"], e["track_n"] - e["truth_n"]), abs=2e-3)
 
 
 def test_rear_ttc_and_progress_of_a_run_with_a_fast_vehicle_behind():

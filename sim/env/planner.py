@@ -151,9 +151,13 @@ class Planner:
         """The lane whose centre is nearest to ``n`` (m)."""
         return int(np.argmin(np.abs(np.asarray(self.config.lane_centers) - n)))
 
+    def on_path(self, n: np.ndarray | float, width: np.ndarray | float, centre: float, ego_width: float) -> np.ndarray:
+        """Whether vehicles at lateral offsets ``n`` (m) of ``width`` (m) lie on a path of the ego's width
+        ``ego_width`` (m) centred on ``centre`` (m): centre within ``(W_ego + W) / 2 + path_margin``."""
+        return np.abs(np.asarray(n) - centre) < 0.5 * (ego_width + np.asarray(width)) + self.config.path_margin
+
     def _in_lane(self, rows: np.ndarray, lane: int, ego_width: float) -> np.ndarray:
-        reach = 0.5 * (ego_width + rows[:, COL["width"]]) + self.config.path_margin
-        return np.abs(rows[:, COL["n"]] - self.config.lane_centers[lane]) < reach
+        return self.on_path(rows[:, COL["n"]], rows[:, COL["width"]], self.config.lane_centers[lane], ego_width)
 
     @staticmethod
     def _gap(ds: float, length: float, ego_length: float) -> float:
@@ -199,7 +203,7 @@ class Planner:
         lead: tuple[int, str, float, float, float, float] | None = None  # label, source, ds, v, length, n
         lowest = math.inf
         paths = [self._in_lane(ahead, k, width) for k in sorted({lane, self._target})]
-        paths.append(np.abs(ahead[:, COL["n"]] - n) < 0.5 * (width + ahead[:, COL["width"]]) + c.path_margin)
+        paths.append(self.on_path(ahead[:, COL["n"]], ahead[:, COL["width"]], n, width))
         for path in paths:
             in_k = np.flatnonzero(path)
             if not len(in_k):

@@ -288,7 +288,7 @@ class _Episode:
                 lead_id = int(snap.ids[j])
                 lanes = [planner.config.lane_centers[k] for k in {planner.lane_of(ego.n), d.target_lane}]
                 matched_in_lane = (any(abs(snap.n[j] - c) < self.lane_reach + 0.5 * snap.width[j] for c in lanes)
-                                   or abs(snap.n[j] - ego.n) < 0.5 * (snap.width[j] + self.ego_w) + planner.config.path_margin)
+                                   or bool(planner.on_path(snap.n[j], snap.width[j], ego.n, self.ego_w)))
         braking = d.accel < -BRAKE_MPS2 and d.lead_label is not None
         now = {"phantom_brake": braking and lead_id is None,
                "lateral_brake": braking and lead_id is not None and not matched_in_lane}
@@ -378,7 +378,7 @@ def plan(scenarios: Sequence[str], runs: int, variants: Sequence[str] = DEFAULT_
 
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"runs must be an integer >= 1; got {runs!r}")
-    modes = ([TRUTH] if truth else []) + [m for m in variants]
+    modes = ([TRUTH] if truth else []) + list(variants)
     for m in modes:
         variant = parse_mode(m)[0]
         reason = None if variant == TRUTH else probe_variant(variant)
