@@ -57,7 +57,7 @@ def test_eot_closed_loop_command(tmp_path, capsys):
     assert "| cut-in | truth | 2 | 0/2 [0.00, 0.66] |" in table and "| cut-in | curvilinear-lidar | 2 |" in table
     assert "eot closed-loop cut-in --runs 2 --workers 1 --variant curvilinear-lidar --duration 1" in table
     rows = (out / "runs.csv").read_text().splitlines()
-    assert len(rows) == 1 + 4 and rows[0].startswith("scenario,variant,seed,sim_s,collision,min_time_headway_s")
+    assert len(rows) == 1 + 4 and rows[0].startswith("scenario,variant,seed,sim_s,collision,collision_ahead,min_time_headway_s")
     assert main(["closed-loop", "cut-in", "--variant", "nope", "--out", str(out)]) == 2
     assert "unknown variant 'nope'" in capsys.readouterr().err
 
@@ -206,3 +206,39 @@ def test_truth_never_brakes_for_a_misplaced_or_phantom_vehicle():
     for seed in range(6):
         row, _ = run_task(Task("family-cut-out", "family-cut-out", "truth", seed))
         assert row["lateral_brake_events"] == 0 and row["phantom_brake_events"] == 0 and row["late_brake_events"] == 0
+
+
+def test_real_traffic_in_the_loop_from_the_planning_problem():
+    """A recording in the loop: truth and a tracker drive the planning problem's ego among recorded
+    vehicles; the goal columns are filled (empty for a family); a collision says where the other
+    vehicle was; the cruise speed covers the route to the goal by the middle of its time interval."""
+    pytest.importorskip("commonroad")
+    from sim.studies.closed_loop import make_env, set_speed_for
+
+    tasks = plan(["real/real-lanker-1-1"], 1, ["curvilinear-fused"])
+    assert [t.mode for t in tasks] == ["truth", "curvilinear-fused"]
+    rows = [run_task(t)[0] for t in tasks]
+    for row in rows:
+        assert row["sim_s"] == pytest.approx(4.0) and row["collision"] == 0
+        assert row["goal_reached"] == 1 and 3.0 <= row["time_to_goal_s"] <= 4.0  # in the goal's own interval here
+        assert row["progress_m"] > 25.0
+    family = run_task(plan(["family-cut-in"], 1, [], duration=1.0)[0])[0]
+    assert family["goal_reached"] is None and family["time_to_goal_s"] is None
+    env = make_env(tasks[0].source, "truth")
+    env.reset(seed=0)
+    p = env.world.planning
+    s_goal = float(np.asarray(env.world.road.to_frenet(p.goal_center)[0]).reshape(-1)[0])
+    expected = (s_goal - env.world.ego_state().s) / (0.5 * (p.goal_time[0] + p.goal_time[1]) - p.t)
+    assert set_speed_for(env) == pytest.approx(max(expected, p.v))
+    env.close()
+    with pytest.raises(ValueError, match=r"duration must be in \(0, 4\] s for real-lanker-1-1"):
+        plan(["real/real-lanker-1-1"], 1, [], duration=5.0)
+
+
+def test_a_collision_event_says_where_the_other_vehicle_was():
+    """us101-12: a recorded vehicle that does not react drives into the back of the truth planner's ego."""
+    pytest.importorskip("commonroad")
+    row, events = run_task(plan(["real/real-us101-12"], 1, [])[0])
+    hits = [e for e in events if e["kind"] == "collision"]
+    assert row["collision"] == 1 and row["collision_ahead"] == 0 and len(hits) == 1
+    assert "(behind the ego)" in hits[0]["detail"] and hits[0]["truth_ds"] < -2.4

@@ -221,15 +221,59 @@ def test_rendered_frame_is_not_blank():
     assert frame.std() > 10
 
 
-def test_a_scenario_on_a_lane_map_is_refused_with_one_line():
+def test_a_lane_map_whose_lanes_begin_and_end():
+    """On freeway-us101 (simulated traffic on a lane map) ``info["lane_centers"]`` are the lanes at the ego's
+    ``s``: NaN for the auxiliary lane before it begins; the planner drives it without a collision."""
     pytest.importorskip("commonroad")
+    import math
     from pathlib import Path
 
-    from sim.env.config import ConfigError
+    from sim.env.planner import planner_for
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "maps" / "freeway-us101.toml"
-    with pytest.raises(ConfigError, match="a road from a lane map .* is not supported by the environment yet"):
-        TrackedRoadEnv({"scenario": str(path)})
+    env = TrackedRoadEnv({"scenario": str(path), "action": "ContinuousAction", "perception": "truth"})
+    obs, info = env.reset(seed=0)
+    road = env.world.road
+    assert not road.uniform and len(info["lane_centers"]) == road.lanes == 6
+    assert math.isnan(info["lane_centers"][0])  # the auxiliary lane begins further on
+    expected = road.lane_centers_at(env.vehicle.frenet_s)
+    np.testing.assert_allclose(info["lane_centers"][1:], expected[1:])
+    planner = planner_for(env.settings, info["lane_centers"])
+    seen = []
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(planner.act(obs, info["labels"], info["lane_centers"]))
+        seen.append(info["lane_centers"][0])
+        done = terminated or truncated
+    assert not info["crashed"] and info["on_road"]
+    np.testing.assert_allclose(info["lane_centers"], road.lane_centers_at(env.vehicle.frenet_s))  # NaN where absent
+    assert env.vehicle.frenet_s > 40.0 and all(math.isnan(c) for c in seen)  # it drove; the lane begins at ~85 m
+
+
+def test_a_replay_is_driven_from_its_planning_problem():
+    """A replay scenario in the env: the ego is the recording's planning problem (``sim.world.driven``),
+    the episode lasts to the end of the goal's time interval; a recorded ego named in the file is refused."""
+    pytest.importorskip("commonroad")
+    from sim.env.config import ConfigError
+    from sim.world.replay import load_recording
+    from sim.world.scenario import SCENARIO_DIR
+
+    env = TrackedRoadEnv({"scenario": "real/real-lanker-1-1", "action": "ContinuousAction"})
+    obs, info = env.reset(seed=0)
+    p = load_recording(str(SCENARIO_DIR / "real" / "USA_Lanker-1_1_T-1.xml.gz"))[0].planning
+    assert env.duration == pytest.approx(p.goal_time[1]) and env.max_episode_steps == 20
+    ego = env.world.ego_state()
+    assert (ego.x, ego.y, ego.v) == pytest.approx((p.x, p.y, p.v))
+    steps = 0
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(np.zeros(2, dtype=np.float32))
+        steps += 1
+        done = terminated or truncated
+    assert steps == 20 or info["crashed"]
+    assert info["tracks"] > 0
+    with pytest.raises(ConfigError, match="duration.*at most the scenario's duration \\(4 s\\)"):
+        TrackedRoadEnv({"scenario": "real/real-lanker-1-1", "duration": 5.0})
 
 
 def test_faults_key_overrides_the_scenarios_faults_and_is_validated():

@@ -213,3 +213,25 @@ def test_the_planner_changes_lanes_only_into_driving_lanes_of_its_own_direction(
     assert blind._may_enter(1, 2) and blind._may_enter(1, 0)
     with pytest.raises(ValueError, match="lane_directions"):
         PlannerConfig(**cfg, lane_directions=(1, 0, 1))
+
+
+def test_lane_centres_given_per_step_a_lane_that_ends_and_one_that_is_absent():
+    """``act(..., lane_centers=...)``: a lane absent at the ego's ``s`` (NaN) is never entered, and when the
+    target lane ends the ego steers for the present lane nearest to it."""
+    p = Planner(PlannerConfig(lane_centers=(-5.25, -1.75, 1.75)))
+    slow = (58.0, -1.75, 14.0, 7)  # a slow lead in the ego's lane 1 (ego at n = -1.75), within the lookahead
+    p.act(*obs_with(slow, ego_v=18.0), lane_centers=(math.nan, -1.75, math.nan))
+    assert p.decision.target_lane == 1 and not p.decision.changing  # no lane to change into: it follows
+    p.act(*obs_with(slow, ego_v=18.0), lane_centers=(math.nan, -1.75, 1.75))
+    assert p.decision.target_lane == 2 and p.decision.changing  # lane 2 is there now: it changes
+    # the ego in lane 0 (an auxiliary lane), which ends: the target becomes lane 1, the nearest present one
+    q = Planner(PlannerConfig(lane_centers=(-5.25, -1.75, 1.75)))
+    q.act(*obs_with(ego_n=-5.25))
+    assert q.decision.target_lane == 0
+    q.act(*obs_with(ego_n=-5.25), lane_centers=(math.nan, -1.75, 1.75))
+    assert q.decision.target_lane == 1 and q.decision.changing
+    assert q.lane_of(-5.25) == 1 and np.isnan(q.centers[0])
+    with pytest.raises(ValueError, match="lane_centers has 2 entries"):
+        q.act(*obs_with(), lane_centers=(0.0, 1.0))
+    with pytest.raises(ValueError, match="needs one present"):
+        q.act(*obs_with(), lane_centers=(math.nan,) * 3)

@@ -97,3 +97,46 @@ def test_default_ego_rule():
     assert Recording("r", (_car(7, t, 0.0), _car(5, t, 10.0))).pick_ego(100.0) == 5
     # nobody recorded throughout: the longest-recorded
     assert Recording("r", (_car(1, t[:5], 0.0), _car(2, t[3:], 10.0))).pick_ego(100.0) == 2
+
+
+def test_planning_problem_as_the_file_writes_it():
+    """The planning problem against the file's own XML (read with the standard library): initial state,
+    goal rectangle (centre, and what lies in it) and the goal's time interval (steps x dt)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(gzip.open(US101_3).read())
+    pp = root.find("planningProblem")
+    start, goal = pp.find("initialState"), pp.find("goalState")
+    rect = goal.find("position/rectangle")
+    dt = float(root.get("timeStepSize"))
+    p = read_commonroad_recording(US101_3).planning
+    assert p.id == int(pp.get("id"))
+    assert (p.x, p.y, p.yaw, p.v, p.t) == pytest.approx((
+        float(start.find("position/point/x").text), float(start.find("position/point/y").text),
+        float(start.find("orientation/exact").text), float(start.find("velocity/exact").text), 0.0))
+    assert p.goal_time == pytest.approx((float(goal.find("time/intervalStart").text) * dt,
+                                         float(goal.find("time/intervalEnd").text) * dt))
+    cx, cy = float(rect.find("center/x").text), float(rect.find("center/y").text)
+    length, width, yaw = (float(rect.find(k).text) for k in ("length", "width", "orientation"))
+    assert p.goal_center == pytest.approx((cx, cy), abs=1e-6)
+    along, across = np.array([math.cos(yaw), math.sin(yaw)]), np.array([-math.sin(yaw), math.cos(yaw)])
+    c = np.array([cx, cy])
+    inside = [c, c + 0.45 * length * along, c - 0.45 * width * across]
+    outside = [c + 0.55 * length * along, c + 0.55 * width * across, (0.0, 0.0)]
+    assert p.reached(np.array(inside)).all() and not p.reached(np.array(outside)).any()
+
+
+def test_planning_problem_checks_its_values():
+    from sim.world.recording import PlanningProblem
+
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+    p = PlanningProblem(1, 0.0, 0.0, 0.0, 0.0, 5.0, (square, square + [4.0, 0.0]), (1.0, 2.0))
+    assert p.goal_center == pytest.approx((3.0, 1.0))  # two equal squares: the centroid between them
+    assert p.reached(np.array([[1.0, 1.0], [5.0, 1.0], [3.0, 1.0]])).tolist() == [True, True, False]
+    assert PlanningProblem(2, 0.0, 0.0, 0.0, 0.0, 5.0).goal_center is None
+    with pytest.raises(ValueError, match="initial v is nan"):
+        PlanningProblem(3, 0.0, 0.0, 0.0, 0.0, math.nan)
+    with pytest.raises(ValueError, match=r"goal polygon needs \(k >= 3, 2\)"):
+        PlanningProblem(4, 0.0, 0.0, 0.0, 0.0, 1.0, (square[:2],))
+    with pytest.raises(ValueError, match="ends before it starts"):
+        PlanningProblem(5, 0.0, 0.0, 0.0, 0.0, 1.0, (), (2.0, 1.0))

@@ -23,6 +23,13 @@ Termination: the ego's rectangle overlaps another vehicle's (``sim.world.world``
 it left the road with ``offroad_terminal``. Truncation: the episode time reaches ``duration`` (the
 scenario's by default), or, on an open road, the ego would reach the road's end within two periods.
 
+Roads and traffic: any scenario, a lane map's road too (its lanes begin and end: ``info["lane_centers"]``
+are the lanes at the ego's ``s``, NaN where one is absent). A replay of recorded traffic (a ``[replay]``
+table, e.g. the ``real`` suite) runs as a driven replay (``sim.world.driven.DrivenReplayWorld``): the
+recorded vehicles drive as recorded and do not react; the ego starts at the recording's planning
+problem's initial state and the agent drives it; the episode lasts to the end of the goal's time
+interval; ``info`` adds ``goal_reached`` (the ego's centre has entered the goal region).
+
 Seeding: ``reset(seed=k)`` runs episode seed ``k``: the traffic, the sensors and the clutter draw from
 the same streams as ``sim.run_scenario(spec, seed=k)``; ``reset()`` without a seed draws the episode
 seed from the environment's ``np_random``. A generator scenario draws a new road and traffic per
@@ -69,6 +76,7 @@ from sim.evaluation.variants import variant_factory
 from sim.sensors import SensorRig
 from sim.sensors.faults import FAULT_STREAM, FaultInjector
 from sim.sensors.rig import SensorFrame
+from sim.world.driven import DrivenReplayWorld, planned_run
 from sim.world.scenario import FaultsSpec, ScenarioError, ScenarioSpec, load_scenario
 from sim.world.world import DEFAULT_STEP, World
 from tracker import Track
@@ -117,22 +125,28 @@ class TrackedRoadEnv(AbstractEnv):
             spec = load_scenario(settings.scenario)
         except ScenarioError as exc:
             raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: {' '.join(str(exc).split())}") from None
-        if settings.duration is not None and settings.duration > spec.duration + _EPS:
+        length = spec.duration
+        if spec.replay is not None:  # the driven replay's own duration: to the end of the goal's time interval
+            if spec.replay.ego is not None:
+                raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: its replay.ego = {spec.replay.ego} "
+                                  "names a recorded vehicle; in the environment the ego is the recording's planning "
+                                  "problem, driven by the agent (leave replay.ego out)")
+            try:
+                length = planned_run(spec.replay.file, spec.replay.truth)[0]
+            except (ValueError, ImportError) as exc:
+                raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: {' '.join(str(exc).split())}") from None
+        if settings.duration is not None and settings.duration > length + _EPS:
             raise ConfigError(f"config key 'duration' = {settings.duration!r}: must be at most the scenario's "
-                              f"duration ({spec.duration:g} s)")
+                              f"duration ({length:g} s)")
         faults = self._faults_for(spec, settings)
         if faults is not None and faults.duplicate_frames:
             raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: its faults.duplicate_frames is not supported "
                               "in the loop (an observation falls on every lidar frame); override it with config key 'faults'")
         if faults is not None:
             try:
-                faults.check_duration(settings.duration if settings.duration is not None else spec.duration)
+                faults.check_duration(settings.duration if settings.duration is not None else length)
             except ValueError as exc:
                 raise ConfigError(f"config key 'faults': {exc}") from None
-        if spec.road is not None and spec.road.map is not None:
-            raise ConfigError(f"config key 'scenario' = {settings.scenario!r}: a road from a lane map (road.map) is not "
-                              "supported by the environment yet; its observation and planner need lanes that do not "
-                              "change along the road")
         rig, _ = rig_config_for(spec)
         ratio = rig.lidar.rate_hz / settings.policy_frequency
         if abs(ratio - round(ratio)) > 1e-6 or rig.lidar.phase_s != 0.0:
@@ -146,6 +160,7 @@ class TrackedRoadEnv(AbstractEnv):
                               f"multiple of the world's {DEFAULT_STEP:g} s step")
         self.settings = settings
         self.spec_file = spec
+        self._scenario_duration = float(length)
         self.lidar_range = float(rig.lidar.max_range)
         self.config = settings.highway_config()
 
@@ -178,7 +193,7 @@ class TrackedRoadEnv(AbstractEnv):
     def duration(self) -> float:
         """Truncation time of the episode (s)."""
         assert self.spec_file is not None
-        return float(self.settings.duration if self.settings.duration is not None else self.spec_file.duration)
+        return float(self.settings.duration if self.settings.duration is not None else self._scenario_duration)
 
     @property
     def max_episode_steps(self) -> int:
@@ -205,7 +220,11 @@ class TrackedRoadEnv(AbstractEnv):
         if seed is None:
             seed = int(self.np_random.integers(0, 2**31 - 1))
         self.episode_seed = seed
-        world = World(self.spec_file, seed, step=DEFAULT_STEP)
+        world: World | DrivenReplayWorld
+        if self.spec_file.replay is not None:
+            world = DrivenReplayWorld.from_spec(self.spec_file, seed)
+        else:
+            world = World(self.spec_file, seed, step=DEFAULT_STEP)
         spec = world.spec  # the realised one when a generator drew it
         ego = install_ego(world, s.action, target_speeds=s.target_speeds, accel_limits=s.acceleration_range)
         self.world = world
@@ -322,12 +341,22 @@ class TrackedRoadEnv(AbstractEnv):
             "lane": self._lane(),
             "tracks": len(self.tracks),
             "collisions": list(world.collisions),
-            "lane_centers": tuple(float(c) for c in world.road.lane_centers),
+            "lane_centers": self.lane_centers(),
             "lane_directions": tuple(int(d) for d in world.road.lane_directions),
             "lane_kinds": tuple(world.road.layout.kinds),
             "labels": self.observation_type.labels.copy(),
         })
+        if isinstance(world, DrivenReplayWorld):
+            info["goal_reached"] = world.goal_reached_at is not None
         return info
+
+    def lane_centers(self) -> tuple[float, ...]:
+        """Every lane's centre offset ``n`` (m, lane 0 first) at the ego's ``s``: NaN for a lane absent there
+        (a lane map's lanes begin and end; on other roads they are the same everywhere)."""
+        road = self.world.road  # type: ignore[union-attr]
+        if road.uniform:
+            return tuple(float(c) for c in road.lane_centers)
+        return tuple(float(c) for c in road.lane_centers_at(float(self.vehicle.frenet_s)))
 
     # -- rendering ------------------------------------------------------------------------------
     def render(self) -> np.ndarray | None:

@@ -4,7 +4,9 @@
 steering]`` in [-1, 1]^2, mapped by the env onto ``accel_range`` / ``steering_range``). It reads only
 the observation rows (``sim.env.observation``: row 0 the ego, then one row per track), the rows'
 track labels (the env's ``info["labels"]``: to recognise the same lead from step to step) and the
-map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_centers"]``); never the world.
+map's lane centres (``PlannerConfig.lane_centers``, or each step's ``act(..., lane_centers=...)``: the
+env's ``info["lane_centers"]`` at the ego's ``s``, NaN for a lane absent there on a lane map whose lanes
+begin and end); never the world.
 
 - **Lead and ACC.** The lead is the nearest row ahead (``ds > 0``) whose centre lies within
   ``(W_ego + W) / 2 + path_margin`` of the ego's lane centre, or of the ego's own ``n`` (what its body
@@ -27,7 +29,9 @@ map's lane centres (``PlannerConfig.lane_centers``; the env's ``info["lane_cente
   overlapping the lane: a motorcycle on the line between two lanes is in both) leaves a safe gap
   (ahead: ``max(min_change_gap, v_ego * change_headway + 2 s x closing speed)``; behind the same with
   the follower's speed) and its own lead, if any, is farther or faster than the current one; then no
-  new change for ``change_cooldown`` s.
+  new change for ``change_cooldown`` s. Only into a lane present where the ego is.
+- **Lanes that end.** When the target lane is absent at the ego's ``s`` (a lane map's auxiliary lane has
+  ended), the target becomes the present lane nearest to the ego, without the gap test (the lane is gone).
 
 ``decision`` (a ``Decision``) records what the last ``act`` did: the lead's label and where it came
 from ("row" or "held"), the gap, the commanded acceleration and the target lane (for the closed-loop
@@ -144,12 +148,18 @@ class Planner:
         self._steer = 0.0
         self._since_change = math.inf
         self._last_lead: tuple[int, float] | None = None  # label, speed of the last step's lead
+        self._centers = np.asarray(self.config.lane_centers, dtype=float)
         self.decision = Decision()
 
     # -- helpers --------------------------------------------------------------------------------
+    @property
+    def centers(self) -> np.ndarray:
+        """The lane centres (m) of the last ``act`` (NaN: absent there), else the configuration's."""
+        return self._centers
+
     def lane_of(self, n: float) -> int:
-        """The lane whose centre is nearest to ``n`` (m)."""
-        return int(np.argmin(np.abs(np.asarray(self.config.lane_centers) - n)))
+        """The present lane whose centre is nearest to ``n`` (m)."""
+        return int(np.nanargmin(np.abs(self._centers - n)))
 
     def on_path(self, n: np.ndarray | float, width: np.ndarray | float, centre: float, ego_width: float) -> np.ndarray:
         """Whether vehicles at lateral offsets ``n`` (m) of ``width`` (m) lie on a path of the ego's width
@@ -157,7 +167,7 @@ class Planner:
         return np.abs(np.asarray(n) - centre) < 0.5 * (ego_width + np.asarray(width)) + self.config.path_margin
 
     def _in_lane(self, rows: np.ndarray, lane: int, ego_width: float) -> np.ndarray:
-        return self.on_path(rows[:, COL["n"]], rows[:, COL["width"]], self.config.lane_centers[lane], ego_width)
+        return self.on_path(rows[:, COL["n"]], rows[:, COL["width"]], float(self._centers[lane]), ego_width)
 
     @staticmethod
     def _gap(ds: float, length: float, ego_length: float) -> float:
@@ -173,10 +183,19 @@ class Planner:
         return float(np.clip(acc, *c.accel_range))
 
     # -- the policy -----------------------------------------------------------------------------
-    def act(self, obs: np.ndarray, labels: Sequence[int] | np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, labels: Sequence[int] | np.ndarray,
+            lane_centers: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
         """The action ``[acceleration, steering]`` in [-1, 1]^2 for the (unnormalised) observation
-        ``obs`` and its row labels ``labels`` (the env's ``info["labels"]``, one per row)."""
+        ``obs`` and its row labels ``labels`` (the env's ``info["labels"]``, one per row); ``lane_centers``
+        (m, one per lane of the configuration, NaN where absent; the env's ``info["lane_centers"]``) this
+        step's, default the configuration's."""
         c = self.config
+        if lane_centers is not None:
+            centers = np.asarray(lane_centers, dtype=float).reshape(-1)
+            if len(centers) != len(c.lane_centers) or np.isnan(centers).all():
+                raise ValueError(f"Planner.act: lane_centers has {len(centers)} entries ({int(np.count_nonzero(~np.isnan(centers)))} "
+                                 f"present); the planner was configured with {len(c.lane_centers)} lanes and needs one present")
+            self._centers = centers
         obs = np.asarray(obs, dtype=float)
         labels = np.asarray(labels, dtype=np.int64).reshape(-1)
         if len(labels) != len(obs):
@@ -190,9 +209,9 @@ class Planner:
         rows = obs[1:][present]
         row_labels = labels[1:][present]
         lane = self.lane_of(n)
-        if self._target is None:
-            self._target = lane
-        changing = self._target != lane or abs(n - c.lane_centers[self._target]) > 0.5
+        if self._target is None or np.isnan(self._centers[self._target]):
+            self._target = lane  # the first step, or the target lane has ended
+        changing = self._target != lane or abs(n - self._centers[self._target]) > 0.5
         self._since_change += c.period
 
         # lead: per lane of the ego (both while changing lanes), and across the ego's own width where it
@@ -238,13 +257,13 @@ class Planner:
                 and v >= c.min_change_speed and accel > -c.comfort_decel and lead_decel < c.max_lead_decel
                 and lead[2] < c.change_lookahead and lead[3] < (self._set_speed or 0.0) - c.slow_margin):
             for k in (lane + 1, lane - 1):
-                if 0 <= k < len(c.lane_centers) and self._may_enter(lane, k) and self._safe(rows, k, v, length, width, lead):
+                if 0 <= k < len(self._centers) and self._may_enter(lane, k) and self._safe(rows, k, v, length, width, lead):
                     self._target = k
                     self._since_change = 0.0
                     changing = True
                     break
 
-        steer = self._steering(n, v, xi, xi_dot, length, c.lane_centers[self._target])
+        steer = self._steering(n, v, xi, xi_dot, length, float(self._centers[self._target]))
         self.decision = Decision(
             lead_label=None if lead is None else lead[0], lead_source=None if lead is None else lead[1],
             lead_ds=math.inf if lead is None else lead[2], lead_gap=math.inf if gap is None else gap,
@@ -255,8 +274,11 @@ class Planner:
         return np.array([2.0 * (accel - lo) / (hi - lo) - 1.0, 2.0 * (steer - slo) / (shi - slo) - 1.0], dtype=np.float32)
 
     def _may_enter(self, lane: int, k: int) -> bool:
-        """Whether a lane change from ``lane`` into ``k`` is allowed: a driving lane of the same direction."""
+        """Whether a lane change from ``lane`` into ``k`` is allowed: a driving lane of the same direction,
+        present at the ego's ``s``."""
         c = self.config
+        if np.isnan(self._centers[k]):
+            return False
         if c.lane_directions is not None and c.lane_directions[k] != c.lane_directions[lane]:
             return False
         return c.lane_kinds is None or c.lane_kinds[k] == "driving"
@@ -264,8 +286,9 @@ class Planner:
     def _occupies(self, rows: np.ndarray, k: int) -> np.ndarray:
         """Rows whose rectangle reaches into lane ``k`` (centre within half a lane + half their width of
         its centre): a motorcycle on the line between two lanes is in both."""
-        centers = np.asarray(self.config.lane_centers)
-        half_lane = 0.5 * float(np.min(np.abs(np.diff(centers)))) if len(centers) > 1 else 1.75
+        centers = self._centers
+        present = centers[~np.isnan(centers)]
+        half_lane = 0.5 * float(np.min(np.abs(np.diff(present)))) if len(present) > 1 else 1.75
         return np.abs(rows[:, COL["n"]] - centers[k]) < half_lane + 0.5 * rows[:, COL["width"]]
 
     def _safe(self, rows: np.ndarray, k: int, v: float, length: float, width: float,

@@ -29,6 +29,7 @@ from highway_env.vehicle.kinematics import Vehicle
 
 from sim.world.lanes import NODE_FROM, NODE_TO, lane_index
 from sim.world.traffic import _FrenetCar
+from sim.world.driven import DrivenReplayWorld
 from sim.world.world import World
 
 #: The driver's left/right in our convention (lane 0 rightmost) -> highway-env's index steps.
@@ -78,24 +79,24 @@ class MetaAction(DiscreteMetaAction):
         return actions
 
 
-def install_ego(world: World, action: str, *, target_speeds: tuple[float, ...], accel_limits: tuple[float, float]) -> Vehicle:
-    """Replace ``world``'s ego (id 0) by a ``MetaEgo`` (``action == "DiscreteMetaAction"``) or a
-    ``ContinuousEgo`` at the same position, heading and speed, with the scenario's length and width;
-    its first control is computed at once. Returns the new ego."""
+def install_ego(world: World | DrivenReplayWorld, action: str, *, target_speeds: tuple[float, ...],
+                accel_limits: tuple[float, float]) -> Vehicle:
+    """Replace ``world``'s ego (id 0; a ``World``'s or a ``DrivenReplayWorld``'s) by a ``MetaEgo``
+    (``action == "DiscreteMetaAction"``) or a ``ContinuousEgo`` at the same position, heading, speed, lane,
+    length and width; its first control is computed at once. Returns the new ego."""
     old = world.ego
-    spec = world.spec.ego
-    assert spec is not None
     traffic = world.traffic
     position = np.array(old.position, dtype=float)
+    lane = (getattr(old, "target_lane_index", None) or old.lane_index)[2]
     if action == "DiscreteMetaAction":
-        ego: Any = MetaEgo(traffic, position, float(old.heading), float(old.speed), target_lane_index=lane_index(spec.lane),
+        ego: Any = MetaEgo(traffic, position, float(old.heading), float(old.speed), target_lane_index=lane_index(lane),
                            target_speed=float(old.speed), target_speeds=np.asarray(target_speeds, dtype=float))
         ego.accel_limits = (float(accel_limits[0]), float(accel_limits[1]))
     elif action == "ContinuousAction":
         ego = ContinuousEgo(traffic, position, float(old.heading), float(old.speed))
     else:
         raise ValueError(f"unknown action type {action!r}")
-    ego._setup(0, spec.length, spec.width)
+    ego._setup(0, old.LENGTH, old.WIDTH)
     traffic.vehicles[traffic.vehicles.index(old)] = ego
     world.ego = ego
     ego.act()

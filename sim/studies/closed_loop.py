@@ -10,9 +10,21 @@ default; every registered one with ``--variant all``), optionally with a sensor 
 family's critical moment; on the middle of the run when the scenario names none). Everything else --
 world, sensors, seeds, planner -- is the same, so differences are the tracker's (and the fault's).
 
+**Real traffic.** A replay scenario (a ``[replay]`` table: the ``real`` suite's recordings) runs as a
+driven replay (``sim.world.driven``): the recorded vehicles drive as recorded and do not react; the ego
+starts at the recording's planning problem's initial state and the planner drives it along the route to
+the goal region, cruising at ``max(v0, d_goal / t_goal)`` (``set_speed_for``: the initial speed, or
+the speed that covers the route distance to the goal's centre by the middle of the goal's time
+interval, whichever is higher). The seeds vary only the sensor noise; the truth runs are the same in
+every seed. A collision there may be the replay's (a recorded vehicle drives into the ego, which the
+recorded driver's different path avoided): pair it with truth's run of the same recording.
+
 Per run (one row of ``runs.csv``; the ego's truth, sampled at every lidar frame, 10 Hz):
 
 - ``collision``: 1 if the ego's rectangle overlapped another vehicle's (the episode ends), else 0;
+  ``collision_ahead``: 1 if that vehicle's centre was more than half the ego's length ahead of the ego's
+  along the road (the ego drove into it; a vehicle behind or beside drove into the ego, or cut across
+  it), else 0;
 - ``min_time_headway_s``: minimum of ``gap / v_ego`` (``v_ego > 1 m/s``) to the true in-path lead, the
   nearest vehicle ahead whose lateral extent overlaps the ego's (``|n - n_ego| < (W + W_ego) / 2``);
   ``gap`` is bumper to bumper along the road; capped at ``HEADWAY_CAP`` s (also when there was no lead);
@@ -23,6 +35,8 @@ Per run (one row of ``runs.csv``; the ego's truth, sampled at every lidar frame,
   collision ends it); ``rms_jerk_mps3``: RMS of the second difference of the ego's speed at 10 Hz;
   ``max_decel_mps2``: the hardest deceleration (first difference of the speed at 10 Hz, >= 0);
   ``hard_brake_events``: runs of frames decelerating harder than ``HARD_BRAKE_MPS2``;
+- ``goal_reached`` (driven replays; empty elsewhere): 1 if the ego's centre entered the planning problem's
+  goal region in the episode, else 0; ``time_to_goal_s``: when it did (empty when it did not);
 - track-caused events, judged at every planner decision against the truth at that time (an event is
   a run of consecutive decisions; ``*_events`` count the runs):
   ``phantom_brake_events`` -- the planner brakes (command < ``-BRAKE_MPS2``) for a lead with no true
@@ -87,9 +101,9 @@ GATE_N = 1.5
 LATE_TTC_S = 4.0
 LATE_HEADWAY_S = 0.8
 #: Metrics of a run, in ``runs.csv`` order.
-METRICS = ("collision", "min_time_headway_s", "min_ttc_s", "min_rear_ttc_s", "mean_speed_mps", "progress_m",
+METRICS = ("collision", "collision_ahead", "min_time_headway_s", "min_ttc_s", "min_rear_ttc_s", "mean_speed_mps", "progress_m",
            "rms_jerk_mps3", "max_decel_mps2", "hard_brake_events", "phantom_brake_events", "lateral_brake_events",
-           "late_brake_events", "unconfirmed_lead_s")
+           "late_brake_events", "unconfirmed_lead_s", "goal_reached", "time_to_goal_s")
 EVENT_COLUMNS = ("scenario", "variant", "seed", "t", "kind", "lead_label", "track_label", "track_ds", "track_n",
                  "track_v", "truth_id", "truth_ds", "truth_n", "truth_v", "track_error_m", "gap_m", "ttc_s",
                  "lidar_points", "detail")
@@ -176,8 +190,7 @@ class _Episode:
         road = env.world.road
         self.road = road
         self.half = 0.5 * road.length
-        ego_spec = env.world.spec.ego
-        self.ego_l, self.ego_w = float(ego_spec.length), float(ego_spec.width)
+        self.ego_l, self.ego_w = float(env.vehicle.LENGTH), float(env.vehicle.WIDTH)
         self.lane_reach = 0.5 * road.lane_width
         self.speeds: list[float] = []
         self.min_headway = HEADWAY_CAP
@@ -286,7 +299,7 @@ class _Episode:
             if near.any():
                 j = int(np.flatnonzero(near)[np.argmin(np.abs(ds[near] - d.lead_ds))])
                 lead_id = int(snap.ids[j])
-                lanes = [planner.config.lane_centers[k] for k in {planner.lane_of(ego.n), d.target_lane}]
+                lanes = [float(planner.centers[k]) for k in {planner.lane_of(ego.n), d.target_lane}]
                 matched_in_lane = (any(abs(snap.n[j] - c) < self.lane_reach + 0.5 * snap.width[j] for c in lanes)
                                    or bool(planner.on_path(snap.n[j], snap.width[j], ego.n, self.ego_w)))
         braking = d.accel < -BRAKE_MPS2 and d.lead_label is not None
@@ -319,19 +332,25 @@ class _Episode:
         sf = env.last_frame
         snap = sf.truth
         ego = env.world.ego_state()
+        ahead = False
         for t_c, a, b in collisions:
             other = b if a == 0 else a
             d = self.planner.decision
             hit = np.flatnonzero(snap.ids == other)
             trace = self.trace_vehicle(snap, sf, int(hit[0]), ego.s) if len(hit) else {"truth_id": other}
-            self.event("collision", t_c, f"ego hit vehicle {other}; planner lead {d.lead_label}/{d.lead_source}, "
-                       f"command {d.accel:.2f} m/s^2, {len(env.tracks)} tracks", lead_label=d.lead_label, **trace)
+            ds = trace.get("truth_ds")
+            where = "" if ds is None else ("ahead" if ds > 0.5 * self.ego_l else "behind" if ds < -0.5 * self.ego_l else "beside")
+            ahead = ahead or where == "ahead"
+            self.event("collision", t_c, f"collision with vehicle {other}" + (f" ({where} the ego)" if where else "")
+                       + f"; planner lead {d.lead_label}/{d.lead_source}, command {d.accel:.2f} m/s^2, {len(env.tracks)} tracks",
+                       lead_label=d.lead_label, **trace)
         v = np.asarray(self.speeds)
         jerk = np.diff(v, n=2) / self.dt**2 if len(v) > 2 else np.zeros(0)
         decel = -np.diff(v) / self.dt if len(v) > 1 else np.zeros(0)
         row: dict[str, Any] = {"scenario": task.scenario, "variant": task.mode, "seed": task.seed, "sim_s": env.sim_time}
         row.update({
             "collision": int(bool(collisions)),
+            "collision_ahead": int(ahead),
             "min_time_headway_s": float(self.min_headway),
             "min_ttc_s": float(self.min_ttc),
             "min_rear_ttc_s": float(self.min_rear_ttc),
@@ -345,7 +364,28 @@ class _Episode:
             "late_brake_events": self.counts["late_brake"],
             "unconfirmed_lead_s": self.unconfirmed_steps * env.period,
         })
+        planning = getattr(env.world, "planning", None)  # a driven replay's planning problem
+        reached = getattr(env.world, "goal_reached_at", None)
+        row["goal_reached"] = None if planning is None else int(reached is not None)
+        row["time_to_goal_s"] = None if reached is None else float(reached)
         return row
+
+
+def set_speed_for(env: Any) -> float | None:
+    """The planner's cruise speed (m/s) in a driven replay (module docstring): ``max(v0, d / t)`` with ``d``
+    the distance along the route from the ego to the goal region's centre and ``t`` the middle of the
+    goal's time interval (run clock); ``None`` (the planner's default, its first observed speed) elsewhere
+    or without a goal region and time."""
+    world = env.world
+    planning = getattr(world, "planning", None)
+    if planning is None or planning.goal_center is None or planning.goal_time is None:
+        return None
+    ego = world.ego_state()
+    s_goal, _ = world.road.to_frenet(planning.goal_center)
+    t_mid = 0.5 * (planning.goal_time[0] + planning.goal_time[1]) - planning.t
+    if t_mid <= 0.0:
+        return None
+    return max(float(ego.v), float(np.asarray(s_goal).reshape(-1)[0] - ego.s) / t_mid)
 
 
 def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
@@ -355,12 +395,12 @@ def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     env = make_env(task.source, task.mode, task.duration, task.faults)
     obs, info = env.reset(seed=task.seed)
     planner = planner_for(env.settings, info["lane_centers"], lane_directions=info["lane_directions"],
-                          lane_kinds=info["lane_kinds"])
+                          lane_kinds=info["lane_kinds"], set_speed=set_speed_for(env))
     episode = _Episode(task, env, planner)
     episode.frames(env.step_frames)
     terminated = truncated = False
     while not (terminated or truncated):
-        action = planner.act(obs, info["labels"])
+        action = planner.act(obs, info["labels"], info["lane_centers"])
         episode.decision()
         obs, _, terminated, truncated, info = env.step(action)
         episode.frames(env.step_frames)
@@ -390,16 +430,21 @@ def plan(scenarios: Sequence[str], runs: int, variants: Sequence[str] = DEFAULT_
     for name in scenarios:
         path = resolve_scenario_path(name)
         spec = load_scenario(path)
-        if duration is not None and not 0.0 < duration <= spec.duration:
-            raise ValueError(f"duration must be in (0, {spec.duration:g}] s for {spec.name}; got {duration!r}")
-        length = spec.duration if duration is None else duration
+        full = spec.duration
+        if spec.replay is not None:  # a driven replay runs to the end of its goal's time interval
+            from sim.world.driven import planned_run
+
+            full = planned_run(spec.replay.file, spec.replay.truth)[0]
+        if duration is not None and not 0.0 < duration <= full:
+            raise ValueError(f"duration must be in (0, {full:g}] s for {spec.name}; got {duration!r}")
+        length = full if duration is None else duration
         hazards: dict[int, float | None] = {}
         for mode in modes:
             fault = parse_mode(mode)[1]
             for k in range(runs):
                 seed = seed0 + k
                 if fault == "lidar-dropout" and seed not in hazards:
-                    hazards[seed] = realize(spec, seed).hazard_t
+                    hazards[seed] = None if spec.replay is not None else realize(spec, seed).hazard_t
                 faults = fault_config(fault, length, hazards.get(seed))
                 tasks.append(Task(spec.name, str(path), mode, seed, duration, faults))
     return tasks
@@ -438,12 +483,13 @@ def wilson(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float,
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-_TABLE = (("collision", "collisions (rate)", 2), ("min_time_headway_s", "min headway (s)", 2),
+_TABLE = (("collision", "collisions (rate)", 2), ("collision_ahead", "collisions ahead (rate)", 2), ("min_time_headway_s", "min headway (s)", 2),
           ("min_ttc_s", "min TTC (s)", 1), ("min_rear_ttc_s", "min rear TTC (s)", 1),
           ("progress_m", "progress (m)", 1), ("rms_jerk_mps3", "RMS jerk (m/s^3)", 2),
           ("max_decel_mps2", "max decel (m/s^2)", 2), ("hard_brake_events", "hard brakes", 2),
           ("phantom_brake_events", "phantom brakes", 2), ("lateral_brake_events", "brakes for misplaced tracks", 2),
-          ("late_brake_events", "late brakes", 2), ("unconfirmed_lead_s", "unconfirmed lead (s)", 2))
+          ("late_brake_events", "late brakes", 2), ("unconfirmed_lead_s", "unconfirmed lead (s)", 2),
+          ("goal_reached", "goal reached (rate)", 2), ("time_to_goal_s", "time to goal (s)", 2))
 #: Metrics of the paired table (difference mode - truth), in order.
 _PAIRED = ("min_ttc_s", "min_rear_ttc_s", "min_time_headway_s", "progress_m", "max_decel_mps2", "hard_brake_events",
            "rms_jerk_mps3")
@@ -742,6 +788,7 @@ __all__ = [
     "METRICS",
     "TRUTH",
     "Task",
+    "set_speed_for",
     "event_causes",
     "fault_config",
     "make_env",

@@ -13,5 +13,6 @@ of ``sim``. Modules:
 - ``sim.world.recording``: recorded traffic (``Recording``), the CommonRoad reader and the default ego;
 - ``sim.world.smoothing``: physical truth from noisy recordings (an RTS smoother, a car width bound);
 - ``sim.world.replay``: ``ReplayWorld``, recorded traffic as the truth of a run, and its road;
+- ``sim.world.driven``: ``DrivenReplayWorld``, recorded traffic with an ego of one's own (the closed loop's);
 - ``sim.world.truth``: ``Snapshot``, the truth handed to the sensors and the evaluator.
 """

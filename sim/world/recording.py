@@ -12,6 +12,12 @@ leaves the truth set. Without a choice, the rule is: among the vehicles recorded
 to the last (within ``PRESENT_SLACK`` samples) and no longer than ``EGO_MAX_LENGTH`` (a car, whose
 roof a lidar fits), the one with the most (other vehicle, sample) pairs within the lidar's range of it,
 the lowest id on a tie; when none is recorded throughout, the longest-recorded such vehicle.
+
+**The planning problem** (``Recording.planning``, ``PlanningProblem``): a CommonRoad file also poses a
+planning problem, a vehicle's initial state and a goal (a region of the map and a time interval). In the
+NGSIM-derived files it is a recorded vehicle taken out of the traffic (its initial state lies 3-10 m
+from every recorded vehicle's), so a driver of one's own can take its place: the closed loop drives its
+ego from there (``sim.world.driven``). A file with several problems gives the one with the lowest id.
 """
 
 from __future__ import annotations
@@ -115,15 +121,75 @@ class RecordedVehicle:
 
 
 @dataclass(frozen=True)
+class PlanningProblem:
+    """A planning problem of a recording (module docstring): its ``id``; the initial state at time ``t``
+    (s, the recording's clock): centre ``x``, ``y`` (m, G), heading ``yaw`` (rad), speed ``v`` (m/s); the
+    goal region ``goal`` (polygons, each ``(k, 2)`` vertices in m, G; empty: the goal is a time only) and
+    the goal's time interval ``goal_time`` (s, on the recording's clock; ``None``: any time)."""
+
+    id: int
+    t: float
+    x: float
+    y: float
+    yaw: float
+    v: float
+    goal: tuple[np.ndarray, ...] = ()
+    goal_time: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        where = f"planning problem {self.id}"
+        for name in ("t", "x", "y", "yaw", "v"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{where}: its initial {name} is {getattr(self, name)!r}; it must be finite")
+        polygons = tuple(finite_array(p, f"{where} goal polygon") for p in self.goal)
+        for p in polygons:
+            if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+                raise ValueError(f"{where}: a goal polygon needs (k >= 3, 2) vertices; got shape {p.shape}")
+        object.__setattr__(self, "goal", polygons)
+        if self.goal_time is not None and not self.goal_time[0] <= self.goal_time[1]:
+            raise ValueError(f"{where}: goal time interval {self.goal_time!r} ends before it starts")
+
+    @property
+    def goal_center(self) -> tuple[float, float] | None:
+        """The centroid (m, G) of the goal region (by area, over its polygons); ``None`` without one."""
+        if not self.goal:
+            return None
+        area = cx = cy = 0.0
+        for p in self.goal:
+            x, y = p[:, 0], p[:, 1]
+            cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+            a = 0.5 * float(cross.sum())
+            if abs(a) < 1e-12:  # a degenerate polygon: its vertices' mean
+                area, cx, cy = area + 1e-12, cx + 1e-12 * float(x.mean()), cy + 1e-12 * float(y.mean())
+                continue
+            area += a
+            cx += float(((x + np.roll(x, -1)) * cross).sum()) / 6.0
+            cy += float(((y + np.roll(y, -1)) * cross).sum()) / 6.0
+        return cx / area, cy / area
+
+    def reached(self, xy: np.ndarray) -> np.ndarray:
+        """Whether the points ``xy`` (``(k, 2)`` m, G) lie in the goal region (False everywhere without one)."""
+        from tracker.maps.graph import points_in_polygon
+
+        pts = np.asarray(xy, dtype=float).reshape(-1, 2)
+        inside = np.zeros(len(pts), dtype=bool)
+        for p in self.goal:
+            inside |= points_in_polygon(pts, p)
+        return inside
+
+
+@dataclass(frozen=True)
 class Recording:
     """Recorded traffic: ``name``, the ``vehicles`` (unique ids), the lane map it was recorded on
-    (``map_file``, a file ``tracker.maps.read_map`` reads; ``None``: none) and ``dt``, the sampling step
-    (s; for the ego rule's slack, ``None``: the median step of the samples)."""
+    (``map_file``, a file ``tracker.maps.read_map`` reads; ``None``: none), ``dt``, the sampling step
+    (s; for the ego rule's slack, ``None``: the median step of the samples) and the file's ``planning``
+    problem (``None``: none)."""
 
     name: str
     vehicles: tuple[RecordedVehicle, ...]
     map_file: Path | None = None
     dt: float | None = None
+    planning: PlanningProblem | None = None
 
     def __post_init__(self) -> None:
         vehicles = tuple(self.vehicles)
@@ -198,7 +264,7 @@ def read_commonroad_recording(path: str | Path) -> Recording:
     from tracker.maps.commonroad import open_commonroad
 
     path = Path(path)
-    scenario = open_commonroad(path, what="recording", lanelets_only=False)
+    scenario, problems = open_commonroad(path, what="recording", lanelets_only=False, planning=True)
     dt = float(scenario.dt)
     vehicles = []
     for ob in scenario.dynamic_obstacles:
@@ -228,7 +294,49 @@ def read_commonroad_recording(path: str | Path) -> Recording:
     if not vehicles:
         raise ValueError(f"{path.name}: no recorded vehicles (dynamic obstacles) to replay")
     name = path.name.split(".")[0]
-    return Recording(name, tuple(vehicles), map_file=path, dt=dt)
+    return Recording(name, tuple(vehicles), map_file=path, dt=dt, planning=_planning_problem(problems, dt, path.name))
 
 
-__all__ = ["EGO_MAX_LENGTH", "PRESENT_SLACK", "RecordedVehicle", "Recording", "read_commonroad_recording"]
+def _polygons(shape: object) -> list[np.ndarray]:
+    """The polygons (vertices, m) of a commonroad-io shape or occupancy (through its shapely geometry)."""
+    geometry = getattr(shape, "shapely_object", None)
+    if geometry is None:
+        return []
+    parts = getattr(geometry, "geoms", [geometry])
+    return [np.asarray(g.exterior.coords, dtype=float)[:-1] for g in parts if hasattr(g, "exterior")]
+
+
+def _planning_problem(problems: object, dt: float, name: str) -> PlanningProblem | None:
+    """The planning problem with the lowest id of a commonroad-io ``PlanningProblemSet`` (``None``: none);
+    its goal: the union of its goal states' positions and the hull of their time intervals."""
+    table = getattr(problems, "planning_problem_dict", None) or {}
+    if not table:
+        return None
+    pid = min(table)
+    problem = table[pid]
+    where = f"{name}: planning problem {pid}"
+    start = problem.initial_state
+    try:
+        t, x, y = float(start.time_step) * dt, float(start.position[0]), float(start.position[1])
+        yaw, v = float(start.orientation), float(getattr(start, "velocity", 0.0))
+    except (AttributeError, TypeError, ValueError, IndexError) as exc:
+        raise ValueError(f"{where}: its initial state lacks a position, orientation or time step ({exc})") from None
+    goal: list[np.ndarray] = []
+    lo, hi = math.inf, -math.inf
+    for state in problem.goal.state_list:
+        position = getattr(state, "position", None)
+        if position is not None:
+            goal.extend(_polygons(position))
+        step = getattr(state, "time_step", None)
+        if step is not None:
+            lo = min(lo, float(getattr(step, "start", step)) * dt)
+            hi = max(hi, float(getattr(step, "end", step)) * dt)
+    if v < 0.0:  # reversing: heading turned round, as for the recorded vehicles
+        yaw, v = yaw + math.pi, -v
+    try:
+        return PlanningProblem(int(pid), t, x, y, yaw, v, tuple(goal), (lo, hi) if math.isfinite(lo) else None)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+
+
+__all__ = ["EGO_MAX_LENGTH", "PRESENT_SLACK", "PlanningProblem", "RecordedVehicle", "Recording", "read_commonroad_recording"]

@@ -90,20 +90,28 @@ def replay_road(path: str, truth: str, ego: int) -> Road:
 def route_of(recording: Recording, ego: int, name: str = "") -> Road:
     """The road of vehicle ``ego``'s route through ``recording.map_file`` (module docstring); ``ValueError``
     naming the recording when it has no lane map or the route cannot be built."""
+    car = recording.vehicle(ego)
+    start = (float(car.xy[0, 0]), float(car.xy[0, 1]), float(car.yaw[0]))
+    goal = (float(car.xy[-1, 0]), float(car.xy[-1, 1]))
+    return route_between(recording, start, goal, f"ego {ego}'s route", name)
+
+
+def route_between(recording: Recording, start: tuple[float, float, float], goal: tuple[float, float] | None,
+                  what: str, name: str = "") -> Road:
+    """The road of the route through ``recording.map_file`` from ``start`` (x m, y m, yaw rad) to ``goal``
+    (x, y m; ``None`` or within 1 m of the start: on from the start's pose), ``EGO_RANGE`` ahead and behind
+    where the map goes on; ``ValueError`` naming the recording and ``what`` when it cannot be built."""
     from tracker.maps import read_map, route_road
 
     path = recording.map_file
     if path is None:
         raise ValueError(f"recording {recording.name!r} has no lane map (map_file); give its road")
-    car = recording.vehicle(ego)
-    start = (float(car.xy[0, 0]), float(car.xy[0, 1]), float(car.yaw[0]))
-    goal = (float(car.xy[-1, 0]), float(car.xy[-1, 1]))
-    if math.hypot(goal[0] - start[0], goal[1] - start[1]) < 1.0:
+    if goal is not None and math.hypot(goal[0] - start[0], goal[1] - start[1]) < 1.0:
         goal = None  # a standing ego: the route goes on from its pose
     try:
         return route_road(read_map(path), start, goal, onward=EGO_RANGE, behind=EGO_RANGE)
     except ValueError as exc:
-        raise ValueError(f"{Path(name or path).name}: no road along ego {ego}'s route: {exc}") from None
+        raise ValueError(f"{Path(name or path).name}: no road along {what}: {exc}") from None
 
 
 class ReplayWorld:
@@ -122,13 +130,17 @@ class ReplayWorld:
         self.recording, self.smoothing, self.truth = recording, smoothing, truth
         self.ego_id = replay_ego(recording, ego)
         self.road = road
+        ego_car = self.recording.vehicle(self.ego_id)
+        self._ego = ego_car
+        self._set_traffic([v for v in self.recording.vehicles if v.id != self.ego_id], ego_car.start)
+
+    def _set_traffic(self, others: list[RecordedVehicle], t0: float) -> None:
+        """The recorded vehicles ``others`` are the truth; run time 0 is recording time ``t0`` (s)."""
         self.ground = None
         self.removed: dict[int, float] = {}
         self.collisions: list[tuple[float, int, int]] = []
-        ego_car = self.recording.vehicle(self.ego_id)
-        self._ego = ego_car
-        self.t0 = ego_car.start
-        self._others = [v for v in self.recording.vehicles if v.id != self.ego_id]
+        self.t0 = float(t0)
+        self._others = others
         self._heights = {v.id: float(CLASS_HEIGHTS.get(v.kind, default_height(v.length))) for v in self._others}
         self._carry_until = {v.id: self._leaves_road(v) for v in self._others if v.end < self.t0 + self.duration}
         self.t = 0.0
@@ -193,20 +205,10 @@ class ReplayWorld:
 
     def _snapshot(self, t: float, road_coordinates: bool) -> Snapshot:
         if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
-            raise ValueError(f"ReplayWorld: t must be a finite number of seconds; got {t!r}")
+            raise ValueError(f"{type(self).__name__}: t must be a finite number of seconds; got {t!r}")
         self.t = float(t)
         when = self.t0 + min(max(float(t), 0.0), self.duration)
-        ego = self._ego.state_at(when)
-        assert ego is not None
-        rows, ids = [], []
-        for v in self._others:
-            state = v.state_at(when)
-            if state is None and v.end < when <= self._carry_until.get(v.id, v.end):
-                state = self._carried(v, when)
-            if state is not None:
-                rows.append((*state, v.length, v.width, self._heights[v.id]))
-                ids.append(v.id)
-        cols = np.array(rows, dtype=float).reshape(-1, 8).T.copy()
+        ids, cols = self._others_at(when)
         xy = np.ascontiguousarray(cols[:2].T)
         yaw = wrap_angle(cols[2])
         road: dict[str, np.ndarray] = {}
@@ -219,14 +221,29 @@ class ReplayWorld:
             xi = wrap_angle(yaw - theta)
             s_dot = cols[3] * np.cos(xi) / np.maximum(1.0 - kappa * n, 1e-6)
             road = {"s": s, "n": n, "xi": xi, "xi_dot": cols[4] - kappa * s_dot}
-        return Snapshot(
-            t=self.t,
-            ego=EgoPose(x=ego[0], y=ego[1], yaw=float(wrap_angle(ego[2])), v=ego[3], yaw_rate=ego[4],
-                        length=self._ego.length, width=self._ego.width,
-                        height=float(CLASS_HEIGHTS.get(self._ego.kind, default_height(self._ego.length)))),
-            ids=np.array(ids, dtype=int), xy=xy, yaw=yaw, v=cols[3], yaw_rate=cols[4], length=cols[5],
-            width=cols[6], height=cols[7], **road,
-        )
+        return Snapshot(t=self.t, ego=self._ego_pose(when), ids=ids, xy=xy, yaw=yaw, v=cols[3], yaw_rate=cols[4],
+                        length=cols[5], width=cols[6], height=cols[7], **road)
+
+    def _others_at(self, when: float) -> tuple[np.ndarray, np.ndarray]:
+        """The recorded vehicles present at recording time ``when`` (s): their ids and the ``(8, k)`` rows
+        x, y (m), yaw (rad), v (m/s), yaw rate (rad/s), length, width, height (m)."""
+        rows, ids = [], []
+        for v in self._others:
+            state = v.state_at(when)
+            if state is None and v.end < when <= self._carry_until.get(v.id, v.end):
+                state = self._carried(v, when)
+            if state is not None:
+                rows.append((*state, v.length, v.width, self._heights[v.id]))
+                ids.append(v.id)
+        return np.array(ids, dtype=int), np.array(rows, dtype=float).reshape(-1, 8).T.copy()
+
+    def _ego_pose(self, when: float) -> EgoPose:
+        """The recorded ego's pose at recording time ``when`` (s)."""
+        ego = self._ego.state_at(when)
+        assert ego is not None
+        return EgoPose(x=ego[0], y=ego[1], yaw=float(wrap_angle(ego[2])), v=ego[3], yaw_rate=ego[4],
+                       length=self._ego.length, width=self._ego.width,
+                       height=float(CLASS_HEIGHTS.get(self._ego.kind, default_height(self._ego.length))))
 
 
-__all__ = ["EGO_RANGE", "ReplayWorld", "load_recording", "replay_ego", "replay_road", "route_of"]
+__all__ = ["EGO_RANGE", "ReplayWorld", "load_recording", "replay_ego", "replay_road", "route_between", "route_of"]

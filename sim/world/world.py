@@ -42,6 +42,7 @@ from sim.world.lanes import build_network
 from sim.world.scenario import ScenarioSpec, polygons_overlap
 from sim.world.traffic import TrafficRoad, make_vehicle
 from sim.world.truth import EgoPose, Snapshot, rectangle_corners
+from tracker import Road
 from tracker.angles import wrap_angle
 
 #: Default internal step (s).
@@ -186,41 +187,11 @@ class World:
         return VehicleState(*self._state_values(vehicle, fraction))
 
     def _pose_values(self, vehicle: object, fraction: float) -> tuple:
-        """``(vid, x, y, yaw, v, yaw_rate, length, width)`` of ``vehicle`` ``fraction`` s after the last
-        grid time, then the heading before wrapping and the slip angle (for ``_state_values``)."""
-        v = vehicle
-        action = v.action  # type: ignore[attr-defined]
-        steering = float(action["steering"])
-        acceleration = float(action["acceleration"])
-        speed = float(v.speed)  # type: ignore[attr-defined]
-        if speed > v.MAX_SPEED:  # type: ignore[attr-defined]  (highway-env's clip_actions)
-            acceleration = min(acceleration, v.MAX_SPEED - speed)  # type: ignore[attr-defined]
-        beta = math.atan(0.5 * math.tan(steering))
-        yaw_rate = speed * math.sin(beta) / v.rear_axle  # type: ignore[attr-defined]
-        heading = float(v.heading)  # type: ignore[attr-defined]
-        x, y = float(v.position[0]), float(v.position[1])  # type: ignore[attr-defined]
-        if fraction > 0.0:
-            x += speed * math.cos(heading + beta) * fraction
-            y += speed * math.sin(heading + beta) * fraction
-            heading += yaw_rate * fraction
-            speed = max(speed + acceleration * fraction, 0.0)
-        return (v.vid, x, y, float(wrap_angle(heading)), speed, yaw_rate, float(v.LENGTH), float(v.WIDTH),  # type: ignore[attr-defined]
-                heading, beta)
+        return held_pose(vehicle, fraction)
 
     def _state_values(self, vehicle: object, fraction: float) -> tuple:
         """``_state``'s fields as a plain tuple, in ``VehicleState``'s order (the snapshot's hot path)."""
-        v = vehicle
-        vid, x, y, yaw, speed, yaw_rate, length, width, heading, beta = self._pose_values(vehicle, fraction)
-        if fraction > 0.0:
-            s, n = self.road.to_frenet((x, y), s_hint=v.frenet_s)  # type: ignore[attr-defined]
-        else:
-            s, n = v.frenet_s, v.frenet_n  # type: ignore[attr-defined]
-        _, _, c, sn, kappa = self.road.frame1(float(s))  # scalar fast path of tracker.Road
-        theta = math.atan2(sn, c)
-        xi = float(wrap_angle(heading - theta))
-        s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
-        return (vid, x, y, yaw, speed, yaw_rate, length, width, float(s), float(n), xi, yaw_rate - kappa * s_dot,
-                self.traffic.lane_of(float(n), float(s)))
+        return held_state(vehicle, fraction, self.road, self.traffic)
 
     def states(self) -> list[VehicleState]:
         """Truth of every vehicle in the world at the current time ``t``, the ego first."""
@@ -281,3 +252,44 @@ class World:
     def run(self, times: np.ndarray | list[float]) -> list[Snapshot]:
         """Snapshots at increasing ``times`` (s)."""
         return [self.truth_at(float(t)) for t in times]
+
+
+def held_pose(vehicle: object, fraction: float) -> tuple:
+    """``(vid, x, y, yaw, v, yaw_rate, length, width)`` of the highway-env ``vehicle`` ``fraction`` s after
+    its last grid state (its held action over the bicycle model, without moving it), then the heading
+    before wrapping and the slip angle (for ``held_state``)."""
+    v = vehicle
+    action = v.action  # type: ignore[attr-defined]
+    steering = float(action["steering"])
+    acceleration = float(action["acceleration"])
+    speed = float(v.speed)  # type: ignore[attr-defined]
+    if speed > v.MAX_SPEED:  # type: ignore[attr-defined]  (highway-env's clip_actions)
+        acceleration = min(acceleration, v.MAX_SPEED - speed)  # type: ignore[attr-defined]
+    beta = math.atan(0.5 * math.tan(steering))
+    yaw_rate = speed * math.sin(beta) / v.rear_axle  # type: ignore[attr-defined]
+    heading = float(v.heading)  # type: ignore[attr-defined]
+    x, y = float(v.position[0]), float(v.position[1])  # type: ignore[attr-defined]
+    if fraction > 0.0:
+        x += speed * math.cos(heading + beta) * fraction
+        y += speed * math.sin(heading + beta) * fraction
+        heading += yaw_rate * fraction
+        speed = max(speed + acceleration * fraction, 0.0)
+    return (v.vid, x, y, float(wrap_angle(heading)), speed, yaw_rate, float(v.LENGTH), float(v.WIDTH),  # type: ignore[attr-defined]
+            heading, beta)
+
+
+def held_state(vehicle: object, fraction: float, road: Road, traffic: TrafficRoad) -> tuple:
+    """``VehicleState``'s fields (a plain tuple, in its order) of ``vehicle`` ``fraction`` s after its last
+    grid state on ``road`` (``held_pose`` plus the road coordinates; ``traffic`` gives the lane)."""
+    v = vehicle
+    vid, x, y, yaw, speed, yaw_rate, length, width, heading, beta = held_pose(vehicle, fraction)
+    if fraction > 0.0:
+        s, n = road.to_frenet((x, y), s_hint=v.frenet_s)  # type: ignore[attr-defined]
+    else:
+        s, n = v.frenet_s, v.frenet_n  # type: ignore[attr-defined]
+    _, _, c, sn, kappa = road.frame1(float(s))  # scalar fast path of tracker.Road
+    theta = math.atan2(sn, c)
+    xi = float(wrap_angle(heading - theta))
+    s_dot = speed * math.cos(xi + beta) / max(1.0 - kappa * n, 1e-6)
+    return (vid, x, y, yaw, speed, yaw_rate, length, width, float(s), float(n), xi, yaw_rate - kappa * s_dot,
+            traffic.lane_of(float(n), float(s)))

@@ -128,9 +128,10 @@ def graph_from_lanelet_network(network, source: str = "map") -> LaneGraph:
     return LaneGraph([lanelet_from_commonroad(ll) for ll in network.lanelets], source=source)
 
 
-def open_commonroad(path: str | Path, *, what: str = "map file", lanelets_only: bool = True):
+def open_commonroad(path: str | Path, *, what: str = "map file", lanelets_only: bool = True, planning: bool = False):
     """commonroad-io's reading of the CommonRoad file ``path`` (``.xml`` or gzip-compressed ``.xml.gz``): its
-    ``LaneletNetwork`` (``lanelets_only``) or its whole ``Scenario``. Raises ``FileNotFoundError`` naming
+    ``LaneletNetwork`` (``lanelets_only``) or its whole ``Scenario`` (with ``planning``: the pair
+    ``(Scenario, PlanningProblemSet)``). Raises ``FileNotFoundError`` naming
     ``what`` for a missing file, ``ValueError`` (one line naming the file, and for a map the broken
     element where the standard library finds it) when commonroad-io cannot read it, ``ImportError``
     without commonroad-io."""
@@ -142,7 +143,10 @@ def open_commonroad(path: str | Path, *, what: str = "map file", lanelets_only: 
         try:
             with quiet():  # notices on older formats
                 opened = reader(str(plain))
-                return opened.open_lanelet_network() if lanelets_only else opened.open()[0]
+                if lanelets_only:
+                    return opened.open_lanelet_network()
+                scenario, problems = opened.open()
+                return (scenario, problems) if planning else scenario
         except Exception as err:  # noqa: BLE001 - any failure of the library becomes one line naming the file
             if lanelets_only:
                 _precheck(plain, path.name)  # names the broken element when it finds one

@@ -189,11 +189,13 @@ def route_lanelets(
     map ends or ``max_length`` m. ``onward`` (m, default 0): after the last point, on along the
     straightest way for that far beyond the end of its lanelet, or to the end of the map (the road a
     sensor at the goal still sees ahead). ``behind`` (m, default 0): the route begins that far before
-    the start of ``start``'s lanelet, along the straightest predecessors where the map has them (the
-    road a sensor at the start sees behind it)."""
+    the start of the route's first lanelet (``start``'s, or the same-direction lane beside it where the
+    route begins), along the straightest predecessors where the map has them (the road a sensor at the
+    start sees behind it)."""
     first = _start_lanelet(graph, start)
-    before = _straightest_back(graph, first, behind) if behind > 0.0 else []
-    return before + _route_from(graph, first, goal, via, max_length, onward)
+    after = _route_from(graph, first, goal, via, max_length, onward)
+    before = _straightest_back(graph, after[0], behind) if behind > 0.0 else []
+    return before + after
 
 
 def _route_from(graph: LaneGraph, first: int, goal: Sequence[float] | None, via: Sequence[Sequence[float]] | None,
