@@ -339,8 +339,8 @@ class _Episode:
             hit = np.flatnonzero(snap.ids == other)
             trace = self.trace_vehicle(snap, sf, int(hit[0]), ego.s) if len(hit) else {"truth_id": other}
             ds = trace.get("truth_ds")
-            where = "" if ds is None else ("ahead" if ds > 0.5 * self.ego_l else "behind" if ds < -0.5 * self.ego_l else "beside")
-            ahead = ahead or where == "ahead"
+            where = "" if ds is None else ("ahead of" if ds > 0.5 * self.ego_l else "behind" if ds < -0.5 * self.ego_l else "beside")
+            ahead = ahead or where == "ahead of"
             self.event("collision", t_c, f"collision with vehicle {other}" + (f" ({where} the ego)" if where else "")
                        + f"; planner lead {d.lead_label}/{d.lead_source}, command {d.accel:.2f} m/s^2, {len(env.tracks)} tracks",
                        lead_label=d.lead_label, **trace)
