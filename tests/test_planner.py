@@ -235,3 +235,20 @@ def test_lane_centres_given_per_step_a_lane_that_ends_and_one_that_is_absent():
         q.act(*obs_with(), lane_centers=(0.0, 1.0))
     with pytest.raises(ValueError, match="needs one present"):
         q.act(*obs_with(), lane_centers=(math.nan,) * 3)
+
+
+def test_a_goal_lane_draws_lane_changes_toward_it_when_the_gap_allows():
+    """``goal_lane``: from lane 0 toward lane 2 one lane at a time, without a slow lead; not into a gap a
+    car alongside closes; no change around a slow lead away from the goal lane."""
+    three = (-1.75, 1.75, 5.25)
+    p = Planner(PlannerConfig(lane_centers=three, goal_lane=2))
+    p.act(*obs_with(ego_v=18.0))
+    assert p.decision.target_lane == 1 and p.decision.changing  # free road: toward the goal lane
+    q = Planner(PlannerConfig(lane_centers=three, goal_lane=2))
+    q.act(*obs_with((-6.0, 1.75, 21.0, 2), ego_v=18.0))  # a car alongside-behind in lane 1
+    assert q.decision.target_lane == 0
+    stay = Planner(PlannerConfig(lane_centers=three, goal_lane=0))  # in the goal lane behind a slow lead
+    stay.act(*obs_with((58.0, -1.75, 14.0, 1), ego_v=18.0))
+    assert stay.decision.target_lane == 0 and not stay.decision.changing
+    with pytest.raises(ValueError, match="goal_lane = 3: must be a lane, 0..2"):
+        PlannerConfig(lane_centers=three, goal_lane=3)

@@ -29,7 +29,9 @@ begin and end); never the world.
   overlapping the lane: a motorcycle on the line between two lanes is in both) leaves a safe gap
   (ahead: ``max(min_change_gap, v_ego * change_headway + 2 s x closing speed)``; behind the same with
   the follower's speed) and its own lead, if any, is farther or faster than the current one; then no
-  new change for ``change_cooldown`` s. Only into a lane present where the ego is.
+  new change for ``change_cooldown`` s. Only into a lane present where the ego is. With a ``goal_lane``
+  (a planning problem's), lane changes go only toward it, one lane at a time, whenever the same gap
+  test allows (and not around slow leads).
 - **Lanes that end.** When the target lane is absent at the ego's ``s`` (a lane map's auxiliary lane has
   ended), the target becomes the present lane nearest to the ego, without the gap test (the lane is gone).
 
@@ -81,6 +83,8 @@ class PlannerConfig:
     min_change_gap: float = 8.0
     change_cooldown: float = 4.0
     min_change_speed: float = 8.0
+    #: Lane to reach (e.g. a planning problem's goal lane; None: none): lane changes go only toward it, one lane at a time, when the gap allows.
+    goal_lane: int | None = None
     max_lead_decel: float = 1.5
 
     def __post_init__(self) -> None:
@@ -92,6 +96,8 @@ class PlannerConfig:
             if len(self.lane_directions) != lanes or any(d not in (-1, 1) for d in self.lane_directions):
                 raise ValueError(f"PlannerConfig.lane_directions = {self.lane_directions!r}: one +1 or -1 per lane ({lanes})")
             object.__setattr__(self, "lane_directions", tuple(int(d) for d in self.lane_directions))
+        if self.goal_lane is not None and not 0 <= self.goal_lane < lanes:
+            raise ValueError(f"PlannerConfig.goal_lane = {self.goal_lane!r}: must be a lane, 0..{lanes - 1}")
         if self.lane_kinds is not None and len(self.lane_kinds) != lanes:
             raise ValueError(f"PlannerConfig.lane_kinds = {self.lane_kinds!r}: one kind per lane ({lanes})")
         lo, hi = self.accel_range
@@ -252,16 +258,22 @@ class Planner:
         gap = None if lead is None else self._gap(lead[2], lead[4], length)
         accel = self._idm(v, gap, lead[3] if lead else v)
 
-        # lane change
-        if (c.lane_changes and not changing and lead is not None and self._since_change >= c.change_cooldown
-                and v >= c.min_change_speed and accel > -c.comfort_decel and lead_decel < c.max_lead_decel
-                and lead[2] < c.change_lookahead and lead[3] < (self._set_speed or 0.0) - c.slow_margin):
-            for k in (lane + 1, lane - 1):
-                if 0 <= k < len(self._centers) and self._may_enter(lane, k) and self._safe(rows, k, v, length, width, lead):
-                    self._target = k
-                    self._since_change = 0.0
-                    changing = True
-                    break
+        # lane change: toward the goal lane when one is set (and present), else around a slow lead
+        may_change = (c.lane_changes and not changing and self._since_change >= c.change_cooldown
+                      and v >= c.min_change_speed and accel > -c.comfort_decel)
+        goal = c.goal_lane if c.goal_lane is not None and not np.isnan(self._centers[c.goal_lane]) else None
+        options: list[int] = []
+        if may_change and goal is not None and goal != lane:
+            options = [lane + (1 if goal > lane else -1)]
+        elif (may_change and goal is None and lead is not None and lead_decel < c.max_lead_decel
+              and lead[2] < c.change_lookahead and lead[3] < (self._set_speed or 0.0) - c.slow_margin):
+            options = [lane + 1, lane - 1]
+        for k in options:
+            if 0 <= k < len(self._centers) and self._may_enter(lane, k) and self._safe(rows, k, v, length, width, lead):
+                self._target = k
+                self._since_change = 0.0
+                changing = True
+                break
 
         steer = self._steering(n, v, xi, xi_dot, length, float(self._centers[self._target]))
         self.decision = Decision(
@@ -292,7 +304,7 @@ class Planner:
         return np.abs(rows[:, COL["n"]] - centers[k]) < half_lane + 0.5 * rows[:, COL["width"]]
 
     def _safe(self, rows: np.ndarray, k: int, v: float, length: float, width: float,
-              lead: tuple[int, str, float, float, float, float]) -> bool:
+              lead: tuple[int, str, float, float, float, float] | None) -> bool:
         c = self.config
         there = rows[self._occupies(rows, k)] if len(rows) else rows
         for row in there:
@@ -305,7 +317,7 @@ class Planner:
             if gap < need:
                 return False
         front = there[there[:, COL["ds"]] > 0.0] if len(there) else there
-        if len(front):
+        if len(front) and lead is not None:
             nearest = front[np.argmin(front[:, COL["ds"]])]
             if nearest[COL["ds"]] <= lead[2] + 10.0 and nearest[COL["v"]] <= lead[3] + 1.0:
                 return False

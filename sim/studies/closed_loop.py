@@ -15,7 +15,8 @@ driven replay (``sim.world.driven``): the recorded vehicles drive as recorded an
 starts at the recording's planning problem's initial state and the planner drives it along the route to
 the goal region, cruising at ``max(v0, d_goal / t_goal)`` (``set_speed_for``: the initial speed, or
 the speed that covers the route distance to the goal's centre by the middle of the goal's time
-interval, whichever is higher). The seeds vary only the sensor noise; the truth runs are the same in
+interval, whichever is higher) and changing lanes toward the goal's lane (``goal_lane_for``; the
+planner's ``goal_lane``) when the gap allows. The seeds vary only the sensor noise; the truth runs are the same in
 every seed. A collision there may be the replay's (a recorded vehicle drives into the ego, which the
 recorded driver's different path avoided): pair it with truth's run of the same recording.
 
@@ -388,6 +389,19 @@ def set_speed_for(env: Any) -> float | None:
     return max(float(ego.v), float(np.asarray(s_goal).reshape(-1)[0] - ego.s) / t_mid)
 
 
+def goal_lane_for(env: Any) -> int | None:
+    """The lane (index on the route's road) holding the goal region's centre in a driven replay: the
+    planner's ``goal_lane`` (module docstring); ``None`` elsewhere, without a goal region, or when the
+    centre lies off the lanes."""
+    world = env.world
+    planning = getattr(world, "planning", None)
+    if planning is None or planning.goal_center is None:
+        return None
+    s, n = world.road.to_frenet(planning.goal_center)
+    lane = int(world.road.lane_index(np.asarray(n).reshape(-1), np.asarray(s).reshape(-1))[0])
+    return lane if 0 <= lane < world.road.lanes else None
+
+
 def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Run one episode with the planner; the row (``METRICS``) and its events (``EVENT_COLUMNS``)."""
     from sim.env.planner import planner_for
@@ -395,7 +409,7 @@ def run_task(task: Task) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     env = make_env(task.source, task.mode, task.duration, task.faults)
     obs, info = env.reset(seed=task.seed)
     planner = planner_for(env.settings, info["lane_centers"], lane_directions=info["lane_directions"],
-                          lane_kinds=info["lane_kinds"], set_speed=set_speed_for(env))
+                          lane_kinds=info["lane_kinds"], set_speed=set_speed_for(env), goal_lane=goal_lane_for(env))
     episode = _Episode(task, env, planner)
     episode.frames(env.step_frames)
     terminated = truncated = False
@@ -788,6 +802,7 @@ __all__ = [
     "METRICS",
     "TRUTH",
     "Task",
+    "goal_lane_for",
     "set_speed_for",
     "event_causes",
     "fault_config",
