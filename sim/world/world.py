@@ -184,14 +184,7 @@ class World:
     # -- truth ----------------------------------------------------------------------------------
     def _state(self, vehicle: object, fraction: float) -> VehicleState:
         """Truth of ``vehicle`` ``fraction`` s after the last grid time (held action, no mutation)."""
-        return VehicleState(*self._state_values(vehicle, fraction))
-
-    def _pose_values(self, vehicle: object, fraction: float) -> tuple:
-        return held_pose(vehicle, fraction)
-
-    def _state_values(self, vehicle: object, fraction: float) -> tuple:
-        """``_state``'s fields as a plain tuple, in ``VehicleState``'s order (the snapshot's hot path)."""
-        return held_state(vehicle, fraction, self.road, self.traffic)
+        return VehicleState(*held_state(vehicle, fraction, self.road, self.traffic))
 
     def states(self) -> list[VehicleState]:
         """Truth of every vehicle in the world at the current time ``t``, the ego first."""
@@ -218,9 +211,12 @@ class World:
     def _snapshot(self, road_coordinates: bool) -> Snapshot:
         fraction = max(self.t - self.grid_time, 0.0)
         vehicles = self.traffic.vehicles
-        ego = self._state_values(vehicles[0], fraction)
-        values = self._state_values if road_coordinates else self._pose_values
-        others = [values(v, fraction) for v in vehicles[1:]]
+        road_, traffic = self.road, self.traffic
+        ego = held_state(vehicles[0], fraction, road_, traffic)
+        if road_coordinates:
+            others = [held_state(v, fraction, road_, traffic) for v in vehicles[1:]]
+        else:
+            others = [held_pose(v, fraction) for v in vehicles[1:]]
         # one array of the others' numbers (x, y, yaw, v, yaw_rate, length, width[, s, n, xi, xi_dot]),
         # then each field as a contiguous row of its transpose
         width = 11 if road_coordinates else 7
