@@ -809,3 +809,75 @@ def test_roadside_objects_follow_the_edges_of_a_road_whose_lanes_change():
     assert len(s) > 40 and beyond.all()
     late = (s > 160.0) & (n < 0)
     assert late.sum() > 3 and n[late].max() > -5.25  # beside the narrowed road, not where the lane was
+
+
+def test_a_rig_of_two_lidars_merges_their_clouds_in_the_vehicle_frame():
+    """A VLP-32C on the roof and an OS1-128 above it: the rig's cloud is each lidar's own scan (the two
+    drawn one after the other from the one stream) moved into E by its mount, each point's lidar and
+    ring known; its points lie in G where each lidar alone puts them; a lidar spike moves a point
+    along its own lidar's ray."""
+    from sim.sensors.lidar3d import merge_scans
+    from sim.sensors.rig import SceneLidar3D
+    from sim.world.ground import FlatGround
+    from tracker.cloud import mount_rotation
+
+    rig_cfg = LidarConfig(model="vlp32c", mount_x=0.5, rig=({"model": "os1-128", "mount_z": 2.3, "mount_yaw_deg": 10.0},))
+    ego = EgoPose(3.0, -1.0, 0.3, length=4.8, width=2.0, height=1.5)
+    snap = snapshot([(14.0, -4.0, 0.3, 4.8, 2.0), (-20.0, 3.5, 0.0, 12.0, 2.5)], ego=ego)
+    scene = SceneLidar3D(rig_cfg, None, FlatGround())
+    assert scene.frame == "vehicle" and len(scene.sensors) == 2
+    merged = scene.scan(snap, rng=np.random.default_rng(7))
+    rng = np.random.default_rng(7)
+    alone = [SceneLidar3D(c, None, FlatGround()).scan(snap, rng=rng) for c in (replace(rig_cfg, rig=()), rig_cfg.rig_config(0))]
+    assert len(merged) == len(alone[0]) + len(alone[1]) and merged.rays == 32 * 1800 + 128 * 1024
+    assert merged.frame == "vehicle" and merged.sensors().tolist() == [0] * len(alone[0]) + [1] * len(alone[1])
+    np.testing.assert_allclose(merged.points_global(), np.concatenate([a.points_global() for a in alone]), atol=1e-9)
+    # the mounts: the OS1-128's points are its sensor-frame points turned by 10 deg and raised to 2.3 m
+    second = merged.points[merged.sensor == 1]
+    np.testing.assert_allclose(second, alone[1].points @ mount_rotation(0.0, 0.0, math.radians(10.0)).T + [0.0, 0.0, 2.3], atol=1e-9)
+    np.testing.assert_allclose(merged.point_origins()[merged.sensor == 0], np.tile([0.5, 0.0, 1.9], (len(alone[0]), 1)))
+    assert merged.beam[merged.sensor == 1].max() > 31 and (merged.vehicle_id == 1).sum() > 200  # rings beyond the VLP-32C's 32
+    # the ranges are each point's distance from its own lidar
+    np.testing.assert_allclose(np.linalg.norm(merged.points - merged.point_origins(), axis=1), merged.range, atol=1e-9)
+    with pytest.raises(ValueError, match="one mount per scan"):
+        merge_scans(alone, [], np.zeros(3), 0.0)
+    # a spike fault keeps a point on its own lidar's ray
+    from sim.sensors.faults import FaultInjector
+    from sim.world.scenario import FaultsSpec
+
+    faults = FaultInjector(FaultsSpec(lidar_spikes=0.5), rig_cfg, np.random.default_rng(1))
+    sf = SensorRig(RigConfig(lidar=rig_cfg)).run(lambda t: replace(snap, t=t), 0.0, seed=2)[0]
+    spiked = faults.frame(sf).lidar
+    moved = spiked.range != sf.lidar.range
+    assert moved.sum() > 1000
+    np.testing.assert_allclose(np.linalg.norm(spiked.points - spiked.point_origins(), axis=1), spiked.range, atol=1e-9)
+    direction = (spiked.points - spiked.point_origins())[moved] / spiked.range[moved, None]
+    before = (sf.lidar.points - sf.lidar.point_origins())[moved] / sf.lidar.range[moved, None]
+    np.testing.assert_allclose(direction, before, atol=1e-9)
+
+
+def test_rig_configuration_errors_and_a_rig_scenario_tracked():
+    """One-line errors for a rig's lidars; a scenario with a rig runs, the tracker told the merged cloud's
+    frame; ``--lidar-model`` replaces the rig by one lidar."""
+    import tomllib
+
+    from sim.evaluation.runner import rig_config_for, run_scenario, tracker_config_for, with_lidar_model
+    from sim.world.scenario import SCENARIO_DIR, parse_scenario
+
+    with pytest.raises(ValueError, match=r"LidarConfig.rig: a rig of several lidars is of 3-D lidars"):
+        LidarConfig(rig=({"model": "vlp16"},))
+    with pytest.raises(ValueError, match=r"LidarConfig.rig\[0\].model must be a 3-D model"):
+        LidarConfig(model="vlp16", rig=({"model": "2d"},))
+    with pytest.raises(ValueError, match=r"LidarConfig.rig\[0\].mount_h: unknown key"):
+        LidarConfig(model="vlp16", rig=({"model": "vlp16", "mount_h": 1.0},))
+    data = tomllib.loads((SCENARIO_DIR / "curve-single.toml").read_text())
+    data["sensors"] = {"lidar": {"model": "vlp32c", "rig": [{"model": "os1-128", "mount_z": 2.2}]}}
+    spec = parse_scenario(data, "test")
+    rig, _ = rig_config_for(spec)
+    config = tracker_config_for(spec, "curvilinear-fused", rig)
+    assert config.cloud.frame == "vehicle" and config.cloud.mount_z == 1.9
+    assert config.detection.lidar_resolution == pytest.approx(math.radians(360.0 / 1800))  # the finer of 0.2 and 0.35 deg
+    result = run_scenario(spec, seed=0, duration=2.0)
+    assert result.metrics["pos_rmse_m"] < 0.3 and result.metrics["cloud_vehicle_kept"] > 0.99
+    single = with_lidar_model(spec, "vlp16")
+    assert "rig" not in single.sensors["lidar"] and rig_config_for(single)[0].lidar.rig == ()

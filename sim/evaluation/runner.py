@@ -195,13 +195,14 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
 
 def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
     """``spec`` with its ``sensors.lidar.model`` set to ``model`` (``"2d"`` or a 3-D model of
-    ``sim.sensors.lidar.LIDAR_MODELS``); with ``"2d"`` the 3-D-only lidar settings are dropped, with a
-    model other than ``"vlp16"`` the VLP-16's beam grid (``GRID_FIELDS``), and a change of model drops
-    the azimuth step (the new model's own applies)."""
+    ``sim.sensors.lidar.LIDAR_MODELS``): one lidar of that model (a rig's further lidars are dropped); with
+    ``"2d"`` the 3-D-only lidar settings are dropped, with a model other than ``"vlp16"`` the VLP-16's beam
+    grid (``GRID_FIELDS``), and a change of model drops the azimuth step (the new model's own applies)."""
     if model not in LIDAR_MODELS:
         raise ValueError(f"lidar model must be one of {list(LIDAR_MODELS)}; got {model!r}")
     sensors = dict(spec.sensors)
     lidar = dict(sensors.get("lidar", {}) or {})
+    lidar.pop("rig", None)
     if model == "2d":
         lidar = {k: v for k, v in lidar.items() if k not in LIDAR3D_FIELDS}
     elif model != "vlp16":
@@ -232,14 +233,16 @@ def check_scenario_settings(spec: ScenarioSpec, variant: str = DEFAULT_VARIANT) 
 
 def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None = None) -> TrackerConfig:
     """The variant's ``TrackerConfig``, told the lidar's range and angular resolution of ``rig`` (as a
-    user configures a tracker for their sensor; a 3-D lidar's mount pose and the ego's box), then the
+    user configures a tracker for their sensor; a 3-D lidar's mount pose and the ego's box; a rig of
+    several lidars: their clouds merged in the vehicle frame, the finest azimuth step), then the
     scenario's ``[tracker]`` overrides."""
     config = variant_config(variant)
     if rig is not None:
+        steps = [rig.lidar.azimuth_step_deg] + [rig.lidar.rig_config(k).azimuth_step_deg for k in range(len(rig.lidar.rig))]
         detection = replace(
             config.detection,
             lidar_range=float(rig.lidar.max_range),
-            lidar_resolution=math.radians(rig.lidar.azimuth_step_deg),
+            lidar_resolution=math.radians(min(steps)),  # a rig's finest azimuth step
         )
         config = replace(config, detection=detection)
         lidar = rig.lidar
@@ -249,6 +252,8 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
             if spec.ego is not None:  # and the ego's own box, whose returns it crops
                 mount.update(ego_length=float(spec.ego.length), ego_width=float(spec.ego.width),
                              ego_height=float(spec.ego.box_height))
+            if lidar.rig:  # a rig's lidars merged in E (sim.sensors.lidar3d.merge_scans); the mount is the first one's
+                mount["frame"] = "vehicle"
             config = replace(config, cloud=replace(config.cloud, **mount))
     if spec.tracker:
         config = apply_overrides(config, dict(spec.tracker), f"{_where(spec)}: tracker")
@@ -315,15 +320,16 @@ def track_states(tracks: list[Track], road: Road) -> np.ndarray:
 
 
 def _lidar_counts(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray:
-    """Lidar returns on each truth vehicle; of a 3-D scan, the azimuth columns with a return on it
-    (what the tracker keeps of a vehicle after its bearing filter, and what the 2-D scan counts), so
-    that "visible" means the same with either lidar model."""
+    """Lidar returns on each truth vehicle; of a 3-D scan, the azimuth columns (of each lidar of a rig)
+    with a return on it (what the tracker keeps of a vehicle after its bearing filter, and what the 2-D
+    scan counts), so that "visible" means the same with either lidar model."""
     if len(snap) == 0:
         return np.zeros(0, dtype=int)
     on = scan.vehicle_id >= 0
     hit = scan.vehicle_id[on]
     if isinstance(scan, LidarScan3D) and len(hit):
-        hit = np.unique(np.stack([hit.astype(float), scan.azimuth[on]], axis=1), axis=0)[:, 0].astype(np.int64)
+        columns = np.stack([hit.astype(float), scan.sensors()[on].astype(float), scan.azimuth[on]], axis=1)
+        hit = np.unique(columns, axis=0)[:, 0].astype(np.int64)
     return np.array([int(np.count_nonzero(hit == i)) for i in snap.ids], dtype=int)
 
 

@@ -100,8 +100,11 @@ class FaultInjector:
             ranges = self.rng.uniform(self.lidar.min_range, self.lidar.max_range, len(lidar))
             if hit.any():
                 new_range = np.where(hit, ranges, lidar.range)
-                direction = lidar.points / np.maximum(np.linalg.norm(lidar.points, axis=1), 1e-12)[:, None]
-                points = np.where(hit[:, None], direction * new_range[:, None], lidar.points)
+                # along each point's own ray: from its lidar (a rig's merged cloud has several)
+                start = lidar.point_origins() if hasattr(lidar, "point_origins") else np.zeros_like(lidar.points)
+                rel = lidar.points - start
+                direction = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-12)[:, None]
+                points = np.where(hit[:, None], start + direction * new_range[:, None], lidar.points)
                 lidar = replace(
                     lidar,
                     range=new_range,

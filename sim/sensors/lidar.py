@@ -12,7 +12,7 @@ below ``min_range``. Points are returned in E (m). Every scan draws the same num
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from functools import cached_property
 
 import numpy as np
@@ -32,6 +32,42 @@ PLANAR_RESOLUTION_DEG = 0.2
 GRID_FIELDS = ("beams", "elevation_min_deg", "elevation_max_deg")
 #: ``LidarConfig`` fields that only the 3-D models use.
 LIDAR3D_FIELDS = GRID_FIELDS + ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")
+
+
+#: Fields of a rig's further lidar (``RigLidar``): its model, azimuth step and mount.
+RIG_LIDAR_FIELDS = ("model", "resolution_deg", "mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg",
+                    "mount_yaw_deg")
+
+
+@dataclass(frozen=True)
+class RigLidar:
+    """A further lidar of a rig (``LidarConfig.rig``): a 3-D ``model`` of ``sim.sensors.lidar3d.LIDAR3D_MODELS``,
+    its azimuth step ``resolution_deg`` (deg; None: the model's) and its mount in E (``mount_x``, ``mount_y``
+    m, 0; ``mount_z`` m, 1.9; ``mount_roll_deg``, ``mount_pitch_deg``, ``mount_yaw_deg`` deg, 0), as
+    ``LidarConfig``'s. It shares the rig's ranges, noise, dropout, rate and phase."""
+
+    model: str
+    resolution_deg: float | None = None
+    mount_x: float = 0.0
+    mount_y: float = 0.0
+    mount_z: float = 1.9
+    mount_roll_deg: float = 0.0
+    mount_pitch_deg: float = 0.0
+    mount_yaw_deg: float = 0.0
+
+    @classmethod
+    def of(cls, value: object, where: str) -> RigLidar:
+        """A ``RigLidar`` from itself or a table (dict) of its fields; ``ValueError`` naming ``where`` and the key."""
+        if isinstance(value, RigLidar):
+            return value
+        if not isinstance(value, dict):
+            raise ValueError(f"{where} must be a table of {', '.join(RIG_LIDAR_FIELDS)}; got {value!r}")
+        unknown = sorted(set(value) - set(RIG_LIDAR_FIELDS))
+        if unknown:
+            raise ValueError(f"{where}.{unknown[0]}: unknown key; allowed keys: {', '.join(RIG_LIDAR_FIELDS)}")
+        if "model" not in value:
+            raise ValueError(f"{where}.model: missing; a rig's lidar names its 3-D model ({', '.join(LIDAR3D_MODELS)})")
+        return cls(**value)
 
 
 def _positive(owner: str, name: str, value: float, *, allow_zero: bool = False) -> None:
@@ -62,7 +98,11 @@ class LidarConfig:
       grid (every 2 deg), ``"vlp16"`` only (the other models' tables are fixed);
     - ``mount_x``, ``mount_y`` (0 m), ``mount_z`` (1.9 m, the roof) and ``mount_roll_deg``,
       ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (origin on the ground under the
-      ego's centre, z up), ``p_E = Rz(yaw) Ry(pitch) Rx(roll) p_sensor + t``.
+      ego's centre, z up), ``p_E = Rz(yaw) Ry(pitch) Rx(roll) p_sensor + t``;
+    - ``rig`` (empty): further lidars of a rig (``RigLidar``: a 3-D model and its mount; in a scenario file
+      ``[[sensors.lidar.rig]]`` tables), each sharing the ranges, noise, dropout, rate and phase above;
+      their scans and this one's are merged into one cloud in E (``sim.sensors.lidar3d.merge_scans``), as
+      a real rig's driver delivers it, each point's lidar known; 3-D models only.
     """
 
     resolution_deg: float | None = None
@@ -83,8 +123,13 @@ class LidarConfig:
     mount_roll_deg: float = 0.0
     mount_pitch_deg: float = 0.0
     mount_yaw_deg: float = 0.0
+    rig: tuple[RigLidar, ...] = ()
 
     def __post_init__(self) -> None:
+        if not isinstance(self.rig, (tuple, list)):
+            raise ValueError(f"LidarConfig.rig must be a list of lidars (tables of {', '.join(RIG_LIDAR_FIELDS)}); "
+                             f"got {self.rig!r}")
+        object.__setattr__(self, "rig", tuple(RigLidar.of(r, f"LidarConfig.rig[{i}]") for i, r in enumerate(self.rig)))
         if self.model not in LIDAR_MODELS:
             raise ValueError(f"LidarConfig.model must be one of {list(LIDAR_MODELS)}; got {self.model!r}")
         if self.resolution_deg is not None:
@@ -108,13 +153,35 @@ class LidarConfig:
                 raise ValueError(
                     f"LidarConfig.{changed[0]} applies to the 3-D lidar only; set model = \"vlp16\" or drop {changed[0]}"
                 )
+            if self.rig:
+                raise ValueError("LidarConfig.rig: a rig of several lidars is of 3-D lidars; set model to one "
+                                 f"({', '.join(LIDAR3D_MODELS)}) or drop rig")
         else:
             if self.model != "vlp16":
                 changed = [f.name for f in fields(self) if f.name in GRID_FIELDS and getattr(self, f.name) != f.default]
                 if changed:
                     raise ValueError(f"LidarConfig.{changed[0]} sets the VLP-16's evenly spaced beams; model "
                                      f"{self.model!r} has its own beam table: drop {changed[0]}")
+            for i, extra in enumerate(self.rig):
+                if extra.model not in LIDAR3D_MODELS:
+                    raise ValueError(f"LidarConfig.rig[{i}].model must be a 3-D model, one of {list(LIDAR3D_MODELS)}; "
+                                     f"got {extra.model!r}")
+                try:
+                    self.rig_config(i).lidar3d_config()
+                except ValueError as exc:
+                    raise ValueError(f"LidarConfig.rig[{i}]: {exc}") from None
             self.lidar3d_config()  # the 3-D fields' own checks
+
+    def rig_config(self, k: int) -> LidarConfig:
+        """The ``LidarConfig`` of the rig's further lidar ``k`` alone: this one's shared settings (ranges,
+        noise, dropout, rate, phase, caster) with its model, azimuth step and mount."""
+        extra = self.rig[k]
+        grid = {name: f.default for f in fields(self) for name in GRID_FIELDS if f.name == name}
+        return replace(self, rig=(), **grid, **{name: getattr(extra, name) for name in RIG_LIDAR_FIELDS})
+
+    def lidar3d_configs(self) -> list[Lidar3DConfig]:
+        """Every lidar of the rig as a ``Lidar3DConfig``: this one first, then ``rig`` in order (a 3-D ``model``)."""
+        return [self.lidar3d_config()] + [self.rig_config(k).lidar3d_config() for k in range(len(self.rig))]
 
     def lidar3d_config(self) -> Lidar3DConfig:
         """The ``sim.sensors.lidar3d.Lidar3DConfig`` of these settings (a 3-D ``model``)."""

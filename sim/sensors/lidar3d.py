@@ -861,13 +861,16 @@ EGO_BODY_ID = -2
 
 @dataclass(frozen=True, eq=False)
 class LidarScan3D:
-    """One scan at time ``t`` (s): ``M`` points, with per point ``points`` (M, 3) in the sensor frame
-    (m), the ray's ``azimuth`` and ``elevation`` (rad, sensor frame) and ``beam`` (0 = lowest), the
-    measured ``range`` (m), and what it hit: ``vehicle_id`` (-1 unless a vehicle; ``EGO_BODY_ID`` the
-    ego's own body, when the scene holds it: ``sim.sensors.rig.SceneLidar3D``),
-    ``roadside_index`` (-1 unless a roadside object) and ``ground``. ``rays`` is the number of rays
-    cast; ``origin`` (3,) and ``rotation`` (3, 3) are the sensor's pose in G
-    (``p_G = rotation @ p_S + origin``)."""
+    """One scan at time ``t`` (s): ``M`` points, with per point ``points`` (M, 3) in the scan's ``frame``
+    (m): ``"sensor"``, the lidar's own, or ``"vehicle"``, the ego frame E (a rig of several lidars merged,
+    ``merge_scans``), the ray's ``azimuth`` and ``elevation`` (rad, its lidar's frame) and ``beam`` (0 =
+    lowest; with ``sensor`` the ring), the measured ``range`` (m), and what it hit: ``vehicle_id`` (-1
+    unless a vehicle; ``EGO_BODY_ID`` the ego's own body, when the scene holds it:
+    ``sim.sensors.rig.SceneLidar3D``), ``roadside_index`` (-1 unless a roadside object) and ``ground``.
+    ``rays`` is the number of rays cast; ``origin`` (3,) and ``rotation`` (3, 3) are the pose of the
+    points' frame in G (``p_G = rotation @ p + origin``). ``sensor`` (M,): the index of the lidar each
+    point came from in its rig (``None``: one lidar, all 0); ``ray_origins`` (K, 3): each lidar's
+    position in the points' frame (``None``: the frame's origin, a lidar's own frame)."""
 
     t: float
     points: np.ndarray
@@ -881,17 +884,54 @@ class LidarScan3D:
     rays: int
     origin: np.ndarray
     rotation: np.ndarray
+    frame: str = "sensor"
+    sensor: np.ndarray | None = None
+    ray_origins: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.range.shape[0])
 
     def points_on(self, vehicle_id: int) -> np.ndarray:
-        """The points (K, 3) in the sensor frame that hit the vehicle with this id."""
+        """The points (K, 3) in the scan's frame that hit the vehicle with this id."""
         return self.points[self.vehicle_id == vehicle_id]
 
     def points_global(self) -> np.ndarray:
         """All points (M, 3) in G (m)."""
         return self.points @ self.rotation.T + self.origin
+
+    def sensors(self) -> np.ndarray:
+        """Each point's lidar index in the rig (M,), 0 for a single lidar's scan."""
+        return np.zeros(len(self), dtype=np.int64) if self.sensor is None else self.sensor
+
+    def point_origins(self) -> np.ndarray:
+        """Where each point's ray starts (M, 3), in the scan's frame: its lidar's position."""
+        if self.ray_origins is None:
+            return np.zeros((len(self), 3))
+        return self.ray_origins[self.sensors()]
+
+
+def merge_scans(scans: Sequence[LidarScan3D], mounts: Sequence[tuple[np.ndarray, np.ndarray]], ego_origin: np.ndarray,
+                ego_yaw: float) -> LidarScan3D:
+    """The scans of a rig's lidars (each in its own frame) as one scan in the ego frame E, as a rig's
+    driver delivers them: ``p_E = R_k p_S + t_k`` with lidar ``k``'s mount ``(R_k, t_k)`` (rotation (3, 3),
+    translation (3,) in E); ``sensor`` says which lidar each point came from, ``ray_origins`` are the
+    ``t_k``, and the frame's pose in G is the ego's ground point ``ego_origin`` (3,) and heading
+    ``ego_yaw`` (rad)."""
+    if len(scans) != len(mounts) or not scans:
+        raise ValueError(f"merge_scans: {len(scans)} scans for {len(mounts)} mounts; one mount per scan, at least one")
+    points = np.concatenate([s.points @ r.T + t for s, (r, t) in zip(scans, mounts)])
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(s, name) for s in scans])
+
+    return LidarScan3D(
+        t=float(scans[0].t), points=points, azimuth=cat("azimuth"), elevation=cat("elevation"), beam=cat("beam"),
+        range=cat("range"), vehicle_id=cat("vehicle_id"), roadside_index=cat("roadside_index"), ground=cat("ground"),
+        rays=int(sum(s.rays for s in scans)), origin=np.asarray(ego_origin, dtype=float).reshape(3),
+        rotation=mount_rotation(0.0, 0.0, float(ego_yaw)), frame="vehicle",
+        sensor=np.concatenate([np.full(len(s), k, dtype=np.int64) for k, s in enumerate(scans)]),
+        ray_origins=np.array([np.asarray(t, dtype=float).reshape(3) for _, t in mounts]),
+    )
 
 
 class Lidar3D:

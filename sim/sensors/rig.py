@@ -31,7 +31,7 @@ import numpy as np
 
 from sim.sensors.clutter import RoadsideObjects
 from sim.sensors.lidar import Lidar, LidarConfig, LidarScan
-from sim.sensors.lidar3d import EGO_BODY_ID, Lidar3D, LidarScan3D, Prisms
+from sim.sensors.lidar3d import EGO_BODY_ID, Lidar3D, LidarScan3D, Prisms, merge_scans
 from sim.sensors.radar import RadarConfig, RadarScan, RadarUnit
 from sim.sensors.scene import VEHICLE_CLEARANCE, vehicle_prisms
 from sim.world.ground import FlatGround, Ground
@@ -71,14 +71,17 @@ class SensorFrame:
 
 
 class SceneLidar3D:
-    """The 3-D lidar (a 3-D ``LidarConfig.model``) seeing a snapshot's vehicles (upright boxes,
-    ``sim.sensors.scene.vehicle_prisms``) and the static ``roadside`` objects (prisms of their
-    ``height`` standing on the ground at their centre) over ``ground``; ``scan`` has the 2-D
-    ``Lidar.scan``'s signature (the roadside objects are fixed at construction)."""
+    """The 3-D lidar (a 3-D ``LidarConfig.model``), or a rig of several (``LidarConfig.rig``), seeing a
+    snapshot's vehicles (upright boxes, ``sim.sensors.scene.vehicle_prisms``) and the static ``roadside``
+    objects (prisms of their ``height`` standing on the ground at their centre) over ``ground``; ``scan``
+    has the 2-D ``Lidar.scan``'s signature (the roadside objects are fixed at construction). One lidar
+    gives its points in its own frame; a rig's lidars scan in order (each its two draws per ray from the
+    one stream) and their points are merged in E (``sim.sensors.lidar3d.merge_scans``)."""
 
     def __init__(self, config: LidarConfig, roadside: RoadsideObjects | None, ground: Ground) -> None:
         self.config = config
-        self.sensor = Lidar3D(config.lidar3d_config())
+        self.sensors = [Lidar3D(c) for c in config.lidar3d_configs()]
+        self.sensor = self.sensors[0]
         self.ground = ground
         self.roadside_count = 0 if roadside is None else len(roadside)
         if self.roadside_count:
@@ -87,32 +90,44 @@ class SceneLidar3D:
         else:
             self._static = Prisms.empty()
 
-    def sees_own_body(self, ego: EgoPose) -> bool:
-        """Whether the lidar sits outside the ego's box (above its roof, or beyond its footprint), so that
-        its rays can return from the ego's own body; a lidar inside the box (a sensor set into a bumper)
-        does not see it."""
-        x, y, z = self.sensor.config.mount_translation
+    @property
+    def frame(self) -> str:
+        """The frame of the scans' points: ``"sensor"`` (one lidar) or ``"vehicle"`` (a rig, merged in E)."""
+        return "vehicle" if len(self.sensors) > 1 else "sensor"
+
+    def sees_own_body(self, ego: EgoPose, sensor: Lidar3D | None = None) -> bool:
+        """Whether the lidar (``sensor``; default the first) sits outside the ego's box (above its roof, or
+        beyond its footprint), so that its rays can return from the ego's own body; a lidar inside the box
+        (a sensor set into a bumper) does not see it."""
+        x, y, z = (sensor or self.sensor).config.mount_translation
         return bool(z > ego.height or abs(x) > 0.5 * ego.length or abs(y) > 0.5 * ego.width)
 
     def scan(self, snapshot: Snapshot, roadside: RoadsideObjects | None = None, *, rng: np.random.Generator) -> LidarScan3D:
         """One scan of ``snapshot`` from the ego pose at its ground height ``ego.z`` (``roadside`` is
         ignored: the objects given at construction are seen). The ego's own body (its box, from
-        ``VEHICLE_CLEARANCE`` up to ``ego.height``) is in the scene when the lidar sits outside it
+        ``VEHICLE_CLEARANCE`` up to ``ego.height``) is in the scene of each lidar that sits outside it
         (``sees_own_body``): its returns have ``vehicle_id`` ``EGO_BODY_ID``."""
         ego = snapshot.ego
         vehicles = vehicle_prisms(snapshot, (ego.x, ego.y), self.config.max_range)
-        parts = [vehicles]
-        ids = snapshot.ids
-        if self.sees_own_body(ego):  # owner V, its "vehicle id" EGO_BODY_ID
-            base = ego.z + min(VEHICLE_CLEARANCE, 0.5 * ego.height)
-            parts.append(Prisms.from_rectangles([[ego.x, ego.y]], ego.yaw, ego.length, ego.width, base, ego.z + ego.height,
-                                                owner=np.array([len(snapshot)])))
-            ids = np.append(np.asarray(snapshot.ids, dtype=np.int64), EGO_BODY_ID)
-        if self.roadside_count:
-            st = self._static  # roadside object j is owner len(ids) + j
-            parts.append(st.relabel(st.owner + len(ids)))
-        return self.sensor.scan(np.array([ego.x, ego.y, ego.z]), ego.yaw, Prisms.concatenate(parts), self.ground,
-                                vehicle_ids=ids, rng=rng, t=float(snapshot.t))
+        origin = np.array([ego.x, ego.y, ego.z])
+        scans = []
+        for sensor in self.sensors:
+            parts = [vehicles]
+            ids = snapshot.ids
+            if self.sees_own_body(ego, sensor):  # owner V, its "vehicle id" EGO_BODY_ID
+                base = ego.z + min(VEHICLE_CLEARANCE, 0.5 * ego.height)
+                parts.append(Prisms.from_rectangles([[ego.x, ego.y]], ego.yaw, ego.length, ego.width, base,
+                                                    ego.z + ego.height, owner=np.array([len(snapshot)])))
+                ids = np.append(np.asarray(snapshot.ids, dtype=np.int64), EGO_BODY_ID)
+            if self.roadside_count:
+                st = self._static  # roadside object j is owner len(ids) + j
+                parts.append(st.relabel(st.owner + len(ids)))
+            scans.append(sensor.scan(origin, ego.yaw, Prisms.concatenate(parts), self.ground, vehicle_ids=ids, rng=rng,
+                                     t=float(snapshot.t)))
+        if len(scans) == 1:
+            return scans[0]
+        mounts = [(s.config.mount_rotation, s.config.mount_translation) for s in self.sensors]
+        return merge_scans(scans, mounts, origin, ego.yaw)
 
 
 def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence:
