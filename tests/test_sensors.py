@@ -881,3 +881,24 @@ def test_rig_configuration_errors_and_a_rig_scenario_tracked():
     assert result.metrics["pos_rmse_m"] < 0.3 and result.metrics["cloud_vehicle_kept"] > 0.99
     single = with_lidar_model(spec, "vlp16")
     assert "rig" not in single.sensors["lidar"] and rig_config_for(single)[0].lidar.rig == ()
+
+
+def test_an_organized_scan_has_every_ray_nan_where_nothing_returned():
+    """``organized``: one row per ray in firing order, NaN where the ray returned nothing; its returning
+    rows are the plain scan's (the same draws)."""
+    from sim.sensors.rig import SceneLidar3D
+    from sim.world.ground import FlatGround
+
+    snap = snapshot([(14.0, -4.0, 0.3, 4.8, 2.0)])
+    plain = SceneLidar3D(replace(VLP16, dropout_probability=0.01), None, FlatGround()).scan(snap, rng=np.random.default_rng(3))
+    organized = SceneLidar3D(replace(VLP16, dropout_probability=0.01, organized=True), None, FlatGround()).scan(
+        snap, rng=np.random.default_rng(3))
+    assert len(organized) == organized.rays == 28_800 > len(plain)
+    finite = np.isfinite(organized.range)
+    assert finite.sum() == len(plain) and np.isnan(organized.points[~finite]).all()
+    np.testing.assert_array_equal(organized.points[finite], plain.points)
+    np.testing.assert_array_equal(organized.vehicle_id[finite], plain.vehicle_id)
+    assert (organized.vehicle_id[~finite] == -1).all() and not organized.ground[~finite].any()
+    np.testing.assert_array_equal(organized.beam, np.tile(np.arange(16), 1800))  # firing order: azimuth-major
+    with pytest.raises(ValueError, match=r"LidarConfig.organized applies to the 3-D lidar only"):
+        LidarConfig(organized=True)

@@ -9,8 +9,12 @@ A ``Frame(t, ego, lidar, radar)`` holds
   geometric centre, x forward, y left), or ``(N, 3)``: a raw 3-D cloud (x, y, z, m) in the lidar's
   own frame, which the tracker first takes through the paper's 3-D pipeline (``tracker.cloud``:
   the mount transform, RANSAC ground removal, projection to the road plane; the mount pose is
-  ``TrackerConfig.cloud``). Non-finite points are allowed here (real drivers emit them);
-  the tracker drops and counts them;
+  ``TrackerConfig.cloud``; ``CloudConfig.frame = "vehicle"`` for a cloud already in E, such as a
+  rig's merged one). Non-finite points are allowed here (real drivers emit them); the tracker drops
+  and counts them. A driver's ``(N, 4)`` cloud (x, y, z, intensity) and an organized ``(rows,
+  columns, 3 or 4)`` one are taken as they come: flattened row by row, the intensity kept in
+  ``lidar_intensity`` (``(N,)``, the driver's units; ``None`` without one), which the tracker does not
+  use;
 - ``radar``: ``RadarDetections``, arrays ``t, x, y, vx, vy``, one entry per detection received since
   the previous frame, each with its own timestamp ``t <= frame.t``. Positions ``x, y`` (m) are the
   detected point **expressed in E at the frame time** (ego motion between the detection and the frame
@@ -178,6 +182,7 @@ class Frame:
     ego: EgoState
     lidar: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     radar: RadarDetections = field(default_factory=RadarDetections)
+    lidar_intensity: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", _finite_scalar(self.t, "Frame.t"))
@@ -187,13 +192,28 @@ class Frame:
             pts = np.array(lidar, dtype=float)
         except (TypeError, ValueError):
             raise ValueError("Frame.lidar must be a numeric (N, 2) array of points in E (or an (N, 3) cloud)") from None
+        if pts.ndim == 3 and pts.shape[2] in (3, 4):  # an organized cloud: rows x columns
+            pts = pts.reshape(-1, pts.shape[2])
         if pts.size == 0:
-            pts = pts.reshape(0, pts.shape[1] if pts.ndim == 2 and pts.shape[1] == 3 else 2)
-        if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+            pts = pts.reshape(0, pts.shape[1] if pts.ndim == 2 and pts.shape[1] in (3, 4) else 2)
+        if pts.ndim != 2 or pts.shape[1] not in (2, 3, 4):
             raise ValueError(
-                f"Frame.lidar must have shape (N, 2) (x, y in E, m) or (N, 3) (a cloud x, y, z in the lidar's frame, m); got {pts.shape}"
+                f"Frame.lidar must have shape (N, 2) (x, y in E, m), (N, 3) (a cloud x, y, z, m), (N, 4) (x, y, z, "
+                f"intensity) or (rows, columns, 3 or 4) (an organized cloud); got {pts.shape}"
             )
-        object.__setattr__(self, "lidar", _readonly(pts))
+        intensity = self.lidar_intensity
+        if pts.shape[1] == 4:
+            if intensity is not None:
+                raise ValueError("Frame.lidar_intensity: given twice, as lidar's fourth column and on its own; give one")
+            pts, intensity = pts[:, :3], pts[:, 3]
+        if intensity is not None:
+            intensity = np.array(intensity, dtype=float).reshape(-1)
+            if pts.shape[1] != 3 or len(intensity) != len(pts):
+                raise ValueError(f"Frame.lidar_intensity has {len(intensity)} values for a lidar of shape {pts.shape}; "
+                                 "one per point of a 3-D cloud")
+            intensity = _readonly(intensity)
+        object.__setattr__(self, "lidar", _readonly(np.ascontiguousarray(pts)))
+        object.__setattr__(self, "lidar_intensity", intensity)
         radar = self.radar
         if radar is None:
             radar = RadarDetections()

@@ -97,6 +97,7 @@ class FaultInjector:
             changed = True
         elif spec.lidar_spikes > 0.0 and len(lidar):
             hit = self.rng.random(len(lidar)) < spec.lidar_spikes
+            hit &= np.isfinite(lidar.range)  # an organized cloud's rays without a return stay so
             ranges = self.rng.uniform(self.lidar.min_range, self.lidar.max_range, len(lidar))
             if hit.any():
                 new_range = np.where(hit, ranges, lidar.range)

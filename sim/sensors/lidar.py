@@ -31,7 +31,8 @@ PLANAR_RESOLUTION_DEG = 0.2
 #: ``LidarConfig`` fields of the evenly spaced beam grid: only ``"vlp16"`` takes them (the others have tables).
 GRID_FIELDS = ("beams", "elevation_min_deg", "elevation_max_deg")
 #: ``LidarConfig`` fields that only the 3-D models use.
-LIDAR3D_FIELDS = GRID_FIELDS + ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg")
+LIDAR3D_FIELDS = GRID_FIELDS + ("mount_x", "mount_y", "mount_z", "mount_roll_deg", "mount_pitch_deg", "mount_yaw_deg",
+                                 "organized")
 
 
 #: Fields of a rig's further lidar (``RigLidar``): its model, azimuth step and mount.
@@ -99,6 +100,8 @@ class LidarConfig:
     - ``mount_x``, ``mount_y`` (0 m), ``mount_z`` (1.9 m, the roof) and ``mount_roll_deg``,
       ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (origin on the ground under the
       ego's centre, z up), ``p_E = Rz(yaw) Ry(pitch) Rx(roll) p_sensor + t``;
+    - ``organized`` (False): every ray in the cloud, a NaN point where nothing returned (the organized
+      clouds of real drivers: the tracker drops the non-finite rows and counts them);
     - ``rig`` (empty): further lidars of a rig (``RigLidar``: a 3-D model and its mount; in a scenario file
       ``[[sensors.lidar.rig]]`` tables), each sharing the ranges, noise, dropout, rate and phase above;
       their scans and this one's are merged into one cloud in E (``sim.sensors.lidar3d.merge_scans``), as
@@ -123,6 +126,7 @@ class LidarConfig:
     mount_roll_deg: float = 0.0
     mount_pitch_deg: float = 0.0
     mount_yaw_deg: float = 0.0
+    organized: bool = False
     rig: tuple[RigLidar, ...] = ()
 
     def __post_init__(self) -> None:
@@ -189,7 +193,7 @@ class LidarConfig:
         step = {"resolution_deg": self.azimuth_step_deg}
         if self.model == "vlp16":  # the evenly spaced grid, which a scenario may change
             return Lidar3DConfig(**step, **{name: getattr(self, name) for name in shared + LIDAR3D_FIELDS})
-        mount = tuple(name for name in LIDAR3D_FIELDS if name not in GRID_FIELDS)
+        mount = tuple(name for name in LIDAR3D_FIELDS if name not in GRID_FIELDS)  # and organized
         return Lidar3DConfig.of_model(self.model, **step, **{name: getattr(self, name) for name in shared + mount})
 
     @property

@@ -174,7 +174,10 @@ class Lidar3DConfig:
     - ``range_noise_std`` (0.03 m): Gaussian noise on each range, along the ray;
     - ``dropout_probability`` (0.01): chance that a ray which hits returns nothing;
     - ``mount_x``, ``mount_y``, ``mount_z`` (0, 0, 1.9 m: on the roof) and ``mount_roll_deg``,
-      ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (module docstring).
+      ``mount_pitch_deg``, ``mount_yaw_deg`` (0): the sensor's pose in E (module docstring);
+    - ``organized`` (False): deliver every ray in firing order (azimuth-major), a NaN point and range
+      where the ray returned nothing (the sky, a dropout, beyond range), as the organized clouds of
+      Ouster's and Velodyne's drivers do; False: the returns only.
     """
 
     beams: int = 16
@@ -194,9 +197,12 @@ class Lidar3DConfig:
     mount_roll_deg: float = 0.0
     mount_pitch_deg: float = 0.0
     mount_yaw_deg: float = 0.0
+    organized: bool = False
 
     def __post_init__(self) -> None:
         name = "Lidar3DConfig"
+        if not isinstance(self.organized, (bool, np.bool_)):
+            raise ValueError(f"{name}.organized must be true or false; got {self.organized!r}")
         if isinstance(self.beams, bool) or not isinstance(self.beams, (int, np.integer)) or self.beams < 1:
             raise ValueError(f"{name}.beams must be a positive integer; got {self.beams!r}")
         for field_name in ("elevation_min_deg", "elevation_max_deg"):
@@ -993,6 +999,17 @@ class Lidar3D:
         cast = cast_3d(position, directions, prisms, ground, cfg.max_range)
         idx, measured, vehicle_id, roadside_index = ray_returns(cast.hit, cast.range, cast.owner, vehicle_ids, cfg, rng)
         azimuth, elevation, beam = self._ray_angles
+        if cfg.organized:  # every ray, NaN where nothing returned
+            rays = len(cast.hit)
+            rng_full = np.full(rays, np.nan)
+            rng_full[idx] = measured
+            vid, rid = np.full(rays, -1, dtype=np.int64), np.full(rays, -1, dtype=np.int64)
+            vid[idx], rid[idx] = vehicle_id, roadside_index
+            on_ground = np.zeros(rays, dtype=bool)
+            on_ground[idx] = cast.ground[idx]
+            return LidarScan3D(t=float(t), points=cfg.directions * rng_full[:, None], azimuth=azimuth, elevation=elevation,
+                               beam=beam, range=rng_full, vehicle_id=vid, roadside_index=rid, ground=on_ground,
+                               rays=cfg.rays, origin=position, rotation=rotation)
         return LidarScan3D(
             t=float(t),
             points=cfg.directions[idx] * measured[:, None],
