@@ -33,14 +33,20 @@ import argparse
 import math
 import statistics
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from sim.benchmarks._machine import one_core
 from sim.benchmarks._patchwork import MISSING, Patchwork
 from sim.sensors.clutter import ClutterConfig, generate_roadside
-from sim.sensors.lidar3d import LIDAR3D_MODELS, Lidar3D, Lidar3DConfig, Prisms, cast_3d
+from sim.sensors.lidar3d import (
+    LIDAR3D_MODELS,
+    Lidar3D,
+    Lidar3DConfig,
+    Prisms,
+    cast_3d,
+    merge_scans,
+)
 from sim.world.ground import RoadGround
 from tracker import EgoState, Frame, Tracker, TrackerConfig
 from tracker.cloud import CloudConfig, process_cloud
@@ -206,20 +212,20 @@ def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bo
     origin, yaw, ids = scene["origin"], scene["yaw"], scene["vehicle_ids"]
     config = CloudConfig(frame="vehicle", mount_z=RIG[0][1])
 
-    def sweep():
+    mounts = [(lidar.config.mount_rotation, lidar.config.mount_translation) for lidar in lidars]
+
+    def sweep():  # as sim.sensors.rig.SceneLidar3D scans a rig
         scans = [lidar.scan(origin, yaw, prisms, ground, vehicle_ids=ids, rng=rng) for lidar in lidars]
-        cloud = np.concatenate([s.points @ lidar.config.mount_rotation.T + lidar.config.mount_translation
-                                for s, lidar in zip(scans, lidars)])
-        return scans, cloud
+        return merge_scans(scans, mounts, origin, yaw)
 
     with one_core(pin) as cpu:
         sweep()  # warm-up; builds the grid
         scan_ms = _times_ms(sweep, repeats)
-        scans, cloud = sweep()
+        merged = sweep()
+        cloud = merged.points
         result_cloud = process_cloud(cloud, config)
         cloud_ms = _times_ms(lambda: process_cloud(cloud, config), repeats)
         step_ms, tracks = _tracker_steps(scene, cloud, repeats, config)
-    merged = _Merged(np.concatenate([s.ground for s in scans]), np.concatenate([s.vehicle_id for s in scans]))
     removed = result_cloud.ground | result_cloud.below_ground
     result = {
         "model": "+".join(model for model, _ in RIG),
@@ -238,14 +244,6 @@ def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bo
     if verbose:
         print(_line(result))
     return result
-
-
-@dataclass(frozen=True)
-class _Merged:
-    """The labels of a merged cloud that ``_scores`` reads: ``ground`` and ``vehicle_id`` per point."""
-
-    ground: np.ndarray
-    vehicle_id: np.ndarray
 
 
 def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int,
