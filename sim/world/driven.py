@@ -24,7 +24,6 @@ centre lay in the goal region (``None``: not yet).
 from __future__ import annotations
 
 import functools
-import math
 from typing import Any
 
 import numpy as np
@@ -40,6 +39,7 @@ from sim.world.world import (
     TIME_TOLERANCE,
     WORLD_STREAM,
     VehicleState,
+    forward_time,
     held_pose,
     held_state,
 )
@@ -156,11 +156,7 @@ class DrivenReplayWorld(ReplayWorld):
     def advance(self, t: float) -> None:
         """Drive the ego forward to time ``t`` (s; not earlier than the last one), checking collisions and
         the goal at every grid time."""
-        if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
-            raise ValueError(f"DrivenReplayWorld.advance: t must be a finite number of seconds; got {t!r}")
-        t = float(t)
-        if t < self.t - TIME_TOLERANCE:
-            raise ValueError(f"DrivenReplayWorld.advance: time only moves forward; asked for t = {t!r} s after t = {self.t!r} s")
+        t = forward_time(t, self.t, "DrivenReplayWorld.advance")
         while (self._k + 1) * self.step <= t + TIME_TOLERANCE:
             self.traffic.step(self.step)
             self._k += 1

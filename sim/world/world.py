@@ -125,11 +125,7 @@ class World:
 
     def advance(self, t: float) -> None:
         """Move the world forward to time ``t`` (s); ``t`` must not be earlier than the last one."""
-        if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
-            raise ValueError(f"World.advance: t must be a finite number of seconds; got {t!r}")
-        t = float(t)
-        if t < self.t - TIME_TOLERANCE:
-            raise ValueError(f"World.advance: time only moves forward; asked for t = {t!r} s after t = {self.t!r} s")
+        t = forward_time(t, self.t, "World.advance")
         while (self._k + 1) * self.step <= t + TIME_TOLERANCE:
             self._grid_step()
         self.t = max(t, self.t)
@@ -248,6 +244,16 @@ class World:
     def run(self, times: np.ndarray | list[float]) -> list[Snapshot]:
         """Snapshots at increasing ``times`` (s)."""
         return [self.truth_at(float(t)) for t in times]
+
+
+def forward_time(t: object, now: float, where: str) -> float:
+    """``t`` (s) as a float, checked: a finite number not earlier than ``now`` (s); ``ValueError`` naming ``where``."""
+    if not (isinstance(t, (int, float, np.floating)) and math.isfinite(t)):
+        raise ValueError(f"{where}: t must be a finite number of seconds; got {t!r}")
+    t = float(t)
+    if t < now - TIME_TOLERANCE:
+        raise ValueError(f"{where}: time only moves forward; asked for t = {t!r} s after t = {now!r} s")
+    return t
 
 
 def held_pose(vehicle: object, fraction: float) -> tuple:
