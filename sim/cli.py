@@ -425,6 +425,17 @@ def _tracker_settings(items: list[str] | None) -> dict:
     return out
 
 
+def _lidar_model(text: str) -> str:
+    """``--lidar-model``'s value, checked (``sim.evaluation.runner.lidar_models``)."""
+    from sim.evaluation.runner import lidar_models
+
+    try:
+        lidar_models(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _split_variants(values: list[str] | None) -> list[str]:
     from sim.evaluation.variants import DEFAULT_VARIANT
 
@@ -746,7 +757,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     from sim.evaluation.variants import DEFAULT_VARIANT, VARIANTS
-    from sim.sensors.lidar import LIDAR_MODELS
 
     p = sub.add_parser("demo", help=f"run curvy-multi with defaults; figures, GIF and a summary in {OUTPUT_ROOT}/demo/")
     p.add_argument("--out", default=f"{OUTPUT_ROOT}/demo", help=f"output folder (default: {OUTPUT_ROOT}/demo)")
@@ -763,9 +773,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds (default: the scenario's)")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter (posts, trees, parked cars)")
-    p.add_argument("--lidar-model", choices=LIDAR_MODELS,
-                   help="lidar model, replacing the scenario's sensors.lidar.model: 2d (default) or a 3-D one, "
-                        "vlp16, vlp32c, hdl64e or os1-128 (with the tracker's ground removal; writes cloud.png)")
+    p.add_argument("--lidar-model", type=_lidar_model,
+                   help="lidar model, replacing the scenario's lidar: 2d (default) or a 3-D one, vlp16, vlp32c, hdl64e "
+                        "or os1-128 (with the tracker's ground removal; writes cloud.png), or 3-D models joined by + "
+                        "for a rig stacked on the roof (e.g. vlp32c+os1-128)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -776,7 +787,8 @@ def build_parser() -> argparse.ArgumentParser:
                                            "throughout with the most vehicles within 100 m)")
     p.add_argument("--variant", default=DEFAULT_VARIANT, help=f"tracker variant: {', '.join(VARIANTS)}")
     p.add_argument("--seed", type=int, default=0, help="random seed of the sensors (default 0)")
-    p.add_argument("--lidar-model", choices=LIDAR_MODELS, help="lidar model (default: 2d): 2d, vlp16, vlp32c, hdl64e, os1-128")
+    p.add_argument("--lidar-model", type=_lidar_model,
+                   help="lidar model (default: 2d): 2d, vlp16, vlp32c, hdl64e, os1-128, or 3-D models joined by + (a stacked rig)")
     p.add_argument("--raw", action="store_true", help="the recorded samples as truth (default: smoothed, sim.world.smoothing)")
     p.add_argument("--out", help=f"output folder (default: {OUTPUT_ROOT}/replay-NAME-VARIANT-seedN)")
     p.add_argument("--gif", action="store_true", help="also write an animated GIF (run.gif)")
@@ -804,8 +816,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="first seed (seeds SEED .. SEED+RUNS-1)")
     p.add_argument("--duration", type=float, help="simulate only this many seconds per run")
     p.add_argument("--no-roadside", action="store_true", help="no roadside clutter")
-    p.add_argument("--lidar-model", choices=LIDAR_MODELS,
-                   help="lidar model for every scenario, replacing sensors.lidar.model: 2d, or 3-D vlp16, vlp32c, hdl64e, os1-128")
+    p.add_argument("--lidar-model", type=_lidar_model,
+                   help="lidar model for every scenario, replacing its lidar: 2d, or 3-D vlp16, vlp32c, hdl64e, os1-128, "
+                        "or 3-D models joined by + for a rig stacked on the roof (e.g. vlp32c+os1-128)")
     p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE",
                    help="a tracker setting for every run, over the scenarios' own [tracker] overrides "
                         "(repeatable; e.g. measurement.grow_extent=false, birth.classes=none)")

@@ -78,7 +78,7 @@ from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
 from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
-from sim.sensors.lidar import GRID_FIELDS, LIDAR3D_FIELDS, LIDAR_MODELS, LidarScan
+from sim.sensors.lidar import GRID_FIELDS, LIDAR3D_FIELDS, LIDAR_MODELS, LidarConfig, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
 from sim.world.ground import Ground
 from sim.world.recording import Recording
@@ -193,13 +193,31 @@ def rig_config_for(spec: ScenarioSpec) -> tuple[RigConfig, ClutterConfig | None]
     return rig, clutter
 
 
+#: Height (m) each further lidar of a stacked rig (``--lidar-model A+B``) sits above the one before it.
+RIG_STACK_M = 0.3
+
+
+def lidar_models(model: str) -> tuple[str, ...]:
+    """The lidars a lidar model name stands for: one of ``sim.sensors.lidar.LIDAR_MODELS``, or 3-D models
+    joined by "+" (a rig stacked on the roof, e.g. ``"vlp32c+os1-128"``); ``ValueError`` naming the choices."""
+    names = tuple(str(model).split("+"))
+    if len(names) == 1 and names[0] in LIDAR_MODELS:
+        return names
+    three_d = [m for m in LIDAR_MODELS if m != "2d"]
+    if len(names) > 1 and all(n in three_d for n in names):
+        return names
+    raise ValueError(f"lidar model must be one of {list(LIDAR_MODELS)}, or 3-D models joined by '+' for a stacked rig "
+                     f"(e.g. vlp32c+os1-128); got {model!r}")
+
+
 def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
-    """``spec`` with its ``sensors.lidar.model`` set to ``model`` (``"2d"`` or a 3-D model of
-    ``sim.sensors.lidar.LIDAR_MODELS``): one lidar of that model (a rig's further lidars are dropped); with
-    ``"2d"`` the 3-D-only lidar settings are dropped, with a model other than ``"vlp16"`` the VLP-16's beam
-    grid (``GRID_FIELDS``), and a change of model drops the azimuth step (the new model's own applies)."""
-    if model not in LIDAR_MODELS:
-        raise ValueError(f"lidar model must be one of {list(LIDAR_MODELS)}; got {model!r}")
+    """``spec`` with its lidar replaced by ``model`` (``lidar_models``): one lidar of that model (a rig's
+    further lidars are dropped), or for ``"A+B..."`` a rig of those 3-D models stacked on the roof, the
+    first at the scenario's mount, each next ``RIG_STACK_M`` higher. With ``"2d"`` the 3-D-only lidar
+    settings are dropped, with a first model other than ``"vlp16"`` the VLP-16's beam grid
+    (``GRID_FIELDS``), and a change of model drops the azimuth step (the new model's own applies)."""
+    models = lidar_models(model)
+    model = models[0]
     sensors = dict(spec.sensors)
     lidar = dict(sensors.get("lidar", {}) or {})
     lidar.pop("rig", None)
@@ -210,6 +228,10 @@ def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
     if lidar.get("model", "2d") != model:
         lidar.pop("resolution_deg", None)
     lidar["model"] = model
+    if len(models) > 1:
+        base = float(lidar.get("mount_z", LidarConfig.mount_z))
+        lidar["rig"] = [{"model": m, "mount_x": float(lidar.get("mount_x", 0.0)), "mount_y": float(lidar.get("mount_y", 0.0)),
+                         "mount_z": base + RIG_STACK_M * k} for k, m in enumerate(models[1:], start=1)]
     sensors["lidar"] = lidar
     out = spec.model_copy(update={"sensors": sensors})
     out._road, out._source = spec._road, spec._source
