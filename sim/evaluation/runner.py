@@ -231,7 +231,7 @@ def with_lidar_model(spec: ScenarioSpec, model: str) -> ScenarioSpec:
     if len(models) > 1:
         base = float(lidar.get("mount_z", LidarConfig.mount_z))
         lidar["rig"] = [{"model": m, "mount_x": float(lidar.get("mount_x", 0.0)), "mount_y": float(lidar.get("mount_y", 0.0)),
-                         "mount_z": base + RIG_STACK_M * k} for k, m in enumerate(models[1:], start=1)]
+                         "mount_z": round(base + RIG_STACK_M * k, 9)} for k, m in enumerate(models[1:], start=1)]
     sensors["lidar"] = lidar
     out = spec.model_copy(update={"sensors": sensors})
     out._road, out._source = spec._road, spec._source
