@@ -48,8 +48,10 @@ def test_cluster_birth_from_an_l_shape(road):
     assert abs(xi) < 0.05
     assert length == pytest.approx(4.8, abs=0.2) and width == pytest.approx(2.0, abs=0.2)
     assert v == pytest.approx(17.0, abs=0.6)  # radar velocity along the fitted heading
-    # too few points: no birth
-    assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig())[0]) == 0
+    # too few points: no birth (one return without radar; two with min_cluster_points raised to 3)
+    assert len(cluster_births([points[:1]], [None], ego, road, BirthConfig())[0]) == 0
+    assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig())[0]) == 1
+    assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig(min_cluster_points=3))[0]) == 0
 
 
 @pytest.mark.parametrize("classes", [True, False], ids=["vehicle-classes", "off"])
@@ -157,13 +159,13 @@ def test_two_points_with_a_radar_detection_seed_a_birth_at_any_range(road):
     along = np.array([np.cos(theta), np.sin(theta)])
     two = np.vstack([point, point + 0.3 * np.array([-along[1], along[0]]) * np.sign(-point[0, 1] or 1.0)])
     radar_velocity = 15.0 * along
-    cfg = BirthConfig()
+    cfg = BirthConfig(min_cluster_points=3)  # without radar three points (the default 2 would take two alone)
     means, _ = cluster_births([two], [radar_velocity], ego, road, cfg)
     assert means.shape == (1, 7)
     assert means[0, 3] == 0.0 and means[0, 2] == pytest.approx(15.0, abs=0.01)
     assert abs(means[0, 0] - s_car) < 1.0 and abs(means[0, 1] - n_car) <= 1.3
     assert len(cluster_births([two], [None], ego, road, cfg)[0]) == 0
-    assert len(cluster_births([two], [radar_velocity], ego, road, BirthConfig(min_cluster_points_fused=None))[0]) == 0
+    assert len(cluster_births([two], [radar_velocity], ego, road, BirthConfig(min_cluster_points=3, min_cluster_points_fused=None))[0]) == 0
     assert len(cluster_births([point], [radar_velocity], ego, road, cfg)[0]) == 0
 
 

@@ -545,15 +545,18 @@ def test_a_reported_track_below_the_extraction_threshold_stays_reported_above_ke
         assert tr.stats["tracks_kept_below_threshold"] == 1 and tr.stats["label_splits"] == 0
 
 
-@pytest.mark.parametrize("use_radar", [True, False], ids=["fused", "lidar-only"])
-def test_a_far_car_mostly_hidden_behind_another_is_tracked_when_the_radar_sees_it(use_radar):
+@pytest.mark.parametrize(("use_radar", "fewest"), [(True, 3), (False, 2), (False, 3)],
+                         ids=["fused", "lidar-only", "lidar-only-three-points"])
+def test_a_far_car_mostly_hidden_behind_another_is_tracked_when_the_radar_sees_it(use_radar, fewest):
     """A car 87 m ahead, behind another 30 m ahead in the ego's lane, shows the lidar two points of its
     rear corner. Fused, the radar's detection on it lets those two points seed a birth
-    (``BirthConfig.min_cluster_points_radar``): reported from the second frame on, within 1 m along the
-    road and 1 m across. Lidar-only, two points stay below ``min_cluster_points`` (3): not reported in
-    3 s. Fails on the code before the sparse birth (fused never reports it either)."""
+    (``BirthConfig.min_cluster_points_radar``) even when three are needed without radar: reported from
+    the second frame on, within 1 m along the road and 1 m across. Lidar-only, two points seed a birth
+    with the default ``min_cluster_points`` (2), and nothing is reported in 3 s when it is 3."""
     road, far, scene = peeking_scene(107.0, 2.6, 50.0)
-    tracker = Tracker(road, dataclasses.replace(TrackerConfig(), use_radar=use_radar))
+    cfg = TrackerConfig()
+    cfg = dataclasses.replace(cfg, use_radar=use_radar, birth=dataclasses.replace(cfg.birth, min_cluster_points=fewest))
+    tracker = Tracker(road, cfg)
     rng = np.random.default_rng(0)
     reported = []
     for k in range(30):
@@ -563,7 +566,7 @@ def test_a_far_car_mostly_hidden_behind_another_is_tracked_when_the_radar_sees_i
             assert int((frame.lidar[:, 0] > 70.0).sum()) == 2  # the scene shows two points of the far car
         near = [tr for tr in tracker.step(frame) if abs(tr.mean[0] - far.s_at(t)) < 1.0 and abs(tr.mean[1] - far.n) < 1.0]
         reported.append(len(near) == 1)
-    if use_radar:
+    if use_radar or fewest == 2:
         assert all(reported[1:])
     else:
         assert not any(reported)
@@ -1280,7 +1283,7 @@ def _assert_clustered_as_the_oracle(tracker, points, frame, rect) -> dict:
     config = tracker.config
     want = oracle.cluster(points, rect, labels, tracks, length_sd, tracker._point_n, frame.radar, frame.t,
                           config.clustering, scan=tracker._scan, step=config.detection.lidar_resolution,
-                          margin=config.measurement.shadow_margin, min_part=config.birth.min_cluster_points)
+                          margin=config.measurement.shadow_margin, min_part=config.clustering.along_min_part)
     assert len(clusters) == len(want[0])
     for a, b in zip(clusters, want[0]):
         assert a.dtype == b.dtype and np.array_equal(a, b)

@@ -420,13 +420,13 @@ class BirthConfig:
     heading_std: float = 0.1
     #: Std of a birth's heading rate ``xi_dot`` (rad/s; default 0.05).
     heading_rate_std: float = 0.05
-    #: Fewest points of an unexplained cluster that seeds a birth (default 3).
-    min_cluster_points: int = 3
+    #: Fewest points of an unexplained cluster that seeds a birth (default 2: a far car's two returns).
+    min_cluster_points: int = 2
     #: ... with a joined radar detection, beyond ``sparse_min_range`` (fused; default 1; None: ``min_cluster_points``).
     min_cluster_points_radar: int | None = 1
     #: ``min_cluster_points_radar`` applies to clusters whose every point is at least this far (m; default 70.0).
     sparse_min_range: float = 70.0
-    #: ... with a joined radar detection, at any range (fused only; default 2; None: ``min_cluster_points``).
+    #: ... with a joined radar detection, at any range (fused only; default 2, below ``min_cluster_points`` only when that is raised; None: ``min_cluster_points``).
     min_cluster_points_fused: int | None = 2
     #: The first frame with lidar points seeds births from its clusters and updates them in that frame (default True).
     first_scan: bool = True
@@ -605,10 +605,12 @@ class ClusteringConfig:
     split_width: float | None = 2.6
     #: ... if that lateral gap is at least this (m; default 0.5).
     split_gap: float = 0.5
-    #: A track's cluster is cut along the track at a gap between consecutive points of at least this, unshadowed, parts of ``birth.min_cluster_points`` (m; default 1.0; None: off).
+    #: A track's cluster is cut along the track at a gap between consecutive points of at least this, unshadowed (m; default 1.0; None: off).
     along_gap: float | None = 1.0
     #: ... and of at least this many ray gaps ``r^2 step / d`` of a side there, ``step`` = ``detection.lidar_resolution`` (default 3.0).
     along_gap_rays: float = 3.0
+    #: ... into parts of at least this many points each (default 3: a lone far return is more likely a grazing side's end).
+    along_min_part: int = 3
     #: A lone component of at most this many points continuing a track's side joins its cluster (default 1; None: off).
     fragment_points: int | None = 1
     #: The track's rectangle is stretched at its far end by this many std of its length (default 4.0).
@@ -629,6 +631,7 @@ class ClusteringConfig:
         if self.along_gap is not None:
             _check("ClusteringConfig", "along_gap", self.along_gap, low=0.0, low_open=True, unit="m")
         _check("ClusteringConfig", "along_gap_rays", self.along_gap_rays, low=0.0)
+        _check_int("ClusteringConfig", "along_min_part", self.along_min_part, 1)
         for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, low_open=True, unit=unit)
         _check_int("ClusteringConfig", "min_points", self.min_points, 1)

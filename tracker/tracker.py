@@ -494,7 +494,7 @@ class Tracker:
             ordered, edges, owned, cut, bounds = along_cuts_kernel(
                 ordered, edges, owned, *axes, 0.5 * rect.length[first], 0.5 * rect.width[first], self._scan,
                 float(self.config.detection.lidar_resolution), float(cfg.along_gap_rays), float(cfg.along_gap),
-                float(self.config.measurement.shadow_margin), int(self.config.birth.min_cluster_points))
+                float(self.config.measurement.shadow_margin), int(cfg.along_min_part))
             self.stats["clusters_cut_along"] += int(cut)
             if cut:
                 self._hole_bounds = (bounds, *axes)
