@@ -180,7 +180,7 @@ class LidarConfig:
         """The ``LidarConfig`` of the rig's further lidar ``k`` alone: this one's shared settings (ranges,
         noise, dropout, rate, phase, caster) with its model, azimuth step and mount."""
         extra = self.rig[k]
-        grid = {name: f.default for f in fields(self) for name in GRID_FIELDS if f.name == name}
+        grid = {f.name: f.default for f in fields(self) if f.name in GRID_FIELDS}
         return replace(self, rig=(), **grid, **{name: getattr(extra, name) for name in RIG_LIDAR_FIELDS})
 
     def lidar3d_configs(self) -> list[Lidar3DConfig]:

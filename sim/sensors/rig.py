@@ -110,20 +110,27 @@ class SceneLidar3D:
         ego = snapshot.ego
         vehicles = vehicle_prisms(snapshot, (ego.x, ego.y), self.config.max_range)
         origin = np.array([ego.x, ego.y, ego.z])
+        scenes: dict[bool, tuple[Prisms, np.ndarray]] = {}  # the frame's scene with and without the ego's body
+
+        def scene(with_body: bool) -> tuple[Prisms, np.ndarray]:
+            if with_body not in scenes:
+                parts = [vehicles]
+                ids = snapshot.ids
+                if with_body:  # owner V, its "vehicle id" EGO_BODY_ID
+                    base = ego.z + min(VEHICLE_CLEARANCE, 0.5 * ego.height)
+                    parts.append(Prisms.from_rectangles([[ego.x, ego.y]], ego.yaw, ego.length, ego.width, base,
+                                                        ego.z + ego.height, owner=np.array([len(snapshot)])))
+                    ids = np.append(np.asarray(snapshot.ids, dtype=np.int64), EGO_BODY_ID)
+                if self.roadside_count:
+                    st = self._static  # roadside object j is owner len(ids) + j
+                    parts.append(st.relabel(st.owner + len(ids)))
+                scenes[with_body] = (Prisms.concatenate(parts), ids)
+            return scenes[with_body]
+
         scans = []
         for sensor in self.sensors:
-            parts = [vehicles]
-            ids = snapshot.ids
-            if self.sees_own_body(ego, sensor):  # owner V, its "vehicle id" EGO_BODY_ID
-                base = ego.z + min(VEHICLE_CLEARANCE, 0.5 * ego.height)
-                parts.append(Prisms.from_rectangles([[ego.x, ego.y]], ego.yaw, ego.length, ego.width, base,
-                                                    ego.z + ego.height, owner=np.array([len(snapshot)])))
-                ids = np.append(np.asarray(snapshot.ids, dtype=np.int64), EGO_BODY_ID)
-            if self.roadside_count:
-                st = self._static  # roadside object j is owner len(ids) + j
-                parts.append(st.relabel(st.owner + len(ids)))
-            scans.append(sensor.scan(origin, ego.yaw, Prisms.concatenate(parts), self.ground, vehicle_ids=ids, rng=rng,
-                                     t=float(snapshot.t)))
+            prisms, ids = scene(self.sees_own_body(ego, sensor))
+            scans.append(sensor.scan(origin, ego.yaw, prisms, self.ground, vehicle_ids=ids, rng=rng, t=float(snapshot.t)))
         if len(scans) == 1:
             return scans[0]
         mounts = [(s.config.mount_rotation, s.config.mount_translation) for s in self.sensors]
