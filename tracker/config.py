@@ -391,8 +391,8 @@ class BirthConfig:
     the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
     from a joined radar detection when fused. The vehicle classes (``classes``) give an unmeasured length
     its prior from the measured width: the classes weighed by their share and the width's likelihood,
-    the length their mixture's mean and variance (``tracker.extent.class_length_prior``); ``max_length``
-    and ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
+    the length their mixture's mean and variance (``tracker.extent.class_length_prior``); ``min_length`` ..
+    ``max_length`` and ``min_width`` .. ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
     paper").
     """
 
@@ -442,6 +442,10 @@ class BirthConfig:
     max_length: float | None = 25.0
     #: Widest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 3.0; None: no limit).
     max_width: float | None = 3.0
+    #: Shortest vehicle: shorter estimates are projected back onto it (m; default 1.5, a motorcycle's 2.2 m less three std).
+    min_length: float = 1.5
+    #: Narrowest vehicle: narrower estimates are projected back onto it (m; default 0.5, a motorcycle's 0.8 m less three std).
+    min_width: float = 0.5
 
     def __post_init__(self) -> None:
         _check_int("BirthConfig", "min_cluster_points", self.min_cluster_points, 1)
@@ -470,6 +474,12 @@ class BirthConfig:
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
+        for name in ("min_length", "min_width"):
+            _check("BirthConfig", name, getattr(self, name), low=0.0, unit="m")
+            limit = getattr(self, name.replace("min", "max"))
+            if limit is not None and getattr(self, name) > limit:
+                raise ValueError(f"BirthConfig.{name} must not exceed {name.replace('min', 'max')} ({limit} m); "
+                                 f"got {getattr(self, name)} m")
         if not isinstance(self.road, bool):
             raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)

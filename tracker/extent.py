@@ -13,8 +13,8 @@ likelihood, their lengths' mixture mean and variance) where it lies beyond one s
 the held length and is longer, or the length is still no more than a car's prior
 (``BirthConfig.length``), or the length is the classes' own wide prior and the width now rules out the
 long classes (``extent_rules_kernel``), the end nearest the sensor staying put with its uncertainty
-(``_replace_length``); then the largest vehicle's limits (``BirthConfig.max_length``, ``max_width``:
-the estimate projected back onto them)."""
+(``_replace_length``); then the vehicle sizes' limits (``BirthConfig.min_length`` .. ``max_length``,
+``min_width`` .. ``max_width``: the estimate projected back onto them)."""
 
 from __future__ import annotations
 
@@ -197,7 +197,7 @@ def grow_extent_kernel(means, covs, excess, sides, corners, min_excess, sigmas):
 @njit
 def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, hold, classes_on, share, class_length,
                         class_length_var, class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor,
-                        max_length, max_width):  # pragma: no cover - compiled
+                        min_length, min_width, max_length, max_width):  # pragma: no cover - compiled
     """The posteriors ``mean (P, D)``, ``cov (P, D, D)`` after the extent rules, in place (module
     docstring). ``mode``, ``sides (P, 2)``: the structure's parts; ``corners (P, 4, 2)``: the predicted
     mean rectangles. With ``hold``: a length (width) no part shows whole keeps its prior mean and
@@ -213,7 +213,7 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     (the width now rules out the long classes; a long vehicle's length grown by a side it showed is a
     lower bound, and stays): the mean moved to the classes' mean and the variance to theirs (where
     longer, the larger of theirs and the held one), the end nearest the sensor kept
-    (``_replace_length``). Then ``L <= max_length``, ``W <= max_width``."""
+    (``_replace_length``). Then ``min_length <= L <= max_length``, ``min_width <= W <= max_width``."""
     pairs = mean.shape[0]
     for p in range(pairs):
         if hold:
@@ -242,7 +242,11 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
                         cov[p, LENGTH, LENGTH] > class_prior_var and variance <= short_var)):
                     _replace_length(mean[p], cov[p], corners[p], length,
                                     max(variance, cov[p, LENGTH, LENGTH]) if e > 0.0 else variance)
-        if mean[p, LENGTH] > max_length:  # np.minimum (a NaN stays a NaN)
+        if mean[p, LENGTH] > max_length:  # np.clip (a NaN stays a NaN)
             mean[p, LENGTH] = max_length
+        elif mean[p, LENGTH] < min_length:
+            mean[p, LENGTH] = min_length
         if mean[p, WIDTH] > max_width:
             mean[p, WIDTH] = max_width
+        elif mean[p, WIDTH] < min_width:
+            mean[p, WIDTH] = min_width

@@ -44,7 +44,7 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                         partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
                         shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
                         growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var,
-                        class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, max_length, max_width):  # pragma: no cover - compiled
+                        class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width):  # pragma: no cover - compiled
     """The posteriors of the pairs ``(component used[inverse[p]], cluster ci[p])`` of the components
     ``means (U, D)``, ``covs (U, D, D)`` (the ones in some pair) and the prepared clusters (the
     ``tracker.measurement.ClusterBatch`` fields). Returns ``(status, mean, cov, log_likelihood, nis,
@@ -117,7 +117,7 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
         r_like, mask, factors, radar, ci, gate, wm, wc, angles, period_index, period)
     extent_rules_kernel(mean, cov, pair_means, pair_covs, mode, sides, mean_corners, hold, classes_on, share,
                         class_length, class_length_var, class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor,
-                        max_length, max_width)
+                        min_length, min_width, max_length, max_width)
     return DONE, mean, cov, log_likelihood, nis, dims, predicted, innovation, rejected
 
 
@@ -203,7 +203,7 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
                           partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
                           min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
                           growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var,
-                          class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, max_length, max_width):  # pragma: no cover - compiled
+                          class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width):  # pragma: no cover - compiled
     """The pairs ``(component comp[p], cluster clu[p])`` of the components ``means_all``, ``covs_all``
     and the clusters ``points_all[offsets_all[k]:offsets_all[k + 1]]`` (E; radar velocity
     ``velocity_all[k]`` where ``has_velocity_all[k]``), updated as the two steps do it: the clusters in
@@ -246,5 +246,5 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
         centroid, occluded, not_free, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar,
         speed_row, min_chord, shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow,
         growth_min, growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var, class_width,
-        class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, max_length, max_width)
+        class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width)
     return result + (n_occluded, n_continued)

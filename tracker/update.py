@@ -231,11 +231,12 @@ def _extent_rule_args(config: TrackerConfig) -> tuple:
     after its arrays): the hold, the vehicle classes' size prior (its arrays, the variances of an
     unmeasured length (``UNMEASURED``) and of the classes' own prior (``CLASS_PRIOR``), the largest
     classes' variance that may shorten it, the car's prior length below which the classes may shorten
-    a held length) and the largest vehicle."""
+    a held length) and the smallest and largest vehicle."""
     b = config.birth
     return ((bool(config.measurement.hold_unobserved_extent), b.classes is not None)
             + class_arrays(b.classes or VEHICLE_CLASSES, b.width_error_std)
             + ((UNMEASURED * b.length_std)**2, (CLASS_PRIOR * b.length_std)**2, b.length_std**2, float(b.length),
+               float(b.min_length), float(b.min_width),
                math.inf if b.max_length is None else float(b.max_length),
                math.inf if b.max_width is None else float(b.max_width)))
 
@@ -381,8 +382,8 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
     """The extent rules after the update, in place (``tracker.extent.extent_rules_kernel``): the
     Schmidt hold of an unobserved extent (``MeasurementConfig.hold_unobserved_extent``), then where a
     length was held and unmeasured and the width seen whole the vehicle classes' length prior
-    (``BirthConfig.classes``), then the largest vehicle (``BirthConfig.max_length``, ``max_width``: the estimate projected back onto
-    it); ``tracker.extent``'s module docstring says what each rule does. ``mean_corners (P, 4, 2)``: the
+    (``BirthConfig.classes``), then the vehicle sizes' limits (``BirthConfig.min_length`` .. ``max_length``,
+    ``min_width`` .. ``max_width``: the estimate projected back onto them); ``tracker.extent``'s module docstring says what each rule does. ``mean_corners (P, 4, 2)``: the
     pairs' predicted mean rectangles in E."""
     mean, cov = np.ascontiguousarray(res.mean), np.ascontiguousarray(res.cov)
     extent_rules_kernel(

@@ -303,16 +303,15 @@ def replace_length_prior(res: UpdateResult, hit: np.ndarray, mean_corners: np.nd
 def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
     """The extent rules after the update, in place: ``hold_unobserved_extent``, then where a length was
-    held and the width seen ``vehicle_class_prior``, then the largest vehicle (the estimate
-    projected back onto ``BirthConfig.max_length``, ``max_width``)."""
+    held and the width seen ``vehicle_class_prior``, then the vehicle sizes' limits (the estimate
+    projected back onto ``BirthConfig.min_length`` .. ``max_length``, ``min_width`` .. ``max_width``)."""
     b = config.birth
     if config.measurement.hold_unobserved_extent:
         held_length, held_width = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
         if b.classes is not None:
             vehicle_class_prior(res, held_length, held_width, mean_corners, b)
-    for index, limit in ((LENGTH, b.max_length), (WIDTH, b.max_width)):
-        if limit is not None:
-            np.minimum(res.mean[:, index], limit, out=res.mean[:, index])
+    for index, low, high in ((LENGTH, b.min_length, b.max_length), (WIDTH, b.min_width, b.max_width)):
+        np.clip(res.mean[:, index], low, np.inf if high is None else high, out=res.mean[:, index])
     return res
 
 
