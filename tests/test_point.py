@@ -74,3 +74,20 @@ def test_a_track_coasts_then_is_deleted_after_max_misses(curve):
     assert all(len(frames[k]) == 1 for k in range(2, last_seen + 1))
     assert len(frames[last_seen + 3]) == 1 and frames[last_seen + 4] == []
     assert tracker.stats["tracks_deleted"] == 1
+
+
+@pytest.mark.parametrize("fewest, tracked", [(3, False), (2, True)])
+def test_a_two_point_cluster_starts_a_track_only_when_allowed(curve, fewest, tracked):
+    """``PointConfig.min_cluster_points`` (3): a car 50 m ahead scanned at 1 deg shows two returns
+    every frame; the point tracker starts no track from them by default, and tracks it from the third
+    frame when two points are enough."""
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [Car(50.0, 0.0, 15.0, width=1.8)], resolution=np.radians(1.0))
+    rng = np.random.default_rng(0)
+    assert {len(scene.frame(k * DT, rng).lidar) for k in range(30)} == {2}
+    config = dataclasses.replace(TrackerConfig.for_variant("point-lidar"), point=PointConfig(min_cluster_points=fewest))
+    frames, _ = run(scene, config, 2.9)
+    reported = [len(tracks) for tracks in frames]
+    if tracked:
+        assert reported[:2] == [0, 0] and all(n == 1 for n in reported[2:])
+    else:
+        assert sum(reported) == 0

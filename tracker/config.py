@@ -652,11 +652,14 @@ class PointConfig:
     """The point-object GNN tracker (``TrackerConfig.object_model = "point"``, ``tracker.point``).
 
     Gating uses ``GatingConfig`` (pre-gate distance, chi-square probability), births ``BirthConfig``
-    (spreads, minimum points), the radar noise ``MeasurementConfig.radar_velocity_sigma``.
+    (spreads) and ``min_cluster_points`` (a two-point cluster's centroid, unlike a rectangle fitted
+    to it, is no position of the vehicle), the radar noise ``MeasurementConfig.radar_velocity_sigma``.
     """
 
     #: Std of a cluster centroid about the tracked point, per axis in E (m; default 0.5).
     centroid_sigma: float = 0.5
+    #: Fewest points of an unassigned cluster that starts a tentative track (default 3; the extended trackers' births take ``BirthConfig.min_cluster_points``).
+    min_cluster_points: int = 3
     #: A tentative track is confirmed after this many associations ... (default 3).
     confirm_hits: int = 3
     #: ... within its last this many frames (M-of-N; default 5).
@@ -668,7 +671,7 @@ class PointConfig:
 
     def __post_init__(self) -> None:
         _check("PointConfig", "centroid_sigma", self.centroid_sigma, low=0.0, low_open=True, unit="m")
-        for name in ("confirm_hits", "confirm_window", "max_misses", "tentative_max_misses"):
+        for name in ("min_cluster_points", "confirm_hits", "confirm_window", "max_misses", "tentative_max_misses"):
             _check_int("PointConfig", name, getattr(self, name), 1)
         if self.confirm_hits > self.confirm_window:
             raise ValueError(

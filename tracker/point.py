@@ -20,7 +20,7 @@ Per frame (``PointTracker.step``):
    excluded, and ``scipy.optimize.linear_sum_assignment`` picks the one-to-one assignment of least
    total ``d^2``; an assigned track takes its pair's posterior;
 5. **manage** tracks with M-of-N logic: an unassigned cluster with at least
-   ``BirthConfig.min_cluster_points`` points starts a tentative track (centroid, radar speed along
+   ``PointConfig.min_cluster_points`` points starts a tentative track (centroid, radar speed along
    the road or the ego's speed, the birth prior's spreads); it is confirmed (reported) after
    ``PointConfig.confirm_hits`` associations within ``confirm_window`` frames; a track is deleted
    after ``max_misses`` consecutive misses (``tentative_max_misses`` before confirmation), or when it
@@ -219,7 +219,7 @@ class PointTracker:
     def _birth(self, frame: Frame, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> None:
         cfg = self.config.birth
         ego = frame.ego
-        rows = [(c, v) for c, v in zip(clusters, velocities) if len(c) >= cfg.min_cluster_points]
+        rows = [(c, v) for c, v in zip(clusters, velocities) if len(c) >= self.config.point.min_cluster_points]
         if not rows:
             return
         centroid_g = to_global(np.stack([c.mean(axis=0) for c, _ in rows]), (ego.x, ego.y), ego.yaw)
