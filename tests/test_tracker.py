@@ -1322,6 +1322,7 @@ _CLUSTER_CONFIGS = {
     "lenient-fragments": {"fragment_points": 3, "fragment_side_tolerance": None, "fragment_sigmas": 20.0},
     "min-points": {"min_points": 3, "split_gap": 0.2},
     "no-split-no-fragments": {"split_width": None, "fragment_points": None},
+    "along-two": {"along_min_part": 2},
 }
 
 

@@ -1120,7 +1120,7 @@ def along_cuts_kernel(ordered, edges, owned, ctr, c, s, half_l, half_w, scan, st
       seen at a grazing angle, whose ray gap the heading's error hides, than a vehicle of its own).
 
     Of a cut cluster the part with most points inside the group's rectangle (half extents ``half_l``,
-    ``half_w``; plus 1e-6 per point: ties to the larger part) stays the group's; the other parts become
+    ``half_w``; ties: the larger part, then the first) stays the group's; the other parts become
     free clusters, appended after the others. A cut is seen free space beyond the kept part: per group,
     the bounds ``(lo, hi)`` in ``t`` its vehicle cannot reach past (``+-inf`` where nothing was cut),
     half the ray gap beyond the kept part's extreme point on each cut side (where the next ray along
@@ -1204,14 +1204,19 @@ def along_cuts_kernel(ordered, edges, owned, ctr, c, s, half_l, half_w, scan, st
             continue
         parts[k] = cuts + 1
         added += cuts
-        votes = np.zeros(cuts + 1)
+        inside = np.zeros(cuts + 1, dtype=np.int64)
+        size = np.zeros(cuts + 1, dtype=np.int64)
         for i in range(lo, hi):
             dx = ordered[i, 0] - ctr[g, 0]
             dy = ordered[i, 1] - ctr[g, 1]
-            votes[part[i]] += 1e-6
+            size[part[i]] += 1
             if abs(dx * c[g] + dy * s[g]) <= half_l[g] and abs(-dx * s[g] + dy * c[g]) <= half_w[g]:
-                votes[part[i]] += 1.0
-        keep[k] = np.argmax(votes)
+                inside[part[i]] += 1
+        best = 0  # most points inside; ties: the larger part, then the first (counted, not summed in floats)
+        for p in range(1, cuts + 1):
+            if inside[p] > inside[best] or (inside[p] == inside[best] and size[p] > size[best]):
+                best = p
+        keep[k] = best
         # the kept part's extreme points toward the cut-off parts bound the vehicle
         lo_t = np.inf
         hi_t = -np.inf

@@ -200,8 +200,8 @@ def along_cuts(ordered: np.ndarray, edges: np.ndarray, owned: np.ndarray, rect: 
         added += cuts
         d = pts - rect.center[tr]
         inside = (np.abs(d @ u) <= 0.5 * rect.length[tr]) & (np.abs(d @ np.array([-u[1], u[0]])) <= 0.5 * rect.width[tr])
-        votes = np.bincount(part[inside], minlength=cuts + 1) + 1e-6 * np.bincount(part, minlength=cuts + 1)
-        keep = int(np.argmax(votes))
+        counts = list(zip(np.bincount(part[inside], minlength=cuts + 1), np.bincount(part, minlength=cuts + 1)))
+        keep = max(range(cuts + 1), key=lambda p: (counts[p], -p))
         kept.append((pts[part == keep], g))
         extra += [(pts[part == p], -1) for p in range(cuts + 1) if p != keep]
     parts = kept + extra
