@@ -412,6 +412,54 @@ def test_lidar_sees_clutter_and_clutter_occludes():
     assert points_per_vehicle(with_posts, 1) < points_per_vehicle(without, 1)
 
 
+def test_walls_hedges_and_curbs_line_the_edges():
+    """Walls, hedges and curbs are chains of quads the road's whole length: a wall's face 1.5 m and a
+    hedge's 2.0 +- 0.3 m outside the edge, a curb's face on it; 3.0, 1.6 and 0.15 m high. They come
+    after the other kinds, curbs last, so the flat scene (the 2-D lidar's and the radar's: no curbs)
+    keeps every other object's index; the random draws before them are the same as without them."""
+    road = StraightRoad(length=500.0)
+    config = ClutterConfig(wall_sides=("left",), hedge_sides=("right",), curb_sides=("left", "right"))
+    objects = generate_roadside(road, config, rng=np.random.default_rng(5))
+    plain = generate_roadside(road, ClutterConfig(), rng=np.random.default_rng(5))
+    assert objects.kind[:len(plain)].tolist() == plain.kind.tolist()
+    np.testing.assert_array_equal(objects.vertices[:len(plain.vertices)], plain.vertices)
+    counts = {k: int(np.sum(objects.kind == k)) for k in ("wall", "hedge", "curb")}
+    assert counts == {"wall": 250, "hedge": 500, "curb": 500}
+    assert objects.kind[-500:].tolist() == ["curb"] * 500
+    for kind, low, high in (("wall", 1.5, 1.8), ("hedge", 1.7 - 1e-9, 3.3 + 1e-9), ("curb", 0.0, 0.15)):
+        k = np.flatnonzero(objects.kind == kind)
+        y = np.concatenate([objects.polygon(i)[:, 1] for i in k])
+        beyond = np.where(y > 0, y - road.left_edge, road.right_edge - y)
+        assert beyond.min() >= low - 1e-9 and beyond.max() <= high + 1e-9, kind
+        assert np.all(objects.height[k] == {"wall": 3.0, "hedge": 1.6, "curb": 0.15}[kind])
+        along = np.concatenate([objects.polygon(i)[:, 0] for i in k])
+        assert along.min() == pytest.approx(0.0) and along.max() == pytest.approx(500.0)
+    flat = objects.flat_scene()
+    assert len(flat) == len(objects) - 500 and "curb" not in flat.kind.tolist()
+    np.testing.assert_array_equal(flat.vertices, objects.vertices[:len(flat.vertices)])
+
+
+def test_the_2d_lidar_and_the_radar_pass_over_curbs():
+    """Curbs are below the 2-D lidar's scan plane and the radar's beam: a rig with them gives the
+    same frames as one without; a 3-D lidar sees them."""
+    road = StraightRoad(length=300.0)
+    curbs = generate_roadside(road, ClutterConfig(curb_sides=("left", "right")), rng=np.random.default_rng(3))
+    plain = generate_roadside(road, ClutterConfig(), rng=np.random.default_rng(3))
+
+    def world(t):
+        base = moving_world(t)
+        ego = EgoPose(base.ego.x + 100.0, 0.0, 0.0, 20.0)
+        return Snapshot(t, ego, base.ids, base.xy + [100.0, 0.0], base.yaw, base.v, base.yaw_rate, base.length, base.width)
+
+    a, b = SensorRig(roadside=curbs).run(world, 0.3, seed=2), SensorRig(roadside=plain).run(world, 0.3, seed=2)
+    for fa, fb in zip(a, b):
+        np.testing.assert_array_equal(fa.frame.lidar, fb.frame.lidar)
+        np.testing.assert_array_equal(fa.frame.radar.as_array(), fb.frame.radar.as_array())
+    three_d = SensorRig(RigConfig(lidar=LidarConfig(model="vlp16")), roadside=curbs).run(world, 0.0, seed=2)
+    curb_index = np.flatnonzero(curbs.kind == "curb")
+    assert np.isin(three_d[0].lidar.roadside_index, curb_index).sum() > 100
+
+
 def test_clutter_config_errors():
     with pytest.raises(ValueError, match="post_offset puts objects within"):
         ClutterConfig(post_offset=0.2)
@@ -419,6 +467,12 @@ def test_clutter_config_errors():
         ClutterConfig(tree_radius=(0.5, 0.1))
     with pytest.raises(ValueError, match="guardrail_sides"):
         ClutterConfig(guardrail_sides=("middle",))
+    with pytest.raises(ValueError, match="curb_sides must be a list"):
+        ClutterConfig(curb_sides="left")
+    with pytest.raises(ValueError, match="wall_thickness must be > 0"):
+        ClutterConfig(wall_thickness=0.0)
+    with pytest.raises(ValueError, match="hedge_offset puts objects within"):
+        ClutterConfig(hedge_offset=0.5)
     with pytest.raises(ValueError, match="no attribute 'length'"):
         generate_roadside(object(), rng=np.random.default_rng(0))
     with pytest.raises(ValueError, match="rng"):

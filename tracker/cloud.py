@@ -34,7 +34,10 @@ rectangle measurement model) takes points ``(x, y)`` in the vehicle frame E. Thi
 4. **Classification** against each point's patch plane, by the signed height ``h`` above it:
    ground ``|h| <= distance_threshold``; below ground ``h < -distance_threshold`` (multipath
    reflections, puddles, noise); above the ceiling ``h > height_ceiling`` (bridges, signs, canopies);
-   the rest is kept.
+   low objects, the points of ``low_object_cell`` square cells of E whose 3 x 3 block of cells holds
+   no point (of those left) higher than ``low_object_height`` (kerbs, debris: no vehicle is so low,
+   and a vehicle's lowest returns share their cells with the returns of its side above them); the
+   rest is kept.
 5. **Projection** of the kept points onto their patch's plane along its normal; their ``(x, y)``
    in E are the 2-D points.
 
@@ -77,11 +80,16 @@ __all__ = [
 #: The frames a cloud may come in (``CloudConfig.frame``): one lidar's own, or the vehicle frame E.
 CLOUD_FRAMES = ("sensor", "vehicle")
 #: The frame check (``CloudConfig.frame``): the ground within this band of horizontal distances from
-#: the lidar (m), its height the 10th percentile of theirs, checked with at least FRAME_CHECK_POINTS of
-#: them and a lidar at least FRAME_CHECK_MOUNT_Z high (m).
+#: the lidar (m), its height the median over FRAME_CHECK_SECTORS equal azimuth sectors around the
+#: lidar of each sector's lowest point (sectors of at least 3 points: the ego's body hides the ground
+#: ahead and behind, and a wall or hedge beside the road, standing on the ground, fills the sides'
+#: band with its face, whose lowest return is near the ground; a stray return below the ground moves
+#: one sector's, not the median), checked with at least FRAME_CHECK_POINTS of them and a lidar at
+#: least FRAME_CHECK_MOUNT_Z high (m).
 FRAME_CHECK_BAND = (3.0, 8.0)
 FRAME_CHECK_POINTS = 30
 FRAME_CHECK_MOUNT_Z = 1.0
+FRAME_CHECK_SECTORS = 16
 #: The frame check looks at about this many of a cloud's points (a stride through it).
 FRAME_CHECK_SAMPLE = 8192
 
@@ -141,9 +149,10 @@ class CloudConfig:
       rig of several lidars (stacked on the roof, on the bumpers) as real drivers deliver it; the mount
       pose is then the primary lidar's, whose position centres the patch layout. Default ``"sensor"``.
       A cloud whose ground near the lidar lies where the other frame would put it (within 3-8 m of
-      ``(mount_x, mount_y)``, its 10th-percentile height more than ``mount_z / 2`` off 0 in E, among
-      about 8,192 points strided through the cloud) is refused with a ``ValueError`` that says so
-      (checked where ``mount_z >= 1`` m and 30 such points exist).
+      ``(mount_x, mount_y)``, its height, the median over 16 azimuth sectors of each one's lowest
+      point, more than ``mount_z / 2`` off 0 in E, among about 8,192 points strided
+      through the cloud) is refused with a ``ValueError`` that says so (checked where ``mount_z >= 1``
+      m and 30 such points exist).
 
     Mount pose of the lidar in E (the sensor frame's origin and orientation):
 
@@ -257,10 +266,18 @@ class CloudConfig:
 
     - ``height_ceiling`` (m above the patch's plane): higher points are dropped. Default 4.0 (the
       EU vehicle height limit): bridges, gantries, signs and tree canopies above a road are gone.
+    - ``low_object_height`` (m above the patch's plane; None: off): a point whose cell's 3 x 3 block
+      holds no point higher than this is a low object and dropped. Default 0.3: a kerb (0.10-0.20 m)
+      stands just above ``distance_threshold``, its returns lie within the road's margin, and they
+      line up along the edge into clusters that seed tracks; a vehicle's returns reach 1.2 m and more.
+    - ``low_object_cell`` (m, > 0): the side of those cells in E. Default 0.5: a vertical side's
+      returns from every beam fall in one cell or its neighbour; a kerb's are 0.5 m or more from any
+      taller object's but a parked car's or a wall's right behind it.
 
     A patch with no plane of its own borrows its inner neighbour's (the patch of the ring inside
     holding its sector's axis, whatever plane that one uses); the disc uses the level plane ``z = 0``
-    when its free fit fails; see :class:`GroundModel` and :func:`fit_ground`.
+    when its free fit fails or the ego could not stand on it (more than ``max_step`` from a corner of
+    its footprint at z = 0 in E); see :class:`GroundModel` and :func:`fit_ground`.
     """
 
     frame: str = "sensor"
@@ -286,6 +303,8 @@ class CloudConfig:
     max_fit_points: int = 128
     column_width_deg: float = 0.2
     height_ceiling: float = 4.0
+    low_object_height: float | None = 0.3
+    low_object_cell: float = 0.5
     ego_length: float = 4.8
     ego_width: float = 2.0
     ego_height: float = 1.5
@@ -334,6 +353,12 @@ class CloudConfig:
         if ceiling <= self.distance_threshold:
             raise ValueError(f"CloudConfig.height_ceiling must be > distance_threshold "
                              f"({self.distance_threshold!r} m); got {self.height_ceiling!r}")
+        if self.low_object_height is not None:
+            low = _real("low_object_height", self.low_object_height, low=0.0, unit="m")
+            if not self.distance_threshold <= low < ceiling:
+                raise ValueError(f"CloudConfig.low_object_height must be within [distance_threshold, height_ceiling) "
+                                 f"([{self.distance_threshold!r}, {self.height_ceiling!r}) m) or None; got {low!r}")
+        _real("low_object_cell", self.low_object_cell, low=0.0, low_open=True, unit="m")
         for name in ("ego_length", "ego_width", "ego_height", "ego_margin"):
             _real(name, getattr(self, name), low=0.0, unit="m")
         _integer("seed", self.seed, 0)
@@ -942,7 +967,11 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
         reach[p] = np.where(inl, radius[rp, :inl.shape[1]], -np.inf).max(axis=1)
 
     hinge_rng = np.random.default_rng((cfg.seed, 2))  # drawn from ring by ring
-    if row[0] >= 0 and free_ok[row[0]]:  # the disc: its free fit, or the level plane
+    # the disc: its free fit where the ego could stand on it, or the level plane. The ego's wheels
+    # are on the ground at z = 0 in E: the plane passes within max_step of the corners of its
+    # footprint (ego_length x ego_width about the origin; the origin alone with the crop off). A
+    # wall or hedge beside the ego tilts a fit through its foot up to it
+    if row[0] >= 0 and free_ok[row[0]] and _stands_on(free_n[row[0]], free_d[row[0]], cfg):
         r0 = row[[0]]
         own(np.array([0]), r0, free_n[r0], free_d[r0], free_inl[r0])
     for j in range(1, len(sectors)):  # then ring by ring outwards, all sectors of a ring at once
@@ -1015,7 +1044,9 @@ def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
        than ``max_slope_deg``, with fewer than ``min_points`` inliers, or with inliers along a line
        (spread below ``min_spread``).
 
-    Then, from the disc outwards: the disc takes its free fit, or the level plane ``z = 0``. A
+    Then, from the disc outwards: the disc takes its free fit where the ego could stand on it (the
+    plane within ``max_step`` of the corners of the ego's footprint, ``ego_length x ego_width`` at
+    z = 0 in E), or the level plane ``z = 0``. A
     patch ``k`` of ring ``j >= 1`` has as inner neighbour ``k'`` the patch of ring ``j - 1`` holding
     its sector's axis ``phi_k``; the neighbour's plane is supported by inliers out to the radius
     ``r'`` (the largest radius of its inliers, or of its source's if it borrowed its plane). In
@@ -1063,7 +1094,7 @@ def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
 class CloudStats:
     """What each stage of :func:`process_cloud` did to one cloud (counts of points).
 
-    ``kept + ground + below_ground + above_ceiling + non_finite + ego_body == points_in``.
+    ``kept + ground + below_ground + above_ceiling + low_object + non_finite + ego_body == points_in``.
     ``segments_fallback`` counts the patches (:class:`GroundModel`) holding finite points whose plane
     was borrowed (their own fits failed or were rejected), ``segments_hinged`` those whose plane is
     their own hinged fit; empty patches are not counted (``GroundModel.fallback`` and ``hinged``
@@ -1076,6 +1107,7 @@ class CloudStats:
     ground: int = 0
     below_ground: int = 0
     above_ceiling: int = 0
+    low_object: int = 0
     kept: int = 0
     segments_fallback: int = 0
     segments_hinged: int = 0
@@ -1092,8 +1124,9 @@ class CloudResult:
     as given, transformed); ``finite`` (N,); ``heights`` (N,) the signed height above the patch's
     plane (m, NaN where not finite or on the ego's body); ``ego_body`` (N,) the returns from the ego's
     own box (``CloudConfig.ego_length`` ...); the disjoint masks ``ground``, ``below_ground``,
-    ``above_ceiling``, ``kept`` (all False on non-finite and ego-body rows). ``points_2d`` (M, 2) are the kept
-    points projected onto their plane along its normal, ``(x, y)`` in E, in input order
+    ``above_ceiling``, ``low_object``, ``kept`` (all False on non-finite and ego-body rows).
+    ``points_2d`` (M, 2) are the kept points projected onto their plane along its normal, ``(x, y)``
+    in E, in input order
     (``M = kept.sum()``). ``model`` is the fitted :class:`GroundModel`, ``stats`` the counts.
 
     A figure of the pipeline: ``points_e[finite]`` (raw cloud), ``points_e[kept]`` (without ground and
@@ -1107,6 +1140,7 @@ class CloudResult:
     ground: np.ndarray
     below_ground: np.ndarray
     above_ceiling: np.ndarray
+    low_object: np.ndarray
     kept: np.ndarray
     points_2d: np.ndarray
     model: GroundModel
@@ -1120,12 +1154,16 @@ def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
         return
     sample = pe[::max(1, len(pe) // FRAME_CHECK_SAMPLE)]  # a stride through the scan order: every azimuth
     with np.errstate(invalid="ignore"):
-        rho = np.hypot(sample[:, 0] - cfg.mount_x, sample[:, 1] - cfg.mount_y)
-        near = sample[(rho >= FRAME_CHECK_BAND[0]) & (rho <= FRAME_CHECK_BAND[1]), 2]
-    near = near[np.isfinite(near)]
+        dx, dy = sample[:, 0] - cfg.mount_x, sample[:, 1] - cfg.mount_y
+        rho = np.hypot(dx, dy)
+        band = (rho >= FRAME_CHECK_BAND[0]) & (rho <= FRAME_CHECK_BAND[1]) & np.isfinite(sample[:, 2])
+    near = sample[band, 2]
     if len(near) < FRAME_CHECK_POINTS:
         return
-    ground = float(np.percentile(near, 10.0))
+    sector = ((np.arctan2(dy[band], dx[band]) + np.pi) * (FRAME_CHECK_SECTORS / (2.0 * np.pi))).astype(np.int64)
+    sector = np.minimum(sector, FRAME_CHECK_SECTORS - 1)
+    lows = [near[sector == k].min() for k in range(FRAME_CHECK_SECTORS) if np.count_nonzero(sector == k) >= 3]
+    ground = float(np.median(lows))
     if abs(ground) > 0.5 * cfg.mount_z:
         said = "a lidar's own frame" if cfg.frame == "sensor" else "the vehicle frame E"
         other = "vehicle" if cfg.frame == "sensor" else "sensor"
@@ -1134,6 +1172,47 @@ def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
             f"{FRAME_CHECK_BAND[0]:g}-{FRAME_CHECK_BAND[1]:g} m from the lidar lies at z = {ground:+.2f} m in E, "
             f"not near 0 (mount_z {cfg.mount_z:g} m): is it in the {other} frame? set CloudConfig.frame = {other!r}"
         )
+
+
+def _stands_on(normal: np.ndarray, offset: float, cfg: CloudConfig) -> bool:
+    """Whether the ego, its footprint ``ego_length x ego_width`` about E's origin at z = 0, could
+    stand on the plane ``normal . p + offset = 0`` (m): the plane within ``max_step`` of each corner."""
+    half = np.array([[0.5 * cfg.ego_length * sx, 0.5 * cfg.ego_width * sy] for sx in (-1, 1) for sy in (-1, 1)])
+    return bool(np.all(np.abs(half @ normal[:2] + offset) <= cfg.max_step * abs(normal[2])))
+
+
+def _low_objects(pts: np.ndarray, h: np.ndarray, candidates: np.ndarray, cfg: CloudConfig) -> np.ndarray:
+    """Which of the ``candidates`` among ``pts`` (N, 3) in E, of heights ``h`` above their planes, are
+    low objects (``CloudConfig.low_object_height``): cells ``low_object_cell`` square in ``(x, y)``
+    keyed by their indices, each cell's highest candidate found by one sort; the cells whose highest is
+    at most the height look up their 8 neighbours' (``searchsorted`` in the sorted keys), and their
+    points are low objects where none of the 9 is higher."""
+    out = np.zeros(len(pts), dtype=bool)
+    if cfg.low_object_height is None or not candidates.any():
+        return out
+    rows = np.flatnonzero(candidates)
+    cell = np.floor(pts[rows, :2] / cfg.low_object_cell).astype(np.int64)
+    ix, iy = cell[:, 0] - cell[:, 0].min() + 1, cell[:, 1] - cell[:, 1].min() + 1  # >= 1: a neighbour >= 0
+    span = int(iy.max()) + 2
+    key = ix * span + iy
+    order = np.argsort(key, kind="stable")
+    keys, first = np.unique(key[order], return_index=True)
+    highest = np.maximum.reduceat(h[rows][order], first)
+    low = highest <= cfg.low_object_height
+    if not low.any():
+        return out
+    block = highest[low].copy()
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx == 0 and dy == 0:
+                continue
+            other = keys[low] + dx * span + dy
+            at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
+            found = keys[at] == other
+            block[found] = np.maximum(block[found], highest[at[found]])
+    low_cells = keys[low][block <= cfg.low_object_height]
+    out[rows[np.isin(key, low_cells)]] = True
+    return out
 
 
 def _ego_body(pe: np.ndarray, cfg: CloudConfig) -> np.ndarray:
@@ -1189,6 +1268,8 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     below_f = h < -tau
     above_f = h > cfg.height_ceiling
     kept_f = ~(ground_f | below_f | above_f)
+    low_f = _low_objects(pts, h, kept_f, cfg)
+    kept_f &= ~low_f
     projected = pts[kept_f] - h[kept_f, None] * model.normals[patch[kept_f]]
     points_2d = np.ascontiguousarray(projected[:, :2])
 
@@ -1213,12 +1294,13 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
         ground=int(np.count_nonzero(ground_f)),
         below_ground=int(np.count_nonzero(below_f)),
         above_ceiling=int(np.count_nonzero(above_f)),
+        low_object=int(np.count_nonzero(low_f)),
         kept=int(np.count_nonzero(kept_f)),
         segments_fallback=int(np.count_nonzero(model.fallback & occupied)),
         segments_hinged=int(np.count_nonzero(model.hinged & occupied)),
     )
     return CloudResult(points_e=pe, finite=finite, ego_body=body, heights=heights, ground=full(ground_f),
-                       below_ground=full(below_f), above_ceiling=full(above_f), kept=full(kept_f),
+                       below_ground=full(below_f), above_ceiling=full(above_f), low_object=full(low_f), kept=full(kept_f),
                        points_2d=points_2d, model=model, stats=stats)
 
 

@@ -77,6 +77,7 @@ from sim.evaluation.metrics import GOSPA_C, GOSPA_P, IdSwitchCounter, gospa, mat
 from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
+from sim.sensors.clutter import EDGE_KINDS
 from sim.sensors.faults import FAULT_STREAM, FaultInjector, fault_metrics
 from sim.sensors.lidar import GRID_FIELDS, LIDAR3D_FIELDS, LIDAR_MODELS, LidarConfig, LidarScan
 from sim.sensors.lidar3d import LidarScan3D
@@ -86,10 +87,11 @@ from sim.world.replay import ReplayWorld
 from sim.world.scenario import ScenarioError, ScenarioSpec, apply_overrides, scenario_name
 from sim.world.truth import Snapshot
 from sim.world.world import World
-from tracker import Frame, Road, Track, TrackerConfig
+from tracker import EgoState, Frame, Road, Track, TrackerConfig
 from tracker.angles import wrap_angle
 from tracker.warmup import warm_up
 from tracker.track import curvilinear_to_cartesian
+from tracker.transforms import to_global
 
 #: Stream tags mixed into the seed for the sensors' and the clutter's random generators.
 SENSOR_STREAM = 0x53454E53  # "SENS"
@@ -378,14 +380,23 @@ def _lidar_bearings(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray
 
 class CloudScore:
     """Ground removal scored against the 3-D lidar's truth labels over a run: ``ground`` returns
-    removed (as ground or below it) and ``vehicle`` returns kept, summed over frames."""
+    removed (as ground or below it) and ``vehicle`` returns kept, summed over frames; with ``road``,
+    also the returns of the road-edge objects (roadside indices ``edge_objects``: walls, hedges,
+    curbs) that ground removal kept and that lie within the road's bounds plus ``road_margin`` (m)
+    where they land in the plane, as the tracker's road filter tests them (``Road.within_bounds``):
+    edge returns the tracker takes for returns on the road."""
 
-    def __init__(self) -> None:
+    def __init__(self, road: Road | None = None, edge_objects: np.ndarray | None = None, road_margin: float = 0.0) -> None:
         self.ground = self.ground_removed = self.removed = self.vehicle = self.vehicle_kept = 0
+        self.edge = self.edge_on_road = 0
         self.frames = 0
+        self.road = road
+        self.edge_objects = np.zeros(0, dtype=np.int64) if edge_objects is None else np.asarray(edge_objects, dtype=np.int64)
+        self.road_margin = float(road_margin)
 
-    def update(self, scan: LidarScan | LidarScan3D, cloud: Any) -> None:
-        """Add a frame: its ``scan`` and the tracker's ``last_cloud`` (``tracker.cloud.CloudResult``)."""
+    def update(self, scan: LidarScan | LidarScan3D, cloud: Any, ego: EgoState | None = None) -> None:
+        """Add a frame: its ``scan``, the tracker's ``last_cloud`` (``tracker.cloud.CloudResult``) and
+        the ego pose (for the road-edge returns)."""
         if cloud is None or not isinstance(scan, LidarScan3D) or len(cloud.kept) != len(scan):
             return
         removed = cloud.ground | cloud.below_ground
@@ -396,21 +407,33 @@ class CloudScore:
         self.removed += int(removed.sum())
         self.vehicle += int(vehicle.sum())
         self.vehicle_kept += int((cloud.kept & vehicle).sum())
+        if self.road is not None and ego is not None and len(self.edge_objects):
+            edge = np.isin(scan.roadside_index, self.edge_objects)
+            self.edge += int(edge.sum())
+            kept_rows = np.flatnonzero(cloud.kept)  # points_2d holds the kept rows, in input order
+            mine = edge[kept_rows]
+            if mine.any():
+                s, n = self.road.to_frenet(to_global(cloud.points_2d[mine], (ego.x, ego.y), ego.yaw))
+                self.edge_on_road += int(np.count_nonzero(self.road.within_bounds(s, n, self.road_margin)))
 
     def metrics(self) -> dict[str, Any]:
         """``cloud_ground_recall`` (true ground returns removed / all), ``cloud_ground_precision``
         (removed returns that were ground / all removed; the others are mostly the lowest
         ``distance_threshold`` of roadside objects standing on the ground) and ``cloud_vehicle_kept``
-        (vehicle returns kept / all); empty when no frame had a cloud."""
+        (vehicle returns kept / all), and where the scene has road-edge objects ``cloud_edge_on_road``
+        (their returns kept and on the road / all their returns); empty when no frame had a cloud."""
         if not self.frames:
             return {}
 
         def ratio(a: int, b: int) -> float | None:
             return a / b if b else None
 
-        return {"cloud_ground_recall": ratio(self.ground_removed, self.ground),
-                "cloud_ground_precision": ratio(self.ground_removed, self.removed),
-                "cloud_vehicle_kept": ratio(self.vehicle_kept, self.vehicle)}
+        out = {"cloud_ground_recall": ratio(self.ground_removed, self.ground),
+               "cloud_ground_precision": ratio(self.ground_removed, self.removed),
+               "cloud_vehicle_kept": ratio(self.vehicle_kept, self.vehicle)}
+        if self.edge:
+            out["cloud_edge_on_road"] = ratio(self.edge_on_road, self.edge)
+        return out
 
 
 def _mean(values: list[float] | np.ndarray) -> float | None:
@@ -618,7 +641,8 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         injector = FaultInjector(faults, rig_cfg.lidar, fault_rng)
         stream = injector.apply(stream)
         total += sum(1 for t in faults.duplicate_frames if t <= duration)
-    cloud_score = CloudScore()
+    edge_objects = np.zeros(0, dtype=np.int64) if objects is None else np.flatnonzero(np.isin(objects.kind, EDGE_KINDS))
+    cloud_score = CloudScore(road, edge_objects, config.clustering.road_margin)
     if progress is not None:
         progress(0, total)
     for k, sf in enumerate(stream):
@@ -631,7 +655,7 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         scored = truth_set(snap, road, max_range)
         counts = _lidar_counts(snap, sf.lidar)
         bearings = _lidar_bearings(snap, sf.lidar)
-        cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None))
+        cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None), sf.frame.ego)
         visible = scored & (counts >= min_visible_points)
         est = track_states(tracks, road)
         g = gospa(t_state[scored, :2], est[:, :2], gospa_c, gospa_p)

@@ -1,11 +1,19 @@
 """Roadside clutter: static objects beside the road that the lidar and radar see (and that occlude).
 
 They exist to exercise the tracker's road-bound filter: every object lies wholly outside the road
-bounds. Three kinds, each a convex counter-clockwise polygon in G:
+bounds. Six kinds, each a convex counter-clockwise polygon in G:
 
 - ``"post"``: guard-rail posts, small squares at a fixed spacing along a side of the road;
 - ``"tree"``: octagons (circle-like trunks) scattered at random along both sides;
-- ``"parked_car"``: rectangles roughly aligned with the road, scattered along both sides.
+- ``"parked_car"``: rectangles roughly aligned with the road, scattered along both sides;
+- ``"wall"``: a noise barrier or building front along a side, a chain of ``EDGE_SEGMENT`` long quads;
+- ``"hedge"``: vegetation along a side, a chain of ``HEDGE_SEGMENT`` long quads whose road-facing
+  side steps in and out at random (a hedge's ragged face);
+- ``"curb"``: a kerb along a side, its face on the road's edge, a chain of ``EDGE_SEGMENT`` long quads.
+
+Walls, hedges and curbs are off by default (``ClutterConfig.wall_sides`` ...). Curbs are lower than
+the 2-D lidar's scan plane and the radar's beam (``FLAT_SCENE_MIN_HEIGHT``): only the 3-D lidar sees
+them (``RoadsideObjects.flat_scene``).
 
 ``generate_roadside(road, config, rng)`` needs only a small road interface (``tracker.road.Road``
 provides it): ``length`` (m), ``closed`` (bool), ``to_cartesian(s, n) -> (N, 2)`` (m, G),
@@ -26,11 +34,22 @@ import numpy as np
 from sim.sensors.raycast import Segments
 from sim.world.truth import rectangle_corners
 
-KINDS = ("post", "tree", "parked_car")
+KINDS = ("post", "tree", "parked_car", "wall", "hedge", "curb")
 #: Height (m) of each kind above the ground, for the 3-D lidar (``sim.sensors.lidar3d``): a guard-rail
-#: post 1.0 m, a tree (its trunk's octagon, crown not modelled) 6.0 m, a parked car 1.5 m.
-KIND_HEIGHTS = {"post": 1.0, "tree": 6.0, "parked_car": 1.5}
+#: post 1.0 m, a tree (its trunk's octagon, crown not modelled) 6.0 m, a parked car 1.5 m, a noise
+#: barrier 3.0 m, a hedge 1.6 m, a kerb 0.15 m (urban kerbs are 0.10-0.20 m).
+KIND_HEIGHTS = {"post": 1.0, "tree": 6.0, "parked_car": 1.5, "wall": 3.0, "hedge": 1.6, "curb": 0.15}
+#: Objects lower than this (m) are under the 2-D lidar's scan plane and the radar's beam: only the
+#: 3-D lidar sees them (curbs).
+FLAT_SCENE_MIN_HEIGHT = 0.3
+#: Length (m) of one quad of a wall's or curb's chain (short enough that a quad on a 50 m radius
+#: curve bends from its chord by 1 cm).
+EDGE_SEGMENT = 2.0
+#: Length (m) of one quad of a hedge's chain, each with its own depth of face.
+HEDGE_SEGMENT = 1.0
 SIDES = ("left", "right")
+#: The kinds that line the road's edge (scored as road-edge returns: ``sim.evaluation.runner.CloudScore``).
+EDGE_KINDS = ("wall", "hedge", "curb")
 
 
 class RoadLike(Protocol):
@@ -138,6 +157,12 @@ class RoadsideObjects:
             np.concatenate([[0], np.cumsum(sizes)]),
         )
 
+    def flat_scene(self) -> RoadsideObjects:
+        """The objects the 2-D lidar and the radar see: those at least ``FLAT_SCENE_MIN_HEIGHT`` tall.
+        The kinds are generated low ones last (curbs), so an object keeps its index here."""
+        tall = self.height >= FLAT_SCENE_MIN_HEIGHT
+        return self if tall.all() else self.select(tall)
+
     def polygon(self, k: int) -> np.ndarray:
         """Vertices (V, 2) of object ``k`` (m, G, counter-clockwise)."""
         return self.vertices[self.offsets[k] : self.offsets[k + 1]]
@@ -178,7 +203,14 @@ class ClutterConfig:
     - parked cars: ``parked_car_density`` (1 per 100 m per side, Poisson) rectangles of
       ``parked_car_size`` (4.5 x 1.8 m), centred uniformly ``parked_car_offset`` (2.5 .. 3.5 m)
       outside, heading the road's heading (either way) plus normal noise ``parked_car_yaw_std_deg``
-      (3 deg, truncated at 3 sigma).
+      (3 deg, truncated at 3 sigma);
+    - walls: on the sides ``wall_sides`` (none), the whole road's length, ``wall_thickness`` (0.3 m)
+      thick, their road-facing side ``wall_offset`` (1.5 m) outside;
+    - hedges: on the sides ``hedge_sides`` (none), ``hedge_depth`` (1.0 m) deep, their road-facing
+      side ``hedge_offset`` (2.0 m) outside, stepping in and out by up to ``hedge_roughness`` (0.3 m)
+      per ``HEDGE_SEGMENT``;
+    - curbs: on the sides ``curb_sides`` (none), ``curb_width`` (0.15 m) wide, their face on the
+      edge (the clearance does not apply to them).
     """
 
     post_spacing: float = 10.0
@@ -193,6 +225,15 @@ class ClutterConfig:
     parked_car_offset: tuple[float, float] = (2.5, 3.5)
     parked_car_yaw_std_deg: float = 3.0
     clearance: float = 0.3
+    wall_sides: tuple[str, ...] = ()
+    wall_offset: float = 1.5
+    wall_thickness: float = 0.3
+    hedge_sides: tuple[str, ...] = ()
+    hedge_offset: float = 2.0
+    hedge_depth: float = 1.0
+    hedge_roughness: float = 0.3
+    curb_sides: tuple[str, ...] = ()
+    curb_width: float = 0.15
 
     def __post_init__(self) -> None:
         def nonneg(name: str) -> None:
@@ -214,13 +255,25 @@ class ClutterConfig:
                 or (name != "parked_car_size" and pair[0] > pair[1])
             ):
                 raise ValueError(f"ClutterConfig.{name} must be two positive numbers (low <= high); got {pair!r}")
-        bad = [s for s in self.guardrail_sides if s not in SIDES]
-        if bad:
-            raise ValueError(f"ClutterConfig.guardrail_sides must be drawn from {SIDES}; got {bad}")
+        for name in ("guardrail_sides", "wall_sides", "hedge_sides", "curb_sides"):
+            sides = getattr(self, name)
+            if isinstance(sides, str):
+                raise ValueError(f"ClutterConfig.{name} must be a list of sides drawn from {SIDES}; got {sides!r}")
+            bad = [s for s in sides if s not in SIDES]
+            if bad:
+                raise ValueError(f"ClutterConfig.{name} must be drawn from {SIDES}; got {bad}")
+            object.__setattr__(self, name, tuple(sides))
+        for name in ("wall_thickness", "hedge_depth", "curb_width"):
+            nonneg(name)
+            if getattr(self, name) <= 0.0:
+                raise ValueError(f"ClutterConfig.{name} must be > 0; got {getattr(self, name)!r}")
+        nonneg("hedge_roughness")
         checks = [
             ("post_offset", self.post_offset - 0.5 * self.post_size),
             ("tree_offset", self.tree_offset[0] - self.tree_radius[1]),
             ("parked_car_offset", self.parked_car_offset[0] - self.parked_car_half_extent),
+            ("wall_offset", self.wall_offset),
+            ("hedge_offset", self.hedge_offset - self.hedge_roughness),
         ]
         for name, gap in checks:
             if gap < self.clearance:
@@ -270,6 +323,20 @@ def _place(road: RoadLike, s: np.ndarray, side: np.ndarray, offset: np.ndarray) 
     return centre, heading
 
 
+def _edge_quads(road: RoadLike, ends: np.ndarray, side: float, near: np.ndarray, depth: float) -> np.ndarray:
+    """Quads (N, 4, 2) along a side (+1 left, -1 right) between consecutive arc lengths ``ends``
+    (N + 1,): quad ``i`` spans ``ends[i] .. ends[i + 1]`` along the road and ``near[i] .. near[i] +
+    depth`` m outward from the edge, the edge taken at each end (lanes may begin and end)."""
+    s = np.concatenate([ends[:-1], ends[1:]])
+    sides = np.full(s.shape, side)
+    out = np.concatenate([near, near])
+    inner, _ = _place(road, s, sides, out)
+    outer, _ = _place(road, s, sides, out + depth)
+    count = len(ends) - 1
+    a0, a1, b0, b1 = inner[:count], inner[count:], outer[:count], outer[count:]
+    return np.stack([a0, a1, b1, b0], axis=1)  # turned counter-clockwise by from_polygons
+
+
 def _octagons(centre: np.ndarray, radius: np.ndarray, phase: np.ndarray) -> np.ndarray:
     """Counter-clockwise regular octagons (N, 8, 2) of circumradius ``radius``."""
     ang = phase[:, None] + np.arange(8)[None, :] * (np.pi / 4.0)
@@ -283,8 +350,9 @@ def generate_roadside(
     road: RoadLike, config: ClutterConfig | None = None, *, rng: np.random.Generator
 ) -> RoadsideObjects:
     """Roadside clutter along ``road`` (see ``RoadLike``), drawn from ``rng``: guard-rail posts,
-    trees and parked cars outside the road bounds as described by ``config`` (``ClutterConfig()``
-    by default). Objects are ordered posts, trees, parked cars; positions are in G (m). On a curved
+    trees, parked cars, walls, hedges and curbs outside the road bounds as described by ``config``
+    (``ClutterConfig()`` by default). Objects are ordered posts, trees, parked cars, walls, hedges,
+    curbs (each chain from the left side first, along the road); positions are in G (m). On a curved
     road the offsets must stay well below the radius of curvature (objects are placed by offset
     along the normal)."""
     config = ClutterConfig() if config is None else config
@@ -325,6 +393,22 @@ def generate_roadside(
             car_l, car_w = config.parked_car_size
             polys = rectangle_corners(centre, heading + flip + dyaw, np.full(total, car_l), np.full(total, car_w))
         parts.append((kind, polys))
+
+    # the sides' chains, low kinds last (``RoadsideObjects.flat_scene`` keeps the indices)
+    for kind, sides, inner, depth, step in (
+        ("wall", config.wall_sides, config.wall_offset, config.wall_thickness, EDGE_SEGMENT),
+        ("hedge", config.hedge_sides, config.hedge_offset, config.hedge_depth, HEDGE_SEGMENT),
+        ("curb", config.curb_sides, 0.0, config.curb_width, EDGE_SEGMENT),
+    ):
+        for side_name in sides:
+            ends = np.arange(0.0, length + 1e-9, step)
+            if ends[-1] < length - 1e-9:
+                ends = np.append(ends, length)
+            count = len(ends) - 1
+            near = np.full(count, inner)
+            if kind == "hedge" and config.hedge_roughness > 0.0:
+                near = near + rng.uniform(-config.hedge_roughness, config.hedge_roughness, count)
+            parts.append((kind, _edge_quads(road, ends, 1.0 if side_name == "left" else -1.0, near, depth)))
 
     kinds = [kind for kind, polys in parts for _ in range(polys.shape[0])]
     polygons = [p for _, polys in parts for p in polys]

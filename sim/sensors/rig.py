@@ -147,8 +147,9 @@ def _seed_sequence(seed: int | np.random.SeedSequence) -> np.random.SeedSequence
 
 class SensorRig:
     """Lidar and radar units of ``config`` (``RigConfig()`` by default) seeing the vehicles of the
-    truth and the static ``roadside`` objects (may be ``None``); ``ground`` (``sim.world.ground``, level by
-    default) is seen by the 3-D lidar only."""
+    truth and the static ``roadside`` objects (may be ``None``; the radar and a 2-D lidar only those
+    at least ``sim.sensors.clutter.FLAT_SCENE_MIN_HEIGHT`` tall); ``ground`` (``sim.world.ground``,
+    level by default) is seen by the 3-D lidar only."""
 
     def __init__(self, config: RigConfig | None = None, roadside: RoadsideObjects | None = None,
                  ground: Ground | None = None) -> None:
@@ -161,6 +162,9 @@ class SensorRig:
             raise ValueError(f"SensorRig.ground must be a sim.world.ground.Ground or None; got {type(ground).__name__}")
         self.config = config
         self.roadside = roadside
+        # the radar and a 2-D lidar pass over the objects lower than their beams (curbs)
+        self._flat_roadside = None if roadside is None else roadside.flat_scene()
+        self._lidar_roadside = roadside if config.lidar.model != "2d" else self._flat_roadside
         self.ground = FlatGround() if ground is None else ground
         self.lidar: Lidar | SceneLidar3D = (
             Lidar(config.lidar) if config.lidar.model == "2d" else SceneLidar3D(config.lidar, roadside, self.ground)
@@ -251,14 +255,14 @@ class SensorRig:
                 if times[i] > t_frame + TIME_TOLERANCE:
                     break
                 if lidar_scan is None and times[i] > t_scan + TIME_TOLERANCE:  # a delayed scan comes first
-                    lidar_scan = self.lidar.scan(truth(t_scan), self.roadside, rng=lidar_rng)
+                    lidar_scan = self.lidar.scan(truth(t_scan), self._lidar_roadside, rng=lidar_rng)
                 snap = pose(times[i])
-                scan = self.radars[i].detect(snap, self.roadside, rng=radar_rngs[i])
+                scan = self.radars[i].detect(snap, self._flat_roadside, rng=radar_rngs[i])
                 ego = snap.ego
                 pending.append((scan, to_global(scan.xy, (ego.x, ego.y), ego.yaw), rotate(scan.velocity, ego.yaw)))
                 cycles[i] += 1
             if lidar_scan is None:
-                lidar_scan = self.lidar.scan(truth(t_scan), self.roadside, rng=lidar_rng)
+                lidar_scan = self.lidar.scan(truth(t_scan), self._lidar_roadside, rng=lidar_rng)
             snap = truth(t_frame)
             ego = snap.ego
             radar = RadarScan.concatenate(
