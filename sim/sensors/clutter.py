@@ -159,7 +159,7 @@ class RoadsideObjects:
 
     def flat_scene(self) -> RoadsideObjects:
         """The objects the 2-D lidar and the radar see: those at least ``FLAT_SCENE_MIN_HEIGHT`` tall.
-        The kinds are generated low ones last (curbs), so an object keeps its index here."""
+        ``generate_roadside`` makes the low ones (curbs) last, so there an object keeps its index."""
         tall = self.height >= FLAT_SCENE_MIN_HEIGHT
         return self if tall.all() else self.select(tall)
 
