@@ -468,10 +468,7 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     columns ``floor(phi / w + 1/2)`` (``w = column_width_deg``) and ordered outwards in each; of two
     returns next to each other in a column that differ in height by more than ``distance_threshold``
     and lie at most that far apart horizontally (a rise of 45 deg or more), the lower one is a foot
-    (either may be the nearer: range noise shuffles a vertical face's returns in ``rho``); and a
-    return is a foot where its column holds another more than ``distance_threshold`` higher in its
-    bin of that width in ``rho`` or the bins either side (a dense lidar's neighbouring beams climb a
-    near face centimetres apart: no rise between any two, yet all but the top at its foot). A
+    (either may be the nearer: range noise shuffles a vertical face's returns in ``rho``). A
     vehicle's side, a wall or a pole returns a column of points one above the other; the ground's
     returns in one column lie rings apart (metres out, centimetres up). Feet take no part in the
     fits (they are still classified against the planes)."""
@@ -490,20 +487,6 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     lower = np.where(h[1:] < h[:-1], order[1:], order[:-1])  # range noise may swap a face's points in rho
     out = np.zeros(n, dtype=bool)
     out[lower[steep]] = True
-    # a dense lidar's beams climb a near face a few centimetres apart: next to each other they are
-    # no rise, yet all but the top stand at its foot. Per column, bins of distance_threshold in rho:
-    # a point is a foot where its bin or a neighbouring one holds a return more than that higher
-    tau = cfg.distance_threshold
-    b = np.floor(r / tau)
-    start = np.flatnonzero(np.r_[True, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
-    top = np.maximum.reduceat(h, start)  # each (column, bin) group's highest return
-    group = np.cumsum(np.r_[False, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
-    gc, gb = c[start], b[start]
-    above = top.copy()
-    nxt = (gc[1:] == gc[:-1]) & (gb[1:] == gb[:-1] + 1)  # the next group is the next bin out
-    above[:-1] = np.where(nxt, np.maximum(above[:-1], top[1:]), above[:-1])
-    above[1:] = np.where(nxt, np.maximum(above[1:], top[:-1]), above[1:])
-    out[order[h < above[group] - tau]] = True
     return out
 
 
