@@ -1126,11 +1126,11 @@ class CloudResult:
     own box (``CloudConfig.ego_length`` ...); the disjoint masks ``ground``, ``below_ground``,
     ``above_ceiling``, ``low_object``, ``kept`` (all False on non-finite and ego-body rows).
     ``points_2d`` (M, 2) are the kept points projected onto their plane along its normal, ``(x, y)``
-    in E, in input order
-    (``M = kept.sum()``). ``model`` is the fitted :class:`GroundModel`, ``stats`` the counts.
+    in E, in input order (``M = kept.sum()``). ``model`` is the fitted :class:`GroundModel`,
+    ``stats`` the counts.
 
-    A figure of the pipeline: ``points_e[finite]`` (raw cloud), ``points_e[kept]`` (without ground and
-    above-ceiling points), ``points_2d`` (projected), ``model.ground_z`` (the fitted ground).
+    A figure of the pipeline: ``points_e[finite]`` (raw cloud), ``points_e[kept]`` (without ground,
+    below-ground, above-ceiling and low-object points), ``points_2d`` (projected), ``model.ground_z`` (the fitted ground).
     """
 
     points_e: np.ndarray
@@ -1184,10 +1184,10 @@ def _stands_on(normal: np.ndarray, offset: float, cfg: CloudConfig) -> bool:
 def _low_objects(pts: np.ndarray, h: np.ndarray, candidates: np.ndarray, cfg: CloudConfig) -> np.ndarray:
     """Which of the ``candidates`` among ``pts`` (N, 3) in E, of heights ``h`` above their planes, are
     low objects (``CloudConfig.low_object_height``): on a grid of ``low_object_cell`` square cells of E
-    (``floor(x / cell)``, ``floor(y / cell)``) over the candidates' extent, the cells holding a candidate higher than the height are marked and the
-    marks grown by one cell each way (a 3 x 3 box, separably); the candidates no higher than the
-    height in unmarked cells are low objects. Linear in the points and the cells (a 200 x 200 m
-    extent is 160,000 cells)."""
+    (``floor(x / cell)``, ``floor(y / cell)``) over the candidates' extent, the cells holding a
+    candidate higher than the height are marked and the marks grown by one cell each way (a 3 x 3
+    box, separably); the candidates no higher than the height in unmarked cells are low objects.
+    Linear in the points and the cells (a 200 x 200 m extent is 160,000 cells)."""
     out = np.zeros(len(pts), dtype=bool)
     if cfg.low_object_height is None or not candidates.any():
         return out

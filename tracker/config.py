@@ -391,9 +391,9 @@ class BirthConfig:
     the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
     from a joined radar detection when fused. The vehicle classes (``classes``) give an unmeasured length
     its prior from the measured width: the classes weighed by their share and the width's likelihood,
-    the length their mixture's mean and variance (``tracker.extent.class_length_prior``); ``min_length`` ..
-    ``max_length`` and ``min_width`` .. ``max_width`` bound every estimate. Details: ``docs/tracker.md`` ("Births", "Departures from the
-    paper").
+    the length their mixture's mean and variance (``tracker.extent.class_length_prior``);
+    ``min_length`` .. ``max_length`` and ``min_width`` .. ``max_width`` bound every estimate. Details:
+    ``docs/tracker.md`` ("Births", "Departures from the paper").
     """
 
     #: Weight of each birth component (default 0.05).
@@ -474,12 +474,11 @@ class BirthConfig:
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")
-        for name in ("min_length", "min_width"):
-            _check("BirthConfig", name, getattr(self, name), low=0.0, unit="m")
-            limit = getattr(self, name.replace("min", "max"))
-            if limit is not None and getattr(self, name) > limit:
-                raise ValueError(f"BirthConfig.{name} must not exceed {name.replace('min', 'max')} ({limit} m); "
-                                 f"got {getattr(self, name)} m")
+        for low, high in (("min_length", "max_length"), ("min_width", "max_width")):
+            value, limit = getattr(self, low), getattr(self, high)
+            _check("BirthConfig", low, value, low=0.0, unit="m")
+            if limit is not None and value > limit:
+                raise ValueError(f"BirthConfig.{low} must not exceed {high} ({limit} m); got {value} m")
         if not isinstance(self.road, bool):
             raise ValueError(f"BirthConfig.road must be true or false; got {self.road!r}")
         _check("BirthConfig", "weight", self.weight, low=0.0, high=1.0, low_open=True)

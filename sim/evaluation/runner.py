@@ -381,17 +381,19 @@ def _lidar_bearings(snap: Snapshot, scan: LidarScan | LidarScan3D) -> np.ndarray
 class CloudScore:
     """Ground removal scored against the 3-D lidar's truth labels over a run: ``ground`` returns
     removed (as ground or below it) and ``vehicle`` returns kept, summed over frames; with ``road``,
-    also the returns of the road-edge objects (roadside indices ``edge_objects``: walls, hedges,
-    curbs) that ground removal kept and that lie within the road's bounds plus ``road_margin`` (m)
-    where they land in the plane, as the tracker's road filter tests them (``Road.within_bounds``):
-    edge returns the tracker takes for returns on the road."""
+    also the returns of the road-edge objects (``is_edge``, one flag per roadside object: walls,
+    hedges, curbs) that ground removal kept and that lie within the road's bounds plus
+    ``road_margin`` (m) where they land in the plane, as the tracker's road filter tests them
+    (``Road.within_bounds``): edge returns the tracker takes for returns on the road."""
 
-    def __init__(self, road: Road | None = None, edge_objects: np.ndarray | None = None, road_margin: float = 0.0) -> None:
+    def __init__(self, road: Road | None = None, is_edge: np.ndarray | None = None, road_margin: float = 0.0) -> None:
         self.ground = self.ground_removed = self.removed = self.vehicle = self.vehicle_kept = 0
         self.edge = self.edge_on_road = 0
         self.frames = 0
         self.road = road
-        self.edge_objects = np.zeros(0, dtype=np.int64) if edge_objects is None else np.asarray(edge_objects, dtype=np.int64)
+        # looked up by a return's roadside index, -1 (no roadside object) landing on the False appended
+        flags = np.zeros(0, dtype=bool) if is_edge is None else np.asarray(is_edge, dtype=bool).reshape(-1)
+        self._edge_of = np.append(flags, False)
         self.road_margin = float(road_margin)
 
     def update(self, scan: LidarScan | LidarScan3D, cloud: Any, ego: EgoState | None = None) -> None:
@@ -407,8 +409,8 @@ class CloudScore:
         self.removed += int(removed.sum())
         self.vehicle += int(vehicle.sum())
         self.vehicle_kept += int((cloud.kept & vehicle).sum())
-        if self.road is not None and ego is not None and len(self.edge_objects):
-            edge = np.isin(scan.roadside_index, self.edge_objects)
+        if self.road is not None and ego is not None and self._edge_of.any():
+            edge = self._edge_of[scan.roadside_index]
             self.edge += int(edge.sum())
             kept_rows = np.flatnonzero(cloud.kept)  # points_2d holds the kept rows, in input order
             mine = edge[kept_rows]
@@ -641,8 +643,8 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         injector = FaultInjector(faults, rig_cfg.lidar, fault_rng)
         stream = injector.apply(stream)
         total += sum(1 for t in faults.duplicate_frames if t <= duration)
-    edge_objects = np.zeros(0, dtype=np.int64) if objects is None else np.flatnonzero(np.isin(objects.kind, EDGE_KINDS))
-    cloud_score = CloudScore(road, edge_objects, config.clustering.road_margin)
+    is_edge = None if objects is None else np.isin(objects.kind, EDGE_KINDS)
+    cloud_score = CloudScore(road, is_edge, config.clustering.road_margin)
     if progress is not None:
         progress(0, total)
     for k, sf in enumerate(stream):

@@ -16,8 +16,8 @@ starts at the recording's planning problem's initial state and the planner drive
 the goal region, cruising at ``max(v0, d_goal / t_goal)`` (``set_speed_for``: the initial speed, or
 the speed that covers the route distance to the goal's centre by the middle of the goal's time
 interval, whichever is higher) and changing lanes toward the goal's lane (``goal_lane_for``; the
-planner's ``goal_lane``) when the gap allows. The seeds vary only the sensor noise; the truth runs are the same in
-every seed. A collision there may be the replay's (a recorded vehicle drives into the ego, which the
+planner's ``goal_lane``) when the gap allows. The seeds vary only the sensor noise; the truth runs
+are the same in every seed. A collision there may be the replay's (a recorded vehicle drives into the ego, which the
 recorded driver's different path avoided): pair it with truth's run of the same recording.
 
 Per run (one row of ``runs.csv``; the ego's truth, sampled at every lidar frame, 10 Hz):
