@@ -17,7 +17,8 @@ rectangle measurement model) takes points ``(x, y)`` in the vehicle frame E. Thi
      on LiDAR data for autonomous vehicle applications", ICRA): seeds near the lowest point
      representative, RANSAC planes through 3 seeds scored by their inliers less the points under
      them, the best refined by PCA fits on its inliers; taken when its inliers cover an area (not
-     one scan ring) and it continues the inner neighbour's plane (no step, no kink);
+     one scan ring), it continues the inner neighbour's plane (no step, no kink) and it explains
+     clearly more points than the hinged fit below (``CloudConfig.hinged_share``);
    - else its **hinged** fit: a plane through the inner neighbour's ground where that one's
      support ends, its gradient fitted to the patch (RANSAC, then ridge regression pulled towards
      the neighbour's gradient). This is what a patch that sees the ground along one scan ring gets,
@@ -236,6 +237,16 @@ class CloudConfig:
       (estimated from the fit subsample), and a patch with fewer such points is not fitted. Default
       30: a vehicle side seen at 60-80 m gives 20-60 returns on one beam, all on the beam's cone,
       which a plane through the hinge point can take for a climbing ground.
+    - ``hinged_share`` (0-1, or None): a free fit that passes the tests above is still not taken
+      where the patch's hinged fit (below) explains at least this share of the free fit's inliers
+      (counted on the same subsample); the hinged plane is taken instead. Default 0.8. Why: a
+      free plane is fixed by its own inliers alone. Where these are one scan ring and a few low
+      returns of the road's edge beside it (a kerb's top, a hedge's or a wall's lowest returns),
+      its tilt about the ring is set by those few points, and the patches further out that borrow
+      it carry the tilt tens of metres: 1.6 deg at 55-70 m puts the ground 0.46 m above the plane
+      at 80 m, where its returns are taken for objects. A plane that continues the ground inside
+      and explains nearly as many points is the better-supported of the two. ``None``: the free
+      fit whenever it passes (then hinged fits run only where there is none).
     - ``max_fit_points``: a patch with more points taking part is fitted on a random subsample of
       this many (every point is still classified; a random draw, because an even stride aliases
       with the scan order: a VLP-16 interleaves its beams, so every other point of a patch can lie
@@ -245,7 +256,9 @@ class CloudConfig:
       each other (outwards) in a column ``floor(phi / w + 1/2)`` that differ in height by more than
       ``distance_threshold`` and lie at most that far apart horizontally (45 deg or steeper), the
       lower one is at the foot of something (a vehicle's side, a wall, a pole) and takes no part in
-      the fits. Default 0.2 (the VLP-16's azimuth step at 10 Hz: each column one firing of its 16
+      the fits; so is a return with another more than ``distance_threshold`` higher in its column
+      within about ``distance_threshold`` in ``rho`` (a dense lidar's neighbouring beams climb a near
+      face a few centimetres apart, no rise between any two). Default 0.2 (the VLP-16's azimuth step at 10 Hz: each column one firing of its 16
       beams). Without the test, the lowest scan line across a vehicle's rear, which lies as flat
       as a ground ring, 2 deg above the ground's plane from where the ground is last seen, is
       taken for a climbing ground by a hinged fit (``tests/test_cloud.py``).
@@ -300,6 +313,7 @@ class CloudConfig:
     max_slope_change_deg: float = 5.0
     hinge_prior_length: float = 2.0
     min_points: int = 30
+    hinged_share: float | None = 0.8
     max_fit_points: int = 128
     column_width_deg: float = 0.2
     height_ceiling: float = 4.0
@@ -347,6 +361,8 @@ class CloudConfig:
         _real("max_slope_change_deg", self.max_slope_change_deg, low=0.0, high=180.0, low_open=True, unit="deg")
         _real("hinge_prior_length", self.hinge_prior_length, low=0.0, low_open=True, unit="m")
         _integer("min_points", self.min_points, 3)
+        if self.hinged_share is not None:
+            _real("hinged_share", self.hinged_share, low=0.0, high=1.0)
         _integer("max_fit_points", self.max_fit_points, self.min_points)
         _real("column_width_deg", self.column_width_deg, low=0.0, high=360.0, low_open=True, unit="deg")
         ceiling = _real("height_ceiling", self.height_ceiling, low=0.0, low_open=True, unit="m")
@@ -468,7 +484,10 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     columns ``floor(phi / w + 1/2)`` (``w = column_width_deg``) and ordered outwards in each; of two
     returns next to each other in a column that differ in height by more than ``distance_threshold``
     and lie at most that far apart horizontally (a rise of 45 deg or more), the lower one is a foot
-    (either may be the nearer: range noise shuffles a vertical face's returns in ``rho``). A
+    (either may be the nearer: range noise shuffles a vertical face's returns in ``rho``); and a
+    return is a foot where its column holds another more than ``distance_threshold`` higher in its
+    bin of that width in ``rho`` or the bins either side (a dense lidar's neighbouring beams climb a
+    near face centimetres apart: no rise between any two, yet all but the top at its foot). A
     vehicle's side, a wall or a pole returns a column of points one above the other; the ground's
     returns in one column lie rings apart (metres out, centimetres up). Feet take no part in the
     fits (they are still classified against the planes)."""
@@ -487,6 +506,20 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     lower = np.where(h[1:] < h[:-1], order[1:], order[:-1])  # range noise may swap a face's points in rho
     out = np.zeros(n, dtype=bool)
     out[lower[steep]] = True
+    # a dense lidar's beams climb a near face a few centimetres apart: next to each other they are
+    # no rise, yet all but the top stand at its foot. Per column, bins of distance_threshold in rho:
+    # a point is a foot where its bin or a neighbouring one holds a return more than that higher
+    tau = cfg.distance_threshold
+    b = np.floor(r / tau)
+    start = np.flatnonzero(np.r_[True, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
+    top = np.maximum.reduceat(h, start)  # each (column, bin) group's highest return
+    group = np.cumsum(np.r_[False, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
+    gc, gb = c[start], b[start]
+    above = top.copy()
+    nxt = (gc[1:] == gc[:-1]) & (gb[1:] == gb[:-1] + 1)  # the next group is the next bin out
+    above[:-1] = np.where(nxt, np.maximum(above[:-1], top[1:]), above[:-1])
+    above[1:] = np.where(nxt, np.maximum(above[1:], top[:-1]), above[1:])
+    out[order[h < above[group] - tau]] = True
     return out
 
 
@@ -985,6 +1018,7 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
         # free fits: no kink to the inner neighbour's plane, and the two planes meet (within
         # max_step) somewhere between where the neighbour's support ends and where this one's begins
         free = (todo & free_ok[np.maximum(rp, 0)]) if len(cand) else todo
+        free_count = np.zeros(s_j, dtype=int)  # the inliers of the free fits that pass
         if free.any():
             f = np.flatnonzero(free)
             rf = rp[f]
@@ -996,12 +1030,15 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
                    for r in (reach[qs[f]], np.where(inl, radius[rf], np.inf).min(axis=1))]
             step = np.where(gap[0] * gap[1] <= 0.0, 0.0, np.minimum(np.abs(gap[0]), np.abs(gap[1])))
             accept = (np.einsum("pi,pi->p", n, nq[f]) >= cos_change) & (step <= cfg.max_step)
-            if accept.any():
+            free[f[~accept]] = False
+            free_count[f[accept]] = inl[accept].sum(axis=1)
+            if cfg.hinged_share is None and accept.any():  # taken as it is: no hinged fit to weigh
                 a = f[accept]
                 own(ps[a], rp[a], n[accept], d[accept], inl[accept])
                 todo[a] = False
-        # hinged fits where there is no free one: through the inner neighbour's plane where its
-        # support ends, on the sector's axis
+        # hinged fits: through the inner neighbour's plane where its support ends, on the sector's
+        # axis; with hinged_share, also where a free fit passed, which stays only where the hinged
+        # one explains fewer than that share of its inliers
         if todo.any():
             f = np.flatnonzero(todo)
             rf = rp[f]
@@ -1013,6 +1050,12 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
                                       hinge - origin[rf], prior, cfg, hinge_rng, tan_max)
             n = np.column_stack([-g, np.ones(len(f))]) / np.sqrt(1.0 + (g * g).sum(axis=1))[:, None]
             ok &= np.einsum("pi,pi->p", n, nq[f]) >= cos_change
+            if cfg.hinged_share is not None:
+                keep_free = free[f] & ~(ok & (inl.sum(axis=1) >= cfg.hinged_share * free_count[f]))
+                if keep_free.any():
+                    a = f[keep_free]
+                    own(ps[a], rp[a], free_n[rp[a]], free_d[rp[a]], free_inl[rp[a]])
+                ok &= ~keep_free
             if ok.any():
                 a = f[ok]
                 own(ps[a], rp[a], n[ok], -np.einsum("pi,pi->p", n[ok], hinge[ok]), inl[ok])
@@ -1052,7 +1095,9 @@ def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
     ``r'`` (the largest radius of its inliers, or of its source's if it borrowed its plane). In
     order:
 
-    - its free fit, if accepted: no kink and no step to the neighbour,
+    - its free fit, if accepted: no kink and no step to the neighbour (below), and, with
+      ``hinged_share``, its hinged fit (next) fails or explains fewer than ``hinged_share`` of the
+      free fit's inliers,
 
       .. math::  \\arccos(n_k \\cdot n_{k'}) \\le \\text{max\\_slope\\_change}, \\qquad
                  \\min_{r' \\le r \\le r_k} |z_k(r u) - z_{k'}(r u)| \\le \\text{max\\_step},
