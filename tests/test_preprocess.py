@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -127,8 +129,19 @@ def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     got = fused_and_staged(scan)
     assert 0 < len(got[0]) < len(scan) and got[1]["points_off_road"] > 0 and got[1]["points_bearing_filtered"] > 0
     # returns far off the seed grid: seeded from the k-d tree and a second call, the same answer
-    far = np.concatenate([scan, [[300.0, 300.0], [-200.0, 250.0]]])
-    assert staged(far, ego, road, config) is not None
+    far = np.concatenate([scan, [[300.0, 300.0], [-200.0, 250.0], [0.0, 30.0]]])
+    seeded = []
+    monkeypatch.setattr(road, "seed_missing", lambda *a: seeded.append(a) or Road.seed_missing(road, *a))
+    # returns surely off the road (their seed-grid cell, or none, lies farther from the centerline than
+    # the edges plus the margin) are not projected: no second call
+    assert staged(far, ego, road, config) is not None and seeded == []
+    fused_and_staged(far)
+    clearance, offgrid, extent = road.clearance_kernel_args()
+    assert offgrid > extent + config.road_margin
+    # with a margin wider than the seed grid's reach they are: seeded from the k-d tree, a second call
+    config = replace(config, road_margin=offgrid - extent + 1.0)
+    seeded.clear()
+    assert staged(far, ego, road, config) is not None and len(seeded) == 1
     fused_and_staged(far)
 
 

@@ -490,3 +490,33 @@ def test_projection_seed_kernels_against_the_oracle(name):
     np.testing.assert_array_equal(tree_node, node[missing])  # the k-d tree's nearest sample: brute force's
     assert np.array_equal(node_seed_kernel(off, tree_node, road._node_frame, road._nodes, PROJECTION_MIN_DENOMINATOR),
                           node_start(road, off, tree_node))
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_the_seed_grid_clearance_is_a_lower_bound_of_the_distance_to_the_centerline(closed):
+    """``Road.clearance_kernel_args``: no point lies nearer the centerline than its seed-grid cell's
+    clearance (or the off-grid one, off the grid and in cells beyond its reach), against the distance
+    to 20,000 samples of the curve; and the bound is tight within the cell's half diagonal plus half the
+    longest arc between the grid's samples."""
+    if closed:
+        road = Road.from_waypoints(np.array([[100.0, 0.0], [0.0, 100.0], [-100.0, 0.0], [0.0, -100.0]]), closed=True,
+                                   lanes=3, lane_width=3.5)
+    else:
+        road = Road.from_curvature([(80.0, 0.0, 0.0), (120.0, 0.0, 0.02), (60.0, 0.02, -0.03)], lanes=3, lane_width=3.5)
+    clearance, offgrid, extent = road.clearance_kernel_args()
+    s = np.linspace(0.0, road.length, 20_000)
+    curve = np.asarray(road.to_cartesian(s, np.zeros_like(s)))
+    from scipy.spatial import cKDTree
+    lo, hi = curve.min(axis=0) - 40.0, curve.max(axis=0) + 40.0
+    pts = np.random.default_rng(5).uniform(lo, hi, size=(20_000, 2))
+    dist = cKDTree(curve).query(pts)[0]
+    origin, inv_res = road.projection_kernel_args()[:2]
+    cell = np.floor((pts - origin) * inv_res).astype(int)
+    inside = (cell >= 0).all(axis=1) & (cell[:, 0] < clearance.shape[0]) & (cell[:, 1] < clearance.shape[1])
+    bound = np.full(len(pts), offgrid)
+    bound[inside] = clearance[cell[inside, 0], cell[inside, 1]]
+    step = float(road.length) / len(s)  # the samples' own spacing
+    assert (bound <= dist + step).all()
+    near = inside & (bound < offgrid)
+    assert (dist[near] - bound[near]).max() < 2.0 * (math.sqrt(2.0) + 1.0)
+    assert offgrid > extent + 15.0  # a return 15 m beyond the edges needs no projection

@@ -144,7 +144,8 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
                      config: ClusteringConfig) -> tuple[np.ndarray, np.ndarray, int] | None:
     """``filter_points``' steps in one call of ``road_filter_kernel`` (the same kernels in the same
     order as the steps one by one: the same numbers): the kept returns' indices into ``scan`` (bearing
-    order), every return's lateral offset ``n`` (m) and how many lie on the road; None where the kernel
+    order), the returns' lateral offsets ``n`` (m; NaN for those surely off the road, not projected) and
+    how many lie on the road; None where the kernel
     does not apply (no seed grid, a bearing bin <= 0, a non-finite return, a projection that did not
     converge): ``filter_points`` then takes the steps one by one (``Road.to_frenet``, whose fallbacks
     handle the projection, ``Road.within_bounds``, ``bearing_filter``). Returns off the seed grid take
@@ -157,8 +158,9 @@ def _filter_compiled(scan: np.ndarray, ego: EgoState, road: Road,
     margin = config.road_margin
     head = (np.ascontiguousarray(scan, dtype=float), float(np.cos(ego.yaw)), float(np.sin(ego.yaw)), float(ego.x),
             float(ego.y))
+    clearance, offgrid, extent = road.clearance_kernel_args()
     tail = (*args, not road.closed, *road.edge_kernel_args(), float(margin), float(config.bearing_bin),
-            int(max(count, 1)), bool(tiles))
+            int(max(count, 1)), bool(tiles), clearance, offgrid, extent + float(margin))
     status, kept, n, on_road, pts, s, missing = road_filter_kernel(*head, np.empty(0), False, *tail)
     if status == SEED:  # returns off the seed grid: their starts from the k-d tree, as Road._project's
         if not np.isfinite(pts[missing]).all():
@@ -190,42 +192,77 @@ DONE, SEED, STAGED = 0, 1, 2
 def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid_origin, inv_resolution, grid,
                        node_frame, nodes, kind, closed, length, ends, table, bucket_cell, starts_next, inv_bucket, hops,
                        gl_nodes, gl_weights, max_iterations, tolerance, max_step, min_denominator, check_s,
-                       edge_inv_step, edge_right, edge_left, margin, bin_width, bin_count, wrap):  # pragma: no cover - compiled
+                       edge_inv_step, edge_right, edge_left, margin, bin_width, bin_count, wrap, clearance,
+                       offgrid_clearance, limit):  # pragma: no cover - compiled
     """The returns ``scan (N, 2)`` in E (finite) of an ego at ``(ego_x, ego_y)`` in G whose heading has
     cosine ``cos_yaw`` and sine ``sin_yaw``: their projections ``(s, n)`` on the road (Newton from
     ``seeds (N,)`` when ``seeded``, else from the seed grid's), those within the road's edges at their ``s``
     widened by ``margin`` (m; the edge tables ``edge_right``, ``edge_left`` read by ``tracker.lanes.edge_at``)
     (and ``0 <= s <= length`` when ``check_s``: an open road), and of those the closest per bearing bin.
+    Returns whose clearance from the centerline (the seed grid's per-cell lower bound ``clearance``, or
+    ``offgrid_clearance`` off it: ``Road.clearance_kernel_args``) exceeds ``limit`` (the largest ``|n|``
+    of an edge plus ``margin``) lie off the road and are not projected (their ``lateral`` is NaN).
     Returns ``(status, kept, lateral, on_road_count, points, starts, missing)``: ``kept`` indices into
     ``scan`` in increasing bearing order (``bearing_filter_kernel`` of the on-road returns), the lateral
-    offsets ``n (N,)`` of every return. ``status`` ``SEED``: some returns are off the seed grid
-    (``missing``); ``points`` (G) and ``starts`` are then the caller's to complete. ``STAGED``: a
-    projection did not converge. Neither leaves ``kept`` or ``lateral`` valid."""
+    offsets ``n (N,)`` of every return (NaN for those not projected). ``status`` ``SEED``: some returns
+    are off the seed grid (``missing``) yet not surely off the road; ``points`` (G) and ``starts`` are
+    then the caller's to complete. ``STAGED``: a projection did not converge. Neither leaves ``kept``
+    or ``lateral`` valid."""
     count = scan.shape[0]
     pts = np.empty((count, 2))
+    near = np.empty(count, dtype=np.int64)  # the returns within reach of the road, in order
+    m = 0
+    rows, cols = clearance.shape
     for i in range(count):  # to_global: rotate(points, yaw) + origin
         x, y = scan[i, 0], scan[i, 1]
-        pts[i, 0] = (cos_yaw * x - sin_yaw * y) + ego_x
-        pts[i, 1] = (sin_yaw * x + cos_yaw * y) + ego_y
+        gx = (cos_yaw * x - sin_yaw * y) + ego_x
+        gy = (sin_yaw * x + cos_yaw * y) + ego_y
+        pts[i, 0] = gx
+        pts[i, 1] = gy
+        cx = np.floor((gx - grid_origin[0]) * inv_resolution)
+        cy = np.floor((gy - grid_origin[1]) * inv_resolution)
+        c = offgrid_clearance
+        if cx >= 0.0 and cy >= 0.0 and cx < rows and cy < cols:
+            c = clearance[int(cx), int(cy)]
+        if not c > limit or not np.isfinite(gx + gy):  # a non-finite return goes on, to be named
+            near[m] = i
+            m += 1
+    near = near[:m]
+    sub = np.empty((m, 2))
+    for j in range(m):
+        sub[j, 0] = pts[near[j], 0]
+        sub[j, 1] = pts[near[j], 1]
     empty = np.empty(0, dtype=np.int64)
     if seeded:
         s = seeds.copy()
         missing = np.zeros(count, dtype=np.bool_)
+        s_sub = np.empty(m)
+        for j in range(m):
+            s_sub[j] = s[near[j]]
     else:
-        s, missing = seed_kernel(pts, grid_origin, inv_resolution, grid, node_frame, nodes, min_denominator)
-        if missing.any():
+        s_sub, missing_sub = seed_kernel(sub, grid_origin, inv_resolution, grid, node_frame, nodes, min_denominator)
+        s = np.zeros(count)
+        missing = np.zeros(count, dtype=np.bool_)
+        for j in range(m):
+            s[near[j]] = s_sub[j]
+            missing[near[j]] = missing_sub[j]
+        if missing_sub.any():
             return SEED, empty, np.empty(0), 0, pts, s, missing
-    s, lateral, pending = project_kernel(kind, pts, s, closed, length, ends, table, bucket_cell, starts_next,
-                                         inv_bucket, hops, gl_nodes, gl_weights, max_iterations, tolerance, max_step,
-                                         min_denominator)
+    s_sub, lateral_sub, pending = project_kernel(kind, sub, s_sub, closed, length, ends, table, bucket_cell,
+                                                 starts_next, inv_bucket, hops, gl_nodes, gl_weights,
+                                                 max_iterations, tolerance, max_step, min_denominator)
     if pending.any():
         return STAGED, empty, np.empty(0), 0, pts, s, missing
-    on_road = np.empty(count, dtype=np.int64)
+    lateral = np.full(count, np.nan)
+    on_road = np.empty(m, dtype=np.int64)
     kept = 0
-    for i in range(count):
-        n_low = edge_at(s[i], edge_inv_step, edge_right) - margin
-        n_high = edge_at(s[i], edge_inv_step, edge_left) + margin
-        if lateral[i] >= n_low and lateral[i] <= n_high and (not check_s or (s[i] >= 0.0 and s[i] <= length)):
+    for j in range(m):
+        i = near[j]
+        s_i = s_sub[j]
+        lateral[i] = lateral_sub[j]
+        n_low = edge_at(s_i, edge_inv_step, edge_right) - margin
+        n_high = edge_at(s_i, edge_inv_step, edge_left) + margin
+        if lateral_sub[j] >= n_low and lateral_sub[j] <= n_high and (not check_s or (s_i >= 0.0 and s_i <= length)):
             on_road[kept] = i
             kept += 1
     on_road = on_road[:kept]

@@ -536,6 +536,16 @@ class Road:
         dist, idx = self._tree.query(centres, workers=-1)
         idx = np.where(dist <= margin, idx, -1)  # far from the road: defer to the tree
         self._grid = idx.reshape(shape).astype(np.int32)
+        # the least distance from the centerline of any point of a cell: its centre's distance to the
+        # nearest curve sample, less half the cell's diagonal and half the longest arc between samples
+        # (the foot of the point lies within that of a sample); of a point off the grid, or in a cell
+        # beyond ``margin``, at least ``margin`` less the same
+        arcs = np.diff(self._nodes)
+        if self.closed and len(self._nodes):
+            arcs = np.append(arcs, self.length - self._nodes[-1] + self._nodes[0])
+        slack = SEED_GRID_RESOLUTION * math.sqrt(0.5) + 0.5 * (float(arcs.max()) if len(arcs) else 0.0)
+        self._grid_clearance = (np.minimum(dist, margin) - slack).reshape(shape)
+        self._offgrid_clearance = float(margin - slack)
 
     def projection_kernel_args(self) -> tuple | None:
         """The arguments of ``tracker.preprocess.road_filter_kernel`` that describe this road's
@@ -552,6 +562,17 @@ class Road:
                 self.closed, self.length, self._ends_array, *curve, PROJECTION_MAX_ITERATIONS, PROJECTION_TOLERANCE,
                 PROJECTION_MAX_STEP, PROJECTION_MIN_DENOMINATOR)
         return args
+
+    def clearance_kernel_args(self) -> tuple[np.ndarray, float, float] | None:
+        """``(clearance, offgrid, extent)`` for ``tracker.preprocess.road_filter_kernel``: per seed-grid
+        cell the least distance (m) from the centerline of any point in it, the same for points off the
+        grid (or in its cells beyond its margin), and the largest ``|n|`` of an edge (m). A point whose
+        clearance exceeds ``extent`` plus a road margin lies off the road: it needs no projection. None
+        when the road has no seed grid."""
+        if self._grid is None:
+            return None
+        extent = max(abs(self.right_edge), abs(self.left_edge))
+        return self._grid_clearance, self._offgrid_clearance, float(extent)
 
     def seed_missing(self, pts: np.ndarray, s: np.ndarray, missing: np.ndarray) -> None:
         """Newton's starts ``s`` (in place) of the points ``pts (N, 2)`` in G that the seed grid does not
