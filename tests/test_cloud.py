@@ -825,3 +825,49 @@ def test_a_near_face_climbed_by_dense_beams_takes_no_part_in_the_fits():
     assert not feet[~face].any()
     low = face & (z < 3.0 - 0.04 - 2 * cfg.distance_threshold)
     assert feet[low].all()
+
+
+def test_the_wall_feet_kernel_against_the_oracle():
+    # columns of ground rings, vehicle sides and faces, with equal heights, equal rho and single returns
+    from oracles.cloud import wall_feet_sorted
+
+    from tracker.cloud import wall_feet_kernel
+
+    rng = np.random.default_rng(11)
+    counts = []
+    for _ in range(20):
+        n = int(rng.integers(2, 400))
+        c = np.sort(rng.integers(0, 40, n)).astype(float)
+        r = np.where(rng.random(n) < 0.5, np.round(rng.uniform(2, 40, n), 1), 5.0 + rng.normal(0, 0.1, n))
+        h = np.where(rng.random(n) < 0.7, np.round(rng.normal(0, 0.05, n), 2), np.round(rng.uniform(0.2, 2.0, n), 2))
+        order = np.lexsort((r, c))
+        c, r, h = c[order], r[order], h[order]
+        feet = wall_feet_kernel(c, r, h, 0.15)
+        np.testing.assert_array_equal(feet, wall_feet_sorted(c, r, h, 0.15))
+        counts += [feet.sum(), (~feet).sum()]
+    assert counts[0::2].count(0) < 5 and sum(counts[0::2]) > 0.2 * sum(counts)  # feet and not, in most draws
+
+
+@pytest.mark.parametrize("low_height", [0.3, None])
+def test_the_classification_kernel_against_the_oracle(low_height):
+    # ground, below-ground, above-ceiling and kept points over tilted patches, with kerb-like low
+    # points alone and beside taller ones
+    from oracles.cloud import classify
+
+    from tracker.cloud import ABOVE_CEILING, BELOW_GROUND, GROUND, KEPT, LOW_OBJECT, classify_kernel
+
+    rng = np.random.default_rng(12)
+    n = 5000
+    pts = np.column_stack([rng.uniform(-60, 60, n), rng.uniform(-20, 20, n),
+                           rng.choice([0.0, 0.22, 1.2, 5.0, -0.5], n) + rng.normal(0, 0.02, n)])
+    patch = rng.integers(0, 6, n)
+    tilt = rng.normal(0, 0.02, (6, 2))
+    normals = np.column_stack([tilt, np.ones(6)]) / np.sqrt(1 + (tilt**2).sum(axis=1))[:, None]
+    offsets = rng.normal(0, 0.03, 6)
+    h, cls, xy = classify_kernel(pts, patch, normals, offsets, 0.15, 4.0, -1.0 if low_height is None else low_height, 0.5)
+    h_ref, masks, xy_ref = classify(pts, patch, normals, offsets, 0.15, 4.0, low_height, 0.5)
+    np.testing.assert_array_equal(h, h_ref)
+    for code, mask in zip((GROUND, BELOW_GROUND, ABOVE_CEILING, LOW_OBJECT, KEPT), masks):
+        np.testing.assert_array_equal(cls == code, mask)
+        assert mask.any() or (code == LOW_OBJECT and low_height is None)
+    np.testing.assert_array_equal(xy, xy_ref)

@@ -169,7 +169,8 @@ CALLED_FROM_PYTHON = [
     "centerline.node_seed_kernel",
     "gating.candidate_pairs_kernel", "pairs.prepared_pairs_kernel", "birth.road_births_kernel",
     "ukf.certainly_positive_definite", "reduction.inside_updated_kernel", "reduction.absorb_candidates_kernel",
-    "reduction.overlapping_candidates_kernel", "extraction.report_centres_kernel",
+    "reduction.overlapping_candidates_kernel", "extraction.report_centres_kernel", "cloud.wall_feet_kernel",
+    "cloud.classify_kernel",
 ]
 
 

@@ -51,7 +51,10 @@ Entry points: :func:`to_ground_plane` (2-D points and :class:`CloudStats`) and
 :func:`process_cloud` (a :class:`CloudResult` with everything a figure of "raw cloud / without
 ground / projected points" needs). Everything is vectorised with numpy: the fits of all patches run
 at once as padded ``(patches, points)`` arrays; the only Python loops run over the rings (the hinged
-fits of a ring need the planes of the ring inside) and the refinement iterations. Deterministic:
+fits of a ring need the planes of the ring inside) and the refinement iterations. Two steps are
+compiled kernels, one pass each over a cloud's 10^4-10^5 points where numpy would take a dozen: the
+wall-feet tests over the sorted columns (``wall_feet_kernel``) and the classification, low objects
+and projection (``classify_kernel``). Deterministic:
 every random draw comes from generators seeded with ``CloudConfig.seed``.
 """
 
@@ -64,6 +67,7 @@ from typing import Any
 import numpy as np
 
 from tracker.checks import check_real
+from tracker.jit import njit
 
 __all__ = [
     "CLOUD_FRAMES",
@@ -501,25 +505,52 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     else:
         order = np.argsort(col * (2.0 * (float(rho.max()) + 1.0)) + rho)
     c, r, h = col[order], rho[order], z[order]
-    rise = np.abs(h[1:] - h[:-1])
-    steep = (c[1:] == c[:-1]) & (rise > cfg.distance_threshold) & (r[1:] - r[:-1] <= rise)
-    lower = np.where(h[1:] < h[:-1], order[1:], order[:-1])  # range noise may swap a face's points in rho
     out = np.zeros(n, dtype=bool)
-    out[lower[steep]] = True
-    # a dense lidar's beams climb a near face a few centimetres apart: next to each other they are
-    # no rise, yet all but the top stand at its foot. Per column, bins of distance_threshold in rho:
-    # a point is a foot where its bin or a neighbouring one holds a return more than that higher
-    tau = cfg.distance_threshold
-    b = np.floor(r / tau)
-    start = np.flatnonzero(np.r_[True, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
-    top = np.maximum.reduceat(h, start)  # each (column, bin) group's highest return
-    group = np.cumsum(np.r_[False, (c[1:] != c[:-1]) | (b[1:] != b[:-1])])
-    gc, gb = c[start], b[start]
-    above = top.copy()
-    nxt = (gc[1:] == gc[:-1]) & (gb[1:] == gb[:-1] + 1)  # the next group is the next bin out
-    above[:-1] = np.where(nxt, np.maximum(above[:-1], top[1:]), above[:-1])
-    above[1:] = np.where(nxt, np.maximum(above[1:], top[:-1]), above[1:])
-    out[order[h < above[group] - tau]] = True
+    out[order] = wall_feet_kernel(c, r, h, cfg.distance_threshold)
+    return out
+
+
+@njit
+def wall_feet_kernel(c, r, h, tau):  # pragma: no cover - compiled
+    """:func:`_wall_feet`'s tests on returns sorted by column ``c`` (N,), then outwards by ``rho`` ``r``
+    (N,), heights ``h`` (N,) in that order; ``tau = distance_threshold``. Returns the feet (N,) in that
+    order. Two returns next to each other in a column, ``rise = |h_i+1 - h_i| > tau`` and ``r_i+1 -
+    r_i <= rise``: the lower is a foot (the first of the two where they are equal). Groups: a column's
+    returns in one bin ``floor(r / tau)``; a return is a foot where its group, or the column's group in
+    the bin next out or next in, holds a return higher than ``h + tau``."""
+    n = c.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for i in range(n - 1):
+        if c[i + 1] == c[i]:
+            rise = abs(h[i + 1] - h[i])
+            if rise > tau and r[i + 1] - r[i] <= rise:
+                if h[i + 1] < h[i]:
+                    out[i + 1] = True
+                else:
+                    out[i] = True
+    # the groups (column, bin) in order, each one's highest return
+    group = np.empty(n, dtype=np.int64)
+    top = np.empty(n)
+    gc = np.empty(n)
+    gb = np.empty(n)
+    g = -1
+    for i in range(n):
+        b = math.floor(r[i] / tau)
+        if g < 0 or c[i] != gc[g] or b != gb[g]:
+            g += 1
+            gc[g], gb[g], top[g] = c[i], b, h[i]
+        elif h[i] > top[g]:
+            top[g] = h[i]
+        group[i] = g
+    count = g + 1
+    above = top[:count].copy()
+    for k in range(count - 1):  # the next group is the next bin out of the same column
+        if gc[k + 1] == gc[k] and gb[k + 1] == gb[k] + 1:
+            above[k] = max(above[k], top[k + 1])
+            above[k + 1] = max(above[k + 1], top[k])
+    for i in range(n):
+        if h[i] < above[group[i]] - tau:
+            out[i] = True
     return out
 
 
@@ -1226,33 +1257,77 @@ def _stands_on(normal: np.ndarray, offset: float, cfg: CloudConfig) -> bool:
     return bool(np.all(np.abs(half @ normal[:2] + offset) <= cfg.max_step * abs(normal[2])))
 
 
-def _low_objects(pts: np.ndarray, h: np.ndarray, candidates: np.ndarray, cfg: CloudConfig) -> np.ndarray:
-    """Which of the ``candidates`` among ``pts`` (N, 3) in E, of heights ``h`` above their planes, are
-    low objects (``CloudConfig.low_object_height``): on a grid of ``low_object_cell`` square cells of E
-    (``floor(x / cell)``, ``floor(y / cell)``) over the candidates' extent, the cells holding a
-    candidate higher than the height are marked and the marks grown by one cell each way (a 3 x 3
-    box, separably); the candidates no higher than the height in unmarked cells are low objects.
-    Linear in the points and the cells (a 200 x 200 m extent is 160,000 cells)."""
-    out = np.zeros(len(pts), dtype=bool)
-    if cfg.low_object_height is None or not candidates.any():
-        return out
-    rows = np.flatnonzero(candidates)
-    low = h[rows] <= cfg.low_object_height
-    if not low.any():
-        return out
-    xy = pts[rows, :2]
-    cell = np.floor(xy / cfg.low_object_cell).astype(np.intp)  # cells fixed in E, whatever the extent
-    cell -= cell.min(axis=0) - 1  # a margin of one cell
-    high = np.zeros(tuple(cell.max(axis=0) + 2), dtype=bool)
-    high[cell[~low, 0], cell[~low, 1]] = True
-    near = high.copy()
-    near[1:] |= high[:-1]
-    near[:-1] |= high[1:]
-    grown = near.copy()
-    grown[:, 1:] |= near[:, :-1]
-    grown[:, :-1] |= near[:, 1:]
-    out[rows[low][~grown[cell[low, 0], cell[low, 1]]]] = True
-    return out
+#: The classes of :func:`classify_kernel`, per point.
+GROUND, BELOW_GROUND, ABOVE_CEILING, LOW_OBJECT, KEPT = 0, 1, 2, 3, 4
+
+
+@njit
+def classify_kernel(pts, patch, normals, offsets, tau, ceiling, low_height, cell):  # pragma: no cover - compiled
+    """Steps 4 and 5 of :func:`process_cloud` in one pass over the points ``pts`` (N, 3) in E of patches
+    ``patch`` (N,), whose planes are ``normals`` (P, 3), ``offsets`` (P,): the height above the plane
+    ``h = n . p + d``; the class, ``GROUND`` ``|h| <= tau``, ``BELOW_GROUND`` ``h < -tau``,
+    ``ABOVE_CEILING`` ``h > ceiling``, else ``KEPT``, and of those ``LOW_OBJECT`` where
+    ``low_height >= 0`` (negative: off): no higher than it, and no kept point higher than it in the
+    3 x 3 block of ``cell`` square cells of E (``floor(x / cell)``, ``floor(y / cell)``) around its
+    own; and the kept points' projections onto their planes along the normals, ``q = p - h n``.
+    Returns ``(h (N,), classes (N,) int8, xy (M, 2))``, ``xy`` of the kept points in input order.
+    Linear in the points and in the cells over the kept points' extent."""
+    n = pts.shape[0]
+    h = np.empty(n)
+    cls = np.empty(n, dtype=np.int8)
+    kept = 0
+    lo_x, lo_y, hi_x, hi_y = 0, 0, 0, 0
+    for i in range(n):
+        k = patch[i]
+        v = pts[i, 0] * normals[k, 0]
+        v += pts[i, 1] * normals[k, 1]
+        v += pts[i, 2] * normals[k, 2]
+        v += offsets[k]
+        h[i] = v
+        if abs(v) <= tau:
+            cls[i] = GROUND
+        elif v < -tau:
+            cls[i] = BELOW_GROUND
+        elif v > ceiling:
+            cls[i] = ABOVE_CEILING
+        else:
+            cls[i] = KEPT
+            if low_height >= 0.0:
+                cx = int(math.floor(pts[i, 0] / cell))
+                cy = int(math.floor(pts[i, 1] / cell))
+                if kept == 0:
+                    lo_x, lo_y, hi_x, hi_y = cx, cy, cx, cy
+                else:
+                    lo_x, lo_y = min(lo_x, cx), min(lo_y, cy)
+                    hi_x, hi_y = max(hi_x, cx), max(hi_y, cy)
+            kept += 1
+    if low_height >= 0.0 and kept > 0:
+        # the cells holding a kept point higher than low_height, with a margin of one cell
+        high = np.zeros((hi_x - lo_x + 3, hi_y - lo_y + 3), dtype=np.bool_)
+        for i in range(n):
+            if cls[i] == KEPT and h[i] > low_height:
+                high[int(math.floor(pts[i, 0] / cell)) - lo_x + 1, int(math.floor(pts[i, 1] / cell)) - lo_y + 1] = True
+        for i in range(n):
+            if cls[i] == KEPT and h[i] <= low_height:
+                gx = int(math.floor(pts[i, 0] / cell)) - lo_x + 1
+                gy = int(math.floor(pts[i, 1] / cell)) - lo_y + 1
+                near = False
+                for a in range(gx - 1, gx + 2):
+                    for b in range(gy - 1, gy + 2):
+                        if high[a, b]:
+                            near = True
+                if not near:
+                    cls[i] = LOW_OBJECT
+                    kept -= 1
+    xy = np.empty((kept, 2))
+    j = 0
+    for i in range(n):
+        if cls[i] == KEPT:
+            k = patch[i]
+            xy[j, 0] = pts[i, 0] - h[i] * normals[k, 0]
+            xy[j, 1] = pts[i, 1] - h[i] * normals[k, 1]
+            j += 1
+    return h, cls, xy
 
 
 def _ego_body(pe: np.ndarray, cfg: CloudConfig) -> np.ndarray:
@@ -1302,16 +1377,12 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     use = finite & ~body if has_body else finite
     pts = pe if every else pe[use]
     model, patch = _fit_ground(pts, cfg)
-    h = model._height(pts, patch)
-    tau = cfg.distance_threshold
-    ground_f = np.abs(h) <= tau
-    below_f = h < -tau
-    above_f = h > cfg.height_ceiling
-    kept_f = ~(ground_f | below_f | above_f)
-    low_f = _low_objects(pts, h, kept_f, cfg)
-    kept_f &= ~low_f
-    projected = pts[kept_f] - h[kept_f, None] * model.normals[patch[kept_f]]
-    points_2d = np.ascontiguousarray(projected[:, :2])
+    low = -1.0 if cfg.low_object_height is None else float(cfg.low_object_height)
+    h, cls, points_2d = classify_kernel(np.ascontiguousarray(pts, dtype=float), patch, model.normals, model.offsets,
+                                        float(cfg.distance_threshold), float(cfg.height_ceiling), low,
+                                        float(cfg.low_object_cell))
+    ground_f, below_f, above_f = cls == GROUND, cls == BELOW_GROUND, cls == ABOVE_CEILING
+    low_f, kept_f = cls == LOW_OBJECT, cls == KEPT
 
     def full(mask: np.ndarray) -> np.ndarray:
         if every:
