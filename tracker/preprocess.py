@@ -228,17 +228,12 @@ def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid
             near[m] = i
             m += 1
     near = near[:m]
-    sub = np.empty((m, 2))
-    for j in range(m):
-        sub[j, 0] = pts[near[j], 0]
-        sub[j, 1] = pts[near[j], 1]
+    sub = pts[near]
     empty = np.empty(0, dtype=np.int64)
     if seeded:
         s = seeds.copy()
         missing = np.zeros(count, dtype=np.bool_)
-        s_sub = np.empty(m)
-        for j in range(m):
-            s_sub[j] = s[near[j]]
+        s_sub = s[near]
     else:
         s_sub, missing_sub = seed_kernel(sub, grid_origin, inv_resolution, grid, node_frame, nodes, min_denominator)
         s = np.zeros(count)
@@ -266,9 +261,6 @@ def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid
             on_road[kept] = i
             kept += 1
     on_road = on_road[:kept]
-    inside = np.empty((kept, 2))
-    for j in range(kept):
-        inside[j, 0] = scan[on_road[j], 0]
-        inside[j, 1] = scan[on_road[j], 1]
+    inside = scan[on_road]
     chosen = bearing_filter_kernel(inside, bin_width, bin_count, wrap)
     return DONE, on_road[chosen], lateral, kept, pts, s, missing
