@@ -690,22 +690,25 @@ def test_stats_add_up_and_masks_partition_the_cloud():
 
 
 def test_a_kerb_is_a_low_object_and_a_vehicle_s_lowest_returns_are_not():
-    """Level ground seen from 1.9 m, a kerb 0.18 m high along y = -6 m and a car's side (0.25 to
-    1.45 m up, 12 m ahead, y = -3 m): ``CloudConfig.low_object_height`` (0.3 m) drops every kerb
-    return above ``distance_threshold`` and keeps all of the car's, its 0.25 m line included (the
-    side above it shares its cells); with it off, the kerb is kept."""
+    """Level ground seen from 1.9 m, a kerb 0.18 m high along y = -5.9 m, a guard-rail post 0.8 m
+    tall in the next cell out (y = -6.3 m, x = 5 m) and a car's side (0.25 to 1.45 m up, 12 m ahead,
+    y = -3 m): ``CloudConfig.low_object_height`` (0.3 m) drops every kerb return above
+    ``distance_threshold``, those beside the post included, and keeps all of the car's, its 0.25 m
+    line included (the side above it shares its cells), and the post's; with it off, the kerb is
+    kept."""
     rng = np.random.default_rng(3)
     ground = np.column_stack([rng.uniform(-30, 30, 40000), rng.uniform(-30, 30, 40000), rng.normal(0, 0.01, 40000)])
     kx = np.arange(-20.0, 20.0, 0.4)
-    kerb = np.column_stack([kx, np.full(len(kx), -6.0), np.full(len(kx), 0.18)])
+    kerb = np.column_stack([kx, np.full(len(kx), -5.9), np.full(len(kx), 0.18)])
+    post = np.column_stack([np.full(4, 5.0), np.full(4, -6.3), [0.2, 0.4, 0.6, 0.8]])
     cx = np.arange(10.0, 14.5, 0.1)
     side = np.concatenate([np.column_stack([cx, np.full(len(cx), -3.0), np.full(len(cx), z)])
                            for z in (0.25, 0.45, 0.8, 1.1, 1.45)])
-    cloud = np.vstack([ground, kerb, side]) - [0, 0, 1.9]
+    cloud = np.vstack([ground, kerb, post, side]) - [0, 0, 1.9]
     res = process_cloud(cloud)
     k = slice(len(ground), len(ground) + len(kerb))
     assert res.low_object[k].all() and not res.kept[k].any()
-    assert res.kept[-len(side):].all() and not res.low_object[-len(side):].any()
+    assert res.kept[len(ground) + len(kerb):].all() and not res.low_object[len(ground) + len(kerb):].any()
     assert res.stats.low_object == len(kerb)
     off = process_cloud(cloud, CloudConfig(low_object_height=None))
     assert off.kept[k].all() and off.stats.low_object == 0

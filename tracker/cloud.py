@@ -35,10 +35,9 @@ rectangle measurement model) takes points ``(x, y)`` in the vehicle frame E. Thi
 4. **Classification** against each point's patch plane, by the signed height ``h`` above it:
    ground ``|h| <= distance_threshold``; below ground ``h < -distance_threshold`` (multipath
    reflections, puddles, noise); above the ceiling ``h > height_ceiling`` (bridges, signs, canopies);
-   low objects, the points of ``low_object_cell`` square cells of E whose 3 x 3 block of cells holds
-   no point (of those left) higher than ``low_object_height`` (kerbs, debris: no vehicle is so low,
-   and a vehicle's lowest returns share their cells with the returns of its side above them); the
-   rest is kept.
+   low objects, the points of ``low_object_cell`` square cells of E that hold no point (of those
+   left) higher than ``low_object_height`` (kerbs, debris: no vehicle is so low, and a vehicle's
+   lowest returns share their cells with the returns of its side above them); the rest is kept.
 5. **Projection** of the kept points onto their patch's plane along its normal; their ``(x, y)``
    in E are the 2-D points.
 
@@ -283,13 +282,15 @@ class CloudConfig:
 
     - ``height_ceiling`` (m above the patch's plane): higher points are dropped. Default 4.0 (the
       EU vehicle height limit): bridges, gantries, signs and tree canopies above a road are gone.
-    - ``low_object_height`` (m above the patch's plane; None: off): a point whose cell's 3 x 3 block
-      holds no point higher than this is a low object and dropped. Default 0.3: a kerb (0.10-0.20 m)
-      stands just above ``distance_threshold``, its returns lie within the road's margin, and they
-      line up along the edge into clusters that seed tracks; a vehicle's returns reach 1.2 m and more.
+    - ``low_object_height`` (m above the patch's plane; None: off): a point whose cell holds no point
+      higher than this is a low object and dropped. Default 0.3: a kerb (0.10-0.20 m) stands just
+      above ``distance_threshold``, its returns lie within the road's margin, and they line up along
+      the edge into clusters that seed tracks; a vehicle's returns reach 1.2 m and more.
     - ``low_object_cell`` (m, > 0): the side of those cells in E. Default 0.5: a vertical side's
-      returns from every beam fall in one cell or its neighbour; a kerb's are 0.5 m or more from any
-      taller object's but a parked car's or a wall's right behind it.
+      returns from every beam of a firing lie one above the other, in one cell; a kerb's top lies in
+      cells of its own, though a guard-rail post or a wall may stand in the next one (the cell's
+      neighbours are not asked: a kerb's top beside a post, taken as an object, joins the post's
+      returns in a cluster at the road's edge).
 
     A patch with no plane of its own borrows its inner neighbour's (the patch of the ring inside
     holding its sector's axis, whatever plane that one uses); the disc uses the level plane ``z = 0``
@@ -1267,9 +1268,9 @@ def classify_kernel(pts, patch, normals, offsets, tau, ceiling, low_height, cell
     ``patch`` (N,), whose planes are ``normals`` (P, 3), ``offsets`` (P,): the height above the plane
     ``h = n . p + d``; the class, ``GROUND`` ``|h| <= tau``, ``BELOW_GROUND`` ``h < -tau``,
     ``ABOVE_CEILING`` ``h > ceiling``, else ``KEPT``, and of those ``LOW_OBJECT`` where
-    ``low_height >= 0`` (negative: off): no higher than it, and no kept point higher than it in the
-    3 x 3 block of ``cell`` square cells of E (``floor(x / cell)``, ``floor(y / cell)``) around its
-    own; and the kept points' projections onto their planes along the normals, ``q = p - h n``.
+    ``low_height >= 0`` (negative: off): no higher than it, and no kept point higher than it in its
+    ``cell`` square cell of E (``floor(x / cell)``, ``floor(y / cell)``); and the kept points'
+    projections onto their planes along the normals, ``q = p - h n``.
     Returns ``(h (N,), classes (N,) int8, xy (M, 2))``, ``xy`` of the kept points in input order.
     Linear in the points and in the cells over the kept points' extent."""
     n = pts.shape[0]
@@ -1302,21 +1303,14 @@ def classify_kernel(pts, patch, normals, offsets, tau, ceiling, low_height, cell
                     hi_x, hi_y = max(hi_x, cx), max(hi_y, cy)
             kept += 1
     if low_height >= 0.0 and kept > 0:
-        # the cells holding a kept point higher than low_height, with a margin of one cell
-        high = np.zeros((hi_x - lo_x + 3, hi_y - lo_y + 3), dtype=np.bool_)
+        # the cells holding a kept point higher than low_height
+        high = np.zeros((hi_x - lo_x + 1, hi_y - lo_y + 1), dtype=np.bool_)
         for i in range(n):
             if cls[i] == KEPT and h[i] > low_height:
-                high[int(math.floor(pts[i, 0] / cell)) - lo_x + 1, int(math.floor(pts[i, 1] / cell)) - lo_y + 1] = True
+                high[int(math.floor(pts[i, 0] / cell)) - lo_x, int(math.floor(pts[i, 1] / cell)) - lo_y] = True
         for i in range(n):
             if cls[i] == KEPT and h[i] <= low_height:
-                gx = int(math.floor(pts[i, 0] / cell)) - lo_x + 1
-                gy = int(math.floor(pts[i, 1] / cell)) - lo_y + 1
-                near = False
-                for a in range(gx - 1, gx + 2):
-                    for b in range(gy - 1, gy + 2):
-                        if high[a, b]:
-                            near = True
-                if not near:
+                if not high[int(math.floor(pts[i, 0] / cell)) - lo_x, int(math.floor(pts[i, 1] / cell)) - lo_y]:
                     cls[i] = LOW_OBJECT
                     kept -= 1
     xy = np.empty((kept, 2))

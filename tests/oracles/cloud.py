@@ -49,16 +49,10 @@ def classify(pts: np.ndarray, patch: np.ndarray, normals: np.ndarray, offsets: n
     if low_height is not None and len(rows):
         low = h[rows] <= low_height
         cells = np.floor(pts[rows, :2] / cell).astype(np.intp)
-        cells -= cells.min(axis=0) - 1
-        high = np.zeros(tuple(cells.max(axis=0) + 2), dtype=bool)
+        cells -= cells.min(axis=0)
+        high = np.zeros(tuple(cells.max(axis=0) + 1), dtype=bool)
         high[cells[~low, 0], cells[~low, 1]] = True
-        grown = high.copy()
-        grown[1:] |= high[:-1]
-        grown[:-1] |= high[1:]
-        wide = grown.copy()
-        wide[:, 1:] |= grown[:, :-1]
-        wide[:, :-1] |= grown[:, 1:]
-        low_object[rows[low & ~wide[cells[:, 0], cells[:, 1]]]] = True
+        low_object[rows[low & ~high[cells[:, 0], cells[:, 1]]]] = True
     kept &= ~low_object
     xy = (pts[kept] - h[kept, None] * n[kept])[:, :2]
     return h, np.stack([ground, below, above, low_object, kept]), xy
