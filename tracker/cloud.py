@@ -261,8 +261,8 @@ class CloudConfig:
       lower one is at the foot of something (a vehicle's side, a wall, a pole) and takes no part in
       the fits; so is a return with another more than ``distance_threshold`` higher in its column
       within about ``distance_threshold`` in ``rho`` (a dense lidar's neighbouring beams climb a near
-      face a few centimetres apart, no rise between any two). Default 0.2 (the VLP-16's azimuth step at 10 Hz: each column one firing of its 16
-      beams). Without the test, the lowest scan line across a vehicle's rear, which lies as flat
+      face a few centimetres apart, no rise between any two). Default 0.2 (the VLP-16's azimuth step
+      at 10 Hz: each column one firing of its 16 beams). Without the test, the lowest scan line across a vehicle's rear, which lies as flat
       as a ground ring, 2 deg above the ground's plane from where the ground is last seen, is
       taken for a climbing ground by a hinged fit (``tests/test_cloud.py``).
     - ``seed`` (int >= 0): seed of the random draws (the fit subsample, the RANSAC samples): the
@@ -1207,7 +1207,8 @@ class CloudResult:
     ``stats`` the counts.
 
     A figure of the pipeline: ``points_e[finite]`` (raw cloud), ``points_e[kept]`` (without ground,
-    below-ground, above-ceiling and low-object points), ``points_2d`` (projected), ``model.ground_z`` (the fitted ground).
+    below-ground, above-ceiling and low-object points), ``points_2d`` (projected), ``model.ground_z``
+    (the fitted ground).
     """
 
     points_e: np.ndarray
@@ -1276,6 +1277,8 @@ def classify_kernel(pts, patch, normals, offsets, tau, ceiling, low_height, cell
     n = pts.shape[0]
     h = np.empty(n)
     cls = np.empty(n, dtype=np.int8)
+    cx = np.empty(n, dtype=np.int64)  # the kept points' cells
+    cy = np.empty(n, dtype=np.int64)
     kept = 0
     lo_x, lo_y, hi_x, hi_y = 0, 0, 0, 0
     for i in range(n):
@@ -1294,25 +1297,25 @@ def classify_kernel(pts, patch, normals, offsets, tau, ceiling, low_height, cell
         else:
             cls[i] = KEPT
             if low_height >= 0.0:
-                cx = int(math.floor(pts[i, 0] / cell))
-                cy = int(math.floor(pts[i, 1] / cell))
+                a = int(math.floor(pts[i, 0] / cell))
+                b = int(math.floor(pts[i, 1] / cell))
+                cx[i], cy[i] = a, b
                 if kept == 0:
-                    lo_x, lo_y, hi_x, hi_y = cx, cy, cx, cy
+                    lo_x, lo_y, hi_x, hi_y = a, b, a, b
                 else:
-                    lo_x, lo_y = min(lo_x, cx), min(lo_y, cy)
-                    hi_x, hi_y = max(hi_x, cx), max(hi_y, cy)
+                    lo_x, lo_y = min(lo_x, a), min(lo_y, b)
+                    hi_x, hi_y = max(hi_x, a), max(hi_y, b)
             kept += 1
     if low_height >= 0.0 and kept > 0:
         # the cells holding a kept point higher than low_height
         high = np.zeros((hi_x - lo_x + 1, hi_y - lo_y + 1), dtype=np.bool_)
         for i in range(n):
             if cls[i] == KEPT and h[i] > low_height:
-                high[int(math.floor(pts[i, 0] / cell)) - lo_x, int(math.floor(pts[i, 1] / cell)) - lo_y] = True
+                high[cx[i] - lo_x, cy[i] - lo_y] = True
         for i in range(n):
-            if cls[i] == KEPT and h[i] <= low_height:
-                if not high[int(math.floor(pts[i, 0] / cell)) - lo_x, int(math.floor(pts[i, 1] / cell)) - lo_y]:
-                    cls[i] = LOW_OBJECT
-                    kept -= 1
+            if cls[i] == KEPT and h[i] <= low_height and not high[cx[i] - lo_x, cy[i] - lo_y]:
+                cls[i] = LOW_OBJECT
+                kept -= 1
     xy = np.empty((kept, 2))
     j = 0
     for i in range(n):

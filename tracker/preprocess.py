@@ -238,9 +238,8 @@ def road_filter_kernel(scan, cos_yaw, sin_yaw, ego_x, ego_y, seeds, seeded, grid
         s_sub, missing_sub = seed_kernel(sub, grid_origin, inv_resolution, grid, node_frame, nodes, min_denominator)
         s = np.zeros(count)
         missing = np.zeros(count, dtype=np.bool_)
-        for j in range(m):
-            s[near[j]] = s_sub[j]
-            missing[near[j]] = missing_sub[j]
+        s[near] = s_sub
+        missing[near] = missing_sub
         if missing_sub.any():
             return SEED, empty, np.empty(0), 0, pts, s, missing
     s_sub, lateral_sub, pending = project_kernel(kind, sub, s_sub, closed, length, ends, table, bucket_cell,
