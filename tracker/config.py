@@ -173,6 +173,12 @@ class MotionConfig:
     manoeuvre_hold: float = 2.0
     #: Time constant of the fading mean of ``s`` corrections that flags a steady lag (s; default 0.5; None: off).
     manoeuvre_memory: float | None = 0.5
+    #: Lane-flow prior of coasting tracks: spread of speeds in a lane (m/s; default 1.5; None: off; ``tracker.flow``).
+    flow_speed_std: float | None = 1.5
+    #: ... the time over which the pull amounts to one measurement of that spread (s; default 1.0).
+    flow_time: float = 1.0
+    #: ... the seen vehicles ahead and behind in the lane within this distance along the road set the flow (m; default 25.0).
+    flow_window: float = 25.0
 
     def __post_init__(self) -> None:
         _check_choice("MotionConfig", "model", self.model, ("frenet", "paper"))
@@ -202,6 +208,10 @@ class MotionConfig:
         _check("MotionConfig", "manoeuvre_hold", self.manoeuvre_hold, low=0.0, unit="s")
         if self.manoeuvre_memory is not None:
             _check("MotionConfig", "manoeuvre_memory", self.manoeuvre_memory, low=0.0, low_open=True, unit="s")
+        if self.flow_speed_std is not None:
+            _check("MotionConfig", "flow_speed_std", self.flow_speed_std, low=0.0, low_open=True, unit="m/s")
+        _check("MotionConfig", "flow_time", self.flow_time, low=0.0, low_open=True, unit="s")
+        _check("MotionConfig", "flow_window", self.flow_window, low=0.0, low_open=True, unit="m")
 
 
 @dataclass(frozen=True)

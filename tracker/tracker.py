@@ -85,6 +85,7 @@ from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
 from tracker.clustering import along_cuts_kernel, cluster_points_kernel, ordered_clusters_kernel, overlap_groups_kernel
 from tracker.extent import bound_at_holes_kernel
+from tracker.flow import flow_speeds, pull_to_flow
 from tracker.extraction import report_centres_kernel
 from tracker.gating import candidate_pairs_kernel
 from tracker.reduction import inside_updated_kernel
@@ -208,12 +209,13 @@ class Tracker:
         clock, spent = time.perf_counter, self.stage_seconds
         t0 = clock()
         ego = frame.ego
-        s_ego, _ = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
+        s_ego, n_ego = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
         previous = self.mixture.labels[self._reported].tolist()  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
         self._strong_labels = set()
         self._radar_updated = set()
+        self._pull_to_flow(dt, updated_before, (float(s_ego), float(n_ego), float(ego.v)))
         self._predict(dt, updated_before)
         t1 = clock()
         spent["predict"] += t1 - t0
@@ -306,6 +308,26 @@ class Tracker:
         elif floor is not None:  # no time passed: only a manoeuvre's onset changes the acceleration
             mix = Mixture(mix.weights, *relax_acceleration(mix.means, mix.covs, None, floor), mix.labels)
         self.mixture = mix
+
+    def _pull_to_flow(self, dt: float, updated: set[int], ego: tuple[float, float, float]) -> None:
+        """The lane-flow prior (``tracker.flow``, ``MotionConfig.flow_speed_std``): the components of the
+        tracks that nothing updated in the last frame (labels reported before, neither a cluster nor a
+        radar detection in ``updated``) take the pseudo-measurement of their lane's speed, set by last
+        frame's updated tracks and the ego (``ego``: its ``(s, n, v)``). Road coordinates only."""
+        motion = self.config.motion
+        mix = self.mixture
+        if motion.flow_speed_std is None or dt <= 0.0 or self.cartesian or not len(mix) or not self._ever_reported:
+            return
+        idle = np.flatnonzero(_labels_in(mix.labels, self._ever_reported) & ~_labels_in(mix.labels, updated))
+        if not len(idle):
+            return
+        seen = self._reported[_labels_in(mix.labels[self._reported], updated)]
+        source = np.vstack([mix.means[seen][:, [0, 1, 2]], np.array([ego])])
+        flow = flow_speeds(self.road, source, mix.means[idle][:, :2], motion.flow_window)
+        found = np.isfinite(flow)
+        variance = motion.flow_speed_std**2 * motion.flow_time / dt
+        pull_to_flow(mix.means, mix.covs, idle[found], flow[found], variance)
+        self.stats["flow_pulls"] += int(found.sum())
 
     def _manoeuvre_jerk(self, mix: Mixture) -> tuple[np.ndarray, np.ndarray | None]:
         """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
