@@ -54,6 +54,26 @@ def test_cluster_birth_from_an_l_shape(road):
     assert len(cluster_births([points[:2]], [None], ego, road, BirthConfig(min_cluster_points=3))[0]) == 0
 
 
+def test_a_cluster_birth_without_radar_takes_the_prior_speed_it_is_given(road):
+    # the car of the test above, seen by the lidar alone: the ego's speed (15 m/s, std speed_std)
+    # without a prior speed, the given one (its lane's flow, tracker.flow) with one; a radar velocity
+    # wins over either
+    s_car, n_car = 60.0, road.lane_centers[2]
+    theta = road.frame(np.array([s_car]))[1]
+    centre = road.to_cartesian(s_car, n_car)
+    ego_xy = road.to_cartesian(40.0, road.lane_centers[1])
+    ego_yaw = float(road.heading(40.0))
+    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 15.0)
+    corners = to_local(rectangle_corners(centre, np.array(theta[0]), np.array(4.8), np.array(2.0)), ego_xy, ego_yaw)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    cfg = BirthConfig()
+    means, covs = cluster_births([points, points], [None, None], ego, road, cfg, prior_speeds=[None, (9.0, 1.5)])
+    assert means[0, 2] == 15.0 and covs[0, 2, 2] == pytest.approx(cfg.speed_std**2)
+    assert means[1, 2] == 9.0 and covs[1, 2, 2] == pytest.approx(1.5**2)
+    means, _ = cluster_births([points], [np.array([17.0, 0.5])], ego, road, cfg, prior_speeds=[(9.0, 1.5)])
+    assert means[0, 2] == pytest.approx(17.0, abs=0.6)
+
+
 @pytest.mark.parametrize("classes", [True, False], ids=["vehicle-classes", "off"])
 def test_cluster_birth_of_a_wide_rear_gets_a_long_vehicles_length(classes):
     """A 2.55 m wide rear straight ahead on a straight road (a bus): with the vehicle classes' prior the

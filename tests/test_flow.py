@@ -128,9 +128,34 @@ def test_the_ego_is_a_seen_vehicle_and_nothing_is_pulled_when_the_prior_is_off(s
     assert off.stats["flow_pulls"] == 0
 
 
-@pytest.mark.parametrize("field, value", [("flow_speed_std", 0.0), ("flow_time", -1.0), ("flow_window", 0.0)])
-def test_bad_flow_settings_are_refused(field, value):
-    from tracker.config import MotionConfig
+@pytest.mark.parametrize("section, field, value", [("MotionConfig", "flow_speed_std", 0.0), ("MotionConfig", "flow_time", -1.0),
+                                                    ("MotionConfig", "flow_window", 0.0), ("BirthConfig", "flow_speed_std", -2.0)])
+def test_bad_flow_settings_are_refused(section, field, value):
+    from tracker import config
 
-    with pytest.raises(ValueError, match=f"MotionConfig.{field}"):
-        MotionConfig(**{field: value})
+    with pytest.raises(ValueError, match=f"{section}.{field}"):
+        getattr(config, section)(**{field: value})
+
+
+def test_a_birth_without_radar_takes_its_lanes_flow(straight):
+    # labels 1 (s = 150, 14 m/s) and 3 (s = 120, 12 m/s) were updated this frame; a cluster at s = 135 in
+    # their lane gets their mean speed as its prior, one in the ego's lane (right, ego at s = 100 doing
+    # 20 m/s) 10 m ahead of the ego gets the ego's speed, one in the middle lane nobody's (None: the
+    # ego's speed with BirthConfig.speed_std, tracker.birth)
+    from tracker import EgoState
+    from tracker.transforms import to_local
+
+    tracker = _tracker(straight)
+    tracker._updated_labels = {1, 3}
+    ego_xy = straight.to_cartesian(100.0, -3.5)
+    ego = EgoState(ego_xy[0], ego_xy[1], 0.0, 20.0)
+    clusters = [to_local(np.array([straight.to_cartesian(s - 0.5, n), straight.to_cartesian(s + 0.5, n)]), ego_xy, 0.0)
+                for s, n in ((135.0, 3.5), (110.0, -3.5), (115.0, 0.0))]
+    priors = tracker._birth_flow(ego, clusters)
+    std = tracker.config.birth.flow_speed_std
+    assert priors[0] == (pytest.approx(13.0), std)
+    assert priors[1] == (pytest.approx(20.0), std)
+    assert priors[2] is None
+    cfg = tracker.config
+    off = Tracker(straight, dataclasses.replace(cfg, birth=dataclasses.replace(cfg.birth, flow_speed_std=None)))
+    assert off._birth_flow(ego, clusters) is None

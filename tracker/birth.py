@@ -183,9 +183,12 @@ def cluster_births(
     road: Road,
     config: BirthConfig,
     shadowed: list[tuple[np.ndarray, np.ndarray] | None] | None = None,
+    prior_speeds: list[tuple[float, float] | None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Components from unexplained clusters (points (N, 2) in E at the ego pose ``ego``), each with an
-    optional radar velocity ``(vx, vy)`` in E (m/s). ``shadowed`` (per cluster, None: none): the
+    optional radar velocity ``(vx, vy)`` in E (m/s). ``prior_speeds`` (per cluster, None: none): the
+    speed and its std (m/s) that a birth without a radar velocity takes instead of ``config.speed`` (the
+    ego's) and ``config.speed_std``: its lane's flow (``tracker.flow``). ``shadowed`` (per cluster, None: none): the
     cluster's end in bearing that borders another object's shadow and its other, free end (E, m), where
     exactly one does: where the shadowed end is the one nearer the sensor
     along the length, the unseen part of the length may lie beyond the points or behind the object, so
@@ -198,7 +201,9 @@ def cluster_births(
     means, stds, length_stds, sparse, levers, spreads = [], [], [], [], [], []
     if shadowed is None:
         shadowed = [None] * len(clusters)
-    for pts, vel, shadow in zip(clusters, velocities, shadowed):  # a handful per frame; the fit is vectorised
+    if prior_speeds is None:
+        prior_speeds = [None] * len(clusters)
+    for pts, vel, shadow, prior in zip(clusters, velocities, shadowed, prior_speeds):  # a handful per frame; the fit is vectorised
         if len(pts) < _fewest_points(config, pts, vel is not None):
             continue
         sparse_k = len(pts) < SPARSE_POINTS
@@ -265,6 +270,8 @@ def cluster_births(
         along = None if vel is None else float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)]))
         if along is not None and not (road.two_way and along < -BACKWARD_SPEED):
             speed, speed_std = along, None
+        elif prior is not None:  # no radar, or one against the lane's traffic: the lane's flow
+            speed, speed_std = prior
         else:  # no radar, or (two-way road) a radar velocity against the lane's traffic: another vehicle's
             speed, speed_std = ego.v if config.speed is None else config.speed, config.speed_std
         means.append([s, n, speed, xi, 0.0, length, width])

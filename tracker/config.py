@@ -414,6 +414,8 @@ class BirthConfig:
     speed: float | None = None
     #: Std of that prior speed (m/s; default 5.0).
     speed_std: float = 5.0
+    #: Std of a cluster birth's speed taken from its lane's flow, without radar (m/s; default 3.0; None: the prior speed above; ``tracker.flow``).
+    flow_speed_std: float | None = 3.0
     #: Prior length of a road birth, and the least length of a cluster birth (m; default 4.5).
     length: float = 4.5
     #: Prior width of a road birth, and the least width of a cluster birth (m; default 1.8).
@@ -462,6 +464,8 @@ class BirthConfig:
         if self.min_cluster_points_radar is not None:
             _check_int("BirthConfig", "min_cluster_points_radar", self.min_cluster_points_radar, 1)
         _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
+        if self.flow_speed_std is not None:
+            _check("BirthConfig", "flow_speed_std", self.flow_speed_std, low=0.0, low_open=True, unit="m/s")
         if self.min_cluster_points_fused is not None:
             _check_int("BirthConfig", "min_cluster_points_fused", self.min_cluster_points_fused, 1)
         if self.classes is not None:

@@ -80,6 +80,7 @@ from tracker.preprocess import filter_points, lidar_points, nearest_per_ray
 from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
 from tracker.road import Road
 from tracker.track import Track
+from tracker.transforms import to_global
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
 from tracker.update import state_wrapping, update_clusters
@@ -709,10 +710,30 @@ class Tracker:
         idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
         points = [clusters[k] for k in idle]
         means, covs = cluster_births(points, [velocities[k] if self.config.use_radar else None for k in idle],
-                                     ego, self.road, self.config.birth, self._shadowed_ends(points))
+                                     ego, self.road, self.config.birth, self._shadowed_ends(points),
+                                     self._birth_flow(ego, points))
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)
         return self._with_acceleration(means, covs)
+
+    def _birth_flow(self, ego: EgoState, points: list[np.ndarray]) -> list[tuple[float, float] | None] | None:
+        """Per cluster ``points`` (E), the prior speed and std of its birth without a radar velocity: its
+        lane's flow (``tracker.flow``) at the cluster's centroid, from this frame's updated tracks and the
+        ego (``MotionConfig.flow_window``), with the std ``BirthConfig.flow_speed_std``; None where no seen
+        vehicle is near in its lane (the ego's speed then, ``BirthConfig.speed``). None with
+        ``BirthConfig.flow_speed_std`` None, in the Cartesian variant, or with ``BirthConfig.speed`` set."""
+        motion, birth = self.config.motion, self.config.birth
+        if birth.flow_speed_std is None or self.cartesian or not points or birth.speed is not None:
+            return None
+        mix = self.mixture
+        seen = np.flatnonzero(_labels_in(mix.labels, self._updated_labels)
+                              & (mix.weights > self.config.reduction.extraction_threshold))
+        s_ego, n_ego = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
+        source = np.vstack([mix.means[seen][:, [0, 1, 2]], [[float(s_ego), float(n_ego), float(ego.v)]]])
+        centroid = to_global(np.array([p.mean(axis=0) for p in points]), (ego.x, ego.y), ego.yaw)
+        s, n = self.road.to_frenet(centroid)
+        flow = flow_speeds(self.road, source, np.column_stack([np.atleast_1d(s), np.atleast_1d(n)]), motion.flow_window)
+        return [None if not np.isfinite(v) else (float(v), float(birth.flow_speed_std)) for v in flow]
 
     def _birth_from_first_scan(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
         """The first scan's clusters seed births that join the mixture now, before this frame's update
