@@ -1,4 +1,4 @@
-"""Today's tracker reproduces the reference run (tests/reference/tracks.npz, made at f1d1e8b by
+"""Today's tracker reproduces the reference run (tests/reference/tracks.npz, made by
 ``python tests/make_reference.py``): the guard that a speed-up of ``tracker`` changed no result.
 
 Tolerance: the same frames and labels exactly (any change of a decision -- a gate, a prune, a merge,
