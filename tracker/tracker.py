@@ -2,8 +2,9 @@
 
 ``Tracker(road, config).step(frame) -> list[Track]``. One step:
 
-1. **Predict** the mixture over ``dt`` (UKF through the motion model), weights times ``P_S``;
-   add the births: road components (per lane near the range limits, where the view is not blocked and
+1. **Predict** the mixture over ``dt`` (UKF through the motion model), weights times ``P_S``, the
+   tracks that nothing updated in the last frame first pulled towards their lane's speed
+   (``tracker.flow``); add the births: road components (per lane near the range limits, where the view is not blocked and
    no track is within ``gating.distance``) and the previous frame's unexplained clusters
    (``tracker.birth``), the road births only in frames with lidar points. A frame older than the last
    raises ``ValueError``;
