@@ -98,7 +98,8 @@ def test_the_tracker_pulls_only_coasting_tracks_towards_their_seen_neighbours(st
     tracker = _tracker(straight)
     before = tracker.mixture.means.copy(), tracker.mixture.covs.copy()
     # 1 and 3 were updated last frame, 2 coasted; the ego drives in the right lane
-    tracker._pull_to_flow(0.1, {1, 3}, (100.0, -3.5, 20.0))
+    tracker._ego_road = (100.0, -3.5, 20.0)
+    tracker._pull_to_flow(0.1, {1, 3})
     mix = tracker.mixture
     motion = tracker.config.motion
     variance = motion.flow_speed_std**2 * motion.flow_time / 0.1
@@ -118,12 +119,14 @@ def test_the_ego_is_a_seen_vehicle_and_nothing_is_pulled_when_the_prior_is_off(s
     # nothing updated last frame (a blackout): only the ego, 10 m behind label 3 in its lane, sets a flow;
     # label 2 has it 25 m behind, at the default window's edge; label 1, 40 m ahead of it, is beyond it
     assert tracker.config.motion.flow_window == 25.0
-    tracker._pull_to_flow(0.1, set(), (110.0, 3.5, 20.0))
+    tracker._ego_road = (110.0, 3.5, 20.0)
+    tracker._pull_to_flow(0.1, set())
     assert tracker.stats["flow_pulls"] == 2
     assert np.all(tracker.mixture.means[1:3, 2] > [10.0, 12.0])
     assert tracker.mixture.means[0, 2] == 14.0 and tracker.mixture.means[3, 2] == 9.0
     off = _tracker(straight, flow_speed_std=None)
-    off._pull_to_flow(0.1, set(), (110.0, 3.5, 20.0))
+    off._ego_road = (110.0, 3.5, 20.0)
+    off._pull_to_flow(0.1, set())
     np.testing.assert_array_equal(off.mixture.means[:, 2], [14.0, 10.0, 12.0, 9.0])
     assert off.stats["flow_pulls"] == 0
 
@@ -147,6 +150,7 @@ def test_a_birth_without_radar_takes_its_lanes_flow(straight):
 
     tracker = _tracker(straight)
     tracker._updated_labels = {1, 3}
+    tracker._ego_road = (100.0, -3.5, 20.0)  # as Tracker.step sets it
     ego_xy = straight.to_cartesian(100.0, -3.5)
     ego = EgoState(ego_xy[0], ego_xy[1], 0.0, 20.0)
     clusters = [to_local(np.array([straight.to_cartesian(s - 0.5, n), straight.to_cartesian(s + 0.5, n)]), ego_xy, 0.0)

@@ -262,9 +262,10 @@ class CloudConfig:
       the fits; so is a return with another more than ``distance_threshold`` higher in its column
       within about ``distance_threshold`` in ``rho`` (a dense lidar's neighbouring beams climb a near
       face a few centimetres apart, no rise between any two). Default 0.2 (the VLP-16's azimuth step
-      at 10 Hz: each column one firing of its 16 beams). Without the test, the lowest scan line across a vehicle's rear, which lies as flat
-      as a ground ring, 2 deg above the ground's plane from where the ground is last seen, is
-      taken for a climbing ground by a hinged fit (``tests/test_cloud.py``).
+      at 10 Hz: each column one firing of its 16 beams). Without the test, the lowest scan line
+      across a vehicle's rear, which lies as flat as a ground ring, 2 deg above the ground's plane
+      from where the ground is last seen, is taken for a climbing ground by a hinged fit
+      (``tests/test_cloud.py``).
     - ``seed`` (int >= 0): seed of the random draws (the fit subsample, the RANSAC samples): the
       same cloud and configuration give the same result.
 

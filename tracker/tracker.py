@@ -168,6 +168,7 @@ class Tracker:
         self.last_cloud: CloudResult | None = None
         self._next_label = 1
         self._s_ego: float | None = None
+        self._ego_road = (0.0, 0.0, 0.0)  # the ego's (s, n, v) in this frame: a seen vehicle of the lane flow
         self._reported = np.zeros(0, dtype=int)  # indices into the mixture of last frame's tracks
         self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))  # cluster births for the next frame
         self._owned = np.zeros(0, dtype=int)  # per cluster: the track group owning it, or -1
@@ -213,11 +214,12 @@ class Tracker:
         ego = frame.ego
         s_ego, n_ego = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
         self._s_ego = s_ego
+        self._ego_road = (float(s_ego), float(n_ego), float(ego.v))
         previous = self.mixture.labels[self._reported].tolist()  # last frame's tracks
         updated_before, self._updated_labels = self._updated_labels | self._radar_updated, set()
         self._strong_labels = set()
         self._radar_updated = set()
-        self._pull_to_flow(dt, updated_before, (float(s_ego), float(n_ego), float(ego.v)))
+        self._pull_to_flow(dt, updated_before)
         self._predict(dt, updated_before)
         t1 = clock()
         spent["predict"] += t1 - t0
@@ -311,11 +313,11 @@ class Tracker:
             mix = Mixture(mix.weights, *relax_acceleration(mix.means, mix.covs, None, floor), mix.labels)
         self.mixture = mix
 
-    def _pull_to_flow(self, dt: float, updated: set[int], ego: tuple[float, float, float]) -> None:
+    def _pull_to_flow(self, dt: float, updated: set[int]) -> None:
         """The lane-flow prior (``tracker.flow``, ``MotionConfig.flow_speed_std``): the components of the
         tracks that nothing updated in the last frame (labels reported before, neither a cluster nor a
         radar detection in ``updated``) take the pseudo-measurement of their lane's speed, set by last
-        frame's updated tracks and the ego (``ego``: its ``(s, n, v)``). Road coordinates only."""
+        frame's updated tracks and the ego (``_flow_sources``). Road coordinates only."""
         motion = self.config.motion
         mix = self.mixture
         if motion.flow_speed_std is None or dt <= 0.0 or self.cartesian or not len(mix) or not self._ever_reported:
@@ -324,12 +326,16 @@ class Tracker:
         if not len(idle):
             return
         seen = self._reported[_labels_in(mix.labels[self._reported], updated)]
-        source = np.vstack([mix.means[seen][:, [0, 1, 2]], np.array([ego])])
-        flow = flow_speeds(self.road, source, mix.means[idle][:, :2], motion.flow_window)
+        flow = flow_speeds(self.road, self._flow_sources(seen), mix.means[idle][:, :2], motion.flow_window)
         found = np.isfinite(flow)
         variance = motion.flow_speed_std**2 * motion.flow_time / dt
         pull_to_flow(mix.means, mix.covs, idle[found], flow[found], variance)
         self.stats["flow_pulls"] += int(found.sum())
+
+    def _flow_sources(self, seen: np.ndarray) -> np.ndarray:
+        """The seen vehicles of the lane flow (``tracker.flow.flow_speeds``), rows ``(s, n, v)``: the
+        mixture's components ``seen`` and the ego."""
+        return np.vstack([self.mixture.means[seen][:, :3], [self._ego_road]])
 
     def _manoeuvre_jerk(self, mix: Mixture) -> tuple[np.ndarray, np.ndarray | None]:
         """The manoeuvre-gated jerk (``MotionConfig.quiet_jerk``): per component, ``jerk`` while its
@@ -729,11 +735,10 @@ class Tracker:
         mix = self.mixture
         seen = np.flatnonzero(_labels_in(mix.labels, self._updated_labels)
                               & (mix.weights > self.config.reduction.extraction_threshold))
-        s_ego, n_ego = self.road.to_frenet((ego.x, ego.y), s_hint=self._s_ego)
-        source = np.vstack([mix.means[seen][:, [0, 1, 2]], [[float(s_ego), float(n_ego), float(ego.v)]]])
         centroid = to_global(np.array([p.mean(axis=0) for p in points]), (ego.x, ego.y), ego.yaw)
         s, n = self.road.to_frenet(centroid)
-        flow = flow_speeds(self.road, source, np.column_stack([np.atleast_1d(s), np.atleast_1d(n)]), motion.flow_window)
+        flow = flow_speeds(self.road, self._flow_sources(seen), np.column_stack([np.atleast_1d(s), np.atleast_1d(n)]),
+                           motion.flow_window)
         return [None if not np.isfinite(v) else (float(v), float(birth.flow_speed_std)) for v in flow]
 
     def _birth_from_first_scan(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
