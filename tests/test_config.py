@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 
@@ -62,6 +63,8 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: DetectionConfig(missed_weight_cap=1), r"DetectionConfig.missed_weight_cap must be true or false"),
         (lambda: TrackerConfig(coordinates="polar"), r"coordinates must be one of"),
         (lambda: TrackerConfig(use_radar="yes"), r"use_radar must be true or false"),
+        (lambda: TrackerConfig(detection=DetectionConfig(lidar_resolution=math.radians(0.35))),
+         r"clustering.bearing_bin \(0.2 deg\) is narrower than the lidar's azimuth step detection.lidar_resolution \(0.35 deg\)"),
     ],
 )
 def test_bad_values_name_the_field(build, match: str) -> None:

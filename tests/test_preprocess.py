@@ -89,6 +89,22 @@ def test_bearing_filter_keeps_every_ray_of_the_lidar_grid():
     assert bearing_filter(wrap).tolist() == [0]
 
 
+def test_bearing_filter_with_bins_of_the_lidar_step_keeps_only_each_rays_nearest_return():
+    """An OS1-128's 1,024 columns (0.3516 deg apart), each with a near return (a vehicle's face) and
+    four farther ones on the same ray (returns over its roof): with bins of the lidar's step every
+    column keeps its near return and nothing else. With 0.2 deg bins, 8 of the columns lie on bin
+    edges (22.5 deg is 112.5 bins), float rounding puts their returns into two bins, and a return
+    from behind a face survives: why ``TrackerConfig`` refuses a bin narrower than the step."""
+    step = 2.0 * np.pi / 1024
+    b = -np.pi + step * np.arange(1, 1025)
+    r = 5.0 + 30.0 * np.random.default_rng(2).random(1024)
+    u = np.stack([np.cos(b), np.sin(b)], axis=1)
+    pts = np.vstack([r[:, None] * u] + [(r + d)[:, None] * u for d in (1.1, 2.3, 3.5, 4.7)])
+    assert sorted(bearing_filter(pts, step).tolist()) == list(range(1024))
+    narrow = bearing_filter(pts, np.radians(0.2))
+    assert (narrow >= 1024).sum() >= 1  # a return from behind a face kept
+
+
 @pytest.mark.parametrize("closed", [False, True])
 def test_filter_points_fused_kernel_equals_staged_path(closed, monkeypatch):
     """``filter_points``' one compiled call (``tracker.preprocess.road_filter_kernel``) gives

@@ -350,14 +350,19 @@ def test_with_lidar_model_sets_the_model_and_the_tracker_gets_the_mount() -> Non
     assert os1.sensors == {"lidar": {"model": "os1-128", "mount_z": 2.2}}
     rig, _ = rig_config_for(os1)
     assert rig.lidar.azimuth_step_deg == 360.0 / 1024
-    assert tracker_config_for(os1, "curvilinear-fused", rig).cloud.mount_z == 2.2
+    told = tracker_config_for(os1, "curvilinear-fused", rig)
+    assert told.cloud.mount_z == 2.2
+    # the bearing filter's bin is the lidar's azimuth step: one ray per bin
+    assert told.clustering.bearing_bin == told.detection.lidar_resolution == pytest.approx(math.radians(360.0 / 1024))
     assert with_lidar_model(grid, "vlp16").sensors == grid.sensors  # the same model keeps its settings
     # "A+B": a rig stacked on the roof, the first lidar at the scenario's mount, each next 0.3 m higher
     stacked = with_lidar_model(grid, "vlp32c+os1-128+vlp16")
     rig, _ = rig_config_for(stacked)
     assert [c.beams for c in rig.lidar.lidar3d_configs()] == [32, 128, 16]
     assert [float(c.mount_z) for c in rig.lidar.lidar3d_configs()] == pytest.approx([2.2, 2.5, 2.8])
-    assert tracker_config_for(stacked, "curvilinear-fused", rig).cloud.frame == "vehicle"
+    told = tracker_config_for(stacked, "curvilinear-fused", rig)
+    assert told.cloud.frame == "vehicle"
+    assert told.clustering.bearing_bin == told.detection.lidar_resolution == pytest.approx(math.radians(0.2))  # the finest
     assert with_lidar_model(stacked, "vlp32c").sensors["lidar"].get("rig") is None  # one model: the rig goes
     for bad in ("2d+vlp16", "vlp16+", "vlp16+hdl32"):
         with pytest.raises(ValueError, match="or 3-D models joined by"):

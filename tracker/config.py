@@ -612,7 +612,7 @@ class ClusteringConfig:
 
     #: Lidar points within the road bounds widened by this are kept (m; default 0.5).
     road_margin: float = 0.5
-    #: The paper's bearing filter keeps the nearest point per bin of this width (rad; default 0.2 deg).
+    #: The paper's bearing filter keeps the nearest point per bin of this width, at least the lidar's azimuth step (rad; default 0.2 deg).
     bearing_bin: float = math.radians(0.2)
     #: Points inside a reported track's predicted rectangle grown by this along its length form its cluster (m; default 1.0).
     track_margin: float = 1.0
@@ -758,6 +758,12 @@ class TrackerConfig:
                 raise ValueError(
                     f"TrackerConfig.{name} must be a {cls.__name__}; got {type(getattr(self, name)).__name__}"
                 )
+        bin_, step = self.clustering.bearing_bin, self.detection.lidar_resolution
+        if bin_ < step * (1.0 - 1e-9):
+            raise ValueError(
+                f"TrackerConfig: clustering.bearing_bin ({math.degrees(bin_):.4g} deg) is narrower than the lidar's "
+                f"azimuth step detection.lidar_resolution ({math.degrees(step):.4g} deg); set bearing_bin to the step"
+            )
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrackerConfig:

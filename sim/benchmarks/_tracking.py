@@ -8,7 +8,6 @@ radars, no roadside clutter); ``time_steps`` feeds it to a tracker and keeps the
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 import time
@@ -17,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from sim.benchmarks._traffic import Layout, layout, truth_function
-from sim.evaluation.runner import MIN_VISIBLE_POINTS
+from sim.evaluation.runner import MIN_VISIBLE_POINTS, told_lidar
 from sim.evaluation.variants import make_tracker, variant_config
 from sim.sensors import SensorRig
 from sim.sensors.rig import RigConfig, SensorFrame
@@ -49,11 +48,8 @@ def in_view(frames: list[SensorFrame]) -> np.ndarray:
 def bench_config(variant: str) -> TrackerConfig:
     """The variant's configuration told the default lidar's range and resolution (as ``sim.evaluation.runner``
     does for a scenario)."""
-    config = variant_config(variant)
     lidar = RigConfig().lidar
-    detection = dataclasses.replace(config.detection, lidar_range=float(lidar.max_range),
-                                    lidar_resolution=math.radians(lidar.azimuth_step_deg))
-    return dataclasses.replace(config, detection=detection)
+    return told_lidar(variant_config(variant), float(lidar.max_range), math.radians(lidar.azimuth_step_deg))
 
 
 def time_steps(tracker: Any, frames: list[SensorFrame], *,

@@ -47,6 +47,7 @@ from sim.sensors.lidar3d import (
     cast_3d,
     merge_scans,
 )
+from sim.evaluation.runner import told_lidar
 from sim.world.ground import RoadGround
 from tracker import EgoState, Frame, Tracker, TrackerConfig
 from tracker.cloud import CloudConfig, process_cloud
@@ -159,7 +160,7 @@ def bench_lidar3d(repeats: int = 50, seed: int = 0, *, model: str = "vlp16", pin
         cast_ms = _times_ms(lambda: cast_3d(position, directions, prisms, ground, lidar.config.max_range), repeats)
         cloud = process_cloud(scan.points)  # the tracker's 3-D pipeline (its default mount is the models' 1.9 m roof)
         cloud_ms = _times_ms(lambda: process_cloud(scan.points), repeats)
-        step_ms, tracks = _tracker_steps(scene, scan.points, repeats)
+        step_ms, tracks = _tracker_steps(scene, scan.points, repeats, [lidar.config])
         patchwork = _patchwork(scan, lidar.config.mount_z, lidar.config.max_range, repeats)
     removed = cloud.ground | cloud.below_ground
     result = {
@@ -225,7 +226,7 @@ def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bo
         cloud = merged.points
         result_cloud = process_cloud(cloud, config)
         cloud_ms = _times_ms(lambda: process_cloud(cloud, config), repeats)
-        step_ms, tracks = _tracker_steps(scene, cloud, repeats, config)
+        step_ms, tracks = _tracker_steps(scene, cloud, repeats, [lidar.config for lidar in lidars], config)
     removed = result_cloud.ground | result_cloud.below_ground
     result = {
         "model": "+".join(model for model, _ in RIG),
@@ -246,12 +247,15 @@ def bench_rig(repeats: int = 50, seed: int = 0, *, pin: bool = True, verbose: bo
     return result
 
 
-def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int,
+def _tracker_steps(scene: dict, cloud: np.ndarray, repeats: int, lidars: list[Lidar3DConfig],
                    cloud_config: CloudConfig | None = None) -> tuple[list[float], int]:
     """``Tracker.step`` times (ms) on ``repeats`` frames of ``cloud`` (the lidar's frame, or E with a
     ``cloud_config`` that says so) 0.1 s apart after ``TRACKER_WARM_UP`` untimed ones, the ego at rest
-    at the scene's pose; and the tracks at the end."""
+    at the scene's pose; and the tracks at the end. The tracker is told the ``lidars``' range and finest
+    azimuth step (``sim.evaluation.runner.told_lidar``, as a scenario's run is)."""
     config = TrackerConfig() if cloud_config is None else TrackerConfig(cloud=cloud_config)
+    config = told_lidar(config, float(max(c.max_range for c in lidars)),
+                        math.radians(min(c.resolution_deg for c in lidars)))
     tracker = Tracker(scene["road"], config)
     ego = EgoState(x=float(scene["origin"][0]), y=float(scene["origin"][1]), yaw=float(scene["yaw"]), v=0.0)
     times, tracks = [], []

@@ -255,6 +255,17 @@ def check_scenario_settings(spec: ScenarioSpec, variant: str = DEFAULT_VARIANT) 
             )
 
 
+def told_lidar(config: TrackerConfig, lidar_range: float, resolution: float) -> TrackerConfig:
+    """``config`` told the lidar's range (m) and azimuth step (rad): the detection model's
+    ``lidar_range`` and ``lidar_resolution``, and the bearing filter's bin (``ClusteringConfig.bearing_bin``),
+    one ray per bin, each ray in the middle of its own (a bin narrower than the step puts the returns of the
+    rays that lie on its edges into two bins, and a return seen over a vehicle's roof then outlives the
+    vehicle's nearer face)."""
+    detection = replace(config.detection, lidar_range=lidar_range, lidar_resolution=resolution)
+    clustering = replace(config.clustering, bearing_bin=resolution)
+    return replace(config, detection=detection, clustering=clustering)
+
+
 def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None = None) -> TrackerConfig:
     """The variant's ``TrackerConfig``, told the lidar's range and angular resolution of ``rig`` (as a
     user configures a tracker for their sensor; a 3-D lidar's mount pose and the ego's box; a rig of
@@ -263,12 +274,7 @@ def tracker_config_for(spec: ScenarioSpec, variant: str, rig: RigConfig | None =
     config = variant_config(variant)
     if rig is not None:
         steps = [rig.lidar.azimuth_step_deg] + [rig.lidar.rig_config(k).azimuth_step_deg for k in range(len(rig.lidar.rig))]
-        detection = replace(
-            config.detection,
-            lidar_range=float(rig.lidar.max_range),
-            lidar_resolution=math.radians(min(steps)),  # a rig's finest azimuth step
-        )
-        config = replace(config, detection=detection)
+        config = told_lidar(config, float(rig.lidar.max_range), math.radians(min(steps)))  # a rig's finest azimuth step
         lidar = rig.lidar
         if lidar.model != "2d":  # the tracker is told where the 3-D lidar sits (its cloud pipeline's mount transform)
             mount = {name: float(getattr(lidar, name)) for name in
