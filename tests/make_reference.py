@@ -1,6 +1,6 @@
 """Write ``tests/reference/tracks.npz``: the tracks of a fixed synthetic run (tests/scenes.py), which
 ``tests/test_reference.py`` checks today's tracker reproduces -- the guard that a speed-up changed no
-result (issue 13). Re-make it only for an intended change of the tracker's numbers, and say so in the
+result. Re-make it only for an intended change of the tracker's numbers, and say so in the
 commit::
 
     python tests/make_reference.py

@@ -50,6 +50,18 @@ def test_a_track_no_longer_reported_is_lost_until_reported_again_or_expired():
     assert lt.lost == {}
 
 
+def test_last_reported_is_last_frames_state_of_a_reported_track():
+    lt = store()
+    assert lt.last_reported(4) is None
+    lt.observe(0.0, np.array([4, 6]), np.stack([state(10.0), state(30.0)]), np.stack([cov(), cov(0.5)]))
+    mean, c = lt.last_reported(6)
+    np.testing.assert_array_equal(mean, state(30.0))
+    np.testing.assert_array_equal(c, cov(0.5))
+    lt.observe(0.1, np.array([6]), state(31.0)[None], cov()[None])
+    assert lt.last_reported(4) is None  # lost in this frame
+    np.testing.assert_array_equal(lt.last_reported(6)[0], state(31.0))
+
+
 def test_a_newcomer_at_the_predicted_position_takes_the_label_a_far_one_does_not():
     lt = store()
     lose(lt, 4, state(10.0, v=10.0))

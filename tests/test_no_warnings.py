@@ -1,4 +1,4 @@
-"""Normal runs emit no warning (issue 14): numpy's overflow/invalid-value warnings leak to the user's
+"""Normal runs emit no warning: numpy's overflow/invalid-value warnings leak to the user's
 console and may hide a wrong weight, so a scenario run with every warning turned into an error must
 complete (the dense and curved scenarios of the standard suite, shortened)."""
 

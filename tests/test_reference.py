@@ -4,7 +4,7 @@
 Tolerance: the same frames and labels exactly (any change of a decision -- a gate, a prune, a merge,
 a label -- shows there), weights within 1e-9, every mean within 1e-6 of its own standard deviation
 (plus 1e-9), covariances within a relative 1e-6. Why not 1e-9 everywhere: the batched cluster
-preparation (``tracker.preparation``, issue 13) sums the same numbers in another order (~1e-16
+preparation (``tracker.preparation``) sums the same numbers in another order (~1e-16
 relative), and over 40 frames the filter amplifies that to 3e-8 m on one track's last two frames (an
 ill-conditioned update of a track whose length is still being learnt), i.e. 4e-7 of its standard
 deviation. A change of the method moves numbers by far more."""

@@ -123,6 +123,11 @@ class LostTracks:
         row = self._last_rows[label]
         return _Lost(self._last_t, self._last_means[row], self._last_covs[row], self._last_updated[label])
 
+    def last_reported(self, label: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The mean and covariance of track ``label`` as reported last frame (None: not reported)."""
+        row = self._last_rows.get(int(label))
+        return None if row is None else (self._last_means[row], self._last_covs[row])
+
     def last_updated(self, label: int, default: float) -> float:
         """When a cluster last updated the reported track ``label`` (s; ``default`` if unknown)."""
         return self._last_updated.get(int(label), default)

@@ -892,6 +892,8 @@ class Tracker:
         reported = [labels[i] for i in above]
         seen = set(reported)
         if len(seen) < len(reported):  # one label per frame: a second component is a split target
+            above = self._continuation_first(above, labels)
+            reported = [labels[i] for i in above]
             seen = set()
             for k, i in enumerate(above):
                 old = labels[i]
@@ -913,6 +915,37 @@ class Tracker:
             return Track.checked_batch(reported, t, means, covs, [weights[i] for i in above])
         return [Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road, float(mix.weights[i]),
                                      self.ut) for i in above]
+
+    def _continuation_first(self, above: list[int], labels: list[int]) -> list[int]:
+        """``above`` (in decreasing weight) with, of each label held by several components, the heaviest
+        that continues the label's track first: a component within ``gating.distance`` (m) of where the
+        track reported last frame would be now at its speed. It keeps the label; the others are split
+        targets. A label's stale low-weight hypothesis far from its track that a cluster of another
+        vehicle lifted (every pair's weight is normalised per cluster, so it may tie with the track's
+        own) is another vehicle, not the track; where none or all continue the track, the heaviest keeps
+        the label."""
+        groups: dict[int, list[int]] = {}
+        for k, i in enumerate(above):
+            groups.setdefault(labels[i], []).append(k)
+        order = list(range(len(above)))
+        mix, dt, gate = self.mixture, self._frame_dt, float(self.config.gating.distance)
+        for lab, ks in groups.items():
+            last = self._lost.last_reported(lab) if len(ks) > 1 else None
+            if last is None:
+                continue
+            mean = last[0]
+            if self.cartesian:
+                now = mean[:2] + mean[2] * dt * np.array([math.cos(mean[3]), math.sin(mean[3])])
+            else:
+                now = np.array([mean[0] + mean[2] * dt, mean[1]])
+            r = mix.means[[above[k] for k in ks], :2] - now
+            if self.road.closed and not self.cartesian:
+                r[:, 0] = np.mod(r[:, 0] + 0.5 * self.road.length, self.road.length) - 0.5 * self.road.length
+            near = np.hypot(r[:, 0], r[:, 1]) <= gate
+            if near.any() and not near[0]:
+                first, best = ks[0], ks[int(np.argmax(near))]
+                order[first], order[best] = order[best], order[first]
+        return [above[k] for k in order]
 
     def _kept_below_threshold(self, above: list[int], weights: list[float], labels: list[int]) -> list[int]:
         """Components below ``extraction_threshold`` still reported (``ReductionConfig.keep_threshold``):
