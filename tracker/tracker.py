@@ -846,7 +846,8 @@ class Tracker:
         return n, (right - margin, left + margin)
 
     def _extract(self, t: float, ego: EgoState) -> list[Track]:
-        """This frame's tracks (in decreasing weight; ``_reported`` their mixture indices): the components
+        """This frame's tracks (in decreasing weight, but a split label's continuation, ``_continuation_first``,
+        before its other components; ``_reported`` their mixture indices): the components
         above ``extraction_threshold`` (and those ``_kept_below_threshold``) whose centre lies within
         ``detection.lidar_range + report_range`` of the ego, of labels reported before or confirmed by a
         cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
