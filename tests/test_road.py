@@ -520,3 +520,14 @@ def test_the_seed_grid_clearance_is_a_lower_bound_of_the_distance_to_the_centerl
     near = inside & (bound < offgrid)
     assert (dist[near] - bound[near]).max() < 2.0 * (math.sqrt(2.0) + 1.0)
     assert offgrid > extent + 15.0  # a return 15 m beyond the edges needs no projection
+
+
+def test_s_difference_is_the_short_way_round_on_a_closed_road_only():
+    ring = Road.from_curvature([(2 * np.pi * 100.0, 0.01, 0.01)], closed=True, lanes=2)
+    length = ring.length
+    np.testing.assert_allclose(ring.s_difference([10.0, length - 5.0, 400.0, 300.0], [length - 5.0, 10.0, 10.0, 10.0]),
+                               [15.0, -15.0, 390.0 - length, 290.0])
+    line = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
+    np.testing.assert_allclose(line.s_difference([10.0, 495.0], [495.0, 10.0]), [-485.0, 485.0])
+    # broadcast (T, 1) against (1, S), as tracker.flow uses it
+    assert ring.s_difference(np.zeros((3, 1)), np.zeros((1, 4))).shape == (3, 4)

@@ -45,9 +45,7 @@ def flow_speeds(road: Road, source: np.ndarray, target: np.ndarray, window: floa
         return out
     lane_t = road.lane_index(target[:, 1], target[:, 0])
     lane_s = road.lane_index(source[:, 1], source[:, 0])
-    gap = source[None, :, 0] - target[:, None, 0]  # (T, S) along the road, + ahead
-    if road.closed:
-        gap = (gap + 0.5 * road.length) % road.length - 0.5 * road.length
+    gap = road.s_difference(source[None, :, 0], target[:, None, 0])  # (T, S) along the road, + ahead
     near = (lane_t[:, None] == lane_s[None, :]) & (np.abs(gap) <= window) & (gap != 0.0)
     ahead = np.where(near & (gap > 0.0), gap, np.inf)
     behind = np.where(near & (gap < 0.0), -gap, np.inf)

@@ -341,6 +341,12 @@ class Road:
         s_arr = np.asarray(s, dtype=float)
         return np.mod(s_arr, self.length) if self.closed else s_arr
 
+    def s_difference(self, s_to: ArrayLike, s_from: ArrayLike) -> np.ndarray:
+        """``s_to - s_from`` (m) along the road: on a closed road the short way round, in
+        ``[-length/2, length/2)``; on an open one as it is."""
+        d = np.asarray(s_to, dtype=float) - np.asarray(s_from, dtype=float)
+        return np.mod(d + 0.5 * self.length, self.length) - 0.5 * self.length if self.closed else d
+
     def _frame_flat(self, s: np.ndarray, extrapolate: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position (N, 2), unit tangent (N, 2) and curvature (N,) at 1-D finite ``s``: wraps on
         closed roads, extends (``extrapolate``) or rejects the ends of open ones."""

@@ -940,8 +940,8 @@ class Tracker:
             else:
                 now = np.array([mean[0] + mean[2] * dt, mean[1]])
             r = mix.means[[above[k] for k in ks], :2] - now
-            if self.road.closed and not self.cartesian:
-                r[:, 0] = np.mod(r[:, 0] + 0.5 * self.road.length, self.road.length) - 0.5 * self.road.length
+            if not self.cartesian:
+                r[:, 0] = self.road.s_difference(r[:, 0], 0.0)
             near = np.hypot(r[:, 0], r[:, 1]) <= gate
             if near.any() and not near[0]:
                 first, best = ks[0], ks[int(np.argmax(near))]
