@@ -1225,24 +1225,59 @@ def test_the_report_centres_equal_to_vehicle_exactly(name):
             _centres(means, np.array([1, 3], dtype=np.intp), ego, road, "curvilinear")
 
 
+@pytest.mark.parametrize("depth", [0.3, 0.0], ids=["neighbours", "touching-is-duplicate"])
+def test_tracks_of_cars_side_by_side_whose_predictions_touch_keep_their_own_points(depth):
+    # two cars abreast 0.6 m apart, tracked; then the right car's prediction is moved 0.7 m towards the
+    # left car's, so the predicted rectangles overlap by 0.1 m across (real traffic: two cars near their
+    # lane line whose lateral estimates drift by a few decimetres). Within clustering.duplicate_depth
+    # they stay neighbours, each track keeps its car's points and both are reported every frame; as
+    # duplicates (depth 0) they share one cluster, the weaker track loses the update and drops out
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    scene = Scene(road, Car(20.0, 0.0, 20.0), [Car(45.0, -1.3, 20.0), Car(45.0, 1.3, 20.0)])
+    tracker = Tracker(road, config_with("clustering", duplicate_depth=depth))
+    rng = np.random.default_rng(0)
+    reported = []
+    for k in range(20):
+        if k == 10:
+            tracker.mixture.means[tracker.mixture.means[:, 1] > 0.0, 1] -= 0.7
+        reported.append(sorted(tr.label for tr in tracker.step(scene.frame(0.1 * k, rng))))
+    assert len(reported[9]) == 2
+    assert all(r == reported[9] for r in reported[10:]) == (depth > 0.0)
+
+
+def test_only_established_tracks_touch_a_neighbour_by_the_duplicate_depth():
+    """``Tracker._duplicate_depths``: ``clustering.duplicate_depth`` for a label reported in at least
+    ``ESTABLISHED_FRAMES`` frames in a row, 0 for a younger one (a new track beside an established one
+    groups with it at any overlap) and for one not reported."""
+    from tracker.tracker import ESTABLISHED_FRAMES
+
+    tracker = Tracker(Road.from_curvature([(100.0, 0.0, 0.0)]), config_with("clustering", duplicate_depth=0.4))
+    tracker._streak = {1: ESTABLISHED_FRAMES, 2: ESTABLISHED_FRAMES - 1, 3: 10}
+    np.testing.assert_array_equal(tracker._duplicate_depths(np.array([1, 2, 3, 4])), [0.4, 0.0, 0.4, 0.0])
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_duplicate_groups_equal_the_oracle(seed):
-    """``_duplicate_groups`` (``overlap_groups_kernel``) against the oracle's separating-axis test:
+    """``_duplicate_groups`` (``overlap_groups_kernel``) against the oracle's separating-axis test, with and
+    without overlap depths that keep touching rectangles apart:
     overlapping and disjoint rectangles of every heading (duplicate hypotheses of one vehicle, trucks
     beside cars); groups form."""
     from tracker.measurement import Rectangles
     from tracker.tracker import _duplicate_groups
 
     rng = np.random.default_rng(seed)
-    shared = 0
+    shared = apart = 0
     for _ in range(60):
         t = int(rng.integers(1, 16))
         rect = Rectangles(rng.uniform(-15.0, 15.0, (t, 2)), rng.uniform(-np.pi, np.pi, t), np.zeros(t),
                           rng.uniform(2.0, 14.0, t), rng.uniform(0.8, 2.6, t))
-        got = _duplicate_groups(rect)
-        np.testing.assert_array_equal(got, oracle.duplicate_groups(rect))
+        depth = rng.choice([0.0, 0.3, 1.0], t)  # per rectangle: the pair's tolerance is the smaller
+        got = _duplicate_groups(rect, depth)
+        np.testing.assert_array_equal(got, oracle.duplicate_groups(rect, depth))
+        np.testing.assert_array_equal(_duplicate_groups(rect), oracle.duplicate_groups(rect))
         shared += got.max() < t - 1
-    assert shared > 0
+        apart += (got.max() > _duplicate_groups(rect).max())
+    assert shared > 0 and apart > 0
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -1325,6 +1360,7 @@ def _cluster_scene(seed: int, config: TrackerConfig, tracks: int | None = None):
     covs[:, LENGTH, LENGTH] = rng.uniform(0.0, 4.0, count + extra)
     tracker.mixture = Mixture(np.full(count + extra, 0.9), np.zeros((count + extra, tracker.dim)), covs, labels)
     tracker._reported = rng.permutation(count).astype(int)
+    tracker._streak = {int(lab): int(rng.integers(1, 6)) for lab in labels[tracker._reported]}  # young and established
     radar_count = int(rng.integers(0, 15))
     hits = points[rng.integers(0, len(points), radar_count)] + rng.normal(0.0, 1.0, (radar_count, 2))
     radar = RadarDetections(t=rng.uniform(0.9, 1.0, radar_count), x=hits[:, 0], y=hits[:, 1],
@@ -1352,9 +1388,13 @@ def _assert_clustered_as_the_oracle(tracker, points, frame, rect) -> dict:
     labels = tracker.mixture.labels.copy()
     clusters, velocities = tracker._cluster(points, frame, rect)
     config = tracker.config
+    # a track reported 3 frames in a row or more may touch a neighbour by duplicate_depth, a younger one not
+    depths = np.array([config.clustering.duplicate_depth if tracker._streak.get(int(lab), 0) >= 3 else 0.0
+                       for lab in labels[tracks]])
     want = oracle.cluster(points, rect, labels, tracks, length_sd, tracker._point_n, frame.radar, frame.t,
                           config.clustering, scan=tracker._scan, step=config.detection.lidar_resolution,
-                          margin=config.measurement.shadow_margin, min_part=config.clustering.along_min_part)
+                          margin=config.measurement.shadow_margin, min_part=config.clustering.along_min_part,
+                          depths=depths)
     assert len(clusters) == len(want[0])
     for a, b in zip(clusters, want[0]):
         assert a.dtype == b.dtype and np.array_equal(a, b)

@@ -612,14 +612,17 @@ def points_in_rectangles_kernel(pts, ctr, c, s, half_l, half_w):
 
 
 @njit
-def overlap_groups_kernel(corners, c, s):
-    """Group per rectangle: overlapping rectangles (no separating axis among their own four; the axes
-    ``(c, s)`` and ``(-s, c)`` of each, ``c``, ``s`` the cosine and sine of its heading) are one group;
-    groups numbered in order of their first rectangle (``tracker.tracker._duplicate_groups``)."""
+def overlap_groups_kernel(corners, c, s, depth):
+    """Group per rectangle: two rectangles that overlap by more than ``min(depth_i, depth_j)`` (m; ``depth``
+    (T,) per rectangle) on each of their own four axes (``(c, s)`` and ``(-s, c)`` of each, ``c``, ``s``
+    the cosine and sine of its heading: the separating-axis test, a smaller overlap of the projections
+    counting as separated) are one group; groups numbered in order of their first rectangle
+    (``tracker.tracker._duplicate_groups``)."""
     t = len(corners)
     parent = np.arange(t)
     for i in range(t):
         for j in range(i + 1, t):
+            tol = min(depth[i], depth[j])
             separated = False
             for owner in (i, j):
                 for turn in range(2):
@@ -636,7 +639,7 @@ def overlap_groups_kernel(corners, c, s):
                         hi_i = max(hi_i, pi_)
                         lo_j = min(lo_j, pj)
                         hi_j = max(hi_j, pj)
-                    if hi_i < lo_j or hi_j < lo_i:
+                    if hi_i - lo_j < tol or hi_j - lo_i < tol:
                         separated = True
             if not separated:
                 _union(parent, i, j)
@@ -673,13 +676,13 @@ def _grouped(key):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def track_owners_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold,
+def track_owners_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, depth, labels, track_labels, threshold,
                         component, max_points):  # pragma: no cover - compiled
     """The first half of the tracker's grouping of a frame's points: per point the track group owning
     it (``points_in_rectangles_kernel`` for the rectangles at ``ctr`` with ``c``, ``s`` the cosine and
     sine of their headings, widened by ``margin`` along and ``margin_across`` across: half extents
     ``0.5 length + margin`` and ``0.5 width + margin_across``; mapped to the
-    rectangles' groups, ``overlap_groups_kernel`` of their ``corners``; a point outside every rectangle
+    rectangles' groups, ``overlap_groups_kernel`` of their ``corners`` at ``depth`` (T,); a point outside every rectangle
     then joins the group owning most points of its connected component, the first such group on a
     tie), whether it lay inside a rectangle, its connected component (``component`` where the caller
     has them, ``(N,)``; else, empty, ``partition_points_kernel`` at ``threshold``), per mixture component
@@ -692,7 +695,7 @@ def track_owners_kernel(pts, ctr, c, s, length, width, margin, margin_across, co
     owner = np.full(count, -1, dtype=np.int64)
     inside = np.zeros(count, dtype=np.bool_)
     component_group = np.full(len(labels), -1, dtype=np.int64)
-    groups = overlap_groups_kernel(corners, c, s) if len(ctr) > 1 else np.zeros(len(ctr), dtype=np.int64)
+    groups = overlap_groups_kernel(corners, c, s, depth) if len(ctr) > 1 else np.zeros(len(ctr), dtype=np.int64)
     if len(component) != count:
         component, ok = partition_points_kernel(pts, threshold)
         if not ok:
@@ -889,7 +892,7 @@ def ordered_clusters_kernel(pts, owner, inside, component, n_tracks, n, split, w
 
 
 @njit
-def cluster_points_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold,
+def cluster_points_kernel(pts, ctr, c, s, length, width, margin, margin_across, corners, depth, labels, track_labels, threshold,
                           component, n, max_points, split, split_width, gap, max_cuts):  # pragma: no cover - compiled
     """The tracker's grouping of a frame's points into clusters: ``track_owners_kernel`` then, unless a
     fragment needs ``fragment_owners`` (in Python, in between) or the partition's grid did not hold
@@ -897,7 +900,7 @@ def cluster_points_kernel(pts, ctr, c, s, length, width, margin, margin_across, 
     component_group, ordered, edges, owned, added)`` (``done`` False: the last four are empty and the
     caller finishes the grouping)."""
     ok, groups, owner, inside, component, component_group, fragments = track_owners_kernel(
-        pts, ctr, c, s, length, width, margin, margin_across, corners, labels, track_labels, threshold, component,
+        pts, ctr, c, s, length, width, margin, margin_across, corners, depth, labels, track_labels, threshold, component,
         max_points)
     if not ok or fragments:
         return (ok, False, groups, owner, inside, component, component_group, np.empty((0, 2)),

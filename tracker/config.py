@@ -618,6 +618,8 @@ class ClusteringConfig:
     track_margin: float = 1.0
     #: ... and by this across it (m; default 0.5: vehicles in the next lane come that close).
     across_margin: float = 0.5
+    #: Predicted track rectangles overlapping by more than this on every axis are duplicates of one vehicle and share its points; less, neighbours (m; default 0.3).
+    duplicate_depth: float = 0.3
     #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
     #: Smaller clusters are dropped and counted (default 1).
@@ -642,7 +644,8 @@ class ClusteringConfig:
     fragment_side_tolerance: float | None = 0.5
 
     def __post_init__(self) -> None:
-        for name, unit in (("road_margin", "m"), ("track_margin", "m"), ("across_margin", "m"), ("split_gap", "m")):
+        for name, unit in (("road_margin", "m"), ("track_margin", "m"), ("across_margin", "m"), ("duplicate_depth", "m"),
+                           ("split_gap", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, unit=unit)
         if self.fragment_points is not None:
             _check_int("ClusteringConfig", "fragment_points", self.fragment_points, 1)

@@ -95,6 +95,10 @@ from tracker.reduction import inside_updated_kernel
 #: Frames whose time precedes the last one by more than this (s) are rejected.
 TIME_TOLERANCE = 1e-9
 
+#: A track reported in at least this many frames in a row may touch a neighbour's predicted rectangle by
+#: ``ClusteringConfig.duplicate_depth`` and keep its own points (``Tracker._duplicate_depths``).
+ESTABLISHED_FRAMES = 3
+
 #: ``cluster_points_kernel``'s components when the kernel is to find them itself (none given).
 _PARTITION_HERE = np.zeros(0, dtype=np.int64)
 
@@ -176,6 +180,7 @@ class Tracker:
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E (of a 3-D cloud: the nearest per ray)
         self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
         self._reported_labels: set[int] = set()  # the labels reported in the last frame
+        self._streak: dict[int, int] = {}  # label -> frames it has been reported in a row, up to the last
         self._updated_labels: set[int] = set()
         self._strong_labels: set[int] = set()  # labels a cluster updated to a reportable posterior this frame
         self._ever_reported: set[int] = set()
@@ -482,7 +487,8 @@ class Tracker:
         """The points grouped into clusters (``tracker.clustering.cluster_points_kernel``): points inside
         a reported track's predicted rectangle (plus ``clustering.track_margin`` along it and
         ``clustering.across_margin`` across it) go to its group
-        (overlapping rectangles, ``_duplicate_groups``, are one); a connected component
+        (rectangles overlapping by more than ``clustering.duplicate_depth``, ``_duplicate_groups``, are
+        one); a connected component
         (``distance_partition``) that a group owns in part joins it entirely; lone fragments may continue
         a track (``_fragments_adopted``, between the kernel's two halves); all points a group owns form
         one cluster, even in fragments (a partly hidden car), the other points one cluster per connected
@@ -501,7 +507,8 @@ class Tracker:
         fragment = cfg.fragment_points is not None and len(tracks)
         split = cfg.split_width is not None
         head = (points, rect.center, np.cos(rect.psi), np.sin(rect.psi), rect.length, rect.width, float(cfg.track_margin),
-                float(cfg.across_margin), rect.corners(), labels, labels[tracks], float(cfg.distance))
+                float(cfg.across_margin), rect.corners(), self._duplicate_depths(labels[tracks]), labels, labels[tracks],
+                float(cfg.distance))
         tail = (self._point_n, int(cfg.fragment_points) if fragment else -1, split,
                 float(cfg.split_width) if split else 0.0, float(cfg.split_gap), SPLIT_MAX_CUTS)
         ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(
@@ -531,6 +538,15 @@ class Tracker:
         else:
             self.stats["clusters_cut_along"] += 0  # the counter exists from the first clustered frame on
         return ordered, edges, owned
+
+    def _duplicate_depths(self, track_labels: np.ndarray) -> np.ndarray:
+        """Per last frame's track, the overlap (m) its predicted rectangle may have with another's and
+        the two stay neighbours (``_duplicate_groups``): ``clustering.duplicate_depth`` for a track
+        reported in at least ``ESTABLISHED_FRAMES`` frames in a row, 0 for a younger one (a new track
+        beside an established one is more often a second hypothesis of its vehicle than a vehicle)."""
+        depth = float(self.config.clustering.duplicate_depth)
+        return np.array([depth if self._streak.get(lab, 0) >= ESTABLISHED_FRAMES else 0.0
+                         for lab in track_labels.tolist()], dtype=float)
 
     def _bound_at_holes(self, ego: EgoState) -> None:
         """The components of the track groups whose clusters were cut along their length
@@ -907,6 +923,7 @@ class Tracker:
         index = np.array(above, dtype=np.intp)
         self._reported = index
         self._reported_labels = seen
+        self._streak = {lab: self._streak.get(lab, 0) + 1 for lab in reported}
         means, covs = mix.means[index], mix.covs[index]
         updated = self._updated_labels
         self._lost.observe(t, reported, means, covs, [lab in updated for lab in reported])
@@ -1055,11 +1072,14 @@ def _candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, 
                                   np.ascontiguousarray(owned, dtype=np.int64), np.ascontiguousarray(group, dtype=np.int64))
 
 
-def _duplicate_groups(rect: Rectangles) -> np.ndarray:
-    """Group index (T,) of track rectangles: overlapping rectangles (separating-axis test) are one
-    group, so duplicate hypotheses of one vehicle do not split its points between them
-    (``tracker.clustering.overlap_groups_kernel``)."""
+def _duplicate_groups(rect: Rectangles, depth: np.ndarray | float = 0.0) -> np.ndarray:
+    """Group index (T,) of track rectangles: two rectangles overlapping by more than the smaller of their
+    ``depth`` (m, per rectangle or one for all) on every axis of the separating-axis test are one group,
+    so duplicate hypotheses of one vehicle do not split its points between them, while neighbours whose
+    predictions touch keep theirs (``ClusteringConfig.duplicate_depth``;
+    ``tracker.clustering.overlap_groups_kernel``)."""
     count = len(rect.center)
     if count <= 1:
         return np.zeros(count, dtype=int)
-    return overlap_groups_kernel(np.ascontiguousarray(rect.corners()), np.cos(rect.psi), np.sin(rect.psi))
+    depths = np.broadcast_to(np.asarray(depth, dtype=float), (count,)).copy()
+    return overlap_groups_kernel(np.ascontiguousarray(rect.corners()), np.cos(rect.psi), np.sin(rect.psi), depths)

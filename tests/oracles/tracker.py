@@ -26,19 +26,22 @@ def candidate_pairs(center: np.ndarray, reach: np.ndarray, points: np.ndarray, o
     return np.nonzero((dist <= reach[:, None]) & (p_d[:, None] > 0.0) & allowed)
 
 
-def duplicate_groups(rect: Rectangles) -> np.ndarray:
-    """Group per rectangle: rectangles that overlap (no separating axis among the two rectangles' own
-    edge directions) are one group, groups numbered in order of their first rectangle."""
+def duplicate_groups(rect: Rectangles, depth=0.0) -> np.ndarray:
+    """Group per rectangle: two rectangles that overlap by more than the smaller of their ``depth`` (m;
+    per rectangle, or one for all) on each of the two rectangles' own edge directions are one group,
+    groups numbered in order of their first rectangle."""
     count = len(rect.center)
+    depth = np.broadcast_to(np.asarray(depth, dtype=float), (count,))
     corners = rect.corners()  # (T, 4, 2)
     axes = np.stack([np.cos(rect.psi), np.sin(rect.psi), -np.sin(rect.psi), np.cos(rect.psi)], -1).reshape(-1, 2, 2)
     overlap = np.eye(count, dtype=bool)
     for i in range(count):
         for j in range(i + 1, count):
             separated = False
+            tol = min(depth[i], depth[j])
             for axis in np.concatenate([axes[i], axes[j]]):
                 a, b = corners[i] @ axis, corners[j] @ axis
-                separated |= a.max() < b.min() or b.max() < a.min()
+                separated |= a.max() - b.min() < tol or b.max() - a.min() < tol
             overlap[i, j] = overlap[j, i] = not separated
     return first_of_components(overlap)
 
@@ -97,9 +100,10 @@ def split_clusters(key: np.ndarray, owner: np.ndarray, inside: np.ndarray, n: np
 
 
 def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray,
-                   length_sd: np.ndarray, n: np.ndarray, config: ClusteringConfig) -> dict:
+                   length_sd: np.ndarray, n: np.ndarray, config: ClusteringConfig, depths=0.0) -> dict:
     """The tracker's grouping of a frame's points: the points in a track's rectangle (plus
-    ``track_margin`` along and ``across_margin`` across it) go to its group (``duplicate_groups``); strays join their component's majority
+    ``track_margin`` along and ``across_margin`` across it) go to its group (``duplicate_groups`` at the
+    tracks' ``depths``); strays join their component's majority
     group; small free fragments may continue a track's side (``fragment_owners``, with the length's sd
     ``length_sd`` per track); the clusters too wide across the road are cut (``split_clusters``).
     Returns the points ordered by key (ties by index), the clusters' edges, each cluster's owner group,
@@ -109,7 +113,7 @@ def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tra
     groups = np.zeros(0, dtype=int)
     component_group = np.full(len(labels), -1)
     if len(tracks):
-        groups = duplicate_groups(rect)
+        groups = duplicate_groups(rect, depths)
         same = labels[:, None] == labels[tracks][None, :]  # (C, T)
         component_group = np.where(same.any(axis=1), groups[same.argmax(axis=1)], -1)
         # grown by track_margin along the length and across_margin across it
@@ -212,17 +216,18 @@ def along_cuts(ordered: np.ndarray, edges: np.ndarray, owned: np.ndarray, rect: 
 
 def cluster(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tracks: np.ndarray, length_sd: np.ndarray,
             n: np.ndarray, radar: RadarDetections, t: float, config: ClusteringConfig, use_radar: bool = True,
-            scan: np.ndarray | None = None, step: float = 0.0, margin: float = 0.0, min_part: int = 1) -> tuple:
-    """``Tracker._cluster``: the clusters (``grouped_points``, then ``along_cuts`` in the lidar returns
+            scan: np.ndarray | None = None, step: float = 0.0, margin: float = 0.0, min_part: int = 1,
+            depths=0.0) -> tuple:
+    """``Tracker._cluster``: the clusters (``grouped_points`` with the tracks' duplicate ``depths``, then ``along_cuts`` in the lidar returns
     ``scan`` of bearing step ``step`` with the shadow ``margin`` and parts of ``min_part`` points; those
     of fewer than ``min_points`` points dropped), each one's radar velocity (``associate_radar`` of the
     detections moved to ``t``) or None, each cluster's owner group, each component's group, the free
     detections and the counts."""
-    grouped = grouped_points(points, rect, labels, tracks, length_sd, n, config)
+    grouped = grouped_points(points, rect, labels, tracks, length_sd, n, config, depths)
     edges = grouped["edges"]
     ordered, owned, cut = grouped["ordered"], grouped["owned"], 0
     if config.along_gap is not None and len(tracks) and (owned >= 0).any():
-        ordered, edges, owned, cut = along_cuts(ordered, edges, owned, rect, duplicate_groups(rect),
+        ordered, edges, owned, cut = along_cuts(ordered, edges, owned, rect, duplicate_groups(rect, depths),
                                                 np.zeros((0, 2)) if scan is None else scan, step,
                                                 config.along_gap_rays, config.along_gap, margin, min_part)
     clusters = [ordered[a:b] for a, b in zip(edges[:-1], edges[1:])]
