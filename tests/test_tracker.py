@@ -1225,6 +1225,27 @@ def test_the_report_centres_equal_to_vehicle_exactly(name):
             _centres(means, np.array([1, 3], dtype=np.intp), ego, road, "curvilinear")
 
 
+@pytest.mark.parametrize("ahead", [12.0, 20.0])
+@pytest.mark.parametrize("gap", [0.4, 0.5])
+def test_cars_abreast_under_half_a_metre_apart_are_two_tracks(gap, ahead):
+    # two cars in adjacent lanes near their lane line, 0.45 m apart across the road, the right one 3 m
+    # ahead: their returns form one component 4.45 m wide. Cut at the lateral gap (split_gap 0.4 m, the
+    # default) each has a track at its own offset (+-1.2 m); with a gap of 0.5 m required they stay one
+    # cluster and one track 2.3-2.4 m wide sits between them
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
+    scene = Scene(road, Car(20.0, 0.0, 20.0), [Car(20.0 + ahead, -1.225, 20.0), Car(23.0 + ahead, 1.225, 20.0)])
+    tracker = Tracker(road, config_with("clustering", split_gap=gap))
+    rng = np.random.default_rng(0)
+    for k in range(5):
+        tracks = tracker.step(scene.frame(0.1 * k, rng))
+    offsets = sorted(float(tr.mean[1]) for tr in tracks)
+    if gap < 0.45:
+        assert len(offsets) == 2 and offsets == pytest.approx([-1.225, 1.225], abs=0.15)
+        assert tracker.stats["clusters_split"] > 0
+    else:
+        assert len(offsets) == 1 and abs(offsets[0]) < 1.0
+
+
 @pytest.mark.parametrize("depth", [0.3, 0.0], ids=["neighbours", "touching-is-duplicate"])
 def test_tracks_of_cars_side_by_side_whose_predictions_touch_keep_their_own_points(depth):
     # two cars abreast 0.6 m apart, tracked; then the right car's prediction is moved 0.7 m towards the

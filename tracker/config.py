@@ -618,7 +618,7 @@ class ClusteringConfig:
     track_margin: float = 1.0
     #: ... and by this across it (m; default 0.5: vehicles in the next lane come that close).
     across_margin: float = 0.5
-    #: Predicted track rectangles overlapping by more than this on every axis are duplicates of one vehicle and share its points; less, neighbours (m; default 0.3).
+    #: Two tracks each reported 3+ frames in a row whose predicted rectangles overlap by at most this on some axis are neighbours, each keeping its points; more, or a younger track at any overlap: duplicates of one vehicle sharing them (m; default 0.3).
     duplicate_depth: float = 0.3
     #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
@@ -628,8 +628,8 @@ class ClusteringConfig:
     radar_gate: float = 3.0
     #: A cluster spanning more than this across the road (in ``n``) is cut at its largest gap (m; default 2.6: the widest class, a bus, is 2.55; None: off).
     split_width: float | None = 2.6
-    #: ... if that lateral gap is at least this (m; default 0.5).
-    split_gap: float = 0.5
+    #: ... if that lateral gap is at least this (m; default 0.4: real cars abreast come within 0.45 m).
+    split_gap: float = 0.4
     #: A track's cluster is cut along the track at a gap between consecutive points of at least this, unshadowed (m; default 1.0; None: off).
     along_gap: float | None = 1.0
     #: ... and of at least this many ray gaps ``r^2 step / d`` of a side there, ``step`` = ``detection.lidar_resolution`` (default 3.0).
