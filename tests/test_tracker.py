@@ -578,7 +578,7 @@ def test_a_reported_track_below_the_extraction_threshold_stays_reported_above_ke
                       state + [45.0, 0, 0, 0, 0, 0, 0]])
     labels = np.array([7, 7, 8, 9])
     tr.mixture = Mixture(np.array([0.45, 0.35, 0.45, 0.25]), means, np.repeat(np.eye(7)[None] * 0.1, 4, axis=0), labels)
-    tr._reported_labels = {7, 9}
+    tr._streak = {7: 1, 9: 1}  # reported last frame
     tr._ever_reported = {7, 8, 9}
     tracks = tr._extract(1.0, EgoState(0.0, 1.75, 0.0, 15.0, 0.0))
     reported = sorted(t.label for t in tracks)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 
 import numpy as np
@@ -257,8 +258,8 @@ def absorb_overlapping(
     overlap: float,
     wrapping: Wrapping = NO_WRAP,
     cartesian: bool = False,
-    keep_labels: frozenset[int] | set[int] = frozenset(),
-    updated: frozenset[int] | set[int] = frozenset(),
+    keep_labels: AbstractSet[int] = frozenset(),
+    updated: AbstractSet[int] = frozenset(),
 ) -> tuple[Mixture, int]:
     """Two vehicles cannot overlap: per pair of labels whose heaviest components (weight >= ``min_weight``)
     overlap as rectangles along the road (``s``; along the keeper's heading ``psi`` for Cartesian states)

@@ -60,7 +60,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from collections.abc import Container
+from collections.abc import Container, KeysView
 
 import numpy as np
 from scipy.stats import chi2
@@ -179,8 +179,7 @@ class Tracker:
         self._component_group = np.zeros(0, dtype=int)  # per component: its track group, or -1
         self._scan = np.zeros((0, 2))  # the frame's finite lidar returns in E (of a 3-D cloud: the nearest per ray)
         self._point_n = np.zeros(0)  # lateral road offsets (m) of the points kept for clustering
-        self._reported_labels: set[int] = set()  # the labels reported in the last frame
-        self._streak: dict[int, int] = {}  # label -> frames it has been reported in a row, up to the last
+        self._streak: dict[int, int] = {}  # label reported in the last frame -> frames it has been reported in a row
         self._updated_labels: set[int] = set()
         self._strong_labels: set[int] = set()  # labels a cluster updated to a reportable posterior this frame
         self._ever_reported: set[int] = set()
@@ -538,6 +537,11 @@ class Tracker:
         else:
             self.stats["clusters_cut_along"] += 0  # the counter exists from the first clustered frame on
         return ordered, edges, owned
+
+    @property
+    def _reported_labels(self) -> KeysView[int]:
+        """The labels reported in the last frame (``_streak``'s keys)."""
+        return self._streak.keys()
 
     def _duplicate_depths(self, track_labels: np.ndarray) -> np.ndarray:
         """Per last frame's track, the overlap (m) its predicted rectangle may have with another's and
@@ -922,7 +926,6 @@ class Tracker:
                 seen.add(labels[i])
         index = np.array(above, dtype=np.intp)
         self._reported = index
-        self._reported_labels = seen
         self._streak = {lab: self._streak.get(lab, 0) + 1 for lab in reported}
         means, covs = mix.means[index], mix.covs[index]
         updated = self._updated_labels
