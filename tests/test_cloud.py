@@ -675,8 +675,10 @@ def test_stats_add_up_and_masks_partition_the_cloud():
     assert s.kept + s.ground + s.below_ground + s.above_ceiling + s.low_object + s.non_finite + s.ego_body == s.points_in
     assert s.as_dict() == {"points_in": len(cloud), "non_finite": 4, "ego_body": 30, "ground": s.ground,
                            "below_ground": 50, "above_ceiling": 50, "low_object": s.low_object, "kept": s.kept,
-                           "segments_fallback": s.segments_fallback, "segments_hinged": s.segments_hinged}
+                           "seen_over": s.seen_over, "segments_fallback": s.segments_fallback, "segments_hinged": s.segments_hinged}
     assert process_cloud(cloud, CloudConfig(ego_length=0.0)).stats.ego_body == 0  # the crop off
+    assert s.seen_over == np.count_nonzero(res.seen_over) and not (res.seen_over & ~res.kept).any()
+    assert len(res.outline_2d) == s.kept - s.seen_over
     occupied = np.bincount(res.model.patch_of(res.points_e[res.finite & ~res.ego_body]), minlength=res.model.n_patches) > 0
     assert s.segments_fallback == (res.model.fallback & occupied).sum()
     assert s.segments_hinged == (res.model.hinged & occupied).sum() > 0
@@ -714,6 +716,78 @@ def test_a_kerb_is_a_low_object_and_a_vehicle_s_lowest_returns_are_not():
     assert off.kept[k].all() and off.stats.low_object == 0
     with pytest.raises(ValueError, match="low_object_height must be within"):
         CloudConfig(low_object_height=0.1)
+
+
+def _ray_points(azimuth_deg: float, elevation_deg: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Returns in the frame of a lidar 1.9 m up: the ray of one azimuth and elevation each, ending at
+    the horizontal distance ``rho``."""
+    a, e = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.column_stack([rho * np.cos(a), rho * np.sin(a), rho * np.tan(e)])
+
+
+def _level_ground() -> np.ndarray:
+    az = np.radians(np.arange(-180.0, 180.0, 0.5))
+    ring = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=1)
+    return np.concatenate([ring * [r, r, 1.0] for r in (8.0, 12.0, 20.0)]) - [0, 0, 1.9]
+
+
+def test_returns_seen_over_a_nearer_object_are_not_outline_points():
+    """A column of a 1.5 m hedge beside the road at 30 m whose top beam passes over it and ends on a car
+    roof's far end at 65 m (1.5 m up): the roof return is kept (an occluder) but is no 2-D point;
+    a car's rear face at 40 m beneath a canopy return 3 m up at 10 m, a car's rear face whose two upper
+    beams pass over a 1.5 m post at 20 m, and a car's rear face alone keep every return; with
+    ``seen_over_gap=None`` nothing is left out."""
+    beams = np.array([-2.0, -1.33, -1.0, -0.67])
+    hedge = _ray_points(5.0, beams[:3], np.full(3, 30.0))  # 0.85, 1.20, 1.38 m up
+    roof = _ray_points(5.0, np.degrees(np.arctan([-0.4 / 65.0])), np.array([65.0]))  # 1.5 m up
+    face = _ray_points(-10.0, beams, np.full(4, 40.0))  # 0.50 .. 1.43 m up
+    canopy = _ray_points(-10.0, np.degrees(np.arctan([1.1 / 10.0])), np.array([10.0]))  # 3.0 m up
+    alone = _ray_points(20.0, beams, np.full(4, 25.0))
+    post = _ray_points(30.0, beams[:2], np.full(2, 20.0))  # 1.20, 1.44 m up
+    over_post = _ray_points(30.0, beams[2:], np.full(2, 45.0))  # 1.11, 1.37 m up
+    objects = np.vstack([hedge, roof, face, canopy, alone, post, over_post])
+    cloud = np.vstack([_level_ground(), objects])
+    res = process_cloud(cloud)
+    first = len(cloud) - len(objects)
+    assert res.kept[first:].all()
+    over = np.flatnonzero(res.seen_over)
+    assert over.tolist() == [first + 3]  # the roof return only
+    assert res.stats.seen_over == 1 and res.stats.kept == len(objects)
+    np.testing.assert_allclose(res.outline_2d, np.delete(res.points_2d, 3, axis=0))
+    np.testing.assert_allclose(res.points_2d[3], roof[0, :2], atol=1e-9)
+    off = process_cloud(cloud, CloudConfig(seen_over_gap=None))
+    assert not off.seen_over.any() and off.stats.seen_over == 0 and off.outline_2d.shape == (len(objects), 2)
+    # a face's returns within the gap of each other in rho are not over one another
+    tilted = _ray_points(-10.0, beams, 40.0 + np.array([0.0, 0.1, 0.2, 0.45]))
+    res = process_cloud(np.vstack([_level_ground(), tilted]))
+    assert res.kept[-4:].all() and not res.seen_over.any()
+    with pytest.raises(ValueError, match="seen_over_gap"):
+        CloudConfig(seen_over_gap=-0.1)
+
+
+def test_seen_over_kernel_against_all_pairs():
+    """``seen_over_kernel`` (a running minimum per column) against the test of every pair: same column,
+    nearer by more than the gap, and lower in elevation by more than the tolerance; and no other
+    return of the column within the gap."""
+    from tracker.cloud import SEEN_OVER_ELEVATION, _seen_over
+
+    rng = np.random.default_rng(3)
+    n = 3000
+    rho = rng.uniform(2.0, 60.0, n)
+    az = np.radians(rng.choice(np.arange(-30.0, 30.0, 0.2), n) + rng.normal(0.0, 0.01, n))
+    z = rng.uniform(0.2, 3.5, n)
+    points = np.column_stack([rho * np.cos(az), rho * np.sin(az), z])
+    cfg = CloudConfig()
+    got = _seen_over(points, cfg)
+    col = np.floor(az / np.radians(cfg.column_width_deg) + 0.5)
+    slope = (z - cfg.mount_z) / rho
+    same = col[:, None] == col[None, :]
+    nearer = rho[None, :] < rho[:, None] - cfg.seen_over_gap
+    beneath = slope[None, :] < slope[:, None] - math.tan(SEEN_OVER_ELEVATION)
+    close = same & (np.abs(rho[None, :] - rho[:, None]) <= cfg.seen_over_gap) & ~np.eye(n, dtype=bool)
+    want = (same & nearer & beneath).any(axis=1) & ~close.any(axis=1)
+    assert 0 < want.sum() < n
+    np.testing.assert_array_equal(got, want)
 
 
 def test_deterministic():

@@ -65,7 +65,7 @@ def test_lidar_points_take_a_3d_cloud_through_the_ground_removal():
     pts, counts, result = lidar_points(frame, CloudConfig())
     np.testing.assert_allclose(pts, wall[:, :2], atol=1e-9)
     assert counts == {"points_nonfinite": 1, "cloud_points": len(cloud), "cloud_ego_body": 0, "cloud_ground": len(ground),
-                      "cloud_below_ground": 0, "cloud_above_ceiling": 0, "cloud_low_object": counts["cloud_low_object"], "cloud_segments_fallback": counts["cloud_segments_fallback"]}
+                      "cloud_below_ground": 0, "cloud_above_ceiling": 0, "cloud_low_object": counts["cloud_low_object"], "cloud_seen_over": 0, "cloud_segments_fallback": counts["cloud_segments_fallback"]}
     assert result.kept.sum() == 20
     road = Road.from_curvature([(200.0, 0.0, 0.0)], start=(-50.0, 0.0, 0.0), lanes=2)
     scan, kept, all_counts = preprocess_frame(frame, road, TrackerConfig().clustering)

@@ -293,6 +293,27 @@ class CloudConfig:
       neighbours are not asked: a kerb's top beside a post, taken as an object, joins the post's
       returns in a cluster at the road's edge).
 
+    Outlines (after the classification; the returns stay kept, as occluders, but are not 2-D points):
+
+    - ``seen_over_gap`` (m, >= 0; None: off): a kept return is *seen over* something where its azimuth
+      column (``column_width_deg``, about the lidar at ``(mount_x, mount_y)``) holds a kept return more
+      than this nearer in ``rho`` and beneath its ray (a lower elevation from the lidar at ``mount_z``):
+      the ray passed over a nearer object (a hedge, a wall, another vehicle) and hit what stands behind
+      it above that object's top, and no other return of the column lies within this of it in ``rho``
+      (the ray grazed a roof: at long range the window of elevations that reach a roof's far end
+      over a nearer object holds one beam; a face seen over a post or a low bush returns two beams or
+      more at one ``rho``, and stays). A 2-D scan cannot see a roof's return, and
+      the rectangle model takes a projected one for the outline the sensor faces: a car's roof end seen
+      over a roadside hedge lies a body length behind its rear face, and the cut between the two
+      (``tracker.clustering.along_cuts_kernel``) bounds the car at its rear face. Such returns are left
+      out of ``CloudResult.outline_2d``; within the road they are the ones the bearing filter drops
+      anyway (a nearer return in their bin), so what changes is the returns seen over objects beside
+      the road, which the road filter removes before the bearing filter. A return beneath a nearer one
+      (a canopy, a sign) stays. Default 0.5 (a vehicle's face: its beams' returns within centimetres
+      of each other in ``rho``; a sloping bonnet or windscreen seen over its bumper is dropped by the
+      bearing filter as well). For a rig's merged cloud the columns and elevations are taken about the
+      primary lidar (the mount pose), an approximation for the others.
+
     A patch with no plane of its own borrows its inner neighbour's (the patch of the ring inside
     holding its sector's axis, whatever plane that one uses); the disc uses the level plane ``z = 0``
     when its free fit fails or the ego could not stand on it (more than ``max_step`` from a corner of
@@ -325,6 +346,7 @@ class CloudConfig:
     height_ceiling: float = 4.0
     low_object_height: float | None = 0.3
     low_object_cell: float = 0.5
+    seen_over_gap: float | None = 0.5
     ego_length: float = 4.8
     ego_width: float = 2.0
     ego_height: float = 1.5
@@ -381,6 +403,8 @@ class CloudConfig:
                 raise ValueError(f"CloudConfig.low_object_height must be within [distance_threshold, height_ceiling) "
                                  f"([{self.distance_threshold!r}, {self.height_ceiling!r}) m) or None; got {low!r}")
         _real("low_object_cell", self.low_object_cell, low=0.0, low_open=True, unit="m")
+        if self.seen_over_gap is not None:
+            _real("seen_over_gap", self.seen_over_gap, low=0.0, unit="m")
         for name in ("ego_length", "ego_width", "ego_height", "ego_margin"):
             _real(name, getattr(self, name), low=0.0, unit="m")
         _integer("seed", self.seed, 0)
@@ -485,7 +509,8 @@ def _patch_of_polar(rho: np.ndarray, phi: np.ndarray, edges: np.ndarray, sectors
     return first[ring] + k
 
 
-def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig) -> np.ndarray:
+def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig,
+               columns: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Which points (N,) stand at the foot of something steep. The returns are grouped in azimuth
     columns ``floor(phi / w + 1/2)`` (``w = column_width_deg``) and ordered outwards in each; of two
     returns next to each other in a column that differ in height by more than ``distance_threshold``
@@ -496,19 +521,101 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     near face centimetres apart: no rise between any two, yet all but the top at its foot). A
     vehicle's side, a wall or a pole returns a column of points one above the other; the ground's
     returns in one column lie rings apart (metres out, centimetres up). Feet take no part in the
-    fits (they are still classified against the planes)."""
+    fits (they are still classified against the planes). ``columns``: ``_column_order``'s result for
+    these returns, where the caller has it."""
     n = len(rho)
     if n < 2:
         return np.zeros(n, dtype=bool)
-    col = np.floor(phi / math.radians(cfg.column_width_deg) + 0.5)
-    if 180.0 / cfg.column_width_deg < _INT16_MAX - 1:  # by column, then outwards: two radix sorts
+    col, order = _column_order(rho, phi, cfg.column_width_deg) if columns is None else columns
+    c, r, h = col[order], rho[order], z[order]
+    out = np.zeros(n, dtype=bool)
+    out[order] = wall_feet_kernel(c, r, h, cfg.distance_threshold)
+    return out
+
+
+def _column_order(rho: np.ndarray, phi: np.ndarray, width_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The azimuth column ``floor(phi / w + 1/2)`` (``w = width_deg`` in rad) of each return (N,), and
+    the order (N,) that sorts the returns by column, then outwards by ``rho`` (to the centimetre: two
+    stable radix sorts where the columns fit 16 bits)."""
+    col = np.floor(phi / math.radians(width_deg) + 0.5)
+    if 180.0 / width_deg < _INT16_MAX - 1:  # by column, then outwards: two radix sorts
         order = np.argsort(np.minimum(rho * 100.0, _UINT16_MAX).astype(np.uint16), kind="stable")  # cm
         order = order[np.argsort(col[order].astype(np.int16), kind="stable")]
     else:
         order = np.argsort(col * (2.0 * (float(rho.max()) + 1.0)) + rho)
-    c, r, h = col[order], rho[order], z[order]
-    out = np.zeros(n, dtype=bool)
-    out[order] = wall_feet_kernel(c, r, h, cfg.distance_threshold)
+    return col, order
+
+
+def _seen_over(points: np.ndarray, cfg: CloudConfig, columns: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+               kept: np.ndarray | None = None) -> np.ndarray:
+    """Which of the kept returns ``points`` (M, 3) in E were seen over a nearer object
+    (``CloudConfig.seen_over_gap``; all False when it is None): in its azimuth column about the lidar
+    ``(mount_x, mount_y)`` (``column_width_deg``), a return more than ``seen_over_gap`` nearer in
+    ``rho`` lies beneath its ray, at an elevation from the lidar (``mount_z``) lower by more than
+    ``SEEN_OVER_ELEVATION`` (rad): the ray passed over that return's object; and no other return of
+    the column lies within ``seen_over_gap`` of it in ``rho`` (a face that two beams or more hit
+    above the nearer object stays). With ``kept`` (N,), ``points`` are all of a cloud's returns and only
+    the kept ones take part (the others False); ``columns``: ``(col, order, rho)`` of ``_column_order``
+    for ``points`` and their ``rho``, where the caller has them (the ground fit's: no second sort)."""
+    m = len(points)
+    out = np.zeros(m, dtype=bool)
+    if cfg.seen_over_gap is None or m < 2:
+        return out
+    if columns is None:
+        dx, dy = points[:, 0] - cfg.mount_x, points[:, 1] - cfg.mount_y
+        rho = np.hypot(dx, dy)
+        col, order = _column_order(rho, np.arctan2(dy, dx), cfg.column_width_deg)
+    else:
+        col, order, rho = columns
+    take = np.ones(m, dtype=bool) if kept is None else kept
+    return seen_over_kernel(order, take, col, rho, points[:, 2], float(cfg.mount_z), float(cfg.seen_over_gap),
+                            math.tan(SEEN_OVER_ELEVATION))
+
+
+#: ``_seen_over``: a nearer return is beneath a ray where its elevation from the lidar is lower by more
+#: than this (rad; 0.06 deg: a fifth of the finest beam spacing of the lidars modelled, 0.33 deg, and
+#: well above the elevation that range noise moves a return by).
+SEEN_OVER_ELEVATION = 1e-3
+
+
+@njit
+def seen_over_kernel(order, take, col, rho, z, lidar_z, gap, tol):  # pragma: no cover - compiled
+    """:func:`_seen_over`'s test on the returns ``take`` (N,) of ``order`` (N,), which sorts them by
+    column ``col`` (N,), then outwards by ``rho`` (N,); ``z`` (N,) their heights in E, ``lidar_z`` the
+    lidar's. With ``slope = (z - lidar_z) / rho``, the tangent of a return's elevation: a return is
+    seen over something where a return of its column with ``rho < rho_i - gap`` has ``slope <
+    slope_i - tol`` (a running minimum of the nearer returns' slopes: one pass) and no other return of
+    its column lies within ``gap`` of it in ``rho`` (its neighbours in the order). Returns the flags
+    (N,) in input order."""
+    n = order.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    idx = np.empty(n, dtype=np.int64)  # the returns taken, in order
+    m = 0
+    for k in range(n):
+        if take[order[k]]:
+            idx[m] = order[k]
+            m += 1
+    start = 0
+    while start < m:
+        c = col[idx[start]]
+        stop = start
+        while stop < m and col[idx[stop]] == c:
+            stop += 1
+        lowest = np.inf
+        j = start
+        for a in range(start, stop):
+            i = idx[a]
+            r = rho[i]
+            while j < a and rho[idx[j]] < r - gap:
+                q = idx[j]
+                slope = (z[q] - lidar_z) / rho[q]
+                if slope < lowest:
+                    lowest = slope
+                j += 1
+            if lowest < (z[i] - lidar_z) / r - tol:
+                face = (a > start and r - rho[idx[a - 1]] <= gap) or (a + 1 < stop and rho[idx[a + 1]] - r <= gap)
+                out[i] = not face
+        start = stop
     return out
 
 
@@ -972,9 +1079,11 @@ def _plane_z(n: np.ndarray, d: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.n
     return -(n[:, 0] * x + n[:, 1] * y + d) / n[:, 2]
 
 
-def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndarray]:
-    """The ground model of finite points ``pts`` (N, 3) in E, and each point's patch (N,)
-    (see :func:`fit_ground` for the method)."""
+def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndarray,
+                                                             tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The ground model of finite points ``pts`` (N, 3) in E, each point's patch (N,) (see
+    :func:`fit_ground` for the method), and the azimuth columns of the points about the lidar,
+    ``(col, order, rho)`` (``_column_order``, with the horizontal distances ``rho``)."""
     edges = np.asarray(cfg.ring_edges, dtype=float)
     sectors = np.asarray((1,) + tuple(cfg.ring_sectors), dtype=np.intp)
     first = _ring_starts(sectors)
@@ -984,7 +1093,8 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
     phi = np.arctan2(pts[:, 1] - centre[1], pts[:, 0] - centre[0])
     patch = _patch_of_polar(rho, phi, edges, sectors, first)
     counts = np.bincount(patch, minlength=n_patch)
-    eligible = np.flatnonzero(~_wall_feet(rho, phi, pts[:, 2], cfg))  # the points that may be fitted
+    col, order = _column_order(rho, phi, cfg.column_width_deg)
+    eligible = np.flatnonzero(~_wall_feet(rho, phi, pts[:, 2], cfg, (col, order)))  # the points that may be fitted
     fit_counts = np.bincount(patch[eligible], minlength=n_patch)
     cos_max = math.cos(math.radians(cfg.max_slope_deg))
     tan_max = math.tan(math.radians(cfg.max_slope_deg))
@@ -1099,7 +1209,7 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
     model = GroundModel(ring_edges=tuple(edges.tolist()), sectors=tuple(sectors.tolist()), centre=centre,
                         normals=normals, offsets=offsets, fallback=~fitted, hinged=hinged, source=source,
                         point_counts=counts, inlier_counts=inlier_counts)
-    return model, patch
+    return model, patch, (col, order, rho)
 
 
 def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
@@ -1172,7 +1282,8 @@ def fit_ground(points_e: Any, config: CloudConfig | None = None) -> GroundModel:
 class CloudStats:
     """What each stage of :func:`process_cloud` did to one cloud (counts of points).
 
-    ``kept + ground + below_ground + above_ceiling + low_object + non_finite + ego_body == points_in``.
+    ``kept + ground + below_ground + above_ceiling + low_object + non_finite + ego_body == points_in``;
+    ``seen_over`` counts the kept returns seen over a nearer object (``CloudConfig.seen_over_gap``).
     ``segments_fallback`` counts the patches (:class:`GroundModel`) holding finite points whose plane
     was borrowed (their own fits failed or were rejected), ``segments_hinged`` those whose plane is
     their own hinged fit; empty patches are not counted (``GroundModel.fallback`` and ``hinged``
@@ -1187,6 +1298,7 @@ class CloudStats:
     above_ceiling: int = 0
     low_object: int = 0
     kept: int = 0
+    seen_over: int = 0
     segments_fallback: int = 0
     segments_hinged: int = 0
 
@@ -1202,10 +1314,12 @@ class CloudResult:
     as given, transformed); ``finite`` (N,); ``heights`` (N,) the signed height above the patch's
     plane (m, NaN where not finite or on the ego's body); ``ego_body`` (N,) the returns from the ego's
     own box (``CloudConfig.ego_length`` ...); the disjoint masks ``ground``, ``below_ground``,
-    ``above_ceiling``, ``low_object``, ``kept`` (all False on non-finite and ego-body rows).
+    ``above_ceiling``, ``low_object``, ``kept`` (all False on non-finite and ego-body rows), and
+    ``seen_over`` (N,), the kept returns seen over a nearer object (``CloudConfig.seen_over_gap``).
     ``points_2d`` (M, 2) are the kept points projected onto their plane along its normal, ``(x, y)``
-    in E, in input order (``M = kept.sum()``). ``model`` is the fitted :class:`GroundModel`,
-    ``stats`` the counts.
+    in E, in input order (``M = kept.sum()``); ``outline_2d`` those of them not seen over anything,
+    in the same order: the 2-D points the tracker takes. ``model`` is the fitted
+    :class:`GroundModel`, ``stats`` the counts.
 
     A figure of the pipeline: ``points_e[finite]`` (raw cloud), ``points_e[kept]`` (without ground,
     below-ground, above-ceiling and low-object points), ``points_2d`` (projected), ``model.ground_z``
@@ -1221,7 +1335,9 @@ class CloudResult:
     above_ceiling: np.ndarray
     low_object: np.ndarray
     kept: np.ndarray
+    seen_over: np.ndarray
     points_2d: np.ndarray
+    outline_2d: np.ndarray
     model: GroundModel
     stats: CloudStats
 
@@ -1374,13 +1490,15 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     every = all_finite and not has_body  # every row goes on
     use = finite & ~body if has_body else finite
     pts = pe if every else pe[use]
-    model, patch = _fit_ground(pts, cfg)
+    model, patch, columns = _fit_ground(pts, cfg)
     low = -1.0 if cfg.low_object_height is None else float(cfg.low_object_height)
     h, cls, points_2d = classify_kernel(np.ascontiguousarray(pts, dtype=float), patch, model.normals, model.offsets,
                                         float(cfg.distance_threshold), float(cfg.height_ceiling), low,
                                         float(cfg.low_object_cell))
     ground_f, below_f, above_f = cls == GROUND, cls == BELOW_GROUND, cls == ABOVE_CEILING
     low_f, kept_f = cls == LOW_OBJECT, cls == KEPT
+    over_f = _seen_over(pts, cfg, columns, kept_f)
+    over_kept = over_f[kept_f]  # per kept point, in input order (as points_2d)
 
     def full(mask: np.ndarray) -> np.ndarray:
         if every:
@@ -1405,12 +1523,14 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
         above_ceiling=int(np.count_nonzero(above_f)),
         low_object=int(np.count_nonzero(low_f)),
         kept=int(np.count_nonzero(kept_f)),
+        seen_over=int(np.count_nonzero(over_kept)),
         segments_fallback=int(np.count_nonzero(model.fallback & occupied)),
         segments_hinged=int(np.count_nonzero(model.hinged & occupied)),
     )
     return CloudResult(points_e=pe, finite=finite, ego_body=body, heights=heights, ground=full(ground_f),
                        below_ground=full(below_f), above_ceiling=full(above_f), low_object=full(low_f), kept=full(kept_f),
-                       points_2d=points_2d, model=model, stats=stats)
+                       seen_over=full(over_f), points_2d=points_2d,
+                       outline_2d=points_2d[~over_kept] if over_kept.any() else points_2d, model=model, stats=stats)
 
 
 def to_ground_plane(points_sensor: Any, config: CloudConfig | None = None) -> tuple[np.ndarray, CloudStats]:

@@ -45,10 +45,11 @@ def lidar_points(frame: Frame, cloud: CloudConfig | None = None) -> tuple[np.nda
 
     ``(N, 2)`` points are taken as they are (non-finite rows dropped and counted as
     ``points_nonfinite``); an ``(N, 3)`` cloud in the lidar's frame goes through
-    ``tracker.cloud.process_cloud`` with ``cloud`` (``CloudConfig()`` by default), which counts
-    ``cloud_points``, ``cloud_ego_body`` (returns from the ego's own box), ``cloud_ground``,
-    ``cloud_below_ground``, ``cloud_above_ceiling``, ``cloud_low_object`` (kerbs) and
-    ``cloud_segments_fallback`` (its non-finite rows are ``points_nonfinite``)."""
+    ``tracker.cloud.process_cloud`` with ``cloud`` (``CloudConfig()`` by default), whose points are
+    the kept returns' projections less those seen over a nearer object (``CloudResult.outline_2d``),
+    and which counts ``cloud_points``, ``cloud_ego_body`` (returns from the ego's own box),
+    ``cloud_ground``, ``cloud_below_ground``, ``cloud_above_ceiling``, ``cloud_low_object`` (kerbs),
+    ``cloud_seen_over`` and ``cloud_segments_fallback`` (its non-finite rows are ``points_nonfinite``)."""
     if frame.lidar.shape[1] == 2:
         pts, dropped = drop_nonfinite(frame.lidar)
         return pts, {"points_nonfinite": dropped}, None
@@ -57,8 +58,9 @@ def lidar_points(frame: Frame, cloud: CloudConfig | None = None) -> tuple[np.nda
     counts = {"points_nonfinite": st.non_finite, "cloud_points": st.points_in, "cloud_ego_body": st.ego_body,
               "cloud_ground": st.ground,
               "cloud_below_ground": st.below_ground, "cloud_above_ceiling": st.above_ceiling,
-              "cloud_low_object": st.low_object, "cloud_segments_fallback": st.segments_fallback}
-    return result.points_2d, counts, result
+              "cloud_low_object": st.low_object, "cloud_seen_over": st.seen_over,
+              "cloud_segments_fallback": st.segments_fallback}
+    return result.outline_2d, counts, result
 
 
 def road_bound_mask(points_g: np.ndarray, road: Road, margin: float = 0.5) -> np.ndarray:

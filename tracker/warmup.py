@@ -255,8 +255,9 @@ def other_calls() -> None:
     occlusion test, the points in rectangles, the grouping's second call and its hand-back's partition,
     the cuts along a track's cluster and the bounds they set, the reduce stage whatever the scene reached (the reduction in view, the test of the components
     inside an updated one's rectangle, ``absorb_overlapping``'s screen along the road and in Cartesian
-    axes), the report-range centres of the extraction, the 3-D cloud's wall-feet pass and classification."""
-    from tracker.cloud import classify_kernel, wall_feet_kernel
+    axes), the report-range centres of the extraction, the 3-D cloud's wall-feet pass, classification and
+    seen-over pass."""
+    from tracker.cloud import classify_kernel, seen_over_kernel, wall_feet_kernel
     from tracker.clustering import SPLIT_MAX_CUTS, distance_partition, points_in_rectangles
     from tracker.clustering import along_cuts_kernel, ordered_clusters_kernel
     from tracker.extent import bound_at_holes_kernel
@@ -298,6 +299,8 @@ def other_calls() -> None:
     absorb_overlapping(two, 0.5, 0.5, tracker.wrapping, cartesian=True)
     _centres(means, np.array([0, 1], dtype=np.intp), EgoState(*EGO), road, "curvilinear")
     wall_feet_kernel(np.zeros(2), np.array([5.0, 5.05]), np.array([0.0, 1.0]), 0.15)
+    seen_over_kernel(np.arange(2), np.ones(2, dtype=np.bool_), np.zeros(2), np.array([5.0, 9.0]), np.array([0.5, 1.5]), 1.9,
+                     0.5, 1e-3)
     classify_kernel(np.array([[5.0, 0.0, 0.2], [5.0, 0.0, 1.0]]), np.zeros(2, dtype=np.intp), np.array([[0.0, 0.0, 1.0]]),
                     np.zeros(1), 0.15, 4.0, 0.3, 0.5)
 

@@ -518,7 +518,7 @@ def _lidar_xy(frame, config) -> np.ndarray:  # noqa: ANN001
     if pts.ndim == 2 and pts.shape[1] == 3:
         from tracker.cloud import process_cloud
 
-        return process_cloud(pts, config.cloud).points_2d
+        return process_cloud(pts, config.cloud).outline_2d
     return pts.reshape(-1, 2)
 
 
@@ -579,16 +579,21 @@ def plot_cloud_pipeline(result: Result, path: str | Path, frame: FrameRecord | N
                                      linewidths=1.0, label="vehicles (their colours)"))
     ego_c = rectangle_corners(np.zeros((1, 2)), np.zeros(1), np.array([e.length]), np.array([e.width]))
     ax.add_collection(PolyCollection(ego_c, facecolors="k", alpha=0.75))
-    q = cloud.points_2d
+    q = cloud.outline_2d
     ax.scatter(q[:, 0], q[:, 1], s=1.5, c="#d62728", label="projected points")
+    over = cloud.points_2d[cloud.seen_over[cloud.kept]]
+    if len(over):
+        ax.scatter(over[:, 0], over[:, 1], s=6, marker="x", linewidths=0.6, c="#7f7f7f",
+                   label="seen over a nearer object (left out)")
     ax.set_xlim(-half_window, half_window)
     ax.set_ylim(-half_window, half_window)
     ax.set_aspect("equal")
     ax.set_xlabel("x in E (m)")
     ax.set_ylabel("y in E (m)")
     st = cloud.stats
-    ax.set_title(f"c. projected onto the road plane (2-D)\n{st.kept} of {st.points_in} points; "
-                 f"ground {st.ground}, below {st.below_ground}, above ceiling {st.above_ceiling}", fontsize=9)
+    ax.set_title(f"c. projected onto the road plane (2-D)\n{st.kept - st.seen_over} of {st.points_in} points; "
+                 f"ground {st.ground}, below {st.below_ground}, above ceiling {st.above_ceiling}, "
+                 f"seen over {st.seen_over}", fontsize=9)
     ax.legend(loc="upper right", fontsize=7)
     fig.suptitle(f"{_title(result)}, t = {f.t:.1f} s: the 3-D lidar pipeline "
                  f"(mount transform, RANSAC ground removal, projection)", fontsize=10)
