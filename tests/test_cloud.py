@@ -418,6 +418,22 @@ def test_a_cloud_in_the_vehicle_frame_merged_from_two_lidars():
         process_cloud(merged, roof)
 
 
+def test_frame_check_takes_a_truck_alongside_for_what_it_is():
+    """A cloud in the lidar's frame whose ground rings 3-8 m out show only to the left (the ego's body
+    hides them ahead and behind, a truck alongside on the whole right, its face's lowest return 1.0 m
+    up, above its wheels) passes the frame check; the same cloud given as one in E (the ground then
+    1.9 m down) is refused."""
+    az = np.radians(np.arange(45.0, 135.0, 0.4))  # the left side's ground
+    ground = np.concatenate([np.column_stack([r * np.cos(az), r * np.sin(az), np.zeros_like(az)]) for r in (4.1, 6.8)])
+    tx = np.linspace(-20.0, 20.0, 800)  # the truck 3 m to the right
+    face = np.concatenate([np.column_stack([tx, np.full(800, -3.0), np.full(800, z)]) for z in (1.0, 1.6, 2.4, 3.2)])
+    cloud = np.vstack([ground, face]) - [0.0, 0.0, 1.9]
+    res = process_cloud(cloud)  # the median of the sectors' lowest returns would say 1.0 m: "in E?"
+    assert res.ground[: len(ground)].all() and res.kept[len(ground):].all()
+    with pytest.raises(ValueError, match=r"CloudConfig.frame = 'vehicle' .* is it in the sensor frame\?"):
+        process_cloud(cloud, CloudConfig(frame="vehicle"))
+
+
 def test_projected_points_lie_on_the_footprints():
     points, labels, faces = scan(TILTED, TRAFFIC, noise=0.0)
     res = process_cloud(points)

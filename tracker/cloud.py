@@ -39,7 +39,10 @@ rectangle measurement model) takes points ``(x, y)`` in the vehicle frame E. Thi
    left) higher than ``low_object_height`` (kerbs, debris: no vehicle is so low, and a vehicle's
    lowest returns share their cells with the returns of its side above them); the rest is kept.
 5. **Projection** of the kept points onto their patch's plane along its normal; their ``(x, y)``
-   in E are the 2-D points.
+   in E are the 2-D points, less the returns **seen over a nearer object** (``CloudConfig.seen_over_gap``:
+   a lone return in its azimuth column behind a nearer return beneath its ray, mostly a roof's far
+   end seen over a roadside hedge, which a 2-D scan cannot see and the rectangle model would read as
+   an outline).
 
 Frames and units: E has its origin at the ego's geometric centre on the ground (z = 0 on the ground
 under the ego centre when the ground is level), x forward, y left, z up. The sensor frame S is the
@@ -84,16 +87,19 @@ __all__ = [
 #: The frames a cloud may come in (``CloudConfig.frame``): one lidar's own, or the vehicle frame E.
 CLOUD_FRAMES = ("sensor", "vehicle")
 #: The frame check (``CloudConfig.frame``): the ground within this band of horizontal distances from
-#: the lidar (m), its height the median over FRAME_CHECK_SECTORS equal azimuth sectors around the
-#: lidar of each sector's lowest point (sectors of at least 3 points: the ego's body hides the ground
-#: ahead and behind, and a wall or hedge beside the road, standing on the ground, fills the sides'
-#: band with its face, whose lowest return is near the ground; a stray return below the ground moves
-#: one sector's, not the median), checked with at least FRAME_CHECK_POINTS of them and a lidar at
-#: least FRAME_CHECK_MOUNT_Z high (m).
+#: the lidar (m), its height the lower quartile (FRAME_CHECK_QUANTILE) over FRAME_CHECK_SECTORS equal
+#: azimuth sectors around the lidar of each sector's lowest point (sectors of at least 3 points: the
+#: ego's body hides the ground ahead and behind, and a truck alongside hides it on a whole side
+#: behind a face whose lowest return, above its wheels, stands a metre up; a wall or hedge beside the
+#: road stands on the ground, its lowest return near it; a stray return below the ground moves one
+#: sector's, not the quartile), checked with at least FRAME_CHECK_POINTS of them and a lidar at least
+#: FRAME_CHECK_MOUNT_Z high (m). A cloud in the other frame moves every sector's ground by the
+#: lidar's height.
 FRAME_CHECK_BAND = (3.0, 8.0)
 FRAME_CHECK_POINTS = 30
 FRAME_CHECK_MOUNT_Z = 1.0
 FRAME_CHECK_SECTORS = 16
+FRAME_CHECK_QUANTILE = 0.25
 #: The frame check looks at about this many of a cloud's points (a stride through it).
 FRAME_CHECK_SAMPLE = 8192
 
@@ -153,7 +159,7 @@ class CloudConfig:
       rig of several lidars (stacked on the roof, on the bumpers) as real drivers deliver it; the mount
       pose is then the primary lidar's, whose position centres the patch layout. Default ``"sensor"``.
       A cloud whose ground near the lidar lies where the other frame would put it (within 3-8 m of
-      ``(mount_x, mount_y)``, its height, the median over 16 azimuth sectors of each one's lowest
+      ``(mount_x, mount_y)``, its height, the lower quartile over 16 azimuth sectors of each one's lowest
       point, more than ``mount_z / 2`` off 0 in E, among about 8,192 points strided
       through the cloud) is refused with a ``ValueError`` that says so (checked where ``mount_z >= 1``
       m and 30 such points exist).
@@ -1358,7 +1364,7 @@ def _check_frame(pe: np.ndarray, cfg: CloudConfig) -> None:
     sector = ((np.arctan2(dy[band], dx[band]) + np.pi) * (FRAME_CHECK_SECTORS / (2.0 * np.pi))).astype(np.int64)
     sector = np.minimum(sector, FRAME_CHECK_SECTORS - 1)
     lows = [near[sector == k].min() for k in range(FRAME_CHECK_SECTORS) if np.count_nonzero(sector == k) >= 3]
-    ground = float(np.median(lows))
+    ground = float(np.quantile(lows, FRAME_CHECK_QUANTILE))
     if abs(ground) > 0.5 * cfg.mount_z:
         said = "a lidar's own frame" if cfg.frame == "sensor" else "the vehicle frame E"
         other = "vehicle" if cfg.frame == "sensor" else "sensor"
@@ -1468,7 +1474,8 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
     4. with ``tau = distance_threshold`` and ``c = height_ceiling``: ``|h| <= tau`` is ground,
        ``h < -tau`` below ground, ``h > c`` above the ceiling, ``tau < h <= c`` kept;
     5. the kept points are projected along their plane's normal, ``q = p - h n_k``, and ``(q_x, q_y)``
-       returned.
+       returned (``points_2d``; ``outline_2d`` without the returns seen over a nearer object,
+       ``CloudConfig.seen_over_gap``, whose azimuth columns come from the ground fit's sort).
 
     ``ValueError`` when ``points_sensor`` is not an ``(N, 3)`` array of real numbers; ``(0, 3)``
     gives ``(0, 2)`` points and a level ground model.
