@@ -804,6 +804,8 @@ def test_seen_over_kernel_against_all_pairs():
     want = (same & nearer & beneath).any(axis=1) & ~close.any(axis=1)
     assert 0 < want.sum() < n
     np.testing.assert_array_equal(got, want)
+    above = np.vstack([points, [[cfg.mount_x, cfg.mount_y, 3.0]]])  # a return right above the lidar
+    np.testing.assert_array_equal(_seen_over(above, cfg), np.append(want, False))
 
 
 def test_deterministic():

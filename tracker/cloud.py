@@ -591,8 +591,8 @@ def seen_over_kernel(order, take, col, rho, z, lidar_z, gap, tol):  # pragma: no
     lidar's. With ``slope = (z - lidar_z) / rho``, the tangent of a return's elevation: a return is
     seen over something where a return of its column with ``rho < rho_i - gap`` has ``slope <
     slope_i - tol`` (a running minimum of the nearer returns' slopes: one pass) and no other return of
-    its column lies within ``gap`` of it in ``rho`` (its neighbours in the order). Returns the flags
-    (N,) in input order."""
+    its column lies within ``gap`` of it in ``rho`` (its neighbours in the order); a return at ``rho =
+    0`` takes no part. Returns the flags (N,) in input order."""
     n = order.shape[0]
     out = np.zeros(n, dtype=np.bool_)
     idx = np.empty(n, dtype=np.int64)  # the returns taken, in order
@@ -614,11 +614,12 @@ def seen_over_kernel(order, take, col, rho, z, lidar_z, gap, tol):  # pragma: no
             r = rho[i]
             while j < a and rho[idx[j]] < r - gap:
                 q = idx[j]
-                slope = (z[q] - lidar_z) / rho[q]
-                if slope < lowest:
-                    lowest = slope
+                if rho[q] > 0.0:  # a return right above or below the lidar has no elevation to compare
+                    slope = (z[q] - lidar_z) / rho[q]
+                    if slope < lowest:
+                        lowest = slope
                 j += 1
-            if lowest < (z[i] - lidar_z) / r - tol:
+            if r > 0.0 and lowest < (z[i] - lidar_z) / r - tol:
                 face = (a > start and r - rho[idx[a - 1]] <= gap) or (a + 1 < stop and rho[idx[a + 1]] - r <= gap)
                 out[i] = not face
         start = stop
