@@ -785,7 +785,13 @@ def test_seen_over_kernel_against_all_pairs():
     """``seen_over_kernel`` (a running minimum per column) against the test of every pair: same column,
     nearer by more than the gap, and lower in elevation by more than the tolerance; and no other
     return of the column within the gap."""
-    from tracker.cloud import SEEN_OVER_ELEVATION, _seen_over
+    from tracker.cloud import SEEN_OVER_ELEVATION, _column_order, _seen_over
+
+    def flags(points: np.ndarray, cfg: CloudConfig) -> np.ndarray:  # every return taking part
+        dx, dy = points[:, 0] - cfg.mount_x, points[:, 1] - cfg.mount_y
+        rho = np.hypot(dx, dy)
+        col, order = _column_order(rho, np.arctan2(dy, dx), cfg.column_width_deg)
+        return _seen_over(points, np.ones(len(points), dtype=bool), (col, order, rho), cfg)
 
     rng = np.random.default_rng(3)
     n = 3000
@@ -794,7 +800,7 @@ def test_seen_over_kernel_against_all_pairs():
     z = rng.uniform(0.2, 3.5, n)
     points = np.column_stack([rho * np.cos(az), rho * np.sin(az), z])
     cfg = CloudConfig()
-    got = _seen_over(points, cfg)
+    got = flags(points, cfg)
     col = np.floor(az / np.radians(cfg.column_width_deg) + 0.5)
     slope = (z - cfg.mount_z) / rho
     same = col[:, None] == col[None, :]
@@ -805,7 +811,7 @@ def test_seen_over_kernel_against_all_pairs():
     assert 0 < want.sum() < n
     np.testing.assert_array_equal(got, want)
     above = np.vstack([points, [[cfg.mount_x, cfg.mount_y, 3.0]]])  # a return right above the lidar
-    np.testing.assert_array_equal(_seen_over(above, cfg), np.append(want, False))
+    np.testing.assert_array_equal(flags(above, cfg), np.append(want, False))
 
 
 def test_deterministic():

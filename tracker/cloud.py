@@ -552,29 +552,21 @@ def _column_order(rho: np.ndarray, phi: np.ndarray, width_deg: float) -> tuple[n
     return col, order
 
 
-def _seen_over(points: np.ndarray, cfg: CloudConfig, columns: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-               kept: np.ndarray | None = None) -> np.ndarray:
-    """Which of the kept returns ``points`` (M, 3) in E were seen over a nearer object
-    (``CloudConfig.seen_over_gap``; all False when it is None): in its azimuth column about the lidar
-    ``(mount_x, mount_y)`` (``column_width_deg``), a return more than ``seen_over_gap`` nearer in
-    ``rho`` lies beneath its ray, at an elevation from the lidar (``mount_z``) lower by more than
-    ``SEEN_OVER_ELEVATION`` (rad): the ray passed over that return's object; and no other return of
-    the column lies within ``seen_over_gap`` of it in ``rho`` (a face that two beams or more hit
-    above the nearer object stays). With ``kept`` (N,), ``points`` are all of a cloud's returns and only
-    the kept ones take part (the others False); ``columns``: ``(col, order, rho)`` of ``_column_order``
-    for ``points`` and their ``rho``, where the caller has them (the ground fit's: no second sort)."""
-    m = len(points)
-    out = np.zeros(m, dtype=bool)
-    if cfg.seen_over_gap is None or m < 2:
-        return out
-    if columns is None:
-        dx, dy = points[:, 0] - cfg.mount_x, points[:, 1] - cfg.mount_y
-        rho = np.hypot(dx, dy)
-        col, order = _column_order(rho, np.arctan2(dy, dx), cfg.column_width_deg)
-    else:
-        col, order, rho = columns
-    take = np.ones(m, dtype=bool) if kept is None else kept
-    return seen_over_kernel(order, take, col, rho, points[:, 2], float(cfg.mount_z), float(cfg.seen_over_gap),
+def _seen_over(points: np.ndarray, kept: np.ndarray, columns: tuple[np.ndarray, np.ndarray, np.ndarray],
+               cfg: CloudConfig) -> np.ndarray:
+    """Which of a cloud's returns ``points`` (N, 3) in E were seen over a nearer object, of the kept
+    ones ``kept`` (N,) (the others False; all False when ``CloudConfig.seen_over_gap`` is None): in
+    its azimuth column about the lidar ``(mount_x, mount_y)`` (``column_width_deg``), a return more
+    than ``seen_over_gap`` nearer in ``rho`` lies beneath its ray, at an elevation from the lidar
+    (``mount_z``) lower by more than ``SEEN_OVER_ELEVATION`` (rad): the ray passed over that return's
+    object; and no other return of the column lies within ``seen_over_gap`` of it in ``rho`` (a face
+    that two beams or more hit above the nearer object stays). ``columns``: ``(col, order, rho)``,
+    ``_column_order``'s result for ``points`` and their horizontal distances from the lidar (the
+    ground fit's: no second sort)."""
+    if cfg.seen_over_gap is None or len(points) < 2:
+        return np.zeros(len(points), dtype=bool)
+    col, order, rho = columns
+    return seen_over_kernel(order, kept, col, rho, points[:, 2], float(cfg.mount_z), float(cfg.seen_over_gap),
                             math.tan(SEEN_OVER_ELEVATION))
 
 
@@ -1505,7 +1497,7 @@ def process_cloud(points_sensor: Any, config: CloudConfig | None = None) -> Clou
                                         float(cfg.low_object_cell))
     ground_f, below_f, above_f = cls == GROUND, cls == BELOW_GROUND, cls == ABOVE_CEILING
     low_f, kept_f = cls == LOW_OBJECT, cls == KEPT
-    over_f = _seen_over(pts, cfg, columns, kept_f)
+    over_f = _seen_over(pts, kept_f, columns, cfg)
     over_kept = over_f[kept_f]  # per kept point, in input order (as points_2d)
 
     def full(mask: np.ndarray) -> np.ndarray:
