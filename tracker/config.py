@@ -399,7 +399,8 @@ class BirthConfig:
     Road births: one component per lane near the lidar's range limit, ahead and behind (prior spreads
     ``position_std``, ``lateral_std``, ``speed_std``, ...). Cluster births: one component per cluster of
     the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
-    from a joined radar detection when fused. The vehicle classes (``classes``) give an unmeasured length
+    from a joined radar detection when fused; a cluster that no component could explain (beyond every
+    pre-gate) is born in its own frame (``first_scan``, ``same_frame``). The vehicle classes (``classes``) give an unmeasured length
     its prior from the measured width: the classes weighed by their share and the width's likelihood,
     the length their mixture's mean and variance (``tracker.extent.class_length_prior``);
     ``min_length`` .. ``max_length`` and ``min_width`` .. ``max_width`` bound every estimate. Details:
@@ -442,6 +443,8 @@ class BirthConfig:
     min_cluster_points_fused: int | None = 2
     #: The first frame with lidar points seeds births from its clusters and updates them in that frame (default True).
     first_scan: bool = True
+    #: Later frames: clusters beyond every component's pre-gate (``GatingConfig.distance``) seed births that this frame's update takes (default True; False: they wait a frame, as in the paper).
+    same_frame: bool = True
     #: Use road births, per lane near the range limits (default True).
     road: bool = True
     #: Vehicle classes whose sizes and shares weigh an unmeasured length by the measured width (default ``VEHICLE_CLASSES``; None: off).

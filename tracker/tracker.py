@@ -128,7 +128,8 @@ class Tracker:
     ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
-    ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_shadowed``
+    ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_same_frame``
+    (``birth.same_frame``), ``births_shadowed``
     (unexplained clusters with exactly one end in bearing next to another object's shadow, ``measurement.shadow_window``),
     ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
@@ -244,7 +245,8 @@ class Tracker:
         else:
             # last frame's tracks as predicted rectangles in E: births avoid them, clustering assigns to them
             track_rect = to_vehicle(self.mixture.means[self._reported], ego, self.road, self.config.coordinates)
-            first = not self._scanned and self.config.birth.first_scan
+            later = self._scanned  # a frame after the first with lidar points
+            first = not later and self.config.birth.first_scan
             self._scanned = True
             if not first:
                 self._add_births(ego, s_ego, track_rect, self.mixture.labels[self._reported])
@@ -254,10 +256,15 @@ class Tracker:
             t0 = clock()
             spent["cluster"] += t0 - t1
             if first:  # the first scan's vehicles are born now; the road births avoid them as they avoid tracks
-                born = self._birth_from_first_scan(ego, clusters, velocities)
+                born = self._births_now(ego, clusters, velocities, np.zeros(len(clusters), dtype=bool))
+                self.stats["births_first_scan"] += len(born)
                 self._add_births(ego, s_ego, to_vehicle(self.mixture.means[born], ego, self.road, self.config.coordinates),
                                  self.mixture.labels[born])
                 self._component_group = np.full(len(self.mixture), -1)  # no reported track owns a component yet
+            elif later and self.config.birth.same_frame and clusters:  # clusters no component reaches are born now
+                born = self._births_now(ego, clusters, velocities, self._reached(ego, clusters))
+                self.stats["births_same_frame"] += len(born)
+                self._component_group = np.concatenate([self._component_group, np.full(len(born), -1)])
             explained = self._update(ego, clusters, velocities)
             t1 = clock()
             spent["update"] += t1 - t0
@@ -761,16 +768,33 @@ class Tracker:
                            motion.flow_window)
         return [None if not np.isfinite(v) else (float(v), float(birth.flow_speed_std)) for v in flow]
 
-    def _birth_from_first_scan(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
-        """The first scan's clusters seed births that join the mixture now, before this frame's update
-        (``BirthConfig.first_scan``): the births the next frame would have had, one frame earlier.
-        Returns their indices in the mixture."""
-        means, covs = self._cluster_births(ego, clusters, velocities, np.zeros(len(clusters), dtype=bool))
+    def _births_now(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None],
+                    skip: np.ndarray) -> np.ndarray:
+        """Births of this frame's clusters (but those in ``skip`` and those a track owns) that join the
+        mixture now, before this frame's update: the births the next frame would have had, one frame
+        earlier (``BirthConfig.first_scan``, ``BirthConfig.same_frame``). Returns their indices in the
+        mixture."""
+        means, covs = self._cluster_births(ego, clusters, velocities, skip)
         born = np.arange(len(self.mixture), len(self.mixture) + len(means))
         if len(means):
             self.mixture = self._with_births(self.mixture, means, covs)
-            self.stats["births_first_scan"] += len(means)
         return born
+
+    def _reached(self, ego: EgoState, clusters: list[np.ndarray]) -> np.ndarray:
+        """Per cluster, whether some component of the mixture could explain it: its centroid within the
+        update's pre-gate (``gating.distance`` of the circle around the component's rectangle)."""
+        mix = self.mixture
+        if not len(mix):
+            return np.zeros(len(clusters), dtype=bool)
+        rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
+        reach = self.config.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
+        offsets = np.zeros(len(clusters) + 1, dtype=np.intp)
+        np.cumsum([len(c) for c in clusters], out=offsets[1:])
+        _, clu = _candidate_pairs(rect.center, reach, np.concatenate(clusters), offsets, np.ones(len(mix)),
+                                  np.full(len(clusters), -1), np.full(len(mix), -1))
+        reached = np.zeros(len(clusters), dtype=bool)
+        reached[clu] = True
+        return reached
 
     def _shadowed_ends(self, clusters: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray] | None] | None:
         """Per cluster, its end in bearing that borders another object's shadow and its free end, where
