@@ -171,6 +171,28 @@ def test_a_car_pulling_away_is_reported_only_while_its_centre_is_in_range(report
     assert all(len(tracks) == 1 for tracks in frames[5:45])
 
 
+@pytest.mark.parametrize("margin", [0.0, None], ids=["on-road", "all"])
+def test_a_car_pulling_onto_the_shoulder_is_kept_but_not_reported(margin):
+    # a car 25 m ahead in the left lane of a two-lane road (edges at n = -3.5 and 3.5 m) drifts out until
+    # its centre lies 0.6 m beyond the left edge (t = 1-3 s): the filter keeps it (road_margin, 1 m), but
+    # the tracker's targets are the vehicles on the road (the scored truth's), so by default it is no
+    # longer reported from when its centre leaves the road; report_road_margin None reports it throughout
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    config = TrackerConfig()
+    config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, report_road_margin=margin))
+    car = Car(45.0, 1.75, 20.0, lane_change=(1.0, 2.0, 2.35))
+    scene = Scene(road, Car(20.0, -1.75, 20.0), [car])
+    frames, tracker = run(scene, config, 5.0)
+    out = [k for k in range(len(frames)) if car.n_at(k * DT)[0] > 3.5 + 0.2]  # centre clearly off the road
+    on = [k for k in range(5, len(frames)) if car.n_at(k * DT)[0] < 3.5 - 0.2]
+    assert len(out) > 15 and len(on) > 10
+    assert all(len(frames[k]) == 1 for k in on)
+    assert all(len(frames[k]) == (0 if margin == 0.0 else 1) for k in out)
+    assert (tracker.stats["tracks_off_road_unreported"] >= len(out)) == (margin == 0.0)  # held back, counted
+    assert len({tr.label for tracks in frames for tr in tracks}) == 1
+    assert tracker.stats["components_off_road"] == 0  # kept by the filter all along
+
+
 def test_clutter_off_road_never_becomes_a_track_and_on_road_rarely(curve):
     scene = Scene(curve, Car(0.0, 0.0, 15.0), [])
     rng_cl = np.random.default_rng(3)
@@ -756,7 +778,7 @@ def test_of_a_labels_components_the_one_that_continues_its_track_keeps_the_label
     tracker = Tracker(road, TrackerConfig())
     ego = EgoState(104.6, -1.75, 0.0, 10.0, 0.0)
     cov = np.diag([0.1, 0.05, 0.3, 0.02, 0.02, 0.1, 0.05, 0.3]) ** 2
-    track = np.array([108.3, -7.0, 11.6, 0.0, 0.0, 4.5, 1.9, 0.0])
+    track = np.array([108.3, 1.75, 11.6, 0.0, 0.0, 4.5, 1.9, 0.0])  # in the left lane
     if keeper_s == 60.0:
         track[0] = 80.0  # the track too has left where it was: neither continues it
     other = track.copy()
@@ -764,7 +786,7 @@ def test_of_a_labels_components_the_one_that_continues_its_track_keeps_the_label
     weights = np.array([1.0, 0.999]) if keeper_s == stale_s else np.array([1.0, 1.0])
     tracker.mixture = Mixture(weights, np.stack([other, track]), np.stack([cov, cov]), np.array([15, 15]))
     tracker._ever_reported.add(15)
-    last = np.array([107.4, -7.0, 12.0, 0.0, 0.0, 4.5, 1.9, 0.0])
+    last = np.array([107.4, 1.75, 12.0, 0.0, 0.0, 4.5, 1.9, 0.0])
     tracker._lost.observe(0.9, np.array([15]), last[None], cov[None])
     tracker._frame_dt = 0.1
     reported = {tr.label: tr.mean[0] for tr in tracker._extract(1.0, ego)}

@@ -559,6 +559,8 @@ class ReductionConfig:
     same_label_along_length: bool = True
     #: Tracks are reported while their centre is within ``lidar_range`` plus this (m; default 0.0; None: all).
     report_range: float | None = 0.0
+    #: Tracks are reported while their centre is within the road's edges widened by this (m; default 0.0: on the road; None: all, up to ``road_margin``).
+    report_road_margin: float | None = 0.0
     #: A label is first reported only after a cluster of at least this many points updated it (default 2).
     confirm_min_points: int = 2
     #: A lost track is remembered this long for re-identification (s; default 10.0; 0: off).
@@ -589,6 +591,8 @@ class ReductionConfig:
             raise ValueError(f"ReductionConfig.same_label_along_length must be true or false; got {self.same_label_along_length!r}")
         if self.report_range is not None:
             _check("ReductionConfig", "report_range", self.report_range, unit="m")
+        if self.report_road_margin is not None:
+            _check("ReductionConfig", "report_road_margin", self.report_road_margin, low=0.0, unit="m")
         _check_int("ReductionConfig", "confirm_min_points", self.confirm_min_points, 1)
         _check("ReductionConfig", "reidentify_window", self.reidentify_window, low=0.0, unit="s")
         _check("ReductionConfig", "reidentify_probability", self.reidentify_probability, low=0.0, high=1.0,

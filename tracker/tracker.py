@@ -137,6 +137,8 @@ class Tracker:
     ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``),
     ``coasting_tracks_taken_over``, ``tracks_beyond_report_range`` (components above the threshold not
     reported because their centre lies beyond ``detection.lidar_range + reduction.report_range``),
+    ``tracks_off_road_unreported`` (components above the threshold not reported because their centre lies
+    beyond a road edge by more than ``reduction.report_road_margin``),
     ``tracks_kept_below_threshold`` (tracks reported under ``reduction.keep_threshold``'s hysteresis).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
@@ -893,7 +895,8 @@ class Tracker:
         """This frame's tracks (in decreasing weight, but a split label's continuation, ``_continuation_first``,
         before its other components; ``_reported`` their mixture indices): the components
         above ``extraction_threshold`` (and those ``_kept_below_threshold``) whose centre lies within
-        ``detection.lidar_range + report_range`` of the ego, of labels reported before or confirmed by a
+        ``detection.lidar_range + report_range`` of the ego and within the road's edges widened by
+        ``report_road_margin``, of labels reported before or confirmed by a
         cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
         component relabelled (a split target); the lost-track store observes them. The few components'
         weights and labels are handled as Python lists (one numpy call per array, not per test)."""
@@ -911,6 +914,11 @@ class Tracker:
                       <= self.config.detection.lidar_range + red.report_range).tolist()
             self.stats["tracks_beyond_report_range"] += inside.count(False)
             above = [i for i, ok in zip(above, inside) if ok]
+        if above and red.report_road_margin is not None:  # on the road: the tracker's targets
+            n, (right, left) = self._lateral(mix.means[np.array(above, dtype=np.intp)], red.report_road_margin)
+            on_road = ((n >= right) & (n <= left)).tolist()
+            self.stats["tracks_off_road_unreported"] += on_road.count(False)
+            above = [i for i, ok in zip(above, on_road) if ok]
         # decreasing weight, ties in index order (a stable sort's reverse keeps equal keys in order)
         above.sort(key=weights.__getitem__, reverse=True)
         # a label not reported before needs the support of a large enough cluster (confirm_min_points)
