@@ -400,9 +400,10 @@ class BirthConfig:
     ``position_std``, ``lateral_std``, ``speed_std``, ...). Cluster births: one component per cluster of
     the previous frame that no track explained, from an L-shape fit (centre, heading, extent), the speed
     from a joined radar detection when fused; a cluster that no component could explain (beyond every
-    pre-gate) is born in its own frame (``first_scan``, ``same_frame``). The vehicle classes (``classes``) give an unmeasured length
-    its prior from the measured width: the classes weighed by their share and the width's likelihood,
-    the length their mixture's mean and variance (``tracker.extent.class_length_prior``);
+    pre-gate) is born in its own frame (``first_scan``, ``same_frame``). The vehicle classes
+    (``classes``) give an unmeasured length its prior from the measured width: the classes weighed by
+    their share and the width's likelihood, the length their mixture's mean and variance
+    (``tracker.extent.class_length_prior``);
     ``min_length`` .. ``max_length`` and ``min_width`` .. ``max_width`` bound every estimate. Details:
     ``docs/tracker.md`` ("Births", "Departures from the paper").
     """

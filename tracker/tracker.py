@@ -744,6 +744,8 @@ class Tracker:
                         explained: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Birth components (means, covariances) of the clusters neither ``explained`` nor owned by a track."""
         idle = [k for k in range(len(clusters)) if not explained[k] and self._owned[k] < 0]
+        if not idle:
+            return np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim))
         points = [clusters[k] for k in idle]
         means, covs = cluster_births(points, [velocities[k] if self.config.use_radar else None for k in idle],
                                      ego, self.road, self.config.birth, self._shadowed_ends(points),
