@@ -860,7 +860,7 @@ def test_a_car_coming_out_from_behind_another_is_reported_in_the_frame_it_appear
 
 
 def test_a_cluster_within_a_components_pre_gate_waits_a_frame():
-    # the far car comes out 0.8 m behind the near one: its first cluster of three returns lies within the
+    # the far car comes out 4.2 m behind the near one's rear: its first cluster of three returns lies within the
     # near car's track's pre-gate (gating.distance from the circle around its rectangle), the update
     # leaves it unexplained and it is born a frame later as in the paper, so that a newborn on its own
     # prior cannot take a track's measurement: the same frames with and without same_frame
@@ -880,8 +880,8 @@ def test_reached_is_the_update_pre_gate():
     reach = tracker.config.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
     rng = np.random.default_rng(3)
     heaviest = int(np.argmax(tracker.mixture.weights))
-    centres = [rect.center[heaviest] + [reach[heaviest] - 0.05, 0.0], rect.center[heaviest] + [reach[heaviest] + 0.05, 0.0],
-               rect.center[heaviest] + [0.0, 40.0]]
+    near = rect.center[heaviest]
+    centres = [near + [reach[heaviest] - 0.05, 0.0], near + [reach[heaviest] + 0.05, 0.0], near + [0.0, 40.0]]
     centres += list(rect.center[rng.integers(0, len(rect.center), 40)] + rng.uniform(-12.0, 12.0, (40, 2)))
     spread = [rng.normal(0.0, 0.3, (3, 2)) for _ in centres]
     clusters = [d - d.mean(axis=0) + c for d, c in zip(spread, centres)]  # three points about each centre
