@@ -910,7 +910,7 @@ def test_a_near_face_climbed_by_dense_beams_takes_no_part_in_the_fits():
     # two returns next to each other in a column rise by more than distance_threshold. All but its top
     # returns still stand at its foot (another return more than that higher within distance_threshold
     # in rho in the column); the ground's returns in the same columns lie rings apart and do not
-    from tracker.cloud import _wall_feet
+    from tracker.cloud import _column_order, _wall_feet
 
     cfg = CloudConfig()
     phi = np.radians(np.arange(60.0, 120.0, 0.2))
@@ -921,7 +921,7 @@ def test_a_near_face_climbed_by_dense_beams_takes_no_part_in_the_fits():
     ring_rho = np.tile([3.0, 3.6, 4.3, 5.1], len(phi))  # the ground inside, four rings
     ring_phi, ring_z = np.repeat(phi, 4), np.zeros(4 * len(phi))
     rho, ph, z = (np.concatenate(a) for a in ((face_rho, ring_rho), (face_phi, ring_phi), (face_z, ring_z)))
-    feet = _wall_feet(rho, ph, z, cfg)
+    feet = _wall_feet(rho, z, _column_order(rho, ph, cfg.column_width_deg), cfg)
     face = np.arange(len(rho)) < len(face_rho)
     assert not feet[~face].any()
     low = face & (z < 3.0 - 0.04 - 2 * cfg.distance_threshold)

@@ -515,8 +515,8 @@ def _patch_of_polar(rho: np.ndarray, phi: np.ndarray, edges: np.ndarray, sectors
     return first[ring] + k
 
 
-def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig,
-               columns: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+def _wall_feet(rho: np.ndarray, z: np.ndarray, columns: tuple[np.ndarray, np.ndarray],
+               cfg: CloudConfig) -> np.ndarray:
     """Which points (N,) stand at the foot of something steep. The returns are grouped in azimuth
     columns ``floor(phi / w + 1/2)`` (``w = column_width_deg``) and ordered outwards in each; of two
     returns next to each other in a column that differ in height by more than ``distance_threshold``
@@ -527,12 +527,12 @@ def _wall_feet(rho: np.ndarray, phi: np.ndarray, z: np.ndarray, cfg: CloudConfig
     near face centimetres apart: no rise between any two, yet all but the top at its foot). A
     vehicle's side, a wall or a pole returns a column of points one above the other; the ground's
     returns in one column lie rings apart (metres out, centimetres up). Feet take no part in the
-    fits (they are still classified against the planes). ``columns``: ``_column_order``'s result for
-    these returns, where the caller has it."""
+    fits (they are still classified against the planes). ``columns``: ``(col, order)``,
+    ``_column_order``'s result for these returns (the ground fit's: one sort serves both passes)."""
     n = len(rho)
     if n < 2:
         return np.zeros(n, dtype=bool)
-    col, order = _column_order(rho, phi, cfg.column_width_deg) if columns is None else columns
+    col, order = columns
     c, r, h = col[order], rho[order], z[order]
     out = np.zeros(n, dtype=bool)
     out[order] = wall_feet_kernel(c, r, h, cfg.distance_threshold)
@@ -1093,7 +1093,7 @@ def _fit_ground(pts: np.ndarray, cfg: CloudConfig) -> tuple[GroundModel, np.ndar
     patch = _patch_of_polar(rho, phi, edges, sectors, first)
     counts = np.bincount(patch, minlength=n_patch)
     col, order = _column_order(rho, phi, cfg.column_width_deg)
-    eligible = np.flatnonzero(~_wall_feet(rho, phi, pts[:, 2], cfg, (col, order)))  # the points that may be fitted
+    eligible = np.flatnonzero(~_wall_feet(rho, pts[:, 2], (col, order), cfg))  # the points that may be fitted
     fit_counts = np.bincount(patch[eligible], minlength=n_patch)
     cos_max = math.cos(math.radians(cfg.max_slope_deg))
     tan_max = math.tan(math.radians(cfg.max_slope_deg))

@@ -620,15 +620,11 @@ class Tracker:
             p_d = np.where(lift, floor, p_d)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
-            size = cluster_size = np.array([len(c) for c in clusters])
-            offsets = np.zeros(len(size) + 1, dtype=np.intp)
-            np.cumsum(size, out=offsets[1:])
-            points = np.concatenate(clusters)
-            reach = cfg.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
             # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
             # only the components of the track's group compete for it, so a newborn or another
             # track's hypothesis cannot take it over when the track's own fit is poor for a frame
-            comp, clu = _candidate_pairs(rect.center, reach, points, offsets, p_d, self._owned, self._component_group)
+            comp, clu, size, offsets, points = self._pre_gated(rect, clusters, p_d, self._owned, self._component_group)
+            cluster_size = size
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
                 has_velocity = np.zeros(len(clusters), dtype=bool)
@@ -791,14 +787,24 @@ class Tracker:
         if not len(mix):
             return np.zeros(len(clusters), dtype=bool)
         rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
-        reach = self.config.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
-        offsets = np.zeros(len(clusters) + 1, dtype=np.intp)
-        np.cumsum([len(c) for c in clusters], out=offsets[1:])
-        _, clu = _candidate_pairs(rect.center, reach, np.concatenate(clusters), offsets, np.ones(len(mix)),
-                                  np.full(len(clusters), -1), np.full(len(mix), -1))
+        clu = self._pre_gated(rect, clusters, np.ones(len(mix)), np.full(len(clusters), -1), np.full(len(mix), -1))[1]
         reached = np.zeros(len(clusters), dtype=bool)
         reached[clu] = True
         return reached
+
+    def _pre_gated(self, rect: Rectangles, clusters: list[np.ndarray], p_d: np.ndarray, owned: np.ndarray,
+                   group: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The update's pre-gate (``GatingConfig.distance``): the (component, cluster) pairs of the
+        components' rectangles ``rect`` and ``clusters`` that ``_candidate_pairs`` tries (with ``p_d``,
+        ``owned``, ``group`` as there), and the clusters stacked: their sizes (K,), offsets (K + 1,)
+        and points."""
+        size = np.array([len(c) for c in clusters])
+        offsets = np.zeros(len(size) + 1, dtype=np.intp)
+        np.cumsum(size, out=offsets[1:])
+        points = np.concatenate(clusters)
+        reach = self.config.gating.distance + 0.5 * np.hypot(rect.length, rect.width)
+        comp, clu = _candidate_pairs(rect.center, reach, points, offsets, p_d, owned, group)
+        return comp, clu, size, offsets, points
 
     def _shadowed_ends(self, clusters: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray] | None] | None:
         """Per cluster, its end in bearing that borders another object's shadow and its free end, where
