@@ -630,6 +630,10 @@ class ClusteringConfig:
     duplicate_depth: float = 0.3
     #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
+    #: Points on neighbouring rays (``bearing_bin`` apart) also join when closer than ``r dtheta / sin`` of this: a surface the rays meet at this incidence or steeper, a far car's side (``tracker.clustering.ray_partition``; rad; default None: off).
+    grazing_angle: float | None = None
+    #: ... but never when farther apart than this (m; default 4.0).
+    grazing_max_gap: float = 4.0
     #: Smaller clusters are dropped and counted (default 1).
     min_points: int = 1
     #: A radar detection joins a cluster whose nearest point lies within this, greedily by distance (m; default 3.0).
@@ -666,7 +670,10 @@ class ClusteringConfig:
             _check("ClusteringConfig", "along_gap", self.along_gap, low=0.0, low_open=True, unit="m")
         _check("ClusteringConfig", "along_gap_rays", self.along_gap_rays, low=0.0)
         _check_int("ClusteringConfig", "along_min_part", self.along_min_part, 1)
-        for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m")):
+        if self.grazing_angle is not None:
+            _check("ClusteringConfig", "grazing_angle", self.grazing_angle, low=0.0, high=0.5 * math.pi, low_open=True,
+                   high_open=True, unit="rad")
+        for name, unit in (("bearing_bin", "rad"), ("distance", "m"), ("radar_gate", "m"), ("grazing_max_gap", "m")):
             _check("ClusteringConfig", name, getattr(self, name), low=0.0, low_open=True, unit=unit)
         _check_int("ClusteringConfig", "min_points", self.min_points, 1)
 

@@ -8,7 +8,7 @@ Per frame (``PointTracker.step``):
    (``tracker.motion``; ``L`` and ``W`` are carried as constants, the birth prior's car size, and only
    feed the kinematic slip);
 2. **preprocess and cluster** exactly as the extended tracker does (``tracker.preprocess.
-   preprocess_frame``, ``tracker.clustering.distance_partition``), radar detections associated to
+   preprocess_frame``, ``tracker.clustering.ray_partition``), radar detections associated to
    clusters by ``tracker.clustering.cluster_velocities``;
 3. **measure** each cluster by its centroid ``z = mean(points)`` in E (``R = centroid_sigma^2 I2``)
    and, for a fused cluster, the radar velocity ``(vx, vy)`` against ``v (cos psi_E, sin psi_E)``
@@ -43,7 +43,7 @@ from scipy.stats import chi2
 
 from tracker.angles import wrap_angle
 from tracker.birth import birth_covariance
-from tracker.clustering import cluster_velocities, distance_partition
+from tracker.clustering import cluster_velocities, ray_partition
 from tracker.config import TrackerConfig
 from tracker.frame import Frame
 from tracker.measurement import to_vehicle
@@ -151,7 +151,7 @@ class PointTracker:
         cfg = self.config.clustering
         if len(points) == 0:
             return []
-        label = distance_partition(points, cfg.distance)
+        label = ray_partition(points, cfg.distance, cfg.grazing_angle, cfg.bearing_bin, cfg.grazing_max_gap)
         order = np.argsort(label, kind="stable")
         bounds = np.flatnonzero(np.diff(label[order])) + 1
         clusters = [c for c in np.split(points[order], bounds) if len(c) >= cfg.min_points]

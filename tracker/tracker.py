@@ -68,8 +68,8 @@ from scipy.stats import chi2
 from tracker.birth import (cluster_births, entering_view, road_births, to_cartesian_gaussians, visible_road_births,
                            with_acceleration)
 from tracker.cloud import CloudResult
-from tracker.clustering import (bearing_extremes, cluster_radar_ranges, distance_partition, fragment_owners,
-                                occluded_ends, points_in_rectangles, SPLIT_MAX_CUTS)
+from tracker.clustering import (bearing_extremes, cluster_radar_ranges, fragment_owners,
+                                occluded_ends, points_in_rectangles, ray_partition, SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
@@ -497,7 +497,7 @@ class Tracker:
         ``clustering.across_margin`` across it) go to its group
         (rectangles overlapping by more than ``clustering.duplicate_depth``, ``_duplicate_groups``, are
         one); a connected component
-        (``distance_partition``) that a group owns in part joins it entirely; lone fragments may continue
+        (``_partition``) that a group owns in part joins it entirely; lone fragments may continue
         a track (``_fragments_adopted``, between the kernel's two halves); all points a group owns form
         one cluster, even in fragments (a partly hidden car), the other points one cluster per connected
         component; clusters wider across the road than one vehicle (``clustering.split_width``) are cut
@@ -519,11 +519,12 @@ class Tracker:
                 float(cfg.distance))
         tail = (self._point_n, int(cfg.fragment_points) if fragment else -1, split,
                 float(cfg.split_width) if split else 0.0, float(cfg.split_gap), SPLIT_MAX_CUTS)
+        partition = _PARTITION_HERE if cfg.grazing_angle is None else self._partition(points)  # else: in the kernel
         ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(
-            *head, _PARTITION_HERE, *tail)
+            *head, partition, *tail)
         if not ok:  # points the partition's grid does not hold: their components from the whole graph
             ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = (
-                cluster_points_kernel(*head, distance_partition(points, cfg.distance), *tail))
+                cluster_points_kernel(*head, self._partition(points), *tail))
         self._component_group = component_group
         if not done:
             owner = self._fragments_adopted(points, rect, groups, component, owner)
@@ -546,6 +547,11 @@ class Tracker:
         else:
             self.stats["clusters_cut_along"] += 0  # the counter exists from the first clustered frame on
         return ordered, edges, owned
+
+    def _partition(self, points: np.ndarray) -> np.ndarray:
+        """The connected components of the frame's points (``tracker.clustering.ray_partition``)."""
+        cfg = self.config.clustering
+        return ray_partition(points, cfg.distance, cfg.grazing_angle, cfg.bearing_bin, cfg.grazing_max_gap)
 
     @property
     def _reported_labels(self) -> KeysView[int]:
