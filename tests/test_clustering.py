@@ -7,7 +7,7 @@ import pytest
 
 from oracles import clustering as oracle
 from tracker.clustering import (SPLIT_MAX_CUTS, along_cuts_kernel, associate_radar, continued_ends, distance_partition, fragment_owners,
-                                occluded_ends, ordered_clusters_kernel, points_in_rectangles)
+                                occluded_ends, ordered_clusters_kernel, points_in_rectangles, ray_partition)
 from tracker.preparation import prepare_batch
 
 
@@ -447,3 +447,87 @@ def test_along_cut_leaves_a_lone_far_return():
     cars = [(12.0, 16.5, -4.8, -3.0)]
     pts = np.vstack([_scan(cars, BEARINGS), [[26.0, -3.0], [26.1, -3.0]]])
     assert _cut(pts, pts, (17.5, -3.9), 11.0)[3] == 0
+
+
+# ray_partition: a 0.2 deg lidar; the adaptive breakpoint rule at 4 deg
+RAY_STEP = np.deg2rad(0.2)
+FULL_TURN = np.arange(-180.0, 180.0, 0.2) * np.pi / 180.0 + 1e-4
+GRAZING = np.deg2rad(4.0)
+
+
+def test_ray_partition_joins_a_far_side_seen_at_a_grazing_angle():
+    # a truck 50 m ahead whose left side lies 5 m to the side: the side's returns are r^2 step / d apart
+    truck = (50.0, 58.0, 5.0, 7.5)
+    pts = _scan([truck], FULL_TURN)
+    side = pts[np.abs(pts[:, 1] - 5.0) < 1e-9]
+    side = side[np.argsort(side[:, 0])]
+    gaps = np.diff(side[:, 0])
+    r = np.hypot(side[:-1, 0], side[:-1, 1])
+    assert len(side) >= 4 and np.allclose(gaps, r**2 * RAY_STEP / 5.0, rtol=0.05) and gaps.min() > 1.0
+    assert len(np.unique(distance_partition(pts, 1.0))) > 1  # one threshold leaves the side in pieces
+    assert ray_partition(pts, 1.0, GRAZING, RAY_STEP).tolist() == [0] * len(pts)
+    # a side at 3 deg incidence (2.1 m to the side, 40 m ahead): its returns are 2.7 m apart, beyond the
+    # reach at 4 deg (2.0 m there), within it at 2 deg
+    rays = np.arange(1, 400) * RAY_STEP
+    x = 2.1 / np.tan(rays)
+    line = np.column_stack([x, np.full(len(x), 2.1)])[(x >= 40.0) & (x <= 52.0)]
+    assert len(line) >= 4
+    assert len(np.unique(ray_partition(line, 1.0, GRAZING, RAY_STEP))) == len(line)
+    assert ray_partition(line, 1.0, np.deg2rad(2.0), RAY_STEP).tolist() == [0] * len(line)
+
+
+def test_ray_partition_keeps_apart_cars_a_ray_passes_between():
+    # two cars in the next lane 2.5 m apart nose to tail, 40 m ahead: rays pass through the gap and hit
+    # nothing, or a wall 30 m behind; either way the cars stay two clusters
+    cars = [(40.0, 44.5, 5.0, 6.8), (47.0, 51.5, 5.0, 6.8)]
+    for boxes in (cars, cars + [(80.0, 81.0, 5.0, 12.0)]):
+        pts = _scan(boxes, FULL_TURN)
+        labels = ray_partition(pts, 1.0, GRAZING, RAY_STEP)
+        first, second = labels[(pts[:, 0] <= 44.5 + 1e-9)], labels[(pts[:, 0] >= 47.0 - 1e-9) & (pts[:, 0] <= 51.5 + 1e-9)]
+        assert len(set(first)) == 1 and len(set(second)) == 1 and first[0] != second[0]
+
+
+def test_ray_partition_does_not_bridge_a_dropped_return_or_a_wide_gap():
+    pts = _scan([(50.0, 58.0, 5.0, 7.5)], FULL_TURN)
+    side = np.flatnonzero(np.abs(pts[:, 1] - 5.0) < 1e-9)
+    order = side[np.argsort(pts[side, 0])]
+    holed = np.delete(pts, order[1], axis=0)  # a ray that returned nothing: two steps between its neighbours
+    assert len(np.unique(ray_partition(holed, 1.0, GRAZING, RAY_STEP))) == 2
+    assert len(np.unique(ray_partition(pts, 1.0, GRAZING, RAY_STEP, max_gap=1.5))) > 1  # gaps of 1.9 m
+
+
+def test_ray_partition_joins_across_the_rear_bearing():
+    # a car's side behind the sensor, its returns on both sides of the bearing pi
+    pts = _scan([(-56.5, -52.0, -0.2, 1.6)], FULL_TURN)
+    pts = np.vstack([pts, _scan([(-56.5, -52.0, 5.0, 6.8)], FULL_TURN)])
+    labels = ray_partition(pts, 1.0, np.deg2rad(2.0), RAY_STEP)
+    assert np.all(labels == oracle.ray_partition(pts, 1.0, np.deg2rad(2.0), RAY_STEP, 4.0))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_ray_partition_equals_the_oracle(seed):
+    # 30 runs of returns on a 0.2 deg ray grid (some rays empty, bearings jittered), each run a surface
+    # whose range grows by 0.3-3 m per ray (steep to grazing) from 5-60 m
+    rng = np.random.default_rng(seed)
+    rays = np.sort(rng.choice(np.arange(-300, 300), 300, replace=False)) * RAY_STEP
+    rays = rays + rng.normal(0.0, 0.02 * RAY_STEP, len(rays))
+    r = (np.repeat(rng.uniform(5.0, 60.0, 30), 10)
+         + np.repeat(rng.uniform(0.3, 3.0, 30), 10) * np.tile(np.arange(10), 30) + rng.normal(0.0, 0.05, 300))
+    pts = np.column_stack([r * np.cos(rays), r * np.sin(rays)])
+    pts = pts[rng.permutation(len(pts))]
+    count = {}
+    for angle, gap in ((GRAZING, 4.0), (np.deg2rad(15.0), 2.0)):
+        expected = oracle.ray_partition(pts, 1.0, angle, RAY_STEP, gap)
+        assert ray_partition(pts, 1.0, angle, RAY_STEP, gap).tolist() == expected.tolist()
+        count[angle] = len(np.unique(expected))
+    assert count[GRAZING] < count[np.deg2rad(15.0)] <= len(np.unique(distance_partition(pts, 1.0)))
+
+
+def test_ray_partition_without_an_angle_is_the_distance_partition_and_checks_its_arguments():
+    pts = _scan([(52.0, 56.5, 5.0, 6.8)], FULL_TURN)
+    assert ray_partition(pts, 1.0).tolist() == distance_partition(pts, 1.0).tolist()
+    for kwargs in ({"grazing_angle": 0.0}, {"grazing_angle": np.pi / 2}):
+        with pytest.raises(ValueError, match="grazing_angle must be in"):
+            ray_partition(pts, 1.0, **kwargs)
+    with pytest.raises(ValueError, match="max_gap must be > 0"):
+        ray_partition(pts, 1.0, GRAZING, RAY_STEP, max_gap=0.0)

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from tracker.config import (BirthConfig, DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig,
+from tracker.config import (BirthConfig, ClusteringConfig, DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig,
                             TrackerConfig, UKFParams, VehicleClass)
 
 
@@ -41,6 +41,8 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MeasurementConfig(max_cluster_points=2), r"max_cluster_points must be an integer >= 3"),
         (lambda: MeasurementConfig(single_point_min_apparent=2.0), r"single_point_min_apparent must be >= 0.0 and <= 1.0"),
         (lambda: ReductionConfig(confirm_min_points=0), r"ReductionConfig.confirm_min_points must be an integer >= 1"),
+        (lambda: ClusteringConfig(grazing_angle=0.0), r"ClusteringConfig.grazing_angle must be > 0.0 and < 1.57"),
+        (lambda: ClusteringConfig(grazing_max_gap=0.0), r"ClusteringConfig.grazing_max_gap must be > 0.0 m"),
         (lambda: ReductionConfig(reidentify_probability=1.0), r"reidentify_probability must be > 0.0 and < 1.0"),
         (lambda: ReductionConfig(reidentify_brake=0.0), r"ReductionConfig.reidentify_brake must be > 0.0 m/s\^2"),
         (lambda: MotionConfig(acceleration_time=0.0), r"MotionConfig.acceleration_time must be > 0.0 s"),

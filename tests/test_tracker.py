@@ -1644,3 +1644,25 @@ def test_a_car_driving_past_an_open_roads_end_is_no_longer_tracked_there():
     for k, tracks in enumerate(frames):
         assert all(tr.mean[0] <= road.length + margin for tr in tracks), f"a track beyond the road's end at t = {k * DT:.1f} s"
     assert frames[-1] == [] and tracker.stats["components_off_road"] > 0
+
+
+def test_a_far_cars_side_alone_at_a_grazing_angle_is_one_cluster_and_born():
+    # a car 52 m ahead two lanes over whose rear a nearer car in the next lane hides: the lidar sees only
+    # its side, at 6.5 deg incidence, returns 1.6 m apart. One distance threshold (1 m) leaves them
+    # one-point clusters that seed no birth; the adaptive breakpoint rule (clustering.grazing_angle)
+    # makes them one cluster, born in the first frame
+    road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3, lane_width=3.4)
+    lanes = road.lane_centers
+    far = Car(74.25, lanes[2], 20.0, length=4.5, width=1.8)
+    scene = Scene(road, Car(20.0, lanes[0], 20.0, length=4.5, width=1.8),
+                  [Car(39.75, lanes[1], 20.0, length=4.5, width=1.8), far])
+    rng = np.random.default_rng(0)
+    frame = scene.frame(0.0, rng)
+    centre, psi = far.pose(road, 0.0)
+    local = to_local(to_global(frame.lidar[:, :2], (frame.ego.x, frame.ego.y), frame.ego.yaw), centre, psi)
+    side = np.abs(np.abs(local[:, 1]) - 0.9) < 0.1
+    assert side.sum() >= 3 and (np.abs(local[:, 0]) <= 2.3).sum() == side.sum()  # the side's returns only
+    for angle, born in ((None, False), (np.deg2rad(4.0), True)):
+        frames, tracker = run(scene, config_with("clustering", grazing_angle=angle), 1.0)
+        found = [nearest(tracks, road, far.pose(road, k * DT)[0])[1] < 1.5 for k, tracks in enumerate(frames)]
+        assert all(found) if born else not any(found)

@@ -170,7 +170,7 @@ CALLED_FROM_PYTHON = [
     "gating.candidate_pairs_kernel", "pairs.prepared_pairs_kernel", "birth.road_births_kernel",
     "ukf.certainly_positive_definite", "reduction.inside_updated_kernel", "reduction.absorb_candidates_kernel",
     "reduction.overlapping_candidates_kernel", "extraction.report_centres_kernel", "cloud.wall_feet_kernel",
-    "cloud.classify_kernel", "cloud.seen_over_kernel",
+    "cloud.classify_kernel", "cloud.seen_over_kernel", "clustering.ray_links_kernel",
 ]
 
 

@@ -256,9 +256,9 @@ def other_calls() -> None:
     the cuts along a track's cluster and the bounds they set, the reduce stage whatever the scene reached (the reduction in view, the test of the components
     inside an updated one's rectangle, ``absorb_overlapping``'s screen along the road and in Cartesian
     axes), the report-range centres of the extraction, the 3-D cloud's wall-feet pass, classification and
-    seen-over pass."""
+    seen-over pass, the partition's adaptive breakpoint joins."""
     from tracker.cloud import classify_kernel, seen_over_kernel, wall_feet_kernel
-    from tracker.clustering import SPLIT_MAX_CUTS, distance_partition, points_in_rectangles
+    from tracker.clustering import SPLIT_MAX_CUTS, distance_partition, points_in_rectangles, ray_partition
     from tracker.clustering import along_cuts_kernel, ordered_clusters_kernel
     from tracker.extent import bound_at_holes_kernel
     from tracker.reduction import inside_updated_kernel
@@ -280,6 +280,7 @@ def other_calls() -> None:
     points_in_rectangles(np.array([[10.0, 0.0]]), rect.center, rect.psi, rect.length, rect.width, 1.0)
     pts = np.array([[10.0, 0.0], [10.5, 0.0]])
     distance_partition(pts, 1.0)
+    ray_partition(pts, 1.0, 0.07, 0.0035)  # the adaptive breakpoint rule's joins
     ordered_clusters_kernel(pts, np.array([0, -1]), np.array([True, False]), np.zeros(2, dtype=np.int64), 1, np.zeros(2),
                             True, 3.0, 0.5, SPLIT_MAX_CUTS)
     row = np.array([[10.0, -2.0], [11.0, -2.0], [12.0, -2.0], [16.0, -2.0], [17.0, -2.0], [18.0, -2.0]])

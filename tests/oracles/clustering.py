@@ -139,3 +139,30 @@ def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max
     out = np.empty(len(n), dtype=int)
     out[order] = ps
     return out
+
+
+def ray_partition(points: np.ndarray, threshold: float, grazing_angle: float, bearing_step: float,
+                  max_gap: float) -> np.ndarray:
+    """The distance partition's graph plus, for every pair of points with no third point's bearing between
+    theirs (around the circle) and bearings at most ``1.5 bearing_step`` apart, an edge when they lie at
+    most ``min(max_gap, min(r) dtheta / sin(grazing_angle))`` apart; its components in order of first point."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(pts)
+    bearing = np.arctan2(pts[:, 1], pts[:, 0])
+    rng = np.hypot(pts[:, 0], pts[:, 1])
+    edges = [tuple(p) for p in cKDTree(pts).query_pairs(threshold, output_type="ndarray")]
+    for i in range(n):
+        for j in range(n):
+            if i == j:
+                continue
+            step = (bearing[j] - bearing[i]) % (2.0 * np.pi)  # j counter-clockwise of i
+            between = (bearing - bearing[i]) % (2.0 * np.pi)
+            others = np.delete(between, [i, j])
+            if step > 1.5 * bearing_step or np.any((others > 0) & (others < step)):
+                continue
+            reach = min(max_gap, min(rng[i], rng[j]) * step / np.sin(grazing_angle))
+            if np.hypot(*(pts[i] - pts[j])) <= reach:
+                edges.append((i, j))
+    e = np.array(edges, dtype=int).reshape(-1, 2)
+    labels = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)[1]
+    return first_appearance(labels)
