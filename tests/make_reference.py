@@ -55,7 +55,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # inside a seen vehicle (ReductionConfig.drop_inside_updated), no radar-only updates of coasting
     # tracks (MeasurementConfig.radar_only_update), no absorption of overlapping labels (ReductionConfig.
     # absorb_overlap), no motorcycles among the vehicle classes (BirthConfig.classes), no one-point fragments joined to
-    # the track they continue (ClusteringConfig.fragment_points): the reference guards the speed-ups
+    # the track they continue (ClusteringConfig.fragment_points), no joins of neighbouring rays at a grazing angle
+    # (ClusteringConfig.grazing_angle): the reference guards the speed-ups
     # against unintended changes of the model
     base = TrackerConfig()
     config = TrackerConfig(
@@ -67,7 +68,7 @@ def run_reference() -> dict[str, np.ndarray]:
                                         shadowed_lidar_sigma=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
-        clustering=dataclasses.replace(base.clustering, fragment_points=None),
+        clustering=dataclasses.replace(base.clustering, fragment_points=None, grazing_angle=None),
     )
     tracker = Tracker(scene.road, config)
     frame_idx, labels, weights, means, covs = [], [], [], [], []

@@ -66,3 +66,20 @@ def test_bad_input() -> None:
     one = fit_rectangle(np.array([[10.0, 1.0]]), heading_hint=0.0, min_length=4.0, min_width=1.8)
     assert one.length == pytest.approx(4.0) and one.width == pytest.approx(1.8)
     assert one.center[0] > 10.0  # grown away from the sensor at the origin
+
+
+def test_a_dense_face_and_a_sparse_side_give_the_heading() -> None:
+    """Cars, vans and trucks 15-70 m ahead and 2-8 m to the side, seen at a grazing angle (rear returns
+    a ray gap apart, side returns up to metres apart), 3 cm range noise: the variance criterion puts
+    the heading within 2 deg in at least 97 % of 300 poses (97.7 %; the closeness criterion: 88.7 %;
+    a box turned by its error widens by ``L sin(err)``, which the class prior reads as a larger
+    vehicle)."""
+    rng = np.random.default_rng(3)
+    errors = []
+    for i in range(300):
+        x, y = rng.uniform(15.0, 70.0), rng.choice([-1.0, 1.0]) * rng.uniform(2.0, 8.0)
+        length, width = [(4.5, 1.8), (6.0, 2.1), (8.0, 2.4)][i % 3]
+        fit = fit_rectangle(scan(np.array([x, y]), 0.0, length=length, width=width, noise=0.03, seed=i),
+                            heading_hint=0.0)
+        errors.append(abs(wrap_angle(fit.heading)))
+    assert np.mean(np.degrees(errors) > 2.0) <= 0.03

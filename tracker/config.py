@@ -630,8 +630,8 @@ class ClusteringConfig:
     duplicate_depth: float = 0.3
     #: The other points form connected components of points closer than this (m; default 1.0).
     distance: float = 1.0
-    #: Points on neighbouring rays (``bearing_bin`` apart) also join when closer than ``r dtheta / sin`` of this: a surface the rays meet at this incidence or steeper, a far car's side (``tracker.clustering.ray_partition``; rad; default None: off).
-    grazing_angle: float | None = None
+    #: Points on neighbouring rays (``bearing_bin`` apart) also join when closer than ``r dtheta / sin`` of this: a surface the rays meet at this incidence or steeper, a far car's side (``tracker.clustering.ray_partition``; rad; default 4 deg; None: off).
+    grazing_angle: float | None = math.radians(4.0)
     #: ... but never when farther apart than this (m; default 4.0).
     grazing_max_gap: float = 4.0
     #: Smaller clusters are dropped and counted (default 1).

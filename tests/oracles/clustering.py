@@ -143,26 +143,23 @@ def split_across(n: np.ndarray, group: np.ndarray, width: float, gap: float, max
 
 def ray_partition(points: np.ndarray, threshold: float, grazing_angle: float, bearing_step: float,
                   max_gap: float) -> np.ndarray:
-    """The distance partition's graph plus, for every pair of points with no third point's bearing between
-    theirs (around the circle) and bearings at most ``1.5 bearing_step`` apart, an edge when they lie at
-    most ``min(max_gap, min(r) dtheta / sin(grazing_angle))`` apart; its components in order of first point."""
+    """The distance partition's graph plus an edge from each point to its successor counter-clockwise
+    (the point at the least positive bearing difference, around the circle), when that difference is at
+    most ``1.5 bearing_step`` and the two lie at most ``min(max_gap, min(r) dtheta / sin(grazing_angle))``
+    apart; its components in order of first point."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(pts)
     bearing = np.arctan2(pts[:, 1], pts[:, 0])
     rng = np.hypot(pts[:, 0], pts[:, 1])
-    edges = [tuple(p) for p in cKDTree(pts).query_pairs(threshold, output_type="ndarray")]
-    for i in range(n):
-        for j in range(n):
-            if i == j:
-                continue
-            step = (bearing[j] - bearing[i]) % (2.0 * np.pi)  # j counter-clockwise of i
-            between = (bearing - bearing[i]) % (2.0 * np.pi)
-            others = np.delete(between, [i, j])
-            if step > 1.5 * bearing_step or np.any((others > 0) & (others < step)):
-                continue
-            reach = min(max_gap, min(rng[i], rng[j]) * step / np.sin(grazing_angle))
-            if np.hypot(*(pts[i] - pts[j])) <= reach:
-                edges.append((i, j))
-    e = np.array(edges, dtype=int).reshape(-1, 2)
-    labels = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)[1]
+    edges = cKDTree(pts).query_pairs(threshold, output_type="ndarray").reshape(-1, 2)
+    if n > 1:
+        ahead = (bearing[None, :] - bearing[:, None]) % (2.0 * np.pi)  # (i, j): j counter-clockwise of i
+        np.fill_diagonal(ahead, np.inf)
+        nxt = np.argmin(ahead, axis=1)
+        step = ahead[np.arange(n), nxt]
+        reach = np.minimum(max_gap, np.minimum(rng, rng[nxt]) * step / np.sin(grazing_angle))
+        ok = (step <= 1.5 * bearing_step) & (np.linalg.norm(pts - pts[nxt], axis=1) <= reach)
+        edges = np.vstack([edges, np.column_stack([np.arange(n), nxt])[ok]])
+    labels = connected_components(coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)),
+                                  directed=False)[1]
     return first_appearance(labels)

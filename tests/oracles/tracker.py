@@ -9,7 +9,7 @@ from collections import Counter
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from oracles.clustering import associate_radar, distance_partition, points_in_rectangles, split_across
+from oracles.clustering import associate_radar, distance_partition, points_in_rectangles, ray_partition, split_across
 from tracker.clustering import fragment_owners
 from tracker.config import ClusteringConfig
 from tracker.frame import RadarDetections
@@ -120,7 +120,8 @@ def grouped_points(points: np.ndarray, rect: Rectangles, labels: np.ndarray, tra
         box = points_in_rectangles(points, rect.center, rect.psi, rect.length,
                                    rect.width + 2.0 * (config.across_margin - config.track_margin), config.track_margin)
         owner = np.where(box >= 0, groups[np.maximum(box, 0)], -1)
-    component = distance_partition(points, config.distance)
+    component = (distance_partition(points, config.distance) if config.grazing_angle is None else
+                 ray_partition(points, config.distance, config.grazing_angle, config.bearing_bin, config.grazing_max_gap))
     inside = owner >= 0
     owner = adopt_strays(component, owner)
     adopted = 0
