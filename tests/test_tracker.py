@@ -1326,11 +1326,11 @@ def test_the_report_centres_equal_to_vehicle_exactly(name):
 @pytest.mark.parametrize("gap", [0.4, 0.5])
 def test_cars_abreast_under_half_a_metre_apart_are_two_tracks(gap):
     # two cars in adjacent lanes near their lane line, 0.45 m apart across the road, the left one 3 m
-    # ahead, 12 m from the ego: the left car's first tracks, 3 m wide, own the right car's points too
-    # (their rectangles grown by the clustering margins), one cluster 4.45 m wide. Cut at the lateral
-    # gap (split_gap 0.4 m, the default) each has a track at its own offset (+-1.2 m); with a gap of
-    # 0.5 m required they stay one cluster and one track 2.3-2.4 m wide sits between them
-    ahead = 12.0
+    # ahead, 16 m from the ego: a track grown over both (its rectangle and the clustering margins own
+    # the other car's points) makes one cluster 4.45 m wide. Cut at the lateral gap (split_gap 0.4 m,
+    # the default) each car has a track at its own offset (+-1.2 m); with a gap of 0.5 m required
+    # nothing is cut and the cars are not both tracked at their offsets
+    ahead = 16.0
     road = Road.from_curvature([(600.0, 0.0, 0.0)], lanes=3)
     scene = Scene(road, Car(20.0, 0.0, 20.0), [Car(20.0 + ahead, -1.225, 20.0), Car(23.0 + ahead, 1.225, 20.0)])
     tracker = Tracker(road, config_with("clustering", split_gap=gap))
@@ -1338,11 +1338,11 @@ def test_cars_abreast_under_half_a_metre_apart_are_two_tracks(gap):
     for k in range(5):
         tracks = tracker.step(scene.frame(0.1 * k, rng))
     offsets = sorted(float(tr.mean[1]) for tr in tracks)
+    both = len(offsets) == 2 and offsets == pytest.approx([-1.225, 1.225], abs=0.15)
     if gap < 0.45:
-        assert len(offsets) == 2 and offsets == pytest.approx([-1.225, 1.225], abs=0.15)
-        assert tracker.stats["clusters_split"] > 0
+        assert both and tracker.stats["clusters_split"] > 0
     else:
-        assert len(offsets) == 1 and abs(offsets[0]) < 1.0
+        assert not both and tracker.stats["clusters_split"] == 0
 
 
 @pytest.mark.parametrize("depth", [0.3, 0.0], ids=["neighbours", "touching-is-duplicate"])
@@ -1669,3 +1669,41 @@ def test_a_far_cars_side_alone_at_a_grazing_angle_is_one_cluster_and_born():
         frames, tracker = run(scene, config_with("clustering", grazing_angle=angle), 1.0)
         found = [nearest(tracks, road, far.pose(road, k * DT)[0])[1] < 1.5 for k, tracks in enumerate(frames)]
         assert all(found) if born else not any(found)
+
+
+def test_a_car_turning_off_the_road_seen_whole_from_behind_is_tracked_at_its_rear():
+    """The real suite's lanker-1-2, seed 0: vehicle 1434, 12-13 m ahead, turns 17-30 deg off the route's
+    direction with its rear face seen whole (60-78 returns). Its length (5.4 m) is never seen; the hold
+    keeps the track's 4.5 m with the rear face where the update put it, so the centre is off by half the
+    length's error (0.45 m). The Schmidt hold alone explained the face's offset by the length, discarded
+    that, and left the track 1.4-3.4 m behind the face at 0.3-0.8 s."""
+    from sim.evaluation.runner import run_scenario
+    from sim.world.scenario import load_scenario
+
+    result = run_scenario(load_scenario("real-lanker-1-2"), 0, "curvilinear-fused", duration=0.85)
+    for frame in result.frames:
+        row = int(np.flatnonzero(frame.truth.ids == 1434)[0])
+        matched = [i for i, tid in enumerate(frame.track_truth_id) if tid == 1434]
+        assert len(matched) == 1 and frame.lidar_points[row] >= 50
+        assert np.hypot(*(frame.track_state[matched[0], :2] - frame.truth_state[row, :2])) < 0.7
+
+
+def test_a_truck_whose_length_is_a_class_prior_keeps_its_rear_face_through_a_stop():
+    """The hard suite's stop-and-go, seed 2: a 12 m truck ahead, seen from behind (its rear face whole,
+    22-35 returns) through a stop and a restart (8 -> 1.8 -> 6.9 m/s); its length is the vehicle
+    classes' prior (11.8 m, sd 3.6 m), never measured. The hold keeps the face where the update put it
+    with the Schmidt covariance: the centre stays within 0.4 m along the truck. Loosening the position
+    along the growth direction by the length's discarded variance every frame (as a replaced length
+    prior does) let it drift 1.0-1.4 m ahead of the truck's."""
+    result = _run_hard("stop-and-go", 2, None, None, None, 12.05)
+    along = []
+    for frame in result.frames:
+        if frame.t < 7.0:
+            continue
+        row = int(np.flatnonzero(frame.truth.ids == 4)[0])
+        truth = frame.truth_state[row]
+        assert truth[5] == pytest.approx(12.0)
+        k = [i for i, tid in enumerate(frame.track_truth_id) if tid == 4]
+        assert k, "the truck is tracked"
+        along.append(float((frame.track_state[k[0], :2] - truth[:2]) @ [np.cos(truth[3]), np.sin(truth[3])]))
+    assert len(along) > 40 and np.abs(along).max() < 0.4

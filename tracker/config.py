@@ -244,7 +244,7 @@ class MeasurementConfig:
     min_points_two_sided: int = 4
     #: ``"speed"``: one row, radar velocity along the predicted heading; ``"velocity"``: the paper's two (default "speed").
     radar_rows: Literal["speed", "velocity"] = "speed"
-    #: Schmidt update: ``L`` (``W``) keeps its prior unless a long (short) side is seen whole (default True).
+    #: ``L`` (``W``) keeps its prior unless a long (short) side is seen whole, a face seen whole where the update put it (default True).
     hold_unobserved_extent: bool = True
     #: Widen the extent prior when a side's points run well past the predicted rectangle (default True).
     grow_extent: bool = True

@@ -4,9 +4,10 @@ Before the update, ``grow_extent_kernel``: a part's chord longer than its predic
 ``max(GROWTH_MIN_EXCESS, GROWTH_SIGMAS sd)`` (``tracker.measurement``) widens the prior,
 ``P += e^2 d d^T`` with ``d`` the direction in which the vehicle grows while the end nearest the sensor
 stays put (``_growth_direction``; ``tracker.update.grow_extent``). After it, ``extent_rules_kernel``:
-the Schmidt hold of an extent no part shows whole (``L`` for the long sides, ``W`` for the short ones
-keep their prior mean and variance, both held: their joint block;
-``MeasurementConfig.hold_unobserved_extent``); where the length was held and is still unmeasured and
+the hold of an extent no part shows whole (``L`` for the long sides, ``W`` for the short ones keep
+their prior mean and variance, both held: their joint block: the Schmidt update; a held ``L`` whose face,
+a short side, is seen whole keeps the face where the update put it, the centre moving by half the
+length's change, ``MeasurementConfig.hold_unobserved_extent``); where the length was held and is still unmeasured and
 the width was seen whole, the length prior of the vehicle classes given the measured width
 (``BirthConfig.classes``, ``class_length_prior``: the classes weighed by their share and the width's
 likelihood, their lengths' mixture mean and variance) where it lies beyond one standard deviation of
@@ -201,7 +202,9 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     """The posteriors ``mean (P, D)``, ``cov (P, D, D)`` after the extent rules, in place (module
     docstring). ``mode``, ``sides (P, 2)``: the structure's parts; ``corners (P, 4, 2)``: the predicted
     mean rectangles. With ``hold``: a length (width) no part shows whole keeps its prior mean and
-    variance (both held: their joint block), then, with ``classes_on``, where the length was held and
+    variance (both held: their joint block), a length whose face is seen whole with the face where the
+    update put it (the mean moved by the change of ``L`` along ``_growth_direction``; the covariance the
+    Schmidt one, not loosened along it), then, with ``classes_on``, where the length was held and
     is still unmeasured (its variance at least ``unmeasured_var``) and the width was seen whole, the
     length prior of the vehicle classes given the width's posterior (``class_length_prior`` of the
     arrays ``share``, ``class_length``, ``class_length_var``, ``class_width``, ``class_width_var``)
@@ -215,6 +218,8 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     longer, the larger of theirs and the held one), the end nearest the sensor kept
     (``_replace_length``). Then ``min_length <= L <= max_length``, ``min_width <= W <= max_width``."""
     pairs = mean.shape[0]
+    dim = mean.shape[1]
+    d = np.empty(dim)
     for p in range(pairs):
         if hold:
             seen_length = False
@@ -226,6 +231,11 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
                     else:
                         seen_width = True
             if not seen_length:
+                if seen_width:  # a face seen whole: it stays where the update put it, the centre moving
+                    _growth_direction(corners[p], mean[p, XI], LENGTH, d)
+                    e = prior_mean[p, LENGTH] - mean[p, LENGTH]
+                    for j in range(dim):
+                        mean[p, j] += e * d[j]
                 mean[p, LENGTH] = prior_mean[p, LENGTH]
                 cov[p, LENGTH, LENGTH] = prior_cov[p, LENGTH, LENGTH]
             if not seen_width:

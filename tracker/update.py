@@ -380,7 +380,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
 def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
                        mean_corners: np.ndarray, config: TrackerConfig) -> UpdateResult:
     """The extent rules after the update, in place (``tracker.extent.extent_rules_kernel``): the
-    Schmidt hold of an unobserved extent (``MeasurementConfig.hold_unobserved_extent``), then where a
+    hold of an unobserved extent (``MeasurementConfig.hold_unobserved_extent``), then where a
     length was held and unmeasured and the width seen whole the vehicle classes' length prior
     (``BirthConfig.classes``), then the vehicle sizes' limits (``BirthConfig.min_length`` .. ``max_length``,
     ``min_width`` .. ``max_width``: the estimate projected back onto them); ``tracker.extent``'s module docstring says what each rule does. ``mean_corners (P, 4, 2)``: the

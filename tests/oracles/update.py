@@ -176,7 +176,8 @@ def extent_growth_direction(mean_corners: np.ndarray, heading: np.ndarray, dim: 
     return d
 
 
-def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure) -> tuple[np.ndarray, np.ndarray]:
+def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.ndarray, structure: Structure,
+                           mean_corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Keep ``L`` (``W``) of a pair at its prior mean and variance unless the cluster shows a long
     (short) side fully -- the Schmidt ("consider") update of an unobserved extent, in place.
 
@@ -187,11 +188,20 @@ def hold_unobserved_extent(res: UpdateResult, prior_mean: np.ndarray, prior_cov:
     parameter is the normal one with the extent's gain row set to zero: its mean and variance stay at the
     prior, the other states and their cross-covariances with it are updated as usual (``P+ = P - K S K^T``
     everywhere but ``P+[L, L] = P[L, L]``; when both ``L`` and ``W`` are held their whole 2 x 2 block,
-    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite. Returns the
-    masks of pairs whose ``L`` and whose ``W`` were held."""
+    the cross term included, stays the prior's), which keeps ``P+`` positive semi-definite. Where a
+    held ``L``'s face (a short side) is shown fully, the mean also keeps that face where the update put
+    it: it moves by ``(L_prior - L+) d`` (``d`` the growth direction, ``extent_growth_direction``), the
+    centre by half the length's change; through the prior's ``s``-``L`` correlation the Schmidt gain
+    explains a face seen off its prediction by ``L``, and with ``L`` held the centre would not follow
+    the face. Returns the masks of pairs whose ``L`` and whose ``W`` were held."""
     full = structure.mode == FULL  # (P, 2 parts)
     long_side = structure.sides % 2 == 1  # sides 1 (left) and 3 (right) run along the length
     hold_length, hold_width = ~(full & long_side).any(axis=1), ~(full & ~long_side).any(axis=1)
+    face = hold_length & ~hold_width
+    if face.any():
+        d = extent_growth_direction(np.asarray(mean_corners, dtype=float)[face], res.mean[face, XI], res.mean.shape[1],
+                                    LENGTH)
+        res.mean[face] += (prior_mean[face, LENGTH] - res.mean[face, LENGTH])[:, None] * d
     hold_extent(res, prior_mean, prior_cov, hold_length, hold_width)
     return hold_length, hold_width
 
@@ -307,7 +317,7 @@ def apply_extent_rules(res: UpdateResult, prior_mean: np.ndarray, prior_cov: np.
     projected back onto ``BirthConfig.min_length`` .. ``max_length``, ``min_width`` .. ``max_width``)."""
     b = config.birth
     if config.measurement.hold_unobserved_extent:
-        held_length, held_width = hold_unobserved_extent(res, prior_mean, prior_cov, structure)
+        held_length, held_width = hold_unobserved_extent(res, prior_mean, prior_cov, structure, mean_corners)
         if b.classes is not None:
             vehicle_class_prior(res, held_length, held_width, mean_corners, b)
     for index, low, high in ((LENGTH, b.min_length, b.max_length), (WIDTH, b.min_width, b.max_width)):
