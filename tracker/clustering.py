@@ -111,6 +111,7 @@ def ray_partition(points: np.ndarray, threshold: float, grazing_angle: float | N
     return ray_links_kernel(pts, np.ascontiguousarray(labels, dtype=np.int64), 1.5 * float(bearing_step),
                             1.0 / math.sin(grazing_angle), float(max_gap))
 
+
 def fragment_owners(points: np.ndarray, component: np.ndarray, free: np.ndarray, centres: np.ndarray, yaw: np.ndarray,
                     length: np.ndarray, width: np.ndarray, length_sd: np.ndarray, margin: float, max_points: int,
                     sigmas: float, seen: np.ndarray | None = None, side_tolerance: float | None = None) -> np.ndarray:
@@ -552,6 +553,7 @@ def ray_links_kernel(pts, labels, max_step, inv_sin, max_gap):  # pragma: no cov
         if dx * dx + dy * dy <= reach * reach:
             _union(parent, a, b)
     return _labels_in_order(parent)
+
 
 @njit
 def radar_association_kernel(points, offsets, radar, gate):

@@ -13,8 +13,8 @@ Not the same paper's *closeness* criterion (``sum 1 / max(min(d_1, d_2), d0)``,
 apart) the extreme points' ``1 / d0`` terms dominate it, and a box turned a few degrees, one point more at
 an edge, outscores the true one (measured on 1,000 ray-cast cars and trucks 10-70 m away, 0.2 deg rays,
 3 cm range noise: closeness 3.8 % of headings more than 3 deg off, variance 0.4 %; 90th percentile 1.9
-deg against 0.9 deg);
-the box's width then takes the turn's lateral spread, which the class prior reads as a truck's.
+deg against 0.9 deg); the box's width then takes the turn's lateral spread, which the class prior
+reads as a truck's.
 
 Which axis is the length, and which way the heading points, is ambiguous from points alone:
 with ``heading_hint`` (e.g. the road's heading, rad) the axis direction closest to it is chosen;
@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tracker.angles import wrap_angle
+
 
 @dataclass(frozen=True)
 class RectangleFit:
