@@ -497,11 +497,17 @@ def test_ray_partition_does_not_bridge_a_dropped_return_or_a_wide_gap():
 
 
 def test_ray_partition_joins_across_the_rear_bearing():
-    # a car's side behind the sensor, its returns on both sides of the bearing pi
-    pts = _scan([(-56.5, -52.0, -0.2, 1.6)], FULL_TURN)
-    pts = np.vstack([pts, _scan([(-56.5, -52.0, 5.0, 6.8)], FULL_TURN)])
-    labels = ray_partition(pts, 1.0, np.deg2rad(2.0), RAY_STEP)
-    assert np.all(labels == oracle.ray_partition(pts, 1.0, np.deg2rad(2.0), RAY_STEP, 4.0))
+    # a side behind the sensor seen at a grazing angle, its returns on rays either side of the bearing pi
+    # (the first and last in bearing order), 1.5 m apart: beyond the distance threshold, within the
+    # reach at 4 deg (50 m x 0.2 deg / sin 4 deg = 2.5 m)
+    rays = np.pi + (np.arange(-2, 3) + 0.5) * RAY_STEP
+    r = 50.0 + 1.5 * np.arange(5)
+    pts = np.column_stack([r * np.cos(rays), r * np.sin(rays)])
+    assert np.ptp(np.arctan2(pts[:, 1], pts[:, 0])) > np.pi  # the bearings wrap
+    assert len(np.unique(distance_partition(pts, 1.0))) == 5
+    labels = ray_partition(pts, 1.0, GRAZING, RAY_STEP)
+    assert labels.tolist() == [0] * 5
+    assert labels.tolist() == oracle.ray_partition(pts, 1.0, GRAZING, RAY_STEP, 4.0).tolist()
 
 
 @pytest.mark.parametrize("seed", range(4))

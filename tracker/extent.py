@@ -53,6 +53,17 @@ def _growth_direction(corners, heading, index, d):  # pragma: no cover - compile
 
 
 @njit(inline="always")
+def _move_length(mean, corners, length, d):  # pragma: no cover - compiled
+    """One pair's mean (``mean (D,)``, in place) given the length ``length``, the end nearest the sensor
+    staying put: ``m += (length - L) d``, ``d`` (into the array ``d``) the growth direction of its
+    predicted mean rectangle ``corners (4, 2)`` (``_growth_direction``)."""
+    _growth_direction(corners, mean[XI], LENGTH, d)
+    e = length - mean[LENGTH]
+    for j in range(mean.shape[0]):
+        mean[j] += e * d[j]
+
+
+@njit(inline="always")
 def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover - compiled
     """A new length prior of one pair (``mean (D,)``, ``cov (D, D)`` in place; ``corners (4, 2)``
     its predicted mean rectangle in E): the length becomes ``length`` with variance ``variance``, the
@@ -64,10 +75,7 @@ def _replace_length(mean, cov, corners, length, variance):  # pragma: no cover -
     length that the hold then discards."""
     dim = mean.shape[0]
     d = np.empty(dim)
-    _growth_direction(corners, mean[XI], LENGTH, d)
-    e = length - mean[LENGTH]
-    for j in range(dim):
-        mean[j] += e * d[j]
+    _move_length(mean, corners, length, d)
     old = cov[LENGTH, LENGTH]
     if variance >= old:  # more uncertain: the added variance along d
         for j in range(dim):
@@ -203,8 +211,8 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     docstring). ``mode``, ``sides (P, 2)``: the structure's parts; ``corners (P, 4, 2)``: the predicted
     mean rectangles. With ``hold``: a length (width) no part shows whole keeps its prior mean and
     variance (both held: their joint block), a length whose face is seen whole with the face where the
-    update put it (the mean moved by the change of ``L`` along ``_growth_direction``; the covariance the
-    Schmidt one, not loosened along it), then, with ``classes_on``, where the length was held and
+    update put it (the mean moved by the change of ``L``, ``_move_length``; the covariance the Schmidt
+    one, not loosened along it), then, with ``classes_on``, where the length was held and
     is still unmeasured (its variance at least ``unmeasured_var``) and the width was seen whole, the
     length prior of the vehicle classes given the width's posterior (``class_length_prior`` of the
     arrays ``share``, ``class_length``, ``class_length_var``, ``class_width``, ``class_width_var``)
@@ -218,8 +226,7 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
     longer, the larger of theirs and the held one), the end nearest the sensor kept
     (``_replace_length``). Then ``min_length <= L <= max_length``, ``min_width <= W <= max_width``."""
     pairs = mean.shape[0]
-    dim = mean.shape[1]
-    d = np.empty(dim)
+    d = np.empty(mean.shape[1])
     for p in range(pairs):
         if hold:
             seen_length = False
@@ -232,10 +239,7 @@ def extent_rules_kernel(mean, cov, prior_mean, prior_cov, mode, sides, corners, 
                         seen_width = True
             if not seen_length:
                 if seen_width:  # a face seen whole: it stays where the update put it, the centre moving
-                    _growth_direction(corners[p], mean[p, XI], LENGTH, d)
-                    e = prior_mean[p, LENGTH] - mean[p, LENGTH]
-                    for j in range(dim):
-                        mean[p, j] += e * d[j]
+                    _move_length(mean[p], corners[p], prior_mean[p, LENGTH], d)
                 mean[p, LENGTH] = prior_mean[p, LENGTH]
                 cov[p, LENGTH, LENGTH] = prior_cov[p, LENGTH, LENGTH]
             if not seen_width:

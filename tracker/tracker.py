@@ -519,7 +519,8 @@ class Tracker:
                 float(cfg.distance))
         tail = (self._point_n, int(cfg.fragment_points) if fragment else -1, split,
                 float(cfg.split_width) if split else 0.0, float(cfg.split_gap), SPLIT_MAX_CUTS)
-        partition = _PARTITION_HERE if cfg.grazing_angle is None else self._partition(points)  # else: in the kernel
+        # _PARTITION_HERE: the kernel partitions at the one distance itself; with the grazing rule, ray_partition
+        partition = _PARTITION_HERE if cfg.grazing_angle is None else self._partition(points)
         ok, done, groups, owner, inside, component, component_group, ordered, edges, owned, added = cluster_points_kernel(
             *head, partition, *tail)
         if not ok:  # points the partition's grid does not hold: their components from the whole graph
