@@ -189,6 +189,36 @@ def test_two_points_with_a_radar_detection_seed_a_birth_at_any_range(road):
     assert len(cluster_births([point], [radar_velocity], ego, road, cfg)[0]) == 0
 
 
+def _segment(road: Road, s: float, n: float, length: float, angle: float, count: int = 10):
+    """``count`` points along a segment ``length`` m long turned ``angle`` rad from the road's direction,
+    centred at ``(s, n)``, in E of an ego in the middle lane at s = 40 m; the points and the ego."""
+    ego_xy = road.to_cartesian(40.0, road.lane_centers[1])
+    ego = EgoState(ego_xy[0], ego_xy[1], float(road.heading(40.0)), 15.0)
+    heading = float(road.heading(s)) + angle
+    t = np.linspace(-0.5, 0.5, count)[:, None] * length
+    xy = road.to_cartesian(s, n)[None, :] + t * np.array([np.cos(heading), np.sin(heading)])
+    return to_local(xy, ego_xy, ego.yaw), ego
+
+
+def test_a_short_cluster_is_born_along_its_lane(road):
+    """Ten returns within 0.2 m (the end of a car's left side peeking out from behind another vehicle,
+    the car beside the ego in the right lane) show no orientation: the birth takes the lane's direction,
+    its unseen width beyond the points, away from the sensor. With ``min_oriented_extent`` 0 the fit's
+    axes are taken: the patch's 40 deg. A 2 m side at 20 deg keeps its heading either way."""
+    n_side = road.lane_centers[0] + 1.0  # the left side of a car in the right lane
+    patch, ego = _segment(road, 41.0, n_side, 0.2, np.radians(40.0))
+    means, _ = cluster_births([patch], [None], ego, road, BirthConfig())
+    assert means.shape == (1, 7)
+    assert abs(means[0, 3]) < 0.02  # the lane's direction at the points (the curve turns 0.01 rad over the shift)
+    assert means[0, 1] < n_side - 0.5  # the unseen width lies to the right, away from the sensor
+    loose, _ = cluster_births([patch], [None], ego, road, BirthConfig(min_oriented_extent=0.0))
+    assert abs(loose[0, 3]) > np.radians(35.0)
+    side, ego = _segment(road, 50.0, n_side, 2.0, np.radians(20.0))
+    for cfg in (BirthConfig(), BirthConfig(min_oriented_extent=0.0)):
+        means, _ = cluster_births([side], [None], ego, road, cfg)
+        assert means[0, 3] == pytest.approx(np.radians(20.0), abs=np.radians(2.0))
+
+
 def test_cartesian_births_match_the_exact_conversion(road):
     means = np.array([[30.0, 3.5, 20.0, 0.1, 0.02, 4.8, 2.0]])
     covs = np.diag([1e-6] * 7)[None]

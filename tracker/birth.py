@@ -8,7 +8,9 @@
   the centre moves away from the sensor by the missing half, unless the cluster's near end borders
   another object's shadow: then the missing half may lie on either side, a spread instead of a
   shift), the fit's axes turned by the quarter turn that puts the heading closest to the road
-  direction (``|xi| <= pi/4``: vehicles drive along the road), and the speed from an associated radar
+  direction (``|xi| <= pi/4``: vehicles drive along the road; a cluster of one or two points, or one
+  shorter than ``BirthConfig.min_oriented_extent`` on both sides, takes the lane's direction), and the
+  speed from an associated radar
   detection when fused (on a two-way road, not from one that points more than ``BACKWARD_SPEED``
   against that heading: the detection of a vehicle passing in the other direction).
 
@@ -197,7 +199,9 @@ def cluster_births(
     ``config.min_cluster_points`` points are skipped, unless a radar detection joined them and they
     have ``config.min_cluster_points_fused``, or they lie ``config.sparse_min_range`` or farther and have
     ``config.min_cluster_points_radar`` (``_fewest_points``); a cluster of fewer than ``SPARSE_POINTS``
-    takes the road's direction as its heading."""
+    takes the road's direction as its heading, and so does one shorter than
+    ``config.min_oriented_extent`` on both sides of its fit (its extent then measured along and across
+    that direction, its unseen length and width beyond it as for any other cluster)."""
     means, stds, length_stds, sparse, levers, spreads = [], [], [], [], [], []
     if shadowed is None:
         shadowed = [None] * len(clusters)
@@ -208,6 +212,9 @@ def cluster_births(
             continue
         sparse_k = len(pts) < SPARSE_POINTS
         fit = fit_rectangle(pts)
+        # a few centimetres of points (a corner, the end of a side behind another vehicle) show no
+        # orientation either: their fitted axes are noise, which the quarter turn below would keep
+        short_k = not sparse_k and max(fit.length, fit.width) < config.min_oriented_extent
         # the fit's axes are ambiguous by quarter turns: take the one closest to the direction of the
         # traffic in the lane there (vehicles drive along their lane: pi from the road's in an oncoming
         # lane), swapping length and width for an odd quarter turn
@@ -216,7 +223,7 @@ def cluster_births(
         theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
         lane_xi = np.pi if road.two_way and int(road.lane_direction(s_fit, n_fit)) < 0 else 0.0
         theta_fit += lane_xi
-        if sparse_k:  # no orientation in one or two points: the lane's direction
+        if sparse_k or short_k:  # no orientation in one or two points, or a short cluster: the lane's direction
             psi_e = theta_fit - ego.yaw
         else:
             turns = np.arange(4)
@@ -226,7 +233,7 @@ def cluster_births(
             fit_len, fit_wid = (fit.length, fit.width) if k % 2 == 0 else (fit.width, fit.length)
         axis = np.array([np.cos(psi_e), np.sin(psi_e)])
         lateral = np.array([-axis[1], axis[0]])
-        if sparse_k:  # the points' extent along and across the road's direction
+        if sparse_k or short_k:  # the points' extent along and across the road's direction
             fit_len, fit_wid = np.ptp((pts - fit.center) @ np.column_stack([axis, lateral]), axis=0)
         length, width = max(fit_len, config.length), max(fit_wid, config.width)
         length_std, long = config.length_std, False

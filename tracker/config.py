@@ -436,6 +436,8 @@ class BirthConfig:
     heading_rate_std: float = 0.05
     #: Fewest points of an unexplained cluster that seeds a birth (default 2: a far car's two returns).
     min_cluster_points: int = 2
+    #: A cluster whose fitted rectangle is shorter than this on both sides shows no orientation: its birth takes the lane's direction (m; default 1.0; 0: every fit's).
+    min_oriented_extent: float = 1.0
     #: ... with a joined radar detection, beyond ``sparse_min_range`` (fused; default 1; None: ``min_cluster_points``).
     min_cluster_points_radar: int | None = 1
     #: ``min_cluster_points_radar`` applies to clusters whose every point is at least this far (m; default 70.0).
@@ -468,6 +470,7 @@ class BirthConfig:
         if self.min_cluster_points_radar is not None:
             _check_int("BirthConfig", "min_cluster_points_radar", self.min_cluster_points_radar, 1)
         _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
+        _check("BirthConfig", "min_oriented_extent", self.min_oriented_extent, low=0.0, unit="m")
         if self.flow_speed_std is not None:
             _check("BirthConfig", "flow_speed_std", self.flow_speed_std, low=0.0, low_open=True, unit="m/s")
         if self.min_cluster_points_fused is not None:
