@@ -24,10 +24,10 @@ def cov(pos_std: float = 0.3) -> np.ndarray:
 
 
 def store(road: Road = STRAIGHT, window: float = 5.0, period: float | None = None, accel: float = 0.0,
-          cartesian: bool = False, brake: float | None = None) -> LostTracks:
+          cartesian: bool = False, brake: float | None = None, lane_following: bool = False) -> LostTracks:
     config = TrackerConfig(coordinates="cartesian" if cartesian else "curvilinear", motion=MotionConfig(acceleration=False))
     return LostTracks(window, 0.99, UnscentedTransform(config.ukf), make_motion(config, road), period, accel, cartesian,
-                      brake)
+                      brake, lane_following)
 
 
 def lose(lt: LostTracks, label: int, x: np.ndarray, t: float = 0.0) -> None:
@@ -233,3 +233,24 @@ def test_observe_keeps_the_records_the_per_track_store_kept():
             assert lt.last_updated(lab, -1.0) == (last[lab][3] if lab in last else -1.0)
     with pytest.raises(ValueError, match="as many"):
         lt.observe(9.0, [1, 2], np.zeros((1, 7)), np.zeros((2, 7, 7)))
+
+
+@pytest.mark.parametrize("against", [False, True], ids=["along", "against"])
+def test_a_track_lost_while_turning_matches_where_it_followed_its_lane(against):
+    """A car lost while it turned 20 deg off its lane at 0.5 rad/s (cutting an intersection's corner)
+    comes back 2 s later where following its lane puts it: its own prediction lies metres to the side
+    (the road-following prior relaxes the turn only over seconds), so only the lane-following
+    prediction matches it. The same for a car driving against ``s`` (course pi + 20 deg)."""
+    sign = -1.0 if against else 1.0
+    lost = np.array([100.0, 0.0, 10.0, (np.pi if against else 0.0) + 0.35, 0.5, 4.5, 1.8])
+    back = state(100.0 + sign * 20.0)[None]
+    for lane_following, label in ((False, -1), (True, 4)):
+        lt = store(lane_following=lane_following)
+        lose(lt, 4, lost)
+        predicted, _ = lt._predicted(2.1, [4])
+        assert abs(predicted[0, 1]) > 3.0  # the turning prediction: metres off the lane
+        assert lt.match(2.1, back, cov()[None])[0] == label
+    # a car in the other lane, 3.5 m to the side of the lane-following prediction, is not the lost one
+    lt = store(lane_following=True)
+    lose(lt, 4, np.array([100.0, 0.0, 10.0, (np.pi if against else 0.0), 0.0, 4.5, 1.8]))
+    assert lt.match(2.1, state(100.0 + sign * 20.0, 3.5)[None], cov()[None])[0] == -1

@@ -575,6 +575,8 @@ class ReductionConfig:
     reidentify_accel: float = 2.0
     #: Deceleration a hidden vehicle may have made, up to standstill (m/s^2; default 8.0; None: ``reidentify_accel``).
     reidentify_brake: float | None = 8.0
+    #: A lost track also matches a newcomer where it would be had it followed its lane since it was lost (default True; road coordinates only).
+    reidentify_lane_following: bool = True
     #: Drop a label without a reportable posterior whose centre lies inside a seen vehicle's rectangle (default True).
     drop_inside_updated: bool = True
     #: Two labels whose rectangles overlap along the road by more than this are one vehicle (m; default 0.5; None: off).
@@ -591,8 +593,9 @@ class ReductionConfig:
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
-        if not isinstance(self.same_label_along_length, bool):
-            raise ValueError(f"ReductionConfig.same_label_along_length must be true or false; got {self.same_label_along_length!r}")
+        for name in ("same_label_along_length", "reidentify_lane_following"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"ReductionConfig.{name} must be true or false; got {getattr(self, name)!r}")
         if self.report_range is not None:
             _check("ReductionConfig", "report_range", self.report_range, unit="m")
         if self.report_road_margin is not None:

@@ -200,7 +200,8 @@ class Tracker:
         red = config.reduction
         self._lost = LostTracks(red.reidentify_window, red.reidentify_probability, self.ut, self.motion,
                                 road.length if road.closed and not self.cartesian else None,
-                                red.reidentify_accel, self.cartesian, red.reidentify_brake)
+                                red.reidentify_accel, self.cartesian, red.reidentify_brake,
+                                red.reidentify_lane_following)
         self.last_events: dict[str, list] = {"born": [], "updated": [], "missed": [], "dropped": [], "merged": []}
         max_dim = 2 * config.measurement.max_cluster_points + 2
         self._gate_table = chi2.ppf(config.gating.probability, np.arange(max_dim + 1))  # by dimension
