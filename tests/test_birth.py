@@ -132,16 +132,22 @@ def test_a_cluster_birth_is_no_longer_or_wider_than_any_vehicle(limits):
         assert length > 27.0 and width > 3.4  # beyond both limits
 
 
+EGO_S = 40.0  # the ego of the helpers below drives in the middle lane at this s (m)
+
+
+def _ego(road: Road, speed: float) -> EgoState:
+    """The ego in the middle lane at ``EGO_S``, along the road, at ``speed`` m/s."""
+    xy = road.to_cartesian(EGO_S, road.lane_centers[1])
+    return EgoState(xy[0], xy[1], float(road.heading(EGO_S)), speed)
+
+
 def _sparse_cluster(road: Road, ahead: float, n_car: float):
     """One lidar point on the rear corner of a 4.8 x 2 m car ``ahead`` m ahead of the ego (which
     drives in the middle lane), the rest of it hidden: the point, the ego, the car's centre (s, n)."""
-    ego_s = 40.0
-    ego_xy = road.to_cartesian(ego_s, road.lane_centers[1])
-    ego_yaw = float(road.heading(ego_s))
-    ego = EgoState(ego_xy[0], ego_xy[1], ego_yaw, 20.0)
-    s_car = ego_s + ahead
+    ego = _ego(road, 20.0)
+    s_car = EGO_S + ahead
     corners = to_local(rectangle_corners(road.to_cartesian(s_car, n_car), np.array(float(road.heading(s_car))),
-                                         np.array(4.8), np.array(2.0)), ego_xy, ego_yaw)
+                                         np.array(4.8), np.array(2.0)), (ego.x, ego.y), ego.yaw)
     nearest = corners[np.argmin(np.hypot(corners[:, 0], corners[:, 1]))]
     return nearest[None, :], ego, (s_car, n_car)
 
@@ -191,13 +197,12 @@ def test_two_points_with_a_radar_detection_seed_a_birth_at_any_range(road):
 
 def _segment(road: Road, s: float, n: float, length: float, angle: float, count: int = 10):
     """``count`` points along a segment ``length`` m long turned ``angle`` rad from the road's direction,
-    centred at ``(s, n)``, in E of an ego in the middle lane at s = 40 m; the points and the ego."""
-    ego_xy = road.to_cartesian(40.0, road.lane_centers[1])
-    ego = EgoState(ego_xy[0], ego_xy[1], float(road.heading(40.0)), 15.0)
+    centred at ``(s, n)``, in E of the ego (``_ego``); the points and the ego."""
+    ego = _ego(road, 15.0)
     heading = float(road.heading(s)) + angle
     t = np.linspace(-0.5, 0.5, count)[:, None] * length
     xy = road.to_cartesian(s, n)[None, :] + t * np.array([np.cos(heading), np.sin(heading)])
-    return to_local(xy, ego_xy, ego.yaw), ego
+    return to_local(xy, (ego.x, ego.y), ego.yaw), ego
 
 
 def test_a_short_cluster_is_born_along_its_lane(road):

@@ -29,7 +29,7 @@ takes the lost track's label. A lost track whose label is reported again by itse
 
 A track lost while it turned off its lane's direction (an intersection, a lane change) is predicted
 on along its last course and yaw rate, which the road-following prior of the motion model relaxes only
-over a second or two: after two seconds lost, a car that was turning 22 deg off its lane at 0.5 rad/s
+over a second or two: after 1.7 s lost, a car that was turning 22 deg off its lane at 0.5 rad/s
 is predicted 4.7 m to the side of where it comes back, having in fact followed its lane through the
 turn. With ``lane_following`` each lost track is also predicted as a vehicle that follows its lane
 from the moment it was lost (its course set to the lane's direction, 0 along ``s`` or pi against it,
