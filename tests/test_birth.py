@@ -241,9 +241,10 @@ def test_a_birth_seen_from_its_rear_has_its_centre_correlated_with_its_unseen_le
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
     ego = EgoState(100.0, 0.0, 0.0, 15.0)
     centre = np.array([125.0 if ahead else 75.0, 0.0])
-    corners = to_local(rectangle_corners(centre, np.array(0.0), np.array(4.8), np.array(2.0)), np.array([100.0, 0.0]), 0.0)
-    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
     cfg = BirthConfig()
+    width = cfg.width + 0.2  # wider than the prior width: the fitted rear is the width
+    corners = to_local(rectangle_corners(centre, np.array(0.0), np.array(4.8), np.array(width)), np.array([100.0, 0.0]), 0.0)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
     means, covs = cluster_births([points], [None], ego, road, cfg)
     p = covs[0]
     sign = 1.0 if ahead else -1.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from tracker.config import (BirthConfig, ClusteringConfig, DetectionConfig, MeasurementConfig, MotionConfig, ProcessNoise, ReductionConfig,
@@ -120,3 +121,15 @@ def test_default_vehicle_classes() -> None:
     classes = {c.name: c for c in BirthConfig().classes}
     assert list(classes) == ["car", "van-suv-pickup", "truck", "bus", "motorcycle"]
     assert all(c.width <= 2.6 for c in classes.values()) and sum(c.share for c in classes.values()) == pytest.approx(1.0, abs=0.01)
+
+
+def test_the_default_prior_size_is_the_classes() -> None:
+    """A vehicle whose length or width is never seen keeps the birth's prior: a car's length (the
+    ``car`` class's mean) and the classes' mean width weighed by their shares (1.91 m), each the
+    least-squares guess of what the classes say."""
+    cfg = BirthConfig()
+    classes = {c.name: c for c in cfg.classes}
+    assert cfg.length == classes["car"].length
+    shares = np.array([c.share for c in cfg.classes])
+    widths = np.array([c.width for c in cfg.classes])
+    assert cfg.width == pytest.approx(shares @ widths / shares.sum(), abs=0.02)

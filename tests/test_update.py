@@ -358,7 +358,7 @@ def test_vehicle_classes_give_a_wide_rear_a_trucks_length_and_a_cars_rear_a_cars
     from tracker.measurement import rectangle_corners
 
     cfg = BirthConfig()
-    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, 4.5, 2.55]] * 4)
+    mean = np.array([[100.0, 0.0, 10.0, 0.0, 0.0, cfg.length, 2.55]] * 4)
     mean[1, 6] = 0.8  # a motorcycle's width
     mean[2, 6] = 1.8  # a car's width
     cov = np.tile(np.diag([0.1, 0.1, 0.1, 0.01, 0.01, cfg.length_std**2, 0.03**2]), (4, 1, 1))
@@ -369,15 +369,15 @@ def test_vehicle_classes_give_a_wide_rear_a_trucks_length_and_a_cars_rear_a_cars
     length, var = oracle_prior(mean[:3, 6], cov[:3, 6, 6], cfg.classes)
     assert 12.0 < length[0] < 14.0 and 3.0 < var[0] ** 0.5 < 5.0  # a truck's or a bus's
     assert abs(length[1] - 2.2) < 0.1 and var[1] < cfg.length_std**2  # a motorcycle's
-    assert abs(length[2] - 4.5) < 0.1  # a car's
-    e = length[0] - 4.5
+    assert abs(length[2] - cfg.classes[0].length) < 0.1  # a car's
+    e = length[0] - cfg.length
     assert res.mean[0, 5] == pytest.approx(length[0]) and res.mean[0, 0] == pytest.approx(100.0 + 0.5 * e)
     assert res.cov[0, 5, 5] == pytest.approx(var[0]) and res.cov[0, 0, 5] == pytest.approx(0.5 * (var[0] - 1.0))
     for p in (0, 1):  # the rear s - L/2 keeps its variance: a face seen later moves it, not the length
         near = np.array([1.0, 0, 0, 0, 0, -0.5, 0])
         assert near @ res.cov[p] @ near == pytest.approx(near @ cov[p] @ near)
     assert res.mean[1, 5] == pytest.approx(length[1]) and res.cov[1, 5, 5] == pytest.approx(var[1])
-    assert res.mean[1, 0] - 0.5 * res.mean[1, 5] == pytest.approx(100.0 - 0.5 * 4.5)  # the rear stays put
+    assert res.mean[1, 0] - 0.5 * res.mean[1, 5] == pytest.approx(100.0 - 0.5 * cfg.length)  # the rear stays put
     np.testing.assert_array_equal(res.mean[2:], mean[2:])
     np.testing.assert_array_equal(res.cov[2:], cov[2:])
     again, _ = _extent_rules(res.mean, res.cov, corners, cfg)
@@ -439,7 +439,7 @@ def test_vehicle_classes_weigh_an_ambiguous_width():
 
     widths = np.array([0.8, 1.8, 2.0, 2.2, 2.3, 2.4, 2.55])
     length, var = oracle_prior(widths, np.full(len(widths), 0.05**2), VEHICLE_CLASSES)
-    assert length[0] == pytest.approx(2.2, abs=0.05) and length[1] == pytest.approx(4.5, abs=0.1)
+    assert length[0] == pytest.approx(2.2, abs=0.05) and length[1] == pytest.approx(VEHICLE_CLASSES[0].length, abs=0.1)
     assert np.all(np.diff(length[1:]) > 0.0)  # longer with the width
     assert 5.0 < length[2] < 5.4 and 5.3 < length[3] < 5.6 and length[-1] > 12.0
     assert np.sqrt(var[4]) > 3.0  # 2.3 m: a van's or a truck's, its spread covers both
@@ -448,7 +448,7 @@ def test_vehicle_classes_weigh_an_ambiguous_width():
     # widths that stray from the body's (BirthConfig.width_error_std: mirrors, label boxes): 2.4 m is no
     # longer a truck's for sure, 2.55 m still mostly is
     loose, _ = oracle_prior(widths, np.full(len(widths), 0.05**2), VEHICLE_CLASSES, 0.25)
-    assert loose[5] < 9.0 < loose[6] and loose[5] < length[5] - 4.0
+    assert loose[5] < 9.0 < loose[6] and loose[5] < length[5] - 3.5
 
 
 @pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])

@@ -384,7 +384,7 @@ class VehicleClass:
 #: vehicle-distance travelled in FHWA Highway Statistics table VM-1; sizes from fleet statistics,
 #: typical models and the legal width limits of trucks and buses (2.55 m EU, 2.6 m US).
 VEHICLE_CLASSES: tuple[VehicleClass, ...] = (
-    VehicleClass("car", share=0.68, length=4.5, length_std=0.4, width=1.80, width_std=0.08),
+    VehicleClass("car", share=0.68, length=4.7, length_std=0.4, width=1.80, width_std=0.08),
     VehicleClass("van-suv-pickup", share=0.21, length=5.4, length_std=0.5, width=2.02, width_std=0.10),
     VehicleClass("truck", share=0.095, length=12.0, length_std=3.5, width=2.52, width_std=0.06),
     VehicleClass("bus", share=0.005, length=12.5, length_std=2.0, width=2.55, width_std=0.03),
@@ -418,10 +418,10 @@ class BirthConfig:
     speed_std: float = 5.0
     #: Std of a cluster birth's speed taken from its lane's flow, without radar (m/s; default 3.0; None: the prior speed above; ``tracker.flow``).
     flow_speed_std: float | None = 3.0
-    #: Prior length of a road birth, and the least length of a cluster birth (m; default 4.5).
-    length: float = 4.5
-    #: Prior width of a road birth, and the least width of a cluster birth (m; default 1.8).
-    width: float = 1.8
+    #: Prior length of a road birth, and the least length of a cluster birth: the car class's (m; default 4.7).
+    length: float = 4.7
+    #: Prior width of a road birth, and the least width of a cluster birth: the classes' mean, 1.91 m (m; default 1.9).
+    width: float = 1.9
     #: Std of a car's prior length (m; default 1.0).
     length_std: float = 1.0
     #: Std of the prior width (m; default 0.3).

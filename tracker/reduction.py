@@ -278,7 +278,7 @@ def absorb_overlapping(
     known to ``UNION_LENGTH_STD`` its rectangle becomes the union of the two along the heading (centre
     and length ``L``; the larger width ``W``), the variances of the moved centre and of ``L`` and ``W``
     grown by the squares of their changes (a prior's length says nothing of where the vehicle ends: the
-    union of two duplicates of one car, each with the prior's 4.5 m and a few metres apart, would be a
+    union of two duplicates of one car, each with the prior's 4.7 m and a few metres apart, would be a
     vehicle far longer than the car), but not when only one of them is in ``updated``: a coasting
     track's rectangle is its prediction, not a fragment seen, and its union with the newcomer on the
     vehicle would stretch the vehicle by the prediction's error.

@@ -466,7 +466,7 @@ def grow_extent(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Widen the prior of pairs whose cluster shows a side longer than the predicted rectangle's.
 
-    A track born from a truck's rear has a car's length prior (``BirthConfig.length`` 4.5 +- 1 m). When
+    A track born from a truck's rear has a car's length prior (``BirthConfig.length`` 4.7 +- 1 m). When
     the truck's side comes into view its points run 5-15 m past the predicted rectangle: the innovation
     is far outside the gate, the track is not updated, and a newborn takes the cluster. A side's chord
     (the extent of its points, without the end-gap margins) is a lower bound of its length, so an
