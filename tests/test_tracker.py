@@ -1096,18 +1096,13 @@ def _run_hard(scenario: str, seed: int, section: str | None, key: str | None, va
     """A short fused run of one of the suites' scenarios with ``tracker.<section>.<key> = value`` and the
     keys ``also`` of the same section (section None: the scenario's own configuration); ``others``:
     settings of other sections, ``{section: {key: value}}``."""
-    import copy
-
     from sim.evaluation.runner import run_scenario
-    from sim.studies.montecarlo import scenario_task_data
+    from sim.studies.montecarlo import merge_tables, scenario_task_data
     from sim.world.scenario import parse_scenario, resolve_scenario_path
 
     _, source, data = scenario_task_data(resolve_scenario_path(scenario))
-    data = copy.deepcopy(data)
-    if section is not None:
-        data.setdefault("tracker", {}).setdefault(section, {}).update({key: value, **also})
-    for other, settings in (others or {}).items():
-        data.setdefault("tracker", {}).setdefault(other, {}).update(settings)
+    settings = {**(others or {}), **({section: {key: value, **also}} if section is not None else {})}
+    data = {**data, "tracker": merge_tables(data.get("tracker", {}), settings)}
     return run_scenario(parse_scenario(data, source), seed, "curvilinear-fused", duration=duration)
 
 
