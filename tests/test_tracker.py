@@ -237,6 +237,41 @@ def test_a_lone_return_moving_with_traffic_at_the_range_limit_is_not_confirmed(c
         assert confirmed == 0 and tracker.stats["births_awaiting_support"] >= len(frames) - 5
 
 
+@pytest.mark.parametrize("radar_point, reported", [(True, True), (False, False)])
+def test_a_lone_return_with_a_radar_detection_on_it_is_confirmed(curve, radar_point, reported):
+    # the lone return above, and in one frame of three a radar detection of the same object (within the
+    # radar's 0.5 m noise, at the velocity of the lane's traffic): two sensors agree on a vehicle there,
+    # which confirms the label (reduction.confirm_radar_point); without counting the radar it waits for a
+    # 2-point cluster
+    config = TrackerConfig()
+    config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, confirm_radar_point=radar_point))
+    scene = Scene(curve, Car(0.0, 0.0, 15.0), [])
+    rng = np.random.default_rng(0)
+    tracker = Tracker(curve, config)
+    confirmed, offsets = 0, []
+    n_frames = 31
+    for k in range(n_frames):
+        t = k * DT
+        s = curve.wrap_s(np.array([-93.0 + 16.0 * t]))
+        point = curve.to_cartesian(s, np.array([3.5 + rng.normal(0.0, 0.03)]))
+        frame = scene.frame(t, rng, point)
+        theta = float(curve.frame(s)[1][0])
+        at = to_local(point, (frame.ego.x, frame.ego.y), frame.ego.yaw)[0]
+        detected = at + rng.normal(0.0, 0.5, 2)
+        velocity = 16.0 * np.array([np.cos(theta - frame.ego.yaw), np.sin(theta - frame.ego.yaw)]) + rng.normal(0.0, 0.2, 2)
+        radar = RadarDetections(t=np.array([t]), x=detected[:1], y=detected[1:], vx=velocity[:1], vy=velocity[1:])
+        tracks = tracker.step(Frame(frame.t, frame.ego, frame.lidar, radar if k % 3 == 2 else RadarDetections()))
+        if tracks:
+            confirmed += 1
+            offsets.append(nearest(tracks, curve, point[0])[1])
+    if reported:
+        assert confirmed >= n_frames - 12
+        # the one return lies on the rectangle's near end: the centre about half a car's length beyond it
+        assert np.median(offsets) < config.birth.length
+    else:
+        assert confirmed == 0 and tracker.stats["births_awaiting_support"] >= n_frames - 12
+
+
 def test_car_hidden_for_about_two_seconds_keeps_its_label():
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     # ego in lane 0; a 6 m van A in lane 1 10 m ahead at the ego's speed hides car B in lane 2, which

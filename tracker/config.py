@@ -567,6 +567,8 @@ class ReductionConfig:
     report_road_margin: float | None = 0.0
     #: A label is first reported only after a cluster of at least this many points updated it (default 2).
     confirm_min_points: int = 2
+    #: A radar detection joined to the cluster counts as one of those points (fused; default True).
+    confirm_radar_point: bool = True
     #: A lost track is remembered this long for re-identification (s; default 10.0; 0: off).
     reidentify_window: float = 10.0
     #: Re-identification gate: chi-square quantile, 2 degrees of freedom, of the position distance (default 0.99).
@@ -593,7 +595,7 @@ class ReductionConfig:
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
-        for name in ("same_label_along_length", "reidentify_lane_following"):
+        for name in ("same_label_along_length", "reidentify_lane_following", "confirm_radar_point"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"ReductionConfig.{name} must be true or false; got {getattr(self, name)!r}")
         if self.report_range is not None:

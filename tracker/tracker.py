@@ -663,7 +663,11 @@ class Tracker:
                 self._updated_labels.update(labels_list)
                 if len(comp):
                     size = size[clu]
-                    for lab, n_pts in zip(labels_list, size.tolist()):
+                    support = size
+                    if cfg.reduction.confirm_radar_point:  # a radar velocity the pair's update used is a second sensor's detection
+                        joined = has_velocity[clu] if rejected is None else has_velocity[clu] & ~rejected[inside]
+                        support = size + joined
+                    for lab, n_pts in zip(labels_list, support.tolist()):
                         if n_pts > self._support.get(lab, 0):
                             self._support[lab] = n_pts
                     lam_c = cfg.detection.clutter_rate * cfg.detection.clutter_density
