@@ -45,7 +45,8 @@
    (``tracker.reduction``); and **extract**: components with
    weight above ``reduction.extraction_threshold`` (0.5) whose centre lies within the lidar range
    (``reduction.report_range``) are tracks, a new label only once a cluster of
-   ``reduction.confirm_min_points`` (2) points has updated it, and a newly confirmed track takes the
+   ``reduction.confirm_min_points`` (2) points has updated it (fused, a radar velocity the update used
+   counts as one, ``reduction.confirm_radar_point``), and a newly confirmed track takes the
    label of a track lost within ``reduction.reidentify_window`` whose prediction it matches
    (``tracker.identity``). Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
