@@ -1330,6 +1330,36 @@ def test_extract_orders_by_weight_splits_a_second_component_and_holds_back_the_u
     assert tr._lost.last_updated(20, -1.0) == 1.0 and tr._lost.lost == {}
 
 
+@pytest.mark.parametrize("seen", ["second", "both"])
+def test_a_labels_component_without_points_is_no_split_target_where_another_holds_them(seen):
+    """Label 4 has two components above the threshold, 30 m apart along the road. Where only the lighter
+    one's rectangle holds this frame's lidar points, the heavier is the label's hypothesis that its
+    vehicle went undetected: the label is reported once, at the points, and nothing splits off. Where
+    both hold points, they are two vehicles: the lighter is a split target under a new label
+    (``reduction.drop_unseen_branches``; off, the lighter is a split target in either case)."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tr = Tracker(road, TrackerConfig())
+    state = np.array([40.0, 1.75, 15.0, 0.0, 0.0, 4.8, 2.0, 0.0])
+    means = np.stack([state, state + [30.0, 0, 0, 0, 0, 0, 0, 0]])
+    tr.mixture = Mixture(np.array([0.9, 0.7]), means, np.repeat(np.eye(8)[None] * 0.1, 2, axis=0), np.array([4, 4]))
+    tr._ever_reported = {4}
+    tr._next_label = 20
+    ego = EgoState(0.0, 1.75, 0.0, 15.0, 0.0)
+    rear = np.column_stack([np.full(5, 70.0 - 2.4), np.linspace(-0.8, 0.8, 5)])  # the second's rear, in E
+    tr._points = rear if seen == "second" else np.vstack([rear, rear - [30.0, 0.0]])
+    tracks = tr._extract(1.0, ego)
+    if seen == "second":
+        assert [t.label for t in tracks] == [4] and tracks[0].mean[0] == pytest.approx(70.0)
+        assert tr.stats["unseen_branches_unreported"] == 1 and tr.stats["label_splits"] == 0
+    else:
+        assert [t.label for t in tracks] == [4, 20] and tracks[0].mean[0] == pytest.approx(40.0)
+        assert tr.stats["unseen_branches_unreported"] == 0 and tr.stats["label_splits"] == 1
+    off = Tracker(road, config_with("reduction", drop_unseen_branches=False))
+    off._ever_reported, off._next_label, off._points = {4}, 20, rear
+    off.mixture = Mixture(np.array([0.9, 0.7]), means, np.repeat(np.eye(8)[None] * 0.1, 2, axis=0), np.array([4, 4]))
+    assert [t.label for t in off._extract(1.0, ego)] == [4, 20] and off.stats["label_splits"] == 1
+
+
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])
 def test_the_report_centres_equal_to_vehicle_exactly(name):
     """``Tracker._extract``'s report-range centres (``tracker.tracker._centres``: one compiled call,

@@ -581,6 +581,8 @@ class ReductionConfig:
     reidentify_lane_following: bool = True
     #: Drop a label without a reportable posterior whose centre lies inside a seen vehicle's rectangle (default True).
     drop_inside_updated: bool = True
+    #: Of a label's components above the threshold, one holding none of the frame's lidar points is not reported (no split target) where another holds some (default True).
+    drop_unseen_branches: bool = True
     #: Two labels whose rectangles overlap along the road by more than this are one vehicle (m; default 0.5; None: off).
     absorb_overlap: float | None = 0.5
 
@@ -595,7 +597,7 @@ class ReductionConfig:
         _check("ReductionConfig", "fov_margin", self.fov_margin, low=0.0, unit="m")
         _check("ReductionConfig", "road_margin", self.road_margin, low=0.0, unit="m")
         _check("ReductionConfig", "same_label_distance", self.same_label_distance, low=0.0, unit="m")
-        for name in ("same_label_along_length", "reidentify_lane_following", "confirm_radar_point"):
+        for name in ("same_label_along_length", "reidentify_lane_following", "confirm_radar_point", "drop_unseen_branches"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"ReductionConfig.{name} must be true or false; got {getattr(self, name)!r}")
         if self.report_range is not None:

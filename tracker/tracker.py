@@ -133,7 +133,9 @@ class Tracker:
     (``birth.same_frame``), ``births_shadowed``
     (unexplained clusters with exactly one end in bearing next to another object's shadow, ``measurement.shadow_window``),
     ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
-    ``label_splits``, ``births_awaiting_support`` (components above the extraction threshold not yet
+    ``label_splits``, ``unseen_branches_unreported`` (a label's components above the threshold left out of
+    the report because another of its components holds this frame's points and they hold none),
+    ``births_awaiting_support`` (components above the extraction threshold not yet
     reported: no cluster of ``reduction.confirm_min_points`` points has updated their label),
     ``labels_reidentified`` (newly confirmed tracks that took a lost track's label, ``tracker.identity``),
     ``coasting_tracks_taken_over``, ``tracks_beyond_report_range`` (components above the threshold not
@@ -965,6 +967,10 @@ class Tracker:
             labels = mix.labels.tolist()
         reported = [labels[i] for i in above]
         seen = set(reported)
+        if len(seen) < len(reported) and red.drop_unseen_branches and len(self._points):
+            above = self._without_unseen_branches(above, labels, ego)
+            reported = [labels[i] for i in above]
+            seen = set(reported)
         if len(seen) < len(reported):  # one label per frame: a second component is a split target
             above = self._continuation_first(above, labels)
             reported = [labels[i] for i in above]
@@ -989,6 +995,28 @@ class Tracker:
             return Track.checked_batch(reported, t, means, covs, [weights[i] for i in above])
         return [Track.from_cartesian(int(mix.labels[i]), t, mix.means[i], mix.covs[i], self.road, float(mix.weights[i]),
                                      self.ut) for i in above]
+
+    def _without_unseen_branches(self, above: list[int], labels: list[int], ego: EgoState) -> list[int]:
+        """``above`` without, of each label held by several components, those whose rectangle (grown by
+        ``clustering.track_margin``) holds none of this frame's lidar points while another of the label's
+        does (``reduction.drop_unseen_branches``): the label's hypothesis that its vehicle went
+        undetected, where its points show it elsewhere, is the same vehicle, not a second one (a split
+        target). A far vehicle's label keeps most of its weight in that hypothesis (few expected points,
+        a small detection probability), so it can stay above the threshold metres from the vehicle."""
+        count = Counter(labels[i] for i in above)
+        shared = [k for k, i in enumerate(above) if count[labels[i]] > 1]
+        rect = to_vehicle(self.mixture.means[np.array([above[k] for k in shared], dtype=np.intp)], ego, self.road,
+                          self.config.coordinates)
+        margin = self.config.clustering.track_margin
+        holds = {}
+        for j, k in enumerate(shared):
+            inside = points_in_rectangles(self._points, rect.center[j:j + 1], rect.psi[j:j + 1], rect.length[j:j + 1],
+                                          rect.width[j:j + 1], margin)
+            holds[k] = bool((inside >= 0).any())
+        seen_labels = {labels[above[k]] for k in shared if holds[k]}
+        keep = [i for k, i in enumerate(above) if holds.get(k, True) or labels[i] not in seen_labels]
+        self.stats["unseen_branches_unreported"] += len(above) - len(keep)
+        return keep
 
     def _continuation_first(self, above: list[int], labels: list[int]) -> list[int]:
         """``above`` (in decreasing weight) with, of each label held by several components, the heaviest
