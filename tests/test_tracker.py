@@ -19,9 +19,10 @@ from tracker.transforms import to_global, to_local
 DT = 0.1
 
 
-def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, extra=None, dark=None):
+def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, extra=None, dark=None, radar=None):
     """Run the tracker over the scene; returns the per-frame tracks and the tracker. ``dark = (t0, t1)``
-    (s): frames in that interval have an empty lidar (a blackout; radar and ego kept)."""
+    (s): frames in that interval have an empty lidar (a blackout; radar and ego kept). ``radar(k, frame,
+    rng)``: the detections that replace frame ``k``'s radar."""
     rng = np.random.default_rng(seed)
     tracker = Tracker(scene.road, config)
     out = []
@@ -31,6 +32,8 @@ def run(scene: Scene, config: TrackerConfig, duration: float, seed: int = 0, ext
         frame = scene.frame(t, rng, points)
         if dark is not None and dark[0] <= t < dark[1]:
             frame = Frame(frame.t, frame.ego, np.zeros((0, 2)), frame.radar)
+        if radar is not None:
+            frame = Frame(frame.t, frame.ego, frame.lidar, radar(k, frame, rng))
         out.append(tracker.step(frame))
     return out, tracker
 
@@ -246,24 +249,28 @@ def test_a_lone_return_with_a_radar_detection_on_it_is_confirmed(curve, radar_po
     config = TrackerConfig()
     config = dataclasses.replace(config, reduction=dataclasses.replace(config.reduction, confirm_radar_point=radar_point))
     scene = Scene(curve, Car(0.0, 0.0, 15.0), [])
-    rng = np.random.default_rng(0)
-    tracker = Tracker(curve, config)
-    confirmed, offsets = 0, []
-    n_frames = 31
-    for k in range(n_frames):
-        t = k * DT
-        s = curve.wrap_s(np.array([-93.0 + 16.0 * t]))
-        point = curve.to_cartesian(s, np.array([3.5 + rng.normal(0.0, 0.03)]))
-        frame = scene.frame(t, rng, point)
-        theta = float(curve.frame(s)[1][0])
-        at = to_local(point, (frame.ego.x, frame.ego.y), frame.ego.yaw)[0]
-        detected = at + rng.normal(0.0, 0.5, 2)
-        velocity = 16.0 * np.array([np.cos(theta - frame.ego.yaw), np.sin(theta - frame.ego.yaw)]) + rng.normal(0.0, 0.2, 2)
-        radar = RadarDetections(t=np.array([t]), x=detected[:1], y=detected[1:], vx=velocity[:1], vy=velocity[1:])
-        tracks = tracker.step(Frame(frame.t, frame.ego, frame.lidar, radar if k % 3 == 2 else RadarDetections()))
-        if tracks:
-            confirmed += 1
-            offsets.append(nearest(tracks, curve, point[0])[1])
+
+    def along(t):  # the return's s: 93 m behind at 16 m/s
+        return curve.wrap_s(np.array([-93.0 + 16.0 * t]))
+
+    def lone(t, rng):
+        return curve.to_cartesian(along(t), np.array([3.5 + rng.normal(0.0, 0.03)]))
+
+    def detection(k, frame, rng):  # in one frame of three, at the return, moving with the lane
+        if k % 3 != 2:
+            return RadarDetections()
+        s = along(frame.t)
+        at = to_local(curve.to_cartesian(s, np.array([3.5])), (frame.ego.x, frame.ego.y), frame.ego.yaw)[0]
+        at = at + rng.normal(0.0, 0.5, 2)
+        course = float(curve.frame(s)[1][0]) - frame.ego.yaw
+        velocity = 16.0 * np.array([np.cos(course), np.sin(course)]) + rng.normal(0.0, 0.2, 2)
+        return RadarDetections(t=np.array([frame.t]), x=at[:1], y=at[1:], vx=velocity[:1], vy=velocity[1:])
+
+    frames, tracker = run(scene, config, 3.0, extra=lone, radar=detection)
+    n_frames = len(frames)
+    confirmed = sum(len(tracks) > 0 for tracks in frames)
+    offsets = [nearest(tracks, curve, curve.to_cartesian(along(k * DT), np.array([3.5]))[0])[1]
+               for k, tracks in enumerate(frames) if tracks]
     if reported:
         assert confirmed >= n_frames - 12
         # the one return lies on the rectangle's near end: the centre about half a car's length beyond it
@@ -1341,7 +1348,10 @@ def test_a_labels_component_without_points_is_no_split_target_where_another_hold
     tr = Tracker(road, TrackerConfig())
     state = np.array([40.0, 1.75, 15.0, 0.0, 0.0, 4.8, 2.0, 0.0])
     means = np.stack([state, state + [30.0, 0, 0, 0, 0, 0, 0, 0]])
-    tr.mixture = Mixture(np.array([0.9, 0.7]), means, np.repeat(np.eye(8)[None] * 0.1, 2, axis=0), np.array([4, 4]))
+    def mixture():
+        return Mixture(np.array([0.9, 0.7]), means, np.repeat(np.eye(8)[None] * 0.1, 2, axis=0), np.array([4, 4]))
+
+    tr.mixture = mixture()
     tr._ever_reported = {4}
     tr._next_label = 20
     ego = EgoState(0.0, 1.75, 0.0, 15.0, 0.0)
@@ -1355,8 +1365,7 @@ def test_a_labels_component_without_points_is_no_split_target_where_another_hold
         assert [t.label for t in tracks] == [4, 20] and tracks[0].mean[0] == pytest.approx(40.0)
         assert tr.stats["unseen_branches_unreported"] == 0 and tr.stats["label_splits"] == 1
     off = Tracker(road, config_with("reduction", drop_unseen_branches=False))
-    off._ever_reported, off._next_label, off._points = {4}, 20, rear
-    off.mixture = Mixture(np.array([0.9, 0.7]), means, np.repeat(np.eye(8)[None] * 0.1, 2, axis=0), np.array([4, 4]))
+    off.mixture, off._ever_reported, off._next_label, off._points = mixture(), {4}, 20, rear
     assert [t.label for t in off._extract(1.0, ego)] == [4, 20] and off.stats["label_splits"] == 1
 
 
