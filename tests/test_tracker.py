@@ -749,19 +749,24 @@ def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
         assert np.mean(lateral) < -0.8  # the old model's outward drift, kept as a reference
 
 
+@pytest.mark.parametrize("spread", [1.5, None], ids=["to-spread", "to-zero"])
 @pytest.mark.parametrize("a, sigmas, established", [(2.0, 2.0, True), (0.5, 2.0, False), (2.0, None, False)],
                          ids=["established", "noise", "established-off"])
-def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_time(a, sigmas, established):
+def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_time(a, sigmas, established, spread):
     """``MotionConfig.coast_acceleration_time``: before the prediction, a label that no cluster updated
-    in the last frame has its acceleration scaled by ``exp(-dt / coast)``, its covariance row and column
-    too; an updated label keeps it. An established acceleration (``|a| >= coast_established_sigmas
+    in the last frame has its acceleration scaled by ``f = exp(-dt / coast)``, its covariance row and
+    column too; an updated label keeps it. An established acceleration (``|a| >= coast_established_sigmas
     sd(a)``: 2 m/s^2 +- 0.5) fades with ``coast_established_time`` instead; one within its spread (0.5
-    +- 0.5), or any with the rule off, with ``coast``. The Singer prediction (linear in ``a``, exact
-    through the unscented transform) then multiplies both by ``exp(-dt / acceleration_time)``."""
+    +- 0.5), or any with the rule off, with ``coast``. The acceleration's variance goes to ``f^2 var +
+    (1 - f^2) coast_acceleration_std^2`` (the default 1.5 m/s^2), or to ``f^2 var`` with None. The Singer
+    prediction (linear in ``a``, exact through the unscented transform) then multiplies the mean by
+    ``exp(-dt / acceleration_time)`` and the variance by its square, and adds the same noise as to the
+    updated label's."""
     from tracker.reduction import Mixture
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
-    cfg = config_with("motion", coast_established_sigmas=sigmas)
+    cfg = config_with("motion", coast_established_sigmas=sigmas, coast_acceleration_std=spread)
+    assert TrackerConfig().motion.coast_acceleration_std == 1.5
     dt, tau = 0.1, cfg.motion.acceleration_time
     coast = cfg.motion.coast_established_time if established else cfg.motion.coast_acceleration_time
     assert cfg.motion.coast_established_time > 4 * cfg.motion.coast_acceleration_time  # the two fades differ
@@ -778,9 +783,11 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
     np.testing.assert_allclose(results[True].means[0, 7], a * singer, rtol=1e-9)
     np.testing.assert_allclose(results[False].means[0, 7], a * singer * np.exp(-dt / coast), rtol=1e-9)
     fade = np.exp(-dt / coast)
-    # the (a, a) variance: scaled by fade^2 before the prediction; the noise added is the same in both
+    # the (a, a) variance before the prediction: fade^2 of it, and the rest of the way to spread^2; the
+    # noise the prediction adds is the same in both
+    before = fade**2 * cov[7, 7] + (0.0 if spread is None else (1.0 - fade**2) * spread**2)
     noise = results[True].covs[0, 7, 7] - singer**2 * cov[7, 7]
-    np.testing.assert_allclose(results[False].covs[0, 7, 7], singer**2 * fade**2 * cov[7, 7] + noise, rtol=1e-9)
+    np.testing.assert_allclose(results[False].covs[0, 7, 7], singer**2 * before + noise, rtol=1e-9)
 
 
 @pytest.mark.parametrize("distance, tracks", [(None, 1), (2.0, 2)], ids=["default-3m", "2m"])

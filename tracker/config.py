@@ -165,6 +165,8 @@ class MotionConfig:
     coast_established_sigmas: float | None = 2.0
     #: Time constant with which an established acceleration fades while coasting (s; default 4.0).
     coast_established_time: float = 4.0
+    #: ... and its variance toward the spread of accelerations in traffic, not toward certainty of none (m/s^2; default 1.5; None: toward 0).
+    coast_acceleration_std: float | None = 1.5
     #: Jerk density of a label that is not manoeuvring (m s^-2.5; default 0.3; None: ``jerk`` always).
     quiet_jerk: float | None = 0.3
     #: A correction of ``s`` beyond this many expected standard deviations flags a manoeuvre (default 2.0).
@@ -196,6 +198,8 @@ class MotionConfig:
         if self.coast_established_sigmas is not None:
             _check("MotionConfig", "coast_established_sigmas", self.coast_established_sigmas, low=0.0)
         _check("MotionConfig", "coast_established_time", self.coast_established_time, low=0.0, low_open=True, unit="s")
+        if self.coast_acceleration_std is not None:
+            _check("MotionConfig", "coast_acceleration_std", self.coast_acceleration_std, low=0.0, unit="m/s^2")
         _check("MotionConfig", "jerk", self.jerk, low=0.0, unit="m s^-2.5")
         _check("MotionConfig", "residual_accel", self.residual_accel, low=0.0, unit="m s^-1.5")
         _check("MotionConfig", "acceleration_std", self.acceleration_std, low=0.0, low_open=True, unit="m/s^2")

@@ -296,11 +296,14 @@ class Tracker:
         last frame (``updated``) first have their acceleration relaxed by ``exp(-dt /
         coast_acceleration_time)`` (mean, and the covariance's row and column: the linear map ``a -> f
         a``), or by ``exp(-dt / coast_established_time)`` where it is established (``|a| >=
-        coast_established_sigmas sd(a)``). With ``MotionConfig.quiet_jerk`` the jerk is chosen per
+        coast_established_sigmas sd(a)``); their acceleration's variance relaxes with the same factor ``f``
+        toward ``MotionConfig.coast_acceleration_std`` squared (``f^2 var + (1 - f^2) std^2``, a lower
+        bound of the variance after the scaling). With ``MotionConfig.quiet_jerk`` the jerk is chosen per
         component (``_manoeuvre_jerk``)."""
         mix = self.mixture
         coast = self.config.motion.coast_acceleration_time
         relax = None  # the acceleration's factor per component (applied in the prediction's first step)
+        spread = None  # the least variance of each coasting component's relaxed acceleration
         if self.dim == 8 and coast is not None and dt > 0.0 and updated is not None and len(mix):
             idle = ~_labels_in(mix.labels, updated)
             if idle.any():
@@ -313,6 +316,9 @@ class Tracker:
                     f[established] = math.exp(-dt / motion.coast_established_time)
                 relax = np.ones(len(mix))
                 relax[idle] = f
+                if motion.coast_acceleration_std is not None:  # ... toward the spread of accelerations, not to certainty
+                    spread = np.full(len(mix), -np.inf)
+                    spread[idle] = f**2 * mix.covs[idle, 7, 7] + (1.0 - f**2) * motion.coast_acceleration_std**2
         pending_m, pending_p = self._pending
         if len(pending_m):  # last frame's cluster births join before the prediction (born at t_{k-1})
             mix = self._with_births(mix, pending_m, pending_p)
@@ -320,9 +326,13 @@ class Tracker:
             self._pending = (np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)))
             if relax is not None:
                 relax = np.concatenate([relax, np.ones(len(pending_m))])
+            if spread is not None:
+                spread = np.concatenate([spread, np.full(len(pending_m), -np.inf)])
         jerk = floor = None
         if self.dim == 8 and self.config.motion.quiet_jerk is not None:
             jerk, floor = self._manoeuvre_jerk(mix)
+        if spread is not None:
+            floor = spread if floor is None else np.maximum(floor, spread)
         if dt > 0.0 and len(mix):
             means, covs = predict(self.ut, self.motion, mix.means, mix.covs, dt, jerk, relax, floor)
             mix = Mixture(mix.weights * self.config.detection.p_survival, means, covs, mix.labels)
