@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -382,10 +383,13 @@ def test_car_accelerating_while_hidden_is_followed_with_the_acceleration_state(a
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=1.0)], radar=True)
     # the motion model alone carries B while hidden: no radar-only updates (this scene's radar reports
-    # B's centre, not its nearest point; MeasurementConfig.radar_only_update, tests/test_radar_update.py)
+    # B's centre, not its nearest point; MeasurementConfig.radar_only_update, tests/test_radar_update.py),
+    # and the coasting track is reported however uncertain (ReductionConfig.report_position_std None:
+    # the prediction is under test, not the reporting)
     config = config_with("measurement", radar_only_update=False)
     config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, acceleration=acceleration,
-                                                                    acceleration_time=6.0, coast_acceleration_time=coast))
+                                                                    acceleration_time=6.0, coast_acceleration_time=coast),
+                                 reduction=dataclasses.replace(config.reduction, report_position_std=None))
     frames, tracker = run(scene, config, 8.0)
     assert tracker.mixture.means.shape[1] == (8 if acceleration else 7)
     assert all(tr.mean.shape == (7,) and tr.cov.shape == (7, 7) for tracks in frames for tr in tracks)
@@ -405,14 +409,16 @@ def test_an_established_acceleration_carries_a_hidden_car_further():
     # radar-only updates: this scene's radar reports centres). Its acceleration was established
     # (|a| >= 2 sd(a)), so with MotionConfig.coast_established_sigmas it fades with the 4 s time
     # constant instead of 0.5 s: the coasting track stays nearer B and B is without a track for fewer
-    # frames (9 against 15)
+    # frames (9 against 15); the coasting track is reported however uncertain (report_position_std None:
+    # the prediction is under test)
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     scene = Scene(road, Car(100.0, -3.5, 20.0),
                   [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=2.0)], radar=True)
     out = {}
     for sigmas in (2.0, None):
         config = config_with("measurement", radar_only_update=False)
-        config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, coast_established_sigmas=sigmas))
+        config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, coast_established_sigmas=sigmas),
+                                     reduction=dataclasses.replace(config.reduction, report_position_std=None))
         frames, _ = run(scene, config, 8.0)
         errors = np.array([min((abs(tr.s - scene.cars[1].s_at(k * DT)) for tr in tracks if abs(tr.n - 3.5) < 2.0),
                                default=np.inf) for k, tracks in enumerate(frames)])
@@ -426,14 +432,16 @@ def test_a_hidden_car_keeps_pace_with_the_seen_car_ahead_of_it_in_its_lane():
     # beside the ego from about 1.5 to 6.5 s, C stays in view (no radar-only updates: this scene's radar
     # reports centres). With the lane-flow prior (MotionConfig.flow_speed_std, tracker.flow) B's coasting
     # track is pulled towards C's speed and is never lost; without it, B is without a track for 19
-    # frames, and at 4 s the track is 3.7 m behind B against 1.9 m with the prior
+    # frames, and at 4 s the track is 3.7 m behind B against 1.9 m with the prior (the coasting track
+    # reported however uncertain, report_position_std None: the prediction is under test)
     road = Road.from_curvature([(3000.0, 0.0, 0.0)], lanes=3, lane_width=3.5)
     cars = [Car(110.0, 0.0, 20.0, length=6.0, width=2.2), Car(140.0, 3.5, 12.0, accel=2.0), Car(156.0, 3.5, 12.0, accel=2.0)]
     scene = Scene(road, Car(100.0, -3.5, 20.0), cars, radar=True)
     out = {}
     for std in (TrackerConfig().motion.flow_speed_std, None):
         config = config_with("measurement", radar_only_update=False)
-        config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, flow_speed_std=std))
+        config = dataclasses.replace(config, motion=dataclasses.replace(config.motion, flow_speed_std=std),
+                                     reduction=dataclasses.replace(config.reduction, report_position_std=None))
         frames, tracker = run(scene, config, 8.0)
         errors = np.array([min((abs(tr.s - cars[1].s_at(k * DT)) for tr in tracks
                                 if abs(tr.n - 3.5) < 2.0 and abs(tr.s - cars[1].s_at(k * DT)) < 8.0), default=np.inf)
@@ -1314,6 +1322,34 @@ def test_candidate_pairs_equal_the_oracle():
             np.testing.assert_array_equal(a, b)
         if p_d[0] > 0 and (owned[0] < 0 or owned[0] == group[0]):
             assert (0, 0) in set(zip(got[0].tolist(), got[1].tolist()))  # on the boundary: in
+
+
+@pytest.mark.parametrize("limit", [3.0, None], ids=["3m", "off"])
+def test_a_track_is_reported_only_while_its_position_is_known_to_report_position_std(limit):
+    """``ReductionConfig.report_position_std``: of two reported labels 20 m apart, one whose position
+    std (the root of the trace of the ``s, n`` block) has grown to 3.2 m (2.9 m along, 1.4 m across: a
+    car coasting behind another for seconds) is not reported, and counted, while the other (0.3 m) is;
+    its components and label stay, and once an update shrinks the block to 2.9 m (2.6 along, 1.4 across)
+    it is reported again under its label. With None both are reported throughout."""
+    from tracker.reduction import Mixture
+
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2, lane_width=3.5)
+    tr = Tracker(road, config_with("reduction", report_position_std=limit))
+    state = np.array([40.0, 1.75, 15.0, 0.0, 0.0, 4.8, 2.0, 0.0])
+    means = np.stack([state, state + [20.0, 0, 0, 0, 0, 0, 0, 0]])
+    covs = np.repeat(np.eye(8)[None] * 0.01, 2, axis=0)
+    covs[0, 0, 0], covs[0, 1, 1] = 0.2**2, 0.2**2
+    covs[1, 0, 0], covs[1, 1, 1] = 2.9**2, 1.4**2
+    assert math.sqrt(covs[1, 0, 0] + covs[1, 1, 1]) > 3.0 > math.sqrt(2.6**2 + 1.4**2)
+    tr.mixture = Mixture(np.array([0.9, 0.8]), means, covs, np.array([4, 5]))
+    tr._ever_reported = {4, 5}
+    ego = EgoState(0.0, 1.75, 0.0, 15.0, 0.0)
+    first = [t.label for t in tr._extract(1.0, ego)]
+    assert first == ([4] if limit is not None else [4, 5])
+    assert tr.stats["tracks_uncertain_unreported"] == (1 if limit is not None else 0)
+    assert tr.mixture.labels.tolist() == [4, 5]  # kept, unreported
+    tr.mixture.covs[1, 0, 0] = 2.6**2
+    assert [t.label for t in tr._extract(1.1, ego)] == [4, 5]
 
 
 def test_extract_orders_by_weight_splits_a_second_component_and_holds_back_the_unsupported():

@@ -569,6 +569,8 @@ class ReductionConfig:
     report_range: float | None = 0.0
     #: Tracks are reported while their centre is within the road's edges widened by this (m; default 0.0: on the road; None: all, up to ``road_margin``).
     report_road_margin: float | None = 0.0
+    #: Tracks are reported while their position's std (root of the trace of its 2x2 block) is at most this (m; default 3.0; None: all).
+    report_position_std: float | None = 3.0
     #: A label is first reported only after a cluster of at least this many points updated it (default 2).
     confirm_min_points: int = 2
     #: A radar detection joined to the cluster counts as one of those points (fused; default True).
@@ -608,6 +610,8 @@ class ReductionConfig:
             _check("ReductionConfig", "report_range", self.report_range, unit="m")
         if self.report_road_margin is not None:
             _check("ReductionConfig", "report_road_margin", self.report_road_margin, low=0.0, unit="m")
+        if self.report_position_std is not None:
+            _check("ReductionConfig", "report_position_std", self.report_position_std, low=0.0, low_open=True, unit="m")
         _check_int("ReductionConfig", "confirm_min_points", self.confirm_min_points, 1)
         _check("ReductionConfig", "reidentify_window", self.reidentify_window, low=0.0, unit="s")
         _check("ReductionConfig", "reidentify_probability", self.reidentify_probability, low=0.0, high=1.0,

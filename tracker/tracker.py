@@ -141,7 +141,9 @@ class Tracker:
     ``coasting_tracks_taken_over``, ``tracks_beyond_report_range`` (components above the threshold not
     reported because their centre lies beyond ``detection.lidar_range + reduction.report_range``),
     ``tracks_off_road_unreported`` (components above the threshold not reported because their centre lies
-    beyond a road edge by more than ``reduction.report_road_margin``),
+    beyond a road edge by more than ``reduction.report_road_margin``), ``tracks_uncertain_unreported``
+    (components above the threshold not reported because their position's std exceeds
+    ``reduction.report_position_std``),
     ``tracks_kept_below_threshold`` (tracks reported under ``reduction.keep_threshold``'s hysteresis).
     ``last_events`` (dict of label lists) says what happened to the tracks in the
     last ``step`` (``_record_events``), for diagnostics (``eot inspect``).
@@ -929,7 +931,7 @@ class Tracker:
         before its other components; ``_reported`` their mixture indices): the components
         above ``extraction_threshold`` (and those ``_kept_below_threshold``) whose centre lies within
         ``detection.lidar_range + report_range`` of the ego and within the road's edges widened by
-        ``report_road_margin``, of labels reported before or confirmed by a
+        ``report_road_margin``, whose position's std is at most ``report_position_std``, of labels reported before or confirmed by a
         cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
         component relabelled (a split target); the lost-track store observes them. The few components'
         weights and labels are handled as Python lists (one numpy call per array, not per test)."""
@@ -952,6 +954,11 @@ class Tracker:
             on_road = ((n >= right) & (n <= left)).tolist()
             self.stats["tracks_off_road_unreported"] += on_road.count(False)
             above = [i for i, ok in zip(above, on_road) if ok]
+        if above and red.report_position_std is not None:  # where it is known: a position to report
+            block = mix.covs[np.array(above, dtype=np.intp), :2, :2]
+            known = (block[:, 0, 0] + block[:, 1, 1] <= red.report_position_std**2).tolist()
+            self.stats["tracks_uncertain_unreported"] += known.count(False)
+            above = [i for i, ok in zip(above, known) if ok]
         # decreasing weight, ties in index order (a stable sort's reverse keeps equal keys in order)
         above.sort(key=weights.__getitem__, reverse=True)
         # a label not reported before needs the support of a large enough cluster (confirm_min_points)
