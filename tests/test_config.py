@@ -20,7 +20,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.reduction.extraction_threshold == 0.5
     assert c.reduction.confirm_min_points == 2 and c.measurement.single_point_min_apparent == 0.25
     assert c.reduction.reidentify_window == 10.0 and c.reduction.report_range == 0.0
-    assert c.reduction.report_road_margin == 0.0 and c.reduction.report_position_std == 3.0
+    assert c.reduction.report_road_margin == 0.0 and c.reduction.report_position_std == 5.0
     assert c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.15)
     assert c.motion.coast_acceleration_time == 0.5 and c.motion.coast_acceleration_std == 1.5
     assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)

@@ -1324,12 +1324,12 @@ def test_candidate_pairs_equal_the_oracle():
             assert (0, 0) in set(zip(got[0].tolist(), got[1].tolist()))  # on the boundary: in
 
 
-@pytest.mark.parametrize("limit", [3.0, None], ids=["3m", "off"])
+@pytest.mark.parametrize("limit", [5.0, None], ids=["5m", "off"])
 def test_a_track_is_reported_only_while_its_position_is_known_to_report_position_std(limit):
     """``ReductionConfig.report_position_std``: of two reported labels 20 m apart, one whose position
-    std (the root of the trace of the ``s, n`` block) has grown to 3.2 m (2.9 m along, 1.4 m across: a
+    std (the root of the trace of the ``s, n`` block) has grown to 5.1 m (4.6 m along, 2.2 m across: a
     car coasting behind another for seconds) is not reported, and counted, while the other (0.3 m) is;
-    its components and label stay, and once an update shrinks the block to 2.9 m (2.6 along, 1.4 across)
+    its components and label stay, and once an update shrinks the block to 4.8 m (4.3 along, 2.2 across)
     it is reported again under its label. With None both are reported throughout."""
     from tracker.reduction import Mixture
 
@@ -1339,8 +1339,8 @@ def test_a_track_is_reported_only_while_its_position_is_known_to_report_position
     means = np.stack([state, state + [20.0, 0, 0, 0, 0, 0, 0, 0]])
     covs = np.repeat(np.eye(8)[None] * 0.01, 2, axis=0)
     covs[0, 0, 0], covs[0, 1, 1] = 0.2**2, 0.2**2
-    covs[1, 0, 0], covs[1, 1, 1] = 2.9**2, 1.4**2
-    assert math.sqrt(covs[1, 0, 0] + covs[1, 1, 1]) > 3.0 > math.sqrt(2.6**2 + 1.4**2)
+    covs[1, 0, 0], covs[1, 1, 1] = 4.6**2, 2.2**2
+    assert math.sqrt(covs[1, 0, 0] + covs[1, 1, 1]) > 5.0 > math.sqrt(4.3**2 + 2.2**2)
     tr.mixture = Mixture(np.array([0.9, 0.8]), means, covs, np.array([4, 5]))
     tr._ever_reported = {4, 5}
     ego = EgoState(0.0, 1.75, 0.0, 15.0, 0.0)
@@ -1348,7 +1348,7 @@ def test_a_track_is_reported_only_while_its_position_is_known_to_report_position
     assert first == ([4] if limit is not None else [4, 5])
     assert tr.stats["tracks_uncertain_unreported"] == (1 if limit is not None else 0)
     assert tr.mixture.labels.tolist() == [4, 5]  # kept, unreported
-    tr.mixture.covs[1, 0, 0] = 2.6**2
+    tr.mixture.covs[1, 0, 0] = 4.3**2
     assert [t.label for t in tr._extract(1.1, ego)] == [4, 5]
 
 

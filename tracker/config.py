@@ -569,8 +569,8 @@ class ReductionConfig:
     report_range: float | None = 0.0
     #: Tracks are reported while their centre is within the road's edges widened by this (m; default 0.0: on the road; None: all, up to ``road_margin``).
     report_road_margin: float | None = 0.0
-    #: Tracks are reported while their position's std (root of the trace of its 2x2 block) is at most this (m; default 3.0; None: all).
-    report_position_std: float | None = 3.0
+    #: Tracks are reported while their position's std (root of the trace of its 2x2 block) is at most this (m; default 5.0; None: all).
+    report_position_std: float | None = 5.0
     #: A label is first reported only after a cluster of at least this many points updated it (default 2).
     confirm_min_points: int = 2
     #: A radar detection joined to the cluster counts as one of those points (fused; default True).
