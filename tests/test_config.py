@@ -22,7 +22,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.reduction.reidentify_window == 10.0 and c.reduction.report_range == 0.0
     assert c.reduction.report_road_margin == 0.0 and c.reduction.report_position_std == 5.0
     assert c.motion.acceleration and (c.motion.acceleration_time, c.motion.jerk, c.motion.residual_accel) == (6.0, 0.7, 0.15)
-    assert c.motion.coast_acceleration_time == 0.5 and c.motion.coast_acceleration_std == 1.5
+    assert c.motion.coast_acceleration_time == 0.5 and c.motion.coast_acceleration_std == 1.0
     assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
     assert c.motion.manoeuvre_memory == 0.5

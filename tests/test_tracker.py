@@ -757,7 +757,7 @@ def test_a_car_half_hidden_behind_another_is_not_pushed_outward(shadow_window):
         assert np.mean(lateral) < -0.8  # the old model's outward drift, kept as a reference
 
 
-@pytest.mark.parametrize("spread", [1.5, None], ids=["to-spread", "to-zero"])
+@pytest.mark.parametrize("spread", [1.0, None], ids=["to-spread", "to-zero"])
 @pytest.mark.parametrize("a, sigmas, established", [(2.0, 2.0, True), (0.5, 2.0, False), (2.0, None, False)],
                          ids=["established", "noise", "established-off"])
 def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_time(a, sigmas, established, spread):
@@ -766,7 +766,7 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
     column too; an updated label keeps it. An established acceleration (``|a| >= coast_established_sigmas
     sd(a)``: 2 m/s^2 +- 0.5) fades with ``coast_established_time`` instead; one within its spread (0.5
     +- 0.5), or any with the rule off, with ``coast``. The acceleration's variance goes to ``f^2 var +
-    (1 - f^2) coast_acceleration_std^2`` (the default 1.5 m/s^2), or to ``f^2 var`` with None. The Singer
+    (1 - f^2) coast_acceleration_std^2`` (the default 1.0 m/s^2), or to ``f^2 var`` with None. The Singer
     prediction (linear in ``a``, exact through the unscented transform) then multiplies the mean by
     ``exp(-dt / acceleration_time)`` and the variance by its square, and adds the same noise as to the
     updated label's."""
@@ -774,7 +774,7 @@ def test_the_acceleration_of_a_track_no_cluster_updated_fades_with_the_coast_tim
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
     cfg = config_with("motion", coast_established_sigmas=sigmas, coast_acceleration_std=spread)
-    assert TrackerConfig().motion.coast_acceleration_std == 1.5
+    assert TrackerConfig().motion.coast_acceleration_std == 1.0
     dt, tau = 0.1, cfg.motion.acceleration_time
     coast = cfg.motion.coast_established_time if established else cfg.motion.coast_acceleration_time
     assert cfg.motion.coast_established_time > 4 * cfg.motion.coast_acceleration_time  # the two fades differ

@@ -165,8 +165,8 @@ class MotionConfig:
     coast_established_sigmas: float | None = 2.0
     #: Time constant with which an established acceleration fades while coasting (s; default 4.0).
     coast_established_time: float = 4.0
-    #: ... and its variance toward the spread of accelerations in traffic, not toward certainty of none (m/s^2; default 1.5; None: toward 0).
-    coast_acceleration_std: float | None = 1.5
+    #: ... and its variance toward the spread of accelerations in traffic, not toward certainty of none (m/s^2; default 1.0; None: toward 0).
+    coast_acceleration_std: float | None = 1.0
     #: Jerk density of a label that is not manoeuvring (m s^-2.5; default 0.3; None: ``jerk`` always).
     quiet_jerk: float | None = 0.3
     #: A correction of ``s`` beyond this many expected standard deviations flags a manoeuvre (default 2.0).
