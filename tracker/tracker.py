@@ -318,7 +318,7 @@ class Tracker:
                     f[established] = math.exp(-dt / motion.coast_established_time)
                 relax = np.ones(len(mix))
                 relax[idle] = f
-                if motion.coast_acceleration_std is not None:  # ... toward the spread of accelerations, not to certainty
+                if motion.coast_acceleration_std is not None:  # toward traffic's spread, not to certainty
                     spread = np.full(len(mix), -np.inf)
                     spread[idle] = f**2 * mix.covs[idle, 7, 7] + (1.0 - f**2) * motion.coast_acceleration_std**2
         pending_m, pending_p = self._pending
@@ -931,8 +931,8 @@ class Tracker:
         before its other components; ``_reported`` their mixture indices): the components
         above ``extraction_threshold`` (and those ``_kept_below_threshold``) whose centre lies within
         ``detection.lidar_range + report_range`` of the ego and within the road's edges widened by
-        ``report_road_margin``, whose position's std is at most ``report_position_std``, of labels reported before or confirmed by a
-        cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
+        ``report_road_margin``, whose position's std is at most ``report_position_std``, of labels
+        reported before or confirmed by a cluster of ``confirm_min_points`` points, re-identified (``_reidentify``), a label's second
         component relabelled (a split target); the lost-track store observes them. The few components'
         weights and labels are handled as Python lists (one numpy call per array, not per test)."""
         mix = self.mixture
