@@ -258,6 +258,8 @@ def summary_table(metrics: dict) -> str:
         ("position RMSE (m)", _fmt_value(m.get("pos_rmse_m"))),
         ("  while visible / while hidden (m)",
          f"{_fmt_value(m.get('pos_rmse_seen_m'))} / {_fmt_value(m.get('pos_rmse_hidden_m'))}"),
+        ("  visible: along / across the heading (m)",
+         f"{_fmt_value(m.get('pos_rmse_seen_along_m'))} / {_fmt_value(m.get('pos_rmse_seen_across_m'))}"),
         ("yaw RMSE (deg)", _fmt_value(m.get("yaw_rmse_deg"))),
         ("speed RMSE (m/s)", _fmt_value(m.get("speed_rmse_mps"))),
         ("length / width RMSE (m)", f"{_fmt_value(m.get('length_rmse_m'))} / {_fmt_value(m.get('width_rmse_m'))}"),

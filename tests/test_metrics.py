@@ -109,6 +109,10 @@ def test_matched_errors_and_cardinality():
     assert e.position[0] == pytest.approx(0.5)
     assert e.yaw[0] == pytest.approx(2 * np.pi - 6.2)
     assert (e.speed[0], e.length[0], e.width[0]) == pytest.approx((1.0, -0.3, 0.2))
+    # the offset (0.3, 0.4) in the frame of a vehicle heading 3.1 rad: along its heading and to its left
+    assert e.along[0] == pytest.approx(0.3 * np.cos(3.1) + 0.4 * np.sin(3.1))
+    assert e.across[0] == pytest.approx(0.4 * np.cos(3.1) - 0.3 * np.sin(3.1))
+    assert np.hypot(e.along[0], e.across[0]) == pytest.approx(e.position[0])
     assert cardinality_error(3, 1) == -2
     np.testing.assert_allclose(euclidean_distances(truth[:, :2], est[:, :2]), [[0.5]])
     # a point tracker (no extent): length and width errors are missing, the others unchanged

@@ -123,6 +123,12 @@ def test_position_error_is_split_by_visibility():
     m = result.metrics
     assert m["pos_rmse_seen_m"] == pytest.approx(0.5, abs=1e-6) and m["pos_rmse_hidden_m"] == pytest.approx(0.5, abs=1e-6)
     assert 0 < m["matched_pairs_hidden"] < m["matched_pairs"]
+    # an offset along the road normal on vehicles that follow their lanes: all of it across the heading
+    assert m["pos_rmse_seen_across_m"] == pytest.approx(0.5, abs=0.01) and m["pos_rmse_seen_along_m"] < 0.05
+    assert m["pos_rmse_seen_along_m"] ** 2 + m["pos_rmse_seen_across_m"] ** 2 == pytest.approx(m["pos_rmse_seen_m"] ** 2)
+    # and along the road: all of it along the heading
+    m = _oracle_run(spec, duration=4.0, offset=np.array([0.7, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])).metrics
+    assert m["pos_rmse_seen_along_m"] == pytest.approx(0.7, abs=0.03) and m["pos_rmse_seen_across_m"] < 0.05
     # each vehicle off by 0.1 m per unit of its id: the split RMSEs are those of the visible and of the
     # hidden (frame, vehicle) pairs' offsets, which differ (a misaligned visibility flag would mix them)
     result = _oracle_run(spec, duration=4.0, offset_of=_lateral_offset)

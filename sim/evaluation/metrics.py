@@ -135,13 +135,17 @@ def gaussian_wasserstein(truth: np.ndarray, estimate: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class MatchedErrors:
     """Errors of assigned (truth, estimate) pairs, one entry per pair: position (m), yaw (rad,
-    wrapped, estimate - truth), speed (m/s), length and width (m), all estimate minus truth."""
+    wrapped, estimate - truth), speed (m/s), length and width (m), all estimate minus truth; the
+    position error's parts along and across the vehicle's heading (m, signed: ahead of the vehicle's
+    centre, to its left), ``along^2 + across^2 = position^2``."""
 
     position: np.ndarray
     yaw: np.ndarray
     speed: np.ndarray
     length: np.ndarray
     width: np.ndarray
+    along: np.ndarray
+    across: np.ndarray
 
 
 def matched_errors(truth: np.ndarray, estimate: np.ndarray, result: GospaResult, *, extent: bool = True) -> MatchedErrors:
@@ -152,12 +156,16 @@ def matched_errors(truth: np.ndarray, estimate: np.ndarray, result: GospaResult,
     t = np.asarray(truth, dtype=float).reshape(-1, 7)[result.truth_index]
     e = np.asarray(estimate, dtype=float).reshape(-1, 7)[result.estimate_index]
     none = np.zeros(0)
+    d = e[:, :2] - t[:, :2]
+    cos, sin = np.cos(t[:, 3]), np.sin(t[:, 3])
     return MatchedErrors(
-        position=np.linalg.norm(e[:, :2] - t[:, :2], axis=1),
+        position=np.linalg.norm(d, axis=1),
         yaw=np.asarray(wrap_angle(e[:, 3] - t[:, 3])).reshape(-1),
         speed=e[:, 2] - t[:, 2],
         length=e[:, 5] - t[:, 5] if extent else none,
         width=e[:, 6] - t[:, 6] if extent else none,
+        along=d[:, 0] * cos + d[:, 1] * sin,
+        across=d[:, 1] * cos - d[:, 0] * sin,
     )
 
 

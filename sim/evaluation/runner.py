@@ -31,8 +31,8 @@ its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` 
 GOSPA-assigned (truth, track) pair of every frame (``None`` when there was none); ``pos_rmse_seen_m``
 and ``pos_rmse_hidden_m`` split the position RMSE by whether the vehicle is visible in the frame (a
 track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidden`` counts those
-pairs); ``yaw`` errors are
-wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
+pairs), and ``pos_rmse_seen_along_m``, ``pos_rmse_seen_across_m`` split the seen one along and across
+the vehicle's heading; ``yaw`` errors are wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
 ``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps``, ``oncoming_id_switches`` (``oncoming_metrics``):
 the same measures over the vehicles driving against ``s`` (two-way roads; ``None`` without any), over
 ``oncoming_matched_pairs`` matched pairs.
@@ -454,13 +454,19 @@ def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
     return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
 
 
-def _position_by_visibility(pos: list[np.ndarray], seen: list[np.ndarray]) -> dict[str, float | int | None]:
+def _position_by_visibility(pos: list[np.ndarray], seen: list[np.ndarray], along: list[np.ndarray],
+                            across: list[np.ndarray]) -> dict[str, float | int | None]:
     """``pos_rmse_m`` split by whether the matched vehicle is visible in that frame:
     ``pos_rmse_seen_m`` (tracking while the sensors see it), ``pos_rmse_hidden_m`` (a track kept
-    through an occlusion: prediction only) and ``matched_pairs_hidden``."""
+    through an occlusion: prediction only) and ``matched_pairs_hidden``; the seen one also split
+    along and across the vehicle's heading, ``pos_rmse_seen_along_m`` and ``pos_rmse_seen_across_m``
+    (their squares add up to ``pos_rmse_seen_m``'s)."""
     err = np.concatenate(pos) if pos else np.zeros(0)
     vis = np.concatenate(seen).astype(bool) if seen else np.zeros(0, dtype=bool)
-    return {"pos_rmse_seen_m": _rmse([err[vis]]), "pos_rmse_hidden_m": _rmse([err[~vis]]),
+    lon = np.concatenate(along) if along else np.zeros(0)
+    lat = np.concatenate(across) if across else np.zeros(0)
+    return {"pos_rmse_seen_m": _rmse([err[vis]]), "pos_rmse_seen_along_m": _rmse([lon[vis]]),
+            "pos_rmse_seen_across_m": _rmse([lat[vis]]), "pos_rmse_hidden_m": _rmse([err[~vis]]),
             "matched_pairs_hidden": int((~vis).sum())}
 
 
@@ -522,6 +528,8 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
     """The summary metrics (metrics.json, docs/architecture.md keys and more) of scored frames. ``extent=False``
     (a point tracker): ``length_rmse_m`` and ``width_rmse_m`` are ``None`` (missing, not zero)."""
     pos: list[np.ndarray] = []
+    along: list[np.ndarray] = []
+    across: list[np.ndarray] = []
     seen: list[np.ndarray] = []  # per matched pair: the vehicle is visible in this frame
     yaw: list[np.ndarray] = []
     speed: list[np.ndarray] = []
@@ -531,6 +539,8 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         scored_state = f.truth_state[f.scored]
         err = matched_errors(scored_state, f.track_state, f.gospa, extent=extent)
         pos.append(err.position)
+        along.append(err.along)
+        across.append(err.across)
         seen.append(f.visible[f.scored][np.asarray(f.gospa.truth_index, dtype=int)])
         yaw.append(err.yaw)
         speed.append(err.speed)
@@ -550,7 +560,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "cardinality_error_mean": _mean(np.abs(n_est - n_truth)),
         "cardinality_bias_mean": _mean(n_est - n_truth),
         "pos_rmse_m": _rmse(pos),
-        **_position_by_visibility(pos, seen),
+        **_position_by_visibility(pos, seen, along, across),
         "yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
         "length_rmse_m": _rmse(length),
         "width_rmse_m": _rmse(width),
