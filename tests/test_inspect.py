@@ -181,7 +181,7 @@ def _folder(tmp_path, truth, tracks, *, frames=11, dt=0.1, visible=None):
         ts.append([t, len(ids), len(ids), len(shown), g.gospa, g.localization, g.missed, g.false, g.gospa,
                    g.localization, g.missed, g.false, 1.0, 0.0, 0.0, 0.0, 0.0])
         for (lb, x, y), a in zip(shown, assigned):
-            tk.append([t, lb, 1.0, x, y, 20.0, 0.0, 0.0, 4.5, 2.0, x, x, y, 0.0, 0.0, int(a)])
+            tk.append([t, lb, 1.0, x, y, 20.0, 0.0, 0.0, 4.5, 2.0, x, x, y, 0.0, 0.0, int(a), 0])
         for v in ids:
             vis = visible.get(v, True)
             tr.append([t, v, *truth[v], 0.0, 20.0, 0.0, 4.5, 2.0, truth[v][0], truth[v][1], 0.0, 1, int(vis), 20 if vis else 0])

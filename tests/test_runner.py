@@ -10,7 +10,8 @@ import pytest
 from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
-from sim.evaluation.runner import TIMING_KEYS, against_s, deterministic_metrics, normalize_tracker_events, run_scenario, truth_set
+from sim.evaluation.runner import (TIMING_KEYS, against_s, deterministic_metrics, edge_set, normalize_tracker_events,
+                                   run_scenario, score_frame, truth_set)
 from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from sim.world.scenario import ScenarioError, parse_scenario
 from sim.world.truth import EgoPose, Snapshot
@@ -160,6 +161,50 @@ def test_truth_set_is_range_and_road():
     bare = Snapshot(t=0.0, ego=snap.ego, ids=snap.ids, xy=snap.xy, yaw=snap.yaw, v=snap.v, yaw_rate=snap.yaw_rate,
                     length=snap.length, width=snap.width)
     assert truth_set(bare, road, 100.0).tolist() == [True, False, False, True, True]
+
+
+def test_edge_vehicles_are_off_the_road_with_their_body_on_it():
+    road = Road.from_curvature([(300.0, 0.0, 0.0)], start=(-100.0, 0.0, 0.0), lanes=2, lane_width=3.5)
+    # road bounds n in [-3.5, 3.5]; cars 4.8 x 2.0: on the road, centre 0.5 m beyond the edge (body 0.5 m
+    # onto it), 1.5 m beyond (body clear of it), and crossing (xi = 90 deg) with its centre 2 m beyond:
+    # its half length 2.4 m reaches 0.4 m onto the road
+    snap = _snapshot([[10.0, 0.0], [10.0, 4.0], [20.0, -5.0], [30.0, 5.5]], [110.0, 110.0, 120.0, 130.0],
+                     [0.0, 4.0, -5.0, 5.5])
+    snap = Snapshot(t=0.0, ego=snap.ego, ids=snap.ids, xy=snap.xy, yaw=np.array([0.0, 0.0, 0.0, np.pi / 2]), v=snap.v,
+                    yaw_rate=snap.yaw_rate, length=snap.length, width=snap.width, s=snap.s, n=snap.n,
+                    xi=np.array([0.0, 0.0, 0.0, np.pi / 2]))
+    assert truth_set(snap, road, 100.0).tolist() == [True, False, False, False]
+    assert edge_set(snap, road, 100.0).tolist() == [False, True, False, True]
+    # the heading from the road's direction where the snapshot has none; out of range: none
+    bare = Snapshot(t=0.0, ego=snap.ego, ids=snap.ids, xy=snap.xy, yaw=snap.yaw, v=snap.v, yaw_rate=snap.yaw_rate,
+                    length=snap.length, width=snap.width)
+    assert edge_set(bare, road, 100.0).tolist() == [False, True, False, True]
+    assert edge_set(snap, road, 15.0).tolist() == [False, True, False, False]
+
+
+def test_a_track_on_an_edge_vehicle_is_neither_matched_nor_false():
+    # truths: a scored visible car at x = 0, a scored hidden one at x = 40, an edge vehicle at x = 20;
+    # tracks on each (0.2, 0.3 and 0.5 m off) and one 30 m from any vehicle
+    truth = np.array([[0.0, 0.0], [40.0, 0.0], [20.0, 5.0]])
+    scored, visible, edge = np.array([True, True, False]), np.array([True, False, False]), np.array([False, False, True])
+    tracks = np.array([[0.2, 0.0], [40.3, 0.0], [20.5, 5.0], [70.0, 0.0]])
+    sc = score_frame(truth, scored, visible, edge, tracks)
+    assert sc.on_edge.tolist() == [False, False, True, False]
+    assert sc.on_hidden.tolist() == [False, True, False, False]
+    # the scored set: two pairs, the far track false; indices into all four tracks
+    assert sorted(sc.gospa.estimate_index.tolist()) == [0, 1]
+    assert (sc.gospa.localization, sc.gospa.missed, sc.gospa.false) == pytest.approx((0.04 + 0.09, 0.0, 12.5))
+    # visible-only: the hidden car's track is false too; seen: it is set aside
+    assert (sc.gospa_visible.localization, sc.gospa_visible.false) == pytest.approx((0.04, 25.0))
+    assert (sc.gospa_seen.localization, sc.gospa_seen.false) == pytest.approx((0.04, 12.5))
+    assert sc.gospa_seen.estimate_index.tolist() == [0]
+    # without the edge vehicle the same track is false in every scoring
+    plain = score_frame(truth, scored, visible, np.zeros(3, dtype=bool), tracks)
+    assert not plain.on_edge.any()
+    assert (plain.gospa.false, plain.gospa_visible.false, plain.gospa_seen.false) == pytest.approx((25.0, 37.5, 25.0))
+    # a track nearer a scored vehicle than the edge one stays scored: the joint assignment decides
+    near = score_frame(truth, scored, visible, edge, np.array([[0.2, 0.0], [1.0, 1.0]]))
+    assert near.on_edge.tolist() == [False, False] and near.gospa.false == pytest.approx(12.5)
 
 
 def _spec_with(**tables):

@@ -285,7 +285,10 @@ def load_run(folder: str | Path) -> RunData:
     unknown = np.setdiff1d(track_truth[track_truth >= 0], vehicle_ids)
     if unknown.size:
         raise InspectError(f"{tk_path}: truth_id {int(unknown[0])} is not a vehicle of truth.csv")
-    order = np.argsort(track_frame, kind="stable")
+    # tracks on edge vehicles (``on_edge`` 1: centre off the road, body on it) are left out of the
+    # scorings, and out of this analysis; older folders lack the column and keep every track
+    scored_rows = _floats(tk, "on_edge", tk_path, int) == 0 if "on_edge" in tk else np.ones(len(track_frame), dtype=bool)
+    order = np.flatnonzero(scored_rows)[np.argsort(track_frame[scored_rows], kind="stable")]
 
     events = None
     ev_path = root / "tracker_events.csv"

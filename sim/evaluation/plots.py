@@ -100,7 +100,7 @@ def gospa_figure(result: Result, *, visible: bool = False) -> Figure:
     missed = np.array([x.missed for x in g])
     false = np.array([x.false for x in g])
     n_true = np.array([f.n_visible if visible else f.n_truth for f in frames])
-    n_est = np.array([f.n_tracks for f in frames])
+    n_est = np.array([f.n_tracks_scored for f in frames])
     c, p = result.settings.get("gospa_c", 5.0), result.settings.get("gospa_p", 2.0)
     fig = _figure(9.5, 7.5)
     ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)

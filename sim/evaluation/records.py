@@ -33,6 +33,8 @@ class FrameRecord:
       track kept through an occlusion); ``gospa_seen``: the visible truth against the other tracks
       (indices into ``np.flatnonzero(visible)`` and ``np.flatnonzero(~on_hidden)``), the visible-only
       score that does not count a kept track of a hidden vehicle as false;
+    - ``on_edge`` (K,): tracks on an *edge vehicle* (centre off the road, body on it:
+      ``sim.evaluation.runner.edge_set``), set aside from all three scorings (``score_frame``);
     - ``track_truth_id`` (K,): the truth id each track is assigned to in ``gospa`` (-1: none);
     - ``tracker_ms``: wall time of ``Tracker.step`` (ms); ``ego_s``: the ego's arc length (m);
     - ``frame``: the tracker's input (kept only with ``keep_sensor_data``; for the GIF);
@@ -60,6 +62,7 @@ class FrameRecord:
     on_hidden: np.ndarray | None = None
     gospa_seen: GospaResult | None = None
     lidar_bearings: np.ndarray | None = None
+    on_edge: np.ndarray | None = None
 
     @property
     def n_truth(self) -> int:
@@ -75,6 +78,11 @@ class FrameRecord:
     def n_tracks(self) -> int:
         """Number of reported tracks."""
         return len(self.tracks)
+
+    @property
+    def n_tracks_scored(self) -> int:
+        """Number of reported tracks that the scorings count: all but those on edge vehicles."""
+        return len(self.tracks) - (0 if self.on_edge is None else int(self.on_edge.sum()))
 
 
 __all__ = ["FrameRecord"]

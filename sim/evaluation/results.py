@@ -11,8 +11,8 @@
   (its arc length, m).
 - ``tracks.csv``: one row per reported track per frame: ``t``, ``label``, ``weight``, the curvilinear
   state ``s, n, v, xi, xi_dot, length, width``, ``s_rel`` (``s - s_ego``, m), the Cartesian view
-  ``x, y, psi, psi_dot`` (G), and ``truth_id`` (the truth vehicle it is assigned to by GOSPA, -1 if
-  none).
+  ``x, y, psi, psi_dot`` (G), ``truth_id`` (the truth vehicle it is assigned to by GOSPA, -1 if
+  none) and ``on_edge`` (1: on an edge vehicle, left out of the scorings; ``sim.evaluation.runner.edge_set``).
 - ``truth.csv``: one row per other vehicle per frame: ``t``, ``id``, ``x, y, yaw, v, yaw_rate,
   length, width, s, n, xi``, ``scored`` and ``visible`` (0/1) and ``lidar_points``.
 - ``tracker_events.csv`` (only when the tracker exposes ``last_events``; ``sim.evaluation.runner``): one row per
@@ -100,7 +100,7 @@ TIMESERIES_COLUMNS = [
 ]  # fmt: skip
 TRACK_COLUMNS = [
     "t", "label", "weight", "s", "n", "v", "xi", "xi_dot", "length", "width", "s_rel",
-    "x", "y", "psi", "psi_dot", "truth_id",
+    "x", "y", "psi", "psi_dot", "truth_id", "on_edge",
 ]  # fmt: skip
 TRUTH_COLUMNS = [
     "t", "id", "x", "y", "yaw", "v", "yaw_rate", "length", "width", "s", "n", "xi", "scored", "visible",
@@ -128,7 +128,8 @@ def track_rows(result: Result) -> list[list[Any]]:
         for k, tr in enumerate(f.tracks):
             cart = f.track_state[k]
             rows.append([f.t, tr.label, tr.weight, *tr.mean.tolist(), tr.relative_s(road, f.ego_s),
-                         cart[0], cart[1], cart[3], cart[4], int(f.track_truth_id[k])])
+                         cart[0], cart[1], cart[3], cart[4], int(f.track_truth_id[k]),
+                         int(f.on_edge is not None and bool(f.on_edge[k]))])
     return rows
 
 

@@ -22,7 +22,8 @@ tracks the tracker reports, so the visible-only scoring counts a track correctly
 vehicle as false. A third, the *seen* scoring (``gospa_seen_*``, ``cardinality_error_seen_mean``),
 scores the visible vehicles against the tracks that the first scoring does not assign to a hidden
 vehicle (``tracks_on_hidden_mean`` counts those): what the tracker makes of what it can see, without
-penalising its memory of what it cannot.
+penalising its memory of what it cannot. A track on an *edge vehicle* (centre off the road, body on
+it: ``edge_set``) is left out of all three scorings and of the estimated count (``score_frame``).
 
 **Metrics** (``sim.evaluation.metrics``; GOSPA with alpha = 2, p = 2, c = 5 m on the rectangle centres in G;
 its parts are p-th-power sums, m^2, so ``gospa = (loc + missed + false)^(1/2)`` per frame; the
@@ -73,7 +74,7 @@ import numpy as np
 
 from sim.evaluation.dropouts import dropout_metrics, dropout_outcomes
 from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
-from sim.evaluation.metrics import GOSPA_C, GOSPA_P, IdSwitchCounter, gospa, matched_errors
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
@@ -342,6 +343,72 @@ def truth_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     return (d <= max_range) & on_road
 
 
+def edge_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
+    """Boolean mask of the *edge vehicles* at ``snap.t``: centre within ``max_range`` (m) of the ego
+    centre and off the road (not in ``truth_set``), but with part of the body on it: the lateral
+    extent ``n +- ((L / 2) |sin xi| + (W / 2) |cos xi|)`` (``xi`` the heading relative to the road)
+    reaches between ``road.edges(s)`` (a car crossing the road at an intersection, one pulling onto
+    the shoulder). They are neither required nor false when tracked (``score_frame``)."""
+    if len(snap) == 0:
+        return np.zeros(0, dtype=bool)
+    d = np.hypot(snap.xy[:, 0] - snap.ego.x, snap.xy[:, 1] - snap.ego.y)
+    s, n, xi = snap.s, snap.n, snap.xi
+    if s is None or n is None or np.isnan(s).any() or np.isnan(n).any():
+        s, n = road.to_frenet(snap.xy)
+        s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
+        xi = None
+    if xi is None or np.isnan(xi).any():
+        xi = np.asarray(wrap_angle(snap.yaw - road.frame(s, extrapolate=True)[1]), dtype=float).reshape(-1)
+    half = 0.5 * snap.length * np.abs(np.sin(xi)) + 0.5 * snap.width * np.abs(np.cos(xi))
+    right, left = road.edges(s)
+    along = np.ones(len(s), dtype=bool) if road.closed else (s >= 0.0) & (s <= road.length)
+    reaches = along & (n + half >= right) & (n - half <= left)
+    return (d <= max_range) & reaches & ~truth_set(snap, road, max_range)
+
+
+@dataclass(frozen=True)
+class FrameScores:
+    """The scorings of one frame (``score_frame``): ``gospa`` (scored truth), ``gospa_visible``
+    (visible truth), ``gospa_seen`` (visible truth without the tracks kept on hidden vehicles), their
+    estimate indices into the frame's tracks; ``on_hidden`` (K,) and ``on_edge`` (K,): the tracks set
+    aside as kept on a hidden vehicle, and as on an edge vehicle."""
+
+    gospa: GospaResult
+    gospa_visible: GospaResult
+    gospa_seen: GospaResult
+    on_hidden: np.ndarray
+    on_edge: np.ndarray
+
+
+def score_frame(truth_xy: np.ndarray, scored: np.ndarray, visible: np.ndarray, edge: np.ndarray,
+                track_xy: np.ndarray, c: float = GOSPA_C, p: float = GOSPA_P) -> FrameScores:
+    """GOSPA of one frame's tracks ``track_xy (K, 2)`` against the truth ``truth_xy (N, 2)`` (masks
+    ``scored``, ``visible``, ``edge`` per truth row). A track that the assignment against the scored
+    and the edge vehicles together gives an edge vehicle (``edge_set``) is on the edge: set aside from
+    all three scorings, neither matched nor false, as an edge vehicle is neither required nor a false
+    alarm. ``gospa`` and ``gospa_visible`` then score the other tracks against the scored / visible
+    truth; a track ``gospa`` assigns to a scored vehicle that is not visible is on a hidden one, and
+    ``gospa_seen`` scores the visible truth against the tracks on neither."""
+    track_xy = np.asarray(track_xy, dtype=float).reshape(-1, 2)
+    on_edge = np.zeros(len(track_xy), dtype=bool)
+    if edge.any() and len(track_xy):
+        both = scored | edge
+        g_all = gospa(truth_xy[both], track_xy, c, p)
+        on_edge[g_all.estimate_index] = edge[np.flatnonzero(both)[g_all.truth_index]]
+    rest = np.flatnonzero(~on_edge)
+
+    def scored_against(truth: np.ndarray, tracks: np.ndarray) -> GospaResult:
+        g = gospa(truth_xy[truth], track_xy[tracks], c, p)
+        return replace(g, estimate_index=tracks[np.asarray(g.estimate_index, dtype=int)])
+
+    g = scored_against(scored, rest)
+    gv = scored_against(visible, rest)
+    on_hidden = np.zeros(len(track_xy), dtype=bool)
+    on_hidden[g.estimate_index] = ~visible[np.flatnonzero(scored)[g.truth_index]]
+    gs = scored_against(visible, np.flatnonzero(~on_edge & ~on_hidden))
+    return FrameScores(g, gv, gs, on_hidden, on_edge)
+
+
 def track_states(tracks: list[Track], road: Road) -> np.ndarray:
     """Cartesian views ``[x, y, v, psi, psi_dot, L, W]`` (K, 7) of ``tracks``."""
     if not tracks:
@@ -549,7 +616,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
     ms = np.array([f.tracker_ms for f in frames])
     n_truth = np.array([f.n_truth for f in frames])
     n_vis = np.array([f.n_visible for f in frames])
-    n_est = np.array([f.n_tracks for f in frames])
+    n_est = np.array([f.n_tracks_scored for f in frames])  # the tracks on edge vehicles set aside
     labels = {tr.label for f in frames for tr in f.tracks}
     out: dict[str, Any] = {
         "frames": len(frames),
@@ -575,6 +642,7 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "truth_count_mean": _mean(n_truth),
         "visible_count_mean": _mean(n_vis),
         "track_count_mean": _mean(n_est),
+        "tracks_on_edge_mean": _mean([0 if f.on_edge is None else int(f.on_edge.sum()) for f in frames]),
         "matched_pairs": int(sum(len(p) for p in pos)),
         "track_labels": len(labels),
         "tracker_ms_median": float(np.median(ms)) if ms.size else None,
@@ -676,16 +744,14 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None), sf.frame.ego)
         visible = scored & (counts >= min_visible_points)
         est = track_states(tracks, road)
-        g = gospa(t_state[scored, :2], est[:, :2], gospa_c, gospa_p)
-        gv = gospa(t_state[visible, :2], est[:, :2], gospa_c, gospa_p)
+        scores = score_frame(t_state[:, :2], scored, visible, edge_set(snap, road, max_range), est[:, :2],
+                             gospa_c, gospa_p)
+        g = scores.gospa
         scored_ids = snap.ids[scored]
         labels = np.array([tr.label for tr in tracks], dtype=int)
         switches.update(scored_ids[g.truth_index], labels[g.estimate_index])
         assigned = np.full(len(tracks), -1, dtype=int)
         assigned[g.estimate_index] = scored_ids[g.truth_index]
-        on_hidden = np.zeros(len(tracks), dtype=bool)
-        on_hidden[g.estimate_index] = ~visible[np.flatnonzero(scored)[g.truth_index]]
-        gs = gospa(t_state[visible, :2], est[~on_hidden, :2], gospa_c, gospa_p)
         ego_s = float(np.asarray(road.to_frenet((snap.ego.x, snap.ego.y))[0]).reshape(-1)[0])
         records.append(
             FrameRecord(
@@ -699,14 +765,15 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
                 tracks=tracks,
                 track_state=est,
                 gospa=g,
-                gospa_visible=gv,
+                gospa_visible=scores.gospa_visible,
                 track_truth_id=assigned,
                 tracker_ms=ms,
                 ego_s=ego_s,
                 frame=sf.frame if keep_sensor_data else None,
                 tracker_events=events,
-                on_hidden=on_hidden,
-                gospa_seen=gs,
+                on_hidden=scores.on_hidden,
+                gospa_seen=scores.gospa_seen,
+                on_edge=scores.on_edge,
             )
         )
         if progress is not None:

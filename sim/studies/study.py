@@ -200,7 +200,7 @@ def series_of(task: SeriesTask) -> tuple[list[dict[str, Any]], float | None]:
                 est = [e[0], e[1], e[3], e[5] if extent else nan, e[6] if extent else nan]
         g = f.gospa
         rows.append(dict(zip(SERIES_COLUMNS, [
-            spec.name, task.variant, task.seed, f.t, g.gospa, g.localization, g.missed, g.false, f.n_truth, f.n_tracks,
+            spec.name, task.variant, task.seed, f.t, g.gospa, g.localization, g.missed, g.false, f.n_truth, f.n_tracks_scored,
             f.tracker_ms, target, *map(float, truth), *map(float, est),
         ])))  # fmt: skip
     return rows, result.metrics.get("gospa_mean")
