@@ -43,7 +43,8 @@ GOSPA_CONVENTION = (
 )
 TRUTH_SET = (
     "other vehicles whose centre is within the lidar range of the ego and on the road, occluded ones "
-    "included; *_visible_* keys score only those with at least one lidar point in the frame"
+    "included; *_visible_* keys score only those with at least one lidar point in the frame; a track on a "
+    "vehicle whose centre is off the road but whose body reaches onto it (an edge vehicle) is left out"
 )
 
 
