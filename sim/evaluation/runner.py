@@ -33,7 +33,8 @@ GOSPA-assigned (truth, track) pair of every frame (``None`` when there was none)
 and ``pos_rmse_hidden_m`` split the position RMSE by whether the vehicle is visible in the frame (a
 track kept on a hidden vehicle is scored on its prediction; ``matched_pairs_hidden`` counts those
 pairs), and ``pos_rmse_seen_along_m``, ``pos_rmse_seen_across_m`` split the seen one along and across
-the vehicle's heading; ``yaw`` errors are wrapped. ``id_switches`` counts a truth vehicle assigned to a label other than its last one.
+the vehicle's heading; ``yaw`` errors are wrapped. ``id_switches`` counts a truth vehicle assigned to a
+label other than its last one.
 ``oncoming_yaw_rmse_deg``, ``oncoming_speed_rmse_mps``, ``oncoming_id_switches`` (``oncoming_metrics``):
 the same measures over the vehicles driving against ``s`` (two-way roads; ``None`` without any), over
 ``oncoming_matched_pairs`` matched pairs.
