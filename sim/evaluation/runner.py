@@ -326,22 +326,30 @@ def truth_state(snap: Snapshot) -> np.ndarray:
     return np.column_stack([snap.xy, snap.v, snap.yaw, snap.yaw_rate, snap.length, snap.width]).reshape(-1, 7)
 
 
+def _road_span(snap: Snapshot, road: Road, max_range: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For ``truth_set`` and ``edge_set``: per vehicle, whether its centre is within ``max_range`` (m) of
+    the ego centre and (open roads) ``0 <= s <= length``; its ``s``, ``n`` (the snapshot's, or the
+    centres projected) and the road's edges at its ``s`` (lanes may begin and end)."""
+    d = np.hypot(snap.xy[:, 0] - snap.ego.x, snap.xy[:, 1] - snap.ego.y)
+    s, n = snap.s, snap.n
+    if np.isnan(s).any() or np.isnan(n).any():
+        s, n = road.to_frenet(snap.xy)
+        s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
+    near = d <= max_range
+    if not road.closed:
+        near &= (s >= 0.0) & (s <= road.length)
+    right, left = road.edges(s)
+    return near, s, n, right, left
+
+
 def truth_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     """Boolean mask of the vehicles scored at ``snap.t``: centre within ``max_range`` (m) of the ego
     centre and on the road (between ``road.edges(s)``; open roads also
     ``0 <= s <= length``)."""
     if len(snap) == 0:
         return np.zeros(0, dtype=bool)
-    d = np.hypot(snap.xy[:, 0] - snap.ego.x, snap.xy[:, 1] - snap.ego.y)
-    s, n = snap.s, snap.n
-    if np.isnan(s).any() or np.isnan(n).any():
-        s, n = road.to_frenet(snap.xy)
-        s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
-    right, left = road.edges(s)  # the edges at each vehicle's s (lanes may begin and end)
-    on_road = (n >= right) & (n <= left)
-    if not road.closed:
-        on_road &= (s >= 0.0) & (s <= road.length)
-    return (d <= max_range) & on_road
+    near, _, n, right, left = _road_span(snap, road, max_range)
+    return near & (n >= right) & (n <= left)
 
 
 def edge_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
@@ -352,19 +360,13 @@ def edge_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     the shoulder). They are neither required nor false when tracked (``score_frame``)."""
     if len(snap) == 0:
         return np.zeros(0, dtype=bool)
-    d = np.hypot(snap.xy[:, 0] - snap.ego.x, snap.xy[:, 1] - snap.ego.y)
-    s, n, xi = snap.s, snap.n, snap.xi
-    if s is None or n is None or np.isnan(s).any() or np.isnan(n).any():
-        s, n = road.to_frenet(snap.xy)
-        s, n = np.asarray(s, dtype=float).reshape(-1), np.asarray(n, dtype=float).reshape(-1)
-        xi = None
-    if xi is None or np.isnan(xi).any():
+    near, s, n, right, left = _road_span(snap, road, max_range)
+    xi = snap.xi
+    if np.isnan(xi).any():
         xi = np.asarray(wrap_angle(snap.yaw - road.frame(s, extrapolate=True)[1]), dtype=float).reshape(-1)
     half = 0.5 * snap.length * np.abs(np.sin(xi)) + 0.5 * snap.width * np.abs(np.cos(xi))
-    right, left = road.edges(s)
-    along = np.ones(len(s), dtype=bool) if road.closed else (s >= 0.0) & (s <= road.length)
-    reaches = along & (n + half >= right) & (n - half <= left)
-    return (d <= max_range) & reaches & ~truth_set(snap, road, max_range)
+    centre_on = (n >= right) & (n <= left)
+    return near & ~centre_on & (n + half >= right) & (n - half <= left)
 
 
 @dataclass(frozen=True)
