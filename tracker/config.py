@@ -460,6 +460,8 @@ class BirthConfig:
     fit_width_std: float = 0.1
     #: Std of a measured width about the body's, beyond the filter's variance: mirrors, label boxes (m; default 0.0).
     width_error_std: float = 0.0
+    #: Learn ``width_error_std`` from the vehicles measured whole once this many are (default 3; None: never; ``tracker.fleet``).
+    width_error_vehicles: int | None = 3
     #: Longest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 25.0; None: no limit).
     max_length: float | None = 25.0
     #: Widest vehicle: estimates and cluster births beyond it are projected back onto it (m; default 3.0; None: no limit).
@@ -496,6 +498,8 @@ class BirthConfig:
             object.__setattr__(self, "classes", classes)
         _check("BirthConfig", "fit_width_std", self.fit_width_std, low=0.0, low_open=True, unit="m")
         _check("BirthConfig", "width_error_std", self.width_error_std, low=0.0, unit="m")
+        if self.width_error_vehicles is not None:
+            _check_int("BirthConfig", "width_error_vehicles", self.width_error_vehicles, 1)
         for name in ("max_length", "max_width"):
             if getattr(self, name) is not None:
                 _check("BirthConfig", name, getattr(self, name), low=0.0, low_open=True, unit="m")

@@ -176,6 +176,25 @@ def class_length_prior(width, width_var, share, length, length_var, class_width,
 
 
 @njit
+def class_prior_lengths_kernel(means, covs, corners, rows, share, class_length, class_length_var, class_width,
+                               class_width_var, car_length, car_var):  # pragma: no cover - compiled
+    """The components ``rows`` of ``means (N, D)``, ``cov (N, D, D)`` (in place; ``corners (N, 4, 2)``
+    their mean rectangles in E), whose lengths are the vehicle classes' prior, take it anew from their
+    width as a cluster birth would (``tracker.birth.cluster_births``): the classes' mean and variance
+    (``class_length_prior`` of the arrays; at least ``car_var``) where that mean is longer than a car's
+    ``car_length`` by more than ``sqrt(car_var)``, else ``car_length`` with ``car_var``; the end nearest the
+    sensor staying put (``_replace_length``). For when the classes' width variances changed (a learned
+    ``BirthConfig.width_error_std``, ``tracker.fleet``)."""
+    for p in rows:
+        length, variance = class_length_prior(means[p, WIDTH], max(covs[p, WIDTH, WIDTH], 0.0), share, class_length,
+                                              class_length_var, class_width, class_width_var)
+        if length - car_length > math.sqrt(car_var):
+            _replace_length(means[p], covs[p], corners[p], length, max(variance, car_var))
+        else:
+            _replace_length(means[p], covs[p], corners[p], car_length, car_var)
+
+
+@njit
 def grow_extent_kernel(means, covs, excess, sides, corners, min_excess, sigmas):  # pragma: no cover - compiled
     """``tracker.update.grow_extent``: per pair, the largest excess of a part over its predicted side
     (``excess (P, 2)``; long parts, odd ``sides``, for ``L``, the others for ``W``), and where it is

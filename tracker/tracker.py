@@ -51,6 +51,8 @@
    (``tracker.identity``). Labels: births get new ones,
    updates inherit, merges keep the heaviest's; a label is reported at most once per frame (a second
    component with the same label above the threshold gets a new label: the target split).
+6. **Learn** the width error of the vehicle classes' size prior from the tracks measured whole
+   (``tracker.fleet``, ``birth.width_error_vehicles``): the next frames' updates and births use it.
 
 The Cartesian variant (``coordinates="cartesian"``) runs the same machinery on
 ``[x, y, v, psi, psi_dot, L, W]`` in G and reports tracks converted to road coordinates.
@@ -58,6 +60,7 @@ The Cartesian variant (``coordinates="cartesian"``) runs the same machinery on
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections import Counter
@@ -76,7 +79,7 @@ from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
-from tracker.motion import LENGTH, make_motion, predict, relax_acceleration
+from tracker.motion import LENGTH, WIDTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points, nearest_per_ray
 from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
@@ -85,9 +88,10 @@ from tracker.track import Track
 from tracker.transforms import to_global
 from tracker.radar_update import RADAR_ONLY_CLEARANCE, update_coasting
 from tracker.ukf import UnscentedTransform, ensure_spd
-from tracker.update import state_wrapping, update_clusters
+from tracker.update import CLASS_PRIOR, state_wrapping, update_clusters
 from tracker.clustering import along_cuts_kernel, cluster_points_kernel, ordered_clusters_kernel, overlap_groups_kernel
-from tracker.extent import bound_at_holes_kernel
+from tracker.extent import bound_at_holes_kernel, class_arrays, class_prior_lengths_kernel
+from tracker.fleet import MEASURED_WIDTH_STD, WidthError
 from tracker.flow import flow_speeds, pull_to_flow
 from tracker.extraction import report_centres_kernel
 from tracker.gating import candidate_pairs_kernel
@@ -167,6 +171,10 @@ class Tracker:
             raise ValueError(f"Tracker config must be a TrackerConfig; got {type(config).__name__}")
         self.road = road
         self.config = config
+        #: the width error of the vehicle classes' size prior, learned from the vehicles measured whole
+        #: (``tracker.fleet``, ``BirthConfig.width_error_vehicles``)
+        self.width_error = WidthError(config.birth)
+        self._sized = config  # the config with the width error in use (``_learn_width_error``)
         self.cartesian = config.coordinates == "cartesian"
         self.motion = make_motion(config, road)
         self.dim = self.motion.dim  # 7, or 8 with the acceleration state (MotionConfig.acceleration)
@@ -287,6 +295,7 @@ class Tracker:
         t0 = clock()
         spent["reduce"] += t0 - t1
         tracks = self._extract(frame.t, ego)
+        self._learn_width_error(ego)
         self._record_events(previous, tracks)
         spent["extract"] += clock() - t0
         return tracks
@@ -341,6 +350,34 @@ class Tracker:
         elif floor is not None:  # no time passed: only a manoeuvre's onset changes the acceleration
             mix = Mixture(mix.weights, *relax_acceleration(mix.means, mix.covs, None, floor), mix.labels)
         self.mixture = mix
+
+    def _learn_width_error(self, ego: EgoState) -> None:
+        """This frame's tracks (``_reported``) to the width-error estimator (``tracker.fleet``). Where its
+        value changed, the config of the updates and the cluster births (``_sized``) takes it as
+        ``BirthConfig.width_error_std``, and the components whose length is the vehicle classes' prior
+        (its std above ``CLASS_PRIOR`` x ``BirthConfig.length_std``: no fit is that uncertain) on a
+        measured width (std at most ``tracker.fleet.MEASURED_WIDTH_STD``) take the prior anew
+        (``tracker.extent.class_prior_lengths_kernel``): it was drawn with the classes' widths read as
+        bodies, and the extent rules move a held length only by more than its own spread."""
+        rep = self._reported
+        birth = self.config.birth
+        if not len(rep) or birth.classes is None:
+            return
+        mix = self.mixture
+        self.width_error.observe(mix.labels[rep], mix.means[rep], mix.covs[rep])
+        error = self.width_error.value
+        if error == self._sized.birth.width_error_std:
+            return
+        self._sized = dataclasses.replace(self.config, birth=dataclasses.replace(birth, width_error_std=error))
+        self.stats["width_error_changes"] += 1
+        rows = np.flatnonzero((mix.covs[:, LENGTH, LENGTH] > (CLASS_PRIOR * birth.length_std) ** 2)
+                              & (mix.covs[:, WIDTH, WIDTH] <= MEASURED_WIDTH_STD**2))
+        if len(rows):
+            corners = to_vehicle(mix.means, ego, self.road, self.config.coordinates).corners()
+            class_prior_lengths_kernel(mix.means, mix.covs, np.ascontiguousarray(corners), rows,
+                                       *class_arrays(birth.classes, error), float(birth.length),
+                                       float(birth.length_std) ** 2)
+            self.stats["class_lengths_renewed"] += len(rows)
 
     def _pull_to_flow(self, dt: float, updated: set[int]) -> None:
         """The lane-flow prior (``tracker.flow``, ``MotionConfig.flow_speed_std``): the components of the
@@ -623,7 +660,7 @@ class Tracker:
 
     def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
         """GM-PHD update; returns which clusters some component explained (a gated pair)."""
-        cfg = self.config
+        cfg = self._sized
         mix = self.mixture
         explained = np.zeros(len(clusters), dtype=bool)
         if len(mix) == 0:
@@ -771,7 +808,7 @@ class Tracker:
             return np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim))
         points = [clusters[k] for k in idle]
         means, covs = cluster_births(points, [velocities[k] if self.config.use_radar else None for k in idle],
-                                     ego, self.road, self.config.birth, self._shadowed_ends(points),
+                                     ego, self.road, self._sized.birth, self._shadowed_ends(points),
                                      self._birth_flow(ego, points))
         if self.cartesian:
             means, covs = to_cartesian_gaussians(self.road, means, covs, self.ut)

@@ -792,6 +792,9 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         metrics.update(fault_metrics(injector.counts))
         if faults.lidar_dropout:
             metrics.update(dropout_metrics(dropout_outcomes(records, faults.lidar_dropout)))
+    learned = getattr(tracker, "width_error", None)  # tracker.fleet.WidthError (the baselines have none)
+    metrics["width_error_std_m"] = float("nan") if learned is None else learned.value
+    metrics["width_error_vehicles"] = 0 if learned is None else learned.vehicles
     stats = dict(getattr(tracker, "stats", {}) or {})
     return Result(
         spec=spec,
