@@ -29,6 +29,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.measurement.whole_min_points == 4
     assert c.reduction.same_label_along_length
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
+    assert (c.birth.width_error_std, c.birth.width_error_vehicles) == (0.0, 3)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
     assert (c.detection.hidden_update_p_detection, c.detection.missed_weight_cap) == (0.05, False)

@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
+from tracker import Road, Tracker, TrackerConfig
 from tracker.config import VEHICLE_CLASSES, BirthConfig
 from tracker.extent import class_arrays, class_length_prior, class_prior_lengths_kernel
 from tracker.fleet import EVIDENCE, GRID, MEASURED_LENGTH_STD, MEASURED_WIDTH_STD, WidthError
+from tracker.frame import EgoState
 from tracker.motion import LENGTH, WIDTH
+from tracker.reduction import Mixture
 
 DIM = 8
 
@@ -116,3 +119,36 @@ def test_a_class_prior_length_is_renewed_with_the_near_end_kept():
     means, covs = _tracks([1.8], [9.0], var_l=9.0)
     class_prior_lengths_kernel(means, covs, corners, np.array([0]), *arrays, 4.7, 1.0)
     assert means[0, LENGTH] == pytest.approx(4.7) and covs[0, LENGTH, LENGTH] == pytest.approx(1.0)
+
+
+def test_the_tracker_learns_the_error_and_renews_only_class_prior_lengths_on_measured_widths():
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=2)
+    tracker = Tracker(road, TrackerConfig())
+    widths = [2.25, 2.20, 2.55, 2.55, 2.55, 2.25]
+    lengths = [4.6, 4.5, 6.6, 12.0, 12.0, 4.6]
+    means, covs = _tracks(widths, lengths)
+    means[:, 0] = [20.0, 40.0, 60.0, 80.0, 100.0, 120.0]  # s along the road ahead of the ego
+    covs[3, LENGTH, LENGTH] = covs[4, LENGTH, LENGTH] = 3.5**2  # the classes' prior (a truck's spread)
+    covs[4, WIDTH, WIDTH] = 0.3**2  # ... on a width not measured
+    covs[5, LENGTH, LENGTH] = 1.0  # a fitted length held (a car's prior spread)
+    tracker.mixture = Mixture(np.ones(6), means, covs, np.arange(1, 7))
+    tracker._reported = np.array([0, 1, 2])  # three vehicles measured whole, their widths label boxes
+    before = tracker.mixture.means.copy(), tracker.mixture.covs.copy()
+    tracker._learn_width_error(EgoState(0.0, 0.0, 0.0))
+    error = tracker.width_error.value
+    assert error > 0.1 and tracker._sized.birth.width_error_std == error
+    assert tracker.config.birth.width_error_std == 0.0  # the user's config is not changed
+    mix = tracker.mixture
+    arrays = class_arrays(VEHICLE_CLASSES, error)
+    expected, variance = class_length_prior(2.55, 0.02**2, *arrays)
+    assert expected < 12.0 - 1.0
+    assert mix.means[3, LENGTH] == pytest.approx(expected)
+    assert mix.covs[3, LENGTH, LENGTH] == pytest.approx(max(variance, 1.0))
+    assert mix.means[3, 0] - mix.means[3, LENGTH] / 2 == pytest.approx(80.0 - 6.0)  # the rear, facing the ego
+    for row in (0, 1, 2, 4, 5):  # measured lengths, an unmeasured width, a fitted length: as they were
+        np.testing.assert_array_equal(mix.means[row], before[0][row])
+        np.testing.assert_array_equal(mix.covs[row], before[1][row])
+    assert tracker.stats["class_lengths_renewed"] == 1
+    # the same error again changes nothing
+    tracker._learn_width_error(EgoState(0.0, 0.0, 0.0))
+    assert tracker.stats["width_error_changes"] == 1 and tracker.stats["class_lengths_renewed"] == 1

@@ -27,8 +27,10 @@ does not feed back into its own samples.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import logsumexp
 
 from tracker.config import BirthConfig
+from tracker.extent import class_arrays
 from tracker.motion import LENGTH, WIDTH
 
 #: Candidate width errors (m): 0 (bodies) to 0.5 m (a box around a pickup's mirrors) in 2.5 cm steps.
@@ -52,12 +54,8 @@ class WidthError:
     def __init__(self, birth: BirthConfig) -> None:
         self.default = float(birth.width_error_std)
         self.min_vehicles = birth.width_error_vehicles
-        classes = birth.classes or ()
-        self._log_share = np.log(np.array([c.share for c in classes], dtype=float))
-        self._length = np.array([c.length for c in classes], dtype=float)
-        self._length_var = np.array([c.length_std**2 for c in classes], dtype=float)
-        self._width = np.array([c.width for c in classes], dtype=float)
-        self._width_var = np.array([c.width_std**2 for c in classes], dtype=float)
+        # the classes' shares, lengths, length variances, widths and body width variances (C,)
+        self._classes = class_arrays(birth.classes, 0.0) if birth.classes else None
         self._pairs: dict[int, tuple[float, float, float, float]] = {}  # label -> (w, l, var w, var l)
         self._value = self.default
         self._stale = False
@@ -69,14 +67,14 @@ class WidthError:
 
     @property
     def value(self) -> float:
-        """The width error (m): the maximum-likelihood one of the pairs once there are
-        ``min_vehicles``, else the configured one."""
+        """The width error (m): the maximum-likelihood one of the pairs once there are ``min_vehicles``
+        and it beats the configured one by ``EVIDENCE``, else the configured one."""
         if self._stale:
             self._stale = False
-            if self.min_vehicles is not None and len(self._pairs) >= self.min_vehicles and len(self._length):
+            if self.min_vehicles is not None and len(self._pairs) >= self.min_vehicles and self._classes is not None:
                 ll = self.log_likelihood()
                 best = int(np.argmax(ll))
-                configured = float(np.interp(self.default, GRID, ll))
+                configured = float(self.log_likelihood(np.array([self.default]))[0])
                 self._value = float(GRID[best]) if ll[best] - configured >= EVIDENCE else self.default
         return self._value
 
@@ -92,16 +90,13 @@ class WidthError:
                                            float(var_l[k]))
             self._stale = True
 
-    def log_likelihood(self) -> np.ndarray:
-        """``log L(sigma_e)`` (module docstring) at each of ``GRID``, ``(G,)``."""
+    def log_likelihood(self, errors: np.ndarray = GRID) -> np.ndarray:
+        """``log L(sigma_e)`` (module docstring) at each of ``errors (G,)`` (m; default ``GRID``), ``(G,)``."""
+        share, length, length_var, width, width_var = self._classes
         pairs = np.array(list(self._pairs.values()), dtype=float).reshape(-1, 4)
         w, l, u, v = (pairs[:, j, None] for j in range(4))  # (N, 1) each
-        var_l = self._length_var + v  # (N, C)
-        length = -0.5 * (np.log(2.0 * np.pi * var_l) + (l - self._length) ** 2 / var_l)
-        out = np.empty(len(GRID))
-        for g, error in enumerate(GRID):
-            var_w = self._width_var + error**2 + u
-            joint = self._log_share + length - 0.5 * (np.log(2.0 * np.pi * var_w) + (w - self._width) ** 2 / var_w)
-            top = joint.max(axis=1)
-            out[g] = float(np.sum(top + np.log(np.exp(joint - top[:, None]).sum(axis=1))))
-        return out
+        var_l = length_var + v  # (N, C)
+        joint = np.log(share) - 0.5 * (np.log(2.0 * np.pi * var_l) + (l - length) ** 2 / var_l)
+        var_w = width_var + np.square(errors)[:, None, None] + u  # (G, N, C)
+        joint = joint - 0.5 * (np.log(2.0 * np.pi * var_w) + (w - width) ** 2 / var_w)
+        return logsumexp(joint, axis=2).sum(axis=1)
