@@ -51,7 +51,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # constant speed (MotionConfig.acceleration; the manoeuvre-gated jerk, MotionConfig.quiet_jerk, needs
     # it), no updates of components the occlusion model hides (DetectionConfig.hidden_update_p_detection),
     # no radar gate (MeasurementConfig.radar_gate), no births from two radar-backed points (BirthConfig.
-    # min_cluster_points_fused), no first-scan or same-frame births (BirthConfig.first_scan, same_frame), no dropping of tracks
+    # min_cluster_points_fused), no first-scan, same-frame or after-update births (BirthConfig.first_scan, same_frame,
+    # after_update_points), no dropping of tracks
     # inside a seen vehicle (ReductionConfig.drop_inside_updated), no radar-only updates of coasting
     # tracks (MeasurementConfig.radar_only_update), no absorption of overlapping labels (ReductionConfig.
     # absorb_overlap), no motorcycles among the vehicle classes (BirthConfig.classes), no one-point fragments joined to
@@ -62,7 +63,7 @@ def run_reference() -> dict[str, np.ndarray]:
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),
         birth=dataclasses.replace(base.birth, min_cluster_points_radar=None, min_cluster_points_fused=None,
-                                  first_scan=False, same_frame=False,
+                                  first_scan=False, same_frame=False, after_update_points=None,
                                   classes=tuple(c for c in base.birth.classes if c.name != "motorcycle")),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
                                         shadowed_lidar_sigma=None),

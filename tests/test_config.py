@@ -30,6 +30,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert c.reduction.same_label_along_length
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.birth.width_error_std, c.birth.width_error_vehicles) == (0.0, 3)
+    assert (c.birth.first_scan, c.birth.same_frame, c.birth.after_update_points) == (True, True, 3)
     assert (c.measurement.shadow_window, c.measurement.shadow_margin, c.measurement.shadow_free_gap) == (2.5, 0.5, 0.3)
     assert (c.ukf.alpha, c.ukf.beta, c.ukf.kappa) == (1.0, 2.0, 0.0)
     assert (c.detection.hidden_update_p_detection, c.detection.missed_weight_cap) == (0.05, False)
@@ -114,6 +115,10 @@ def test_the_vehicle_classes_are_checked() -> None:
         BirthConfig(fit_width_std=0.0)
     with pytest.raises(ValueError, match="width_error_std must be >= 0"):
         BirthConfig(width_error_std=-0.1)
+    for bad in (0, 2.5, True):
+        with pytest.raises(ValueError, match="after_update_points"):
+            BirthConfig(after_update_points=bad)
+    assert BirthConfig(after_update_points=None).after_update_points is None
 
 
 def test_default_vehicle_classes() -> None:

@@ -452,6 +452,8 @@ class BirthConfig:
     first_scan: bool = True
     #: Later frames: clusters beyond every component's pre-gate (``GatingConfig.distance``) seed births that this frame's update takes (default True; False: they wait a frame, as in the paper).
     same_frame: bool = True
+    #: Later frames: a cluster of ``min_cluster_points`` up to this many points that this frame's update left unexplained, within reach of no coasting track, is born and updated in the frame (default 3; None: it waits a frame, as in the paper).
+    after_update_points: int | None = 3
     #: Use road births, per lane near the range limits (default True).
     road: bool = True
     #: Vehicle classes whose sizes and shares weigh an unmeasured length by the measured width (default ``VEHICLE_CLASSES``; None: off).
@@ -476,6 +478,8 @@ class BirthConfig:
         if self.min_cluster_points_radar is not None:
             _check_int("BirthConfig", "min_cluster_points_radar", self.min_cluster_points_radar, 1)
         _check("BirthConfig", "sparse_min_range", self.sparse_min_range, low=0.0, unit="m")
+        if self.after_update_points is not None:
+            _check_int("BirthConfig", "after_update_points", self.after_update_points, 1)
         _check("BirthConfig", "min_oriented_extent", self.min_oriented_extent, low=0.0, unit="m")
         if self.flow_speed_std is not None:
             _check("BirthConfig", "flow_speed_std", self.flow_speed_std, low=0.0, low_open=True, unit="m/s")

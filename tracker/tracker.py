@@ -134,7 +134,7 @@ class Tracker:
     ``measurement.radar_gate``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_same_frame``
-    (``birth.same_frame``), ``births_shadowed``
+    (``birth.same_frame``), ``births_after_update`` (``birth.after_update_points``), ``births_shadowed``
     (unexplained clusters with exactly one end in bearing next to another object's shadow, ``measurement.shadow_window``),
     ``components_inside_updated_dropped`` (``reduction.drop_inside_updated``), ``components_left_view``, ``components_off_road``,
     ``label_splits``, ``unseen_branches_unreported`` (a label's components above the threshold left out of
@@ -282,6 +282,8 @@ class Tracker:
                 self.stats["births_same_frame"] += len(born)
                 self._component_group = np.concatenate([self._component_group, np.full(len(born), -1)])
             explained = self._update(ego, clusters, velocities)
+            if later and self.config.birth.after_update_points is not None and clusters:
+                explained |= self._births_after_update(ego, clusters, velocities, explained)
             t1 = clock()
             spent["update"] += t1 - t0
             if self.config.use_radar and self.config.measurement.radar_only_update:
@@ -658,8 +660,11 @@ class Tracker:
             owner = np.where(taken, groups[np.maximum(adopted, 0)], owner)
         return owner
 
-    def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None]) -> np.ndarray:
-        """GM-PHD update; returns which clusters some component explained (a gated pair)."""
+    def _update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None],
+                rows: np.ndarray | None = None, open_clusters: np.ndarray | None = None) -> np.ndarray:
+        """GM-PHD update; returns which clusters some component explained (a gated pair). With ``rows``
+        (component indices) only those components are updated, and only with the clusters
+        ``open_clusters`` (mask); the others pass unchanged (the second pass of ``_births_after_update``)."""
         cfg = self._sized
         mix = self.mixture
         explained = np.zeros(len(clusters), dtype=bool)
@@ -678,12 +683,20 @@ class Tracker:
             # the tracks' components the occlusion model hides still pair with clusters (DetectionConfig)
             lift = _labels_in(mix.labels, self._ever_reported) & (p_d < floor) & (nearest_range(rect) <= cfg.detection.lidar_range)
             p_d = np.where(lift, floor, p_d)
+        if rows is not None:  # the other components are not detected in this pass: their weights stand
+            only = np.zeros(len(mix), dtype=bool)
+            only[rows] = True
+            p_d = np.where(only, p_d, 0.0)
+            missed_w = np.where(only, missed_w, mix.weights)
         new_w, new_m, new_p, new_l = [missed_w], [mix.means], [mix.covs], [mix.labels]
         if clusters:
             # a cluster a track owns (its points lie in the track's predicted rectangle) is that track's:
             # only the components of the track's group compete for it, so a newborn or another
             # track's hypothesis cannot take it over when the track's own fit is poor for a frame
             comp, clu, size, offsets, points = self._pre_gated(rect, clusters, p_d, self._owned, self._component_group)
+            if open_clusters is not None:
+                keep = open_clusters[clu]
+                comp, clu = comp[keep], clu[keep]
             cluster_size = size
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
@@ -844,14 +857,43 @@ class Tracker:
             self.mixture = self._with_births(self.mixture, means, covs)
         return born
 
-    def _reached(self, ego: EgoState, clusters: list[np.ndarray]) -> np.ndarray:
-        """Per cluster, whether some component of the mixture could explain it: its centroid within the
-        update's pre-gate (``gating.distance`` of the circle around the component's rectangle)."""
+    def _births_after_update(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None],
+                             explained: np.ndarray) -> np.ndarray:
+        """``BirthConfig.after_update_points``: the clusters of ``min_cluster_points`` to that many points
+        that this frame's update left ``explained`` by no component, that no track owns and that no
+        coasting track (reported before, not updated this frame) reaches with its pre-gate, are born
+        (``_births_now``) and updated in a second pass that updates only those births with only those
+        clusters. Returns which clusters the births explained."""
+        size = np.array([len(c) for c in clusters])
+        birth = self.config.birth
+        open_clusters = (~explained & (self._owned < 0) & (size >= birth.min_cluster_points)
+                         & (size <= birth.after_update_points))
+        if not open_clusters.any():
+            return np.zeros(len(clusters), dtype=bool)
+        mix = self.mixture
+        coasting = _labels_in(mix.labels, self._ever_reported) & ~_labels_in(mix.labels, self._updated_labels)
+        open_clusters &= ~self._reached(ego, clusters, coasting)
+        if not open_clusters.any():
+            return np.zeros(len(clusters), dtype=bool)
+        born = self._births_now(ego, clusters, velocities, ~open_clusters)
+        self.stats["births_after_update"] += len(born)
+        if not len(born):
+            return np.zeros(len(clusters), dtype=bool)
+        # the first update's posteriors and the births belong to no track group
+        grown = len(self.mixture) - len(self._component_group)
+        self._component_group = np.concatenate([self._component_group, np.full(grown, -1)])
+        return self._update(ego, clusters, velocities, born, open_clusters)
+
+    def _reached(self, ego: EgoState, clusters: list[np.ndarray], rows: np.ndarray | None = None) -> np.ndarray:
+        """Per cluster, whether some component of the mixture (``rows``: a mask of those that count; all
+        by default) could explain it: its centroid within the update's pre-gate (``gating.distance`` of
+        the circle around the component's rectangle)."""
         mix = self.mixture
         if not len(mix):
             return np.zeros(len(clusters), dtype=bool)
         rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
-        clu = self._pre_gated(rect, clusters, np.ones(len(mix)), np.full(len(clusters), -1), np.full(len(mix), -1))[1]
+        which = np.ones(len(mix)) if rows is None else rows.astype(float)
+        clu = self._pre_gated(rect, clusters, which, np.full(len(clusters), -1), np.full(len(mix), -1))[1]
         reached = np.zeros(len(clusters), dtype=bool)
         reached[clu] = True
         return reached
