@@ -35,7 +35,9 @@
    updated by the points it shows; a fused cluster's radar velocity that no pair explains
    (``measurement.radar_gate``) is set aside for all its pairs (``tracker.kalman.measurement_update_kernel``);
    optionally (``detection.missed_weight_cap``, off) a label's missed-detection weight is capped at one
-   minus what its updated components took.
+   minus what its updated components took. A cluster of a few points (``birth.after_update_points``)
+   that the update left unexplained, next to no coasting track, is born and updated in a second pass of
+   the update that takes only those births and clusters (``_births_after_update``).
 
 5. **Reduce**: drop components that left the field of view (nearest corner farther than
    ``detection.lidar_range + reduction.fov_margin``) or the road (centre beyond the road edges by more
