@@ -27,7 +27,6 @@ does not feed back into its own samples.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 from tracker.config import BirthConfig
 from tracker.extent import class_arrays
@@ -58,6 +57,7 @@ class WidthError:
         self._classes = class_arrays(birth.classes, 0.0) if birth.classes else None
         self._pairs: dict[int, tuple[float, float, float, float]] = {}  # label -> (w, l, var w, var l)
         self._value = self.default
+        self._errors = np.append(GRID, self.default)
         self._stale = False
 
     @property
@@ -72,10 +72,9 @@ class WidthError:
         if self._stale:
             self._stale = False
             if self.min_vehicles is not None and len(self._pairs) >= self.min_vehicles and self._classes is not None:
-                ll = self.log_likelihood()
-                best = int(np.argmax(ll))
-                configured = float(self.log_likelihood(np.array([self.default]))[0])
-                self._value = float(GRID[best]) if ll[best] - configured >= EVIDENCE else self.default
+                ll = self.log_likelihood(self._errors)  # the grid, then the configured error
+                best = int(np.argmax(ll[:-1]))
+                self._value = float(GRID[best]) if ll[best] - ll[-1] >= EVIDENCE else self.default
         return self._value
 
     def observe(self, labels: np.ndarray, means: np.ndarray, covs: np.ndarray) -> None:
@@ -99,4 +98,5 @@ class WidthError:
         joint = np.log(share) - 0.5 * (np.log(2.0 * np.pi * var_l) + (l - length) ** 2 / var_l)
         var_w = width_var + np.square(errors)[:, None, None] + u  # (G, N, C)
         joint = joint - 0.5 * (np.log(2.0 * np.pi * var_w) + (w - width) ** 2 / var_w)
-        return logsumexp(joint, axis=2).sum(axis=1)
+        top = joint.max(axis=2, keepdims=True)  # logsumexp over the classes, without scipy's call overhead
+        return (top[..., 0] + np.log(np.exp(joint - top).sum(axis=2))).sum(axis=1)
