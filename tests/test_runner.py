@@ -11,7 +11,7 @@ from oracle_tracker import OracleFactory, SilentTracker
 
 from sim import load_scenario
 from sim.evaluation.runner import (TIMING_KEYS, against_s, deterministic_metrics, edge_set, normalize_tracker_events,
-                                   run_scenario, score_frame, truth_set)
+                                   run_scenario, score_frame, truth_and_edge_sets, truth_set)
 from sim.evaluation.variants import VARIANTS, UnknownVariantError, estimates_extent, probe_variant, variant_config
 from sim.world.scenario import ScenarioError, parse_scenario
 from sim.world.truth import EgoPose, Snapshot
@@ -180,6 +180,10 @@ def test_edge_vehicles_are_off_the_road_with_their_body_on_it():
                     length=snap.length, width=snap.width)
     assert edge_set(bare, road, 100.0).tolist() == [False, True, False, True]
     assert edge_set(snap, road, 15.0).tolist() == [False, True, False, False]
+    # the runner's one pass gives both sets
+    for s_, r_ in ((snap, 100.0), (bare, 100.0), (snap, 15.0)):
+        both = truth_and_edge_sets(s_, road, r_)
+        assert both[0].tolist() == truth_set(s_, road, r_).tolist() and both[1].tolist() == edge_set(s_, road, r_).tolist()
 
 
 def test_a_track_on_an_edge_vehicle_is_neither_matched_nor_false():

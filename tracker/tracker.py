@@ -886,15 +886,15 @@ class Tracker:
         self._component_group = np.concatenate([self._component_group, np.full(grown, -1)])
         return self._update(ego, clusters, velocities, born, open_clusters)
 
-    def _reached(self, ego: EgoState, clusters: list[np.ndarray], rows: np.ndarray | None = None) -> np.ndarray:
-        """Per cluster, whether some component of the mixture (``rows``: a mask of those that count; all
-        by default) could explain it: its centroid within the update's pre-gate (``gating.distance`` of
-        the circle around the component's rectangle)."""
+    def _reached(self, ego: EgoState, clusters: list[np.ndarray], among: np.ndarray | None = None) -> np.ndarray:
+        """Per cluster, whether some component of the mixture (``among``: a mask of the components that
+        count; all by default) could explain it: its centroid within the update's pre-gate
+        (``gating.distance`` of the circle around the component's rectangle)."""
         mix = self.mixture
         if not len(mix):
             return np.zeros(len(clusters), dtype=bool)
         rect = to_vehicle(mix.means, ego, self.road, self.config.coordinates)
-        which = np.ones(len(mix)) if rows is None else rows.astype(float)
+        which = np.ones(len(mix)) if among is None else among.astype(float)
         clu = self._pre_gated(rect, clusters, which, np.full(len(clusters), -1), np.full(len(mix), -1))[1]
         reached = np.zeros(len(clusters), dtype=bool)
         reached[clu] = True

@@ -358,15 +358,20 @@ def edge_set(snap: Snapshot, road: Road, max_range: float) -> np.ndarray:
     extent ``n +- ((L / 2) |sin xi| + (W / 2) |cos xi|)`` (``xi`` the heading relative to the road)
     reaches between ``road.edges(s)`` (a car crossing the road at an intersection, one pulling onto
     the shoulder). They are neither required nor false when tracked (``score_frame``)."""
+    return truth_and_edge_sets(snap, road, max_range)[1]
+
+
+def truth_and_edge_sets(snap: Snapshot, road: Road, max_range: float) -> tuple[np.ndarray, np.ndarray]:
+    """``truth_set`` and ``edge_set`` of ``snap`` from one projection of the vehicles on the road."""
     if len(snap) == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
     near, s, n, right, left = _road_span(snap, road, max_range)
     xi = snap.xi
     if np.isnan(xi).any():
         xi = np.asarray(wrap_angle(snap.yaw - road.frame(s, extrapolate=True)[1]), dtype=float).reshape(-1)
     half = 0.5 * snap.length * np.abs(np.sin(xi)) + 0.5 * snap.width * np.abs(np.cos(xi))
     centre_on = (n >= right) & (n <= left)
-    return near & ~centre_on & (n + half >= right) & (n - half <= left)
+    return near & centre_on, near & ~centre_on & (n + half >= right) & (n - half <= left)
 
 
 @dataclass(frozen=True)
@@ -741,14 +746,13 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
         events = normalize_tracker_events(getattr(tracker, "last_events", None))
         snap = sf.truth
         t_state = truth_state(snap)
-        scored = truth_set(snap, road, max_range)
+        scored, edge = truth_and_edge_sets(snap, road, max_range)
         counts = _lidar_counts(snap, sf.lidar)
         bearings = _lidar_bearings(snap, sf.lidar)
         cloud_score.update(sf.lidar, getattr(tracker, "last_cloud", None), sf.frame.ego)
         visible = scored & (counts >= min_visible_points)
         est = track_states(tracks, road)
-        scores = score_frame(t_state[:, :2], scored, visible, edge_set(snap, road, max_range), est[:, :2],
-                             gospa_c, gospa_p)
+        scores = score_frame(t_state[:, :2], scored, visible, edge, est[:, :2], gospa_c, gospa_p)
         g = scores.gospa
         scored_ids = snap.ids[scored]
         labels = np.array([tr.label for tr in tracks], dtype=int)
