@@ -15,7 +15,7 @@ from tracker.config import (BirthConfig, ClusteringConfig, DetectionConfig, Meas
 def test_defaults_are_the_documented_ones() -> None:
     c = TrackerConfig()
     assert c.coordinates == "curvilinear" and c.motion.model == "frenet" and c.use_radar
-    assert c.measurement.two_side_eigen_ratio == 50.0
+    assert c.measurement.two_side_eigen_ratio == 50.0 and c.measurement.two_side_min_residual == 0.05
     assert c.measurement.partial_visibility == 0.9
     assert c.reduction.extraction_threshold == 0.5
     assert c.reduction.confirm_min_points == 2 and c.measurement.single_point_min_apparent == 0.25
@@ -60,6 +60,7 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(manoeuvre_sigmas=0.0), r"MotionConfig.manoeuvre_sigmas must be > 0"),
         (lambda: MotionConfig(manoeuvre_hold=-1.0), r"MotionConfig.manoeuvre_hold must be >= 0"),
         (lambda: MotionConfig(manoeuvre_memory=0.0), r"MotionConfig.manoeuvre_memory must be > 0"),
+        (lambda: MeasurementConfig(two_side_min_residual=-0.01), r"MeasurementConfig.two_side_min_residual must be >= 0"),
         (lambda: MeasurementConfig(whole_min_points=1), r"MeasurementConfig.whole_min_points must be an integer >= 2"),
         (lambda: MeasurementConfig(whole_gate_sigmas=-1.0), r"MeasurementConfig.whole_gate_sigmas"),
         (lambda: MeasurementConfig(whole_gate_slack=float("nan")), r"MeasurementConfig.whole_gate_slack"),

@@ -31,7 +31,7 @@ from tracker.measurement import (
     to_vehicle,
 )
 from tracker.ukf import UnscentedTransform
-from tracker.update import update
+from tracker.update import update, update_pairs
 
 EXACT = MeasurementConfig()
 
@@ -179,8 +179,9 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
     the rear's left part lies in a nearer object's shadow (``ClusterBatch.occluded_end[:, 1]``), the
     rear is partially visible however much of it shows, and the visible right end anchors it at K3
     (``FROM_A``), even when the prediction sits 0.6 m too far right and the nearest-anchor rule picks
-    the centre; mirrored for a shadow on the right (``FROM_B``). Without the flags, with a blunt free
-    end or with both ends in shadows: the rules before."""
+    the centre; mirrored for a shadow on the right (``FROM_B``). Without the flags or with a blunt free
+    end: the rules before; with both ends in shadows: partially visible however much shows, anchored
+    by the nearest-anchor rule (the window's spread: the next test)."""
     truth = np.array([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9])
     k = corners_of(truth)
     predicted = corners_of(truth + np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0, 0.0]))[None]
@@ -205,7 +206,74 @@ def test_a_side_ending_in_a_shadow_is_partial_and_anchored_at_its_free_end() -> 
         assert build_structure(blunt, np.array([0]), predicted, EXACT).mode[0, 0] == \
             build_structure(dataclasses.replace(blunt, occluded_end=None), np.array([0]), predicted, EXACT).mode[0, 0]
         both = build_structure(dataclasses.replace(batch, occluded_end=np.array([[True, True]])), np.array([0]), predicted, EXACT)
-        assert both.mode[0, 0] == plain.mode[0, 0]
+        if plain.mode[0, 0] != FULL:
+            assert both.mode[0, 0] == plain.mode[0, 0]
+        else:  # the nearest anchor of the prediction 0.6 m right: the end K2 (the side's last point)
+            assert both.mode[0, 0] == FROM_B
+
+
+def _window_factor(structure) -> np.ndarray:
+    """Each valid point's first end-gap noise factor's length (m): its shift along the side per unit."""
+    f = structure.factors[0, 0, : 2 * int(structure.valid[0].sum())].reshape(-1, 2)
+    return np.linalg.norm(f, axis=1)
+
+
+def test_a_side_seen_between_two_shadows_is_a_window_anywhere_along_it() -> None:
+    """A car 30 m straight ahead shows the middle 35 % of its 1.9 m rear between two nearer objects'
+    shadows (both ``ClusterBatch.occluded_end`` flags). The points are a window onto the rear, which may
+    lie anywhere along it: the rear is partially visible, anchored by the nearest-anchor rule, and every
+    point shares one more shift along the rear, of standard deviation ``(W - chord) / sqrt(12)`` (a
+    uniform place over the unseen 65 %), above the end gaps' own. An end flagged because it lies within
+    ``shadow_range_margin`` of the lidar's range is the range limit, not a shadow: no window there."""
+    truth = np.array([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9])
+    k = corners_of(truth)
+    b3, b2 = bearing(k[3]), bearing(k[2])
+    pts, hit = rectangle_scan(k, np.linspace(b3 + 0.3 * (b2 - b3), b3 + 0.65 * (b2 - b3), 12))
+    assert hit.all()
+    batch = ClusterBatch.of([cornered(pts, EXACT)])
+    both = dataclasses.replace(batch, occluded_end=np.array([[True, True]]))
+    plain = build_structure(batch, np.array([0]), k[None], EXACT)
+    window = build_structure(both, np.array([0]), k[None], EXACT)
+    assert plain.mode[0, 0] == window.mode[0, 0] == CENTRE and not window.two_sided[0]
+    spread = (1.9 - batch.chord_len[0, 0]) / np.sqrt(12.0)
+    assert 0.3 < spread < 0.4
+    np.testing.assert_allclose(_window_factor(window), np.hypot(_window_factor(plain), spread), rtol=1e-12)
+    # seen from 32 m of range (30 m inside the last 5 m): both flags are the range limit's
+    limited = build_structure(both, np.array([0]), k[None], EXACT, lidar_range=32.0)
+    np.testing.assert_array_equal(limited.factors, plain.factors)
+    # the whole rear between two shadows (a predicted side the chord covers): partial, not stretched
+    whole, _ = rectangle_scan(k, np.linspace(b3, b2, 12))
+    wide = ClusterBatch.of([cornered(whole, EXACT)])
+    assert build_structure(wide, np.array([0]), k[None], EXACT).mode[0, 0] == FULL
+    flagged = build_structure(dataclasses.replace(wide, occluded_end=np.array([[True, True]])), np.array([0]),
+                              k[None], EXACT)
+    assert flagged.mode[0, 0] != FULL
+
+
+def test_a_window_sliding_along_a_side_does_not_drag_the_track() -> None:
+    """The rear of a car 30 m ahead seen through a 0.6 m gap between two nearer objects, the gap
+    sliding from the rear's left end to its right end over 12 frames (both ends flagged in shadows). The
+    nearest anchor alone (the window rule off: the flags read as the range limit) drags the estimate
+    sideways with the gap; with the window's spread it stays near the truth."""
+    truth = np.array([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9])
+    k = corners_of(truth)
+    b3, b2 = bearing(k[3]), bearing(k[2])
+    config = TrackerConfig(coordinates="cartesian")
+    ut = UnscentedTransform(config.ukf)
+    error = {}
+    for label, lidar_range in (("window", 100.0), ("off", 32.0)):
+        mean = truth.copy()
+        cov = np.diag([0.1, 0.2, 0.5, 0.02, 0.01, 0.3, 0.1]) ** 2
+        for start in np.linspace(0.65, 0.05, 12):  # the gap's first ray, as a share of the rear from K3
+            pts, _ = rectangle_scan(k, np.linspace(b3 + start * (b2 - b3), b3 + (start + 0.3) * (b2 - b3), 10))
+            batch = dataclasses.replace(ClusterBatch.of([cornered(pts, config.measurement)]),
+                                        occluded_end=np.array([[True, True]]))
+            cfg = dataclasses.replace(config, detection=dataclasses.replace(config.detection, lidar_range=lidar_range))
+            res = update_pairs(mean[None], cov[None], batch, np.zeros(1, int), np.zeros(1, int), ORIGIN, None, cfg, ut)
+            mean, cov = res.mean[0], res.cov[0] + np.diag([1e-4, 4e-3, 1e-3, 1e-5, 1e-5, 1e-3, 1e-4])
+        error[label] = abs(mean[1] - truth[1])
+    assert error["window"] < 0.25  # 0.15 m: the centre anchor's pull, weakened
+    assert error["off"] > 0.8 and error["off"] > 4.0 * error["window"]  # 1.2 m: most of the gap's travel
 
 
 def test_a_two_sided_part_ending_in_a_shadow_is_partial_unless_longer_than_predicted() -> None:
@@ -394,6 +462,15 @@ def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
     assert c.two_sided and c.eigen_ratio < 50
     line = cornered(np.column_stack([np.full(30, 10.0), np.linspace(-1, 1, 30)]), EXACT)
     assert not line.two_sided and line.eigen_ratio > 50
+    # five returns on a 0.5 m face 36 m away, 3 cm of range noise: elongated less than the eigenvalue
+    # ratio asks (noise across a short chord), but their RMS distance from one line is the noise's
+    face = np.column_stack([36.0 + 0.03 * np.array([1, -1, 1, -1, 1]), np.linspace(-0.25, 0.25, 5)])
+    noisy = cornered(face, EXACT)
+    assert noisy.eigen_ratio < 50 and not noisy.two_sided
+    assert cornered(face, MeasurementConfig(two_side_min_residual=0.0)).two_sided
+    # a real corner of as few returns: 0.5 m of rear and 0.4 m of side
+    corner = cornered(np.array([[10.0, -0.5], [10.0, 0.0], [10.0, 0.5], [10.2, 0.5], [10.4, 0.5]]), EXACT)
+    assert corner.two_sided
     # a prediction that shows only one side (straight ahead) overrules the data's L
     ahead = corners_of(np.array([12.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]))
     st = build_structure(ClusterBatch.of([c]), np.array([0, 0]), np.stack([k, ahead]), EXACT)

@@ -14,9 +14,10 @@ by azimuth about its bounding-box centre and rotates the circular order to start
 which for the visible (convex) contour of a rectangle is the same scan order. Seen from outside, counter-clockwise around the
 sensor is clockwise around the object, so the points run along a visible side ``k`` from ``K_{k+1}`` to
 ``K_k``, and a two-sided cluster covers side ``j`` then side ``j - 1`` through the corner ``K_j``. The
-cluster is two-sided in the data when it has at least ``min_points_two_sided`` points and the
+cluster is two-sided in the data when it has at least ``min_points_two_sided`` points, the
 eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
-``two_side_eigen_ratio`` (50). Its corner index is the split minimising the total least-squares
+``two_side_eigen_ratio`` (50) and ``sqrt(lambda_min)``, the points' RMS distance from one fitted line,
+exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face are not a corner). Its corner index is the split minimising the total least-squares
 line-fit residual of the two parts (the paper: "least squares fitting lines"; the corner point belongs
 to both fits; all splits at once from prefix sums). Each part (or the whole cluster) gets a
 total-least-squares line; its *chord* is the extent of the points' projections on that line, and
@@ -52,7 +53,10 @@ two-sided cluster from the fitted corner to a sharp, free far end, when both par
 and the side shrinks by no more than the extent's uncertainty allows; a side
 with an end in a shadow is partially visible whatever its extent (one-sided, when its other end is
 sharp; a part of a two-sided cluster, unless its chord is longer than the
-predicted side: then it is measured whole to its last return, no end-gap margin at the shadowed end).
+predicted side: then it is measured whole to its last return, no end-gap margin at the shadowed end);
+a one-sided cluster with both ends in shadows of nearer objects (not the range limit) is a window onto
+the side: partially visible, and its points share one more shift along the side, of standard deviation
+``(side - chord) / sqrt(12)`` (a low-rank noise term, as the end gaps').
 
 Measurement generating points (one per point, in the same order, so no association is needed), with
 ``e_lo``, ``e_hi`` the end margins of the part (0 without the correction or at a fitted corner):
@@ -328,7 +332,7 @@ class Cluster:
 def prepare_settings(config: MeasurementConfig) -> tuple:
     """``prepare_kernel``'s settings, the arguments after its points and offsets."""
     return (int(config.max_cluster_points), int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
-            MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
+            float(config.two_side_min_residual), MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
 
 
 def finite_cluster_points(points: np.ndarray, velocity: np.ndarray | None = None
@@ -499,16 +503,18 @@ def build_structure(
     use_radar: bool = True,
     *,
     extent_sd: np.ndarray | None = None,
+    lidar_range: float = math.inf,
 ) -> Structure:
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E): one/two-sided, side matching, partial visibility and anchoring,
     as in the module docstring, by ``tracker.structure.structure_kernel``. ``extent_sd (P, 2)``: the
     predicted standard deviations of ``L`` and ``W`` (m), for the rule that needs them (a part shown
-    whole to a sharp, free far end, within a gate; None: that rule does not apply)."""
+    whole to a sharp, free far end, within a gate; None: that rule does not apply). ``lidar_range`` (m;
+    default: none): the lidar's range, whose limit flags ends as a shadow does (``structure_config_args``)."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
         extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
-    head, tail = structure_config_args(config, use_radar)
+    head, tail = structure_config_args(config, use_radar, lidar_range)
     sd = np.ascontiguousarray(extent_sd if extent_sd is not None else np.zeros((len(ci), 2)), dtype=float)
     fields = structure_kernel(*structure_batch_args(batch), ci, np.ascontiguousarray(mean_corners, dtype=float), *head,
                               batch.occluded_end is not None, extent_sd is not None, sd, *tail)
@@ -527,16 +533,19 @@ def structure_batch_args(batch: ClusterBatch) -> tuple[np.ndarray, ...]:
             c(~_free_ends(batch, np.arange(len(batch.points)))))
 
 
-def structure_config_args(config: MeasurementConfig, use_radar: bool) -> tuple[tuple, tuple]:
+def structure_config_args(config: MeasurementConfig, use_radar: bool,
+                          lidar_range: float = math.inf) -> tuple[tuple, tuple]:
     """The settings' arguments of the compiled structure kernel, those before its ``shadows`` (whether
     the clusters have their shadow flags, ``ClusterBatch.occluded_end``) and those after its
-    ``extent_sd``."""
+    ``extent_sd``; ``lidar_range`` (m): ends within ``shadow_range_margin`` of it are flagged for the
+    range limit, not for a nearer object's shadow."""
     head = (float(config.single_point_min_apparent), float(config.partial_visibility), float(config.shadow_free_gap),
             float(config.lidar_sigma) ** 2, float(config.radar_velocity_sigma) ** 2, bool(use_radar),
             config.radar_rows == "speed", MIN_CHORD)
     tail = (int(config.whole_min_points), float(config.whole_gate_sigmas), float(config.whole_gate_slack),
             MISSED_RAYS_SHARP,
-            -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2)
+            -1.0 if config.shadowed_lidar_sigma is None else float(config.shadowed_lidar_sigma) ** 2,
+            float(lidar_range) - float(config.shadow_range_margin))
     return head, tail
 
 
@@ -667,7 +676,8 @@ def _corner_split(pts: np.ndarray, n: int) -> int:
 
 
 @njit
-def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_chord, sin_min_angle, max_shift, max_end_gap):
+def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord, sin_min_angle, max_shift,
+                   max_end_gap):
     """The clusters ``flat[offsets[i]:offsets[i + 1]]`` (finite, non-empty) prepared, in padded arrays
     (kept points padded to the largest count a cluster may keep): ``(points, valid, part, proj,
     chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided, corner, eigen_ratio,
@@ -717,7 +727,7 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_chord, sin_min_
         ratio = np.inf
         if n >= 2 and lam_min > 1e-15 * max(lam_max, 1e-300):
             ratio = lam_max / lam_min
-        two = n >= min_two and ratio < ratio_max
+        two = n >= min_two and ratio < ratio_max and lam_min > min_residual * min_residual
         k = _corner_split(pts, n) if two else -1
         # downsampling
         keep = np.zeros(n, dtype=np.bool_)

@@ -42,7 +42,8 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                         min_extent, points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
                         end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, min_apparent,
                         partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
-                        shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
+                        shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, shadow_reach, grow,
+                        growth_min,
                         growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var,
                         class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width):  # pragma: no cover - compiled
     """The posteriors of the pairs ``(component used[inverse[p]], cluster ci[p])`` of the components
@@ -91,7 +92,7 @@ def update_pairs_kernel(means, covs, inverse, ci, scale, wm, wc, angles, period_
                                 end_gap, two_sided, single, fused, velocity, centroid, occluded, not_free, ci,
                                 mean_corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var,
                                 use_radar, speed_row, min_chord, shadows, True, extent_sd, min_points, gate_sigmas,
-                                gate_slack, missed_rays, shadowed_var)
+                                gate_slack, missed_rays, shadowed_var, shadow_reach)
     if grow:
         grown, _grown_covs = grow_extent_kernel(pair_means, pair_covs, excess, sides, mean_corners, growth_min,
                                                 growth_sigmas)
@@ -196,12 +197,12 @@ def _selected(points, offsets, has_velocity, velocity, means, covs, comp, clu): 
 
 @njit
 def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu, bound,
-                          min_two, ratio_max, min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
-                          window, shadow_margin, max_range, range_margin, continuation, rays, offset, scale, wm, wc,
+                          min_two, ratio_max, min_residual, min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan,
+                          shadows, window, shadow_margin, max_range, range_margin, continuation, rays, offset, scale, wm, wc,
                           angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table,
                           bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent,
                           partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,
-                          min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow, growth_min,
+                          min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, shadow_reach, grow, growth_min,
                           growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var,
                           class_width, class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width):  # pragma: no cover - compiled
     """The pairs ``(component comp[p], cluster clu[p])`` of the components ``means_all``, ``covs_all``
@@ -219,7 +220,7 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
     if not regular:
         return (IRREGULAR,) + _empty_result(len(comp), dim, 2) + (0, 0)
     (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
-     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_chord_prep,
+     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord_prep,
                                                  sin_min_angle, max_shift, max_end_gap, scan, shadows, window,
                                                  shadow_margin, max_range, range_margin, continuation, rays, offset)
     count, width = points.shape[0], points.shape[1]
@@ -244,7 +245,7 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
         length, ends, table, bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, points, valid,
         part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, fused, velocity,
         centroid, occluded, not_free, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar,
-        speed_row, min_chord, shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, grow,
+        speed_row, min_chord, shadows, min_points, gate_sigmas, gate_slack, missed_rays, shadowed_var, shadow_reach, grow,
         growth_min, growth_sigmas, gate, hold, classes_on, share, class_length, class_length_var, class_width,
         class_width_var, unmeasured_var, class_prior_var, short_var, length_floor, min_length, min_width, max_length, max_width)
     return result + (n_occluded, n_continued)

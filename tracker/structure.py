@@ -34,12 +34,13 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
                      end_margin, end_gap, two_in, single_in, fused, velocity, centroid, occluded, not_free, ci,
                      corners, min_apparent, partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row,
                      min_chord, shadows, has_sd, extent_sd, min_points, gate_sigmas, gate_slack, missed_rays,
-                     shadowed_var):
+                     shadowed_var, shadow_reach):
     """The fields of ``tracker.measurement.Structure`` for pairs ``(ci[p], corners[p])``; ``not_free (K, 2)``
     whether a bearing end is in a shadow or continues, ``extent_sd (P, 2)`` the sd of ``L``, ``W``;
     ``shadows``: the clusters have their shadow flags (the sharp-end and shadowed-part rules need them);
     ``has_sd``: ``extent_sd`` is known (the sharp parts' gate needs it); ``shadowed_var``:
-    ``shadowed_lidar_sigma`` squared (negative: None)."""
+    ``shadowed_lidar_sigma`` squared (negative: None); ``shadow_reach``: the range (m) from which an
+    end's shadow flag is the lidar's range limit, not a nearer object (``inf``: every flag a shadow)."""
     sx = _SX
     sy = _SY
     count = len(ci)
@@ -69,6 +70,7 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
     apparent = np.empty(4)
     dist = np.empty(4)
     inv_sqrt3 = 1.0 / math.sqrt(3.0)
+    inv_sqrt12 = 1.0 / math.sqrt(12.0)
     for p in range(count):
         c = ci[p]
         k_ = corners[p]
@@ -211,6 +213,17 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             anchor = CENTRE
         if shadowed:  # the sharp end is the vehicle's corner
             anchor = FROM_A if occ_hi else FROM_B
+        # one-sided, both ends in the shadows of nearer objects (not at the range limit): the points are
+        # a window onto a side that goes on behind both, anywhere along it; the anchor's place along the
+        # side takes the window's spread, uniform over the side's unseen length
+        window_sd = 0.0
+        if shadows and not two and not single and occ_lo and occ_hi:
+            lo_range = math.sqrt(chord_start[c, 0, 0] ** 2 + chord_start[c, 0, 1] ** 2)
+            hi_range = math.sqrt(chord_end[c, 0, 0] ** 2 + chord_end[c, 0, 1] ** 2)
+            if lo_range < shadow_reach and hi_range < shadow_reach:
+                partial0 = True
+                partial1 = True
+                window_sd = max(side_len[side0] - ln0, 0.0) * inv_sqrt12
         mode_one = FIXED if single else (anchor if partial0 else FULL)
         mode[p, 0] = (FROM_B if partial0 else FULL) if two else mode_one
         mode[p, 1] = (FROM_A if partial1 else FULL) if two else mode_one
@@ -291,8 +304,11 @@ def structure_kernel(points, valid_in, part_in, proj_in, chord_start, chord_end,
             uy = pqy / nq
             std_lo = (e_lo if part == 0 else 0.0) * inv_sqrt3
             std_hi = (e_hi if part == last_part else 0.0) * inv_sqrt3
-            factors[p, 0, 2 * m] = k_lo * std_lo * ux
-            factors[p, 0, 2 * m + 1] = k_lo * std_lo * uy
+            f_lo = k_lo * std_lo
+            if window_sd > 0.0:  # the window's place: one more shift along the side, shared by its points
+                f_lo = math.sqrt(f_lo * f_lo + window_sd * window_sd)
+            factors[p, 0, 2 * m] = f_lo * ux
+            factors[p, 0, 2 * m + 1] = f_lo * uy
             factors[p, 1, 2 * m] = k_hi * std_hi * ux
             factors[p, 1, 2 * m + 1] = k_hi * std_hi * uy
             mask[p, 2 * m] = True

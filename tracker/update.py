@@ -199,7 +199,7 @@ def update_pairs(
     pair_means, pair_covs = means[comp], covs[comp]
     extent_sd = np.sqrt(np.maximum(np.stack([pair_covs[:, LENGTH, LENGTH], pair_covs[:, WIDTH, WIDTH]], axis=1), 0.0))
     structure = build_structure(batch, clu, mean_corners[inverse], config.measurement, config.use_radar,
-                                extent_sd=extent_sd)
+                                extent_sd=extent_sd, lidar_range=config.detection.lidar_range)
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if config.measurement.grow_extent:
         grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners[inverse])
@@ -301,7 +301,7 @@ def _fused_settings(config: TrackerConfig) -> tuple[tuple, tuple, tuple, bool, b
         scanned = (shadows, float(window), float(mcfg.shadow_margin), float(det.lidar_range),
                    float(mcfg.shadow_range_margin), continuation, float(mcfg.continuation_rays or 0.0),
                    float(mcfg.continuation_offset))
-        head, tail = structure_config_args(mcfg, config.use_radar)
+        head, tail = structure_config_args(mcfg, config.use_radar, det.lidar_range)
         update = (MIN_EXTENT, *head, *tail, bool(mcfg.grow_extent), GROWTH_MIN_EXCESS, GROWTH_SIGMAS,
                   -1.0 if mcfg.radar_gate is None else float(mcfg.radar_gate), *_extent_rule_args(config))
         cached = (prepare_settings(mcfg), scanned, update, shadows, continuation)
@@ -360,7 +360,7 @@ def _update_pairs_fused(means: np.ndarray, covs: np.ndarray, inverse: np.ndarray
     mcfg = config.measurement
     ego = EgoState.coerce(ego)
     kind, *curve = road._curve.kernel_args()
-    head, tail = structure_config_args(mcfg, config.use_radar)
+    head, tail = structure_config_args(mcfg, config.use_radar, config.detection.lidar_range)
     c = np.ascontiguousarray
     try:
         status, *out = update_pairs_kernel(

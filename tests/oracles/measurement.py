@@ -69,10 +69,12 @@ def _lidar_variance(config: MeasurementConfig, mode: np.ndarray, shadowed: np.nd
 
 
 def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners: np.ndarray, config: MeasurementConfig,
-                    use_radar: bool = True, *, extent_sd: np.ndarray | None = None) -> Structure:
+                    use_radar: bool = True, *, extent_sd: np.ndarray | None = None,
+                    lidar_range: float = np.inf) -> Structure:
     """The measurement structure of pairs (cluster ``cluster_index (P,)``, predicted mean rectangle
     ``mean_corners (P, 4, 2)`` in E), ``tracker.measurement.build_structure``'s fields; ``extent_sd (P, 2)``
-    the predicted standard deviations of ``L`` and ``W`` (m; None: the rules that need them off)."""
+    the predicted standard deviations of ``L`` and ``W`` (m; None: the rules that need them off);
+    ``lidar_range`` (m): an end within ``shadow_range_margin`` of it is flagged for the range limit."""
     ci = np.asarray(cluster_index, dtype=np.intp)
     if extent_sd is not None:
         extent_sd = np.asarray(extent_sd, dtype=float).reshape(len(ci), 2)
@@ -153,6 +155,14 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
         partial |= two[:, None] & occ & (covered < predicted)
     shadowed = ~two & (occ[:, 1] & ~occ[:, 0] & sharp[:, 0] | occ[:, 0] & ~occ[:, 1] & sharp[:, 1])
     partial |= shadowed[:, None]
+    # one-sided with both ends in nearer objects' shadows (not at the range limit): a window onto a side
+    # that goes on behind both, its place along the side uniform over the unseen length
+    reach = lidar_range - config.shadow_range_margin
+    inside = ((np.linalg.norm(batch.chord_start[ci, 0], axis=-1) < reach)
+              & (np.linalg.norm(batch.chord_end[ci, 0], axis=-1) < reach))
+    window = shadows & ~two & ~single & occ[:, 0] & occ[:, 1] & inside
+    partial |= window[:, None]
+    window_sd = np.where(window, np.maximum(predicted[:, 0] - chord_len[:, 0], 0.0) / np.sqrt(12.0), 0.0)
     # one-sided partial: anchored by the closest of first <-> P, last <-> Q, centroid <-> centre
     p_start = mean_corners[rows, start_c[:, 0]]
     q_end = mean_corners[rows, end_c[:, 0]]
@@ -204,7 +214,9 @@ def build_structure(batch: ClusterBatch, cluster_index: np.ndarray, mean_corners
     last_part = np.where(two, 1, 0)[:, None]
     std_lo = np.where(part == 0, e_lo, 0.0) / np.sqrt(3.0)  # the first part's free start
     std_hi = np.where(part == last_part, e_hi, 0.0) / np.sqrt(3.0)  # the last part's free end
-    f_lo = np.where(valid[..., None], (k_lo * std_lo)[..., None] * unit, 0.0).reshape(p_count, -1)
+    # ... and a window's place, one more shift along the side shared by its points (with the start's)
+    lo_sd = np.where(window_sd[:, None] > 0.0, np.sqrt((k_lo * std_lo) ** 2 + window_sd[:, None] ** 2), k_lo * std_lo)
+    f_lo = np.where(valid[..., None], lo_sd[..., None] * unit, 0.0).reshape(p_count, -1)
     f_hi = np.where(valid[..., None], (k_hi * std_hi)[..., None] * unit, 0.0).reshape(p_count, -1)
     factors = np.stack([f_lo, f_hi], axis=1)  # (P, 2, 2M)
     # stacked measurement: x0, y0, x1, y1, ..., vx, vy

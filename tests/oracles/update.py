@@ -342,7 +342,8 @@ def update_pairs(means: np.ndarray, covs: np.ndarray, batch, component_index: np
     mean_corners = rect.corners()[:, 0][inverse]  # the central sigma point is the mean
     pair_means, pair_covs = means[comp], covs[comp]
     extent_sd = np.sqrt(np.maximum(np.stack([pair_covs[:, LENGTH, LENGTH], pair_covs[:, WIDTH, WIDTH]], axis=1), 0.0))
-    structure = build_structure(batch, clu, mean_corners, mcfg, config.use_radar, extent_sd=extent_sd)
+    structure = build_structure(batch, clu, mean_corners, mcfg, config.use_radar, extent_sd=extent_sd,
+                                lidar_range=config.detection.lidar_range)
     pair_sigma, pair_rect = sigma[inverse], rect.take(inverse)
     if mcfg.grow_extent:
         grown, grown_covs = grow_extent(pair_means, pair_covs, structure, mean_corners)
