@@ -17,9 +17,10 @@ sensor is clockwise around the object, so the points run along a visible side ``
 cluster is two-sided in the data when it has at least ``min_points_two_sided`` points, the
 eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
 ``two_side_eigen_ratio`` (50) and ``sqrt(lambda_min)``, the points' RMS distance from one fitted line,
-exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face are not a corner). Its corner index is the split minimising the total least-squares
-line-fit residual of the two parts (the paper: "least squares fitting lines"; the corner point belongs
-to both fits; all splits at once from prefix sums). Each part (or the whole cluster) gets a
+exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face are not a corner). Its
+corner index is the split minimising the total least-squares line-fit residual of the two parts (the
+paper: "least squares fitting lines"; the corner point belongs to both fits; all splits at once from
+prefix sums). Each part (or the whole cluster) gets a
 total-least-squares line; its *chord* is the extent of the points' projections on that line, and
 for a two-sided cluster the chords meet at the intersection of the two lines (the corner, less noisy
 than any single point). A point's position along its part is its projection on the line, in metres
