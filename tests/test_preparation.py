@@ -42,6 +42,8 @@ def random_clusters(seed: int) -> list[np.ndarray]:
     out += [line(rng, int(rng.integers(2, 150))) for _ in range(8)]
     out += [rng.uniform(-40, 40, (1, 2)), rng.uniform(-40, 40, (2, 2)), np.tile(rng.uniform(5, 9, (1, 2)), (5, 1))]
     out += [l_shape(rng, 3), rng.normal(20.0, 2.0, (40, 2))]  # too few for two sides; a blob
+    # a short face in range noise: elongated less than the eigenvalue ratio asks, but within the noise of one line
+    out += [np.column_stack([36.0 + rng.normal(0.0, 0.03, 5), np.linspace(-0.25, 0.25, 5)])]
     return [out[i] for i in rng.permutation(len(out))]
 
 

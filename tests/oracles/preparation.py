@@ -99,7 +99,8 @@ def prepare_cluster(
         root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
         lam_min, lam_max = 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
         ratio = lam_max / lam_min if lam_min > 1e-15 * max(lam_max, 1e-300) else math.inf
-    two = n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
+    two = (n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
+           and lam_min > config.two_side_min_residual**2)
     keep = np.arange(n)
     corner = -1
     if two:
