@@ -131,3 +131,25 @@ def test_pooled_numbers_and_the_real_traffic_section():
     assert "## Real recorded traffic" in text and "| real-b | curvilinear-fused |" in text
     assert "| standard | curvilinear-fused | 0.10 |" in text and "| real | curvilinear-fused | 3.50 |" in text
     assert "## Real recorded traffic" not in render_report(CompareData(simulated, [], [], data.meta), [])
+
+
+def test_pooled_length_shown_split_and_its_table():
+    """``pooled`` takes the shown / not-shown parts of runs together over their pairs; the table has a row per
+    suite and extended variant, none for a tracker without the split (a point tracker)."""
+    from sim.studies.report import observability_table, pooled
+
+    def row(variant, seen, shown, pos_shown, pos_unshown, len_shown, len_unshown):
+        return {"variant": variant, "frames": 10, "matched_pairs_seen": seen, "matched_pairs_seen_length_shown": shown,
+                "pos_rmse_seen_length_shown_m": pos_shown, "pos_rmse_seen_length_unshown_m": pos_unshown,
+                "length_rmse_seen_shown_m": len_shown, "length_rmse_seen_unshown_m": len_unshown}
+
+    rows = [row("curvilinear-fused", 100, 40, 0.1, 0.5, 0.05, 0.8), row("curvilinear-fused", 50, 30, 0.2, 0.3, 0.1, 0.6),
+            row("stonesoup-gmphd", 80, 0, None, None, None, None) | {"matched_pairs_seen": None}]
+    p = pooled(rows[:2])
+    assert p["shown_share"] == pytest.approx(70 / 150)
+    assert p["pos_shown"] == pytest.approx(((40 * 0.01 + 30 * 0.04) / 70) ** 0.5)
+    assert p["pos_unshown"] == pytest.approx(((60 * 0.25 + 20 * 0.09) / 80) ** 0.5)
+    assert p["length_unshown"] == pytest.approx(((60 * 0.64 + 20 * 0.36) / 80) ** 0.5)
+    assert pooled(rows[2:])["shown_share"] is None
+    table = observability_table([("real", rows)], ["curvilinear-fused", "stonesoup-gmphd"])
+    assert "| real | curvilinear-fused | 0.47 | " in table and "stonesoup-gmphd" not in table

@@ -65,7 +65,18 @@ def side_seen(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.nd
     """Whether each vehicle (centres ``xy (N, 2)`` in G, ``yaw``, ``length``, ``width``, lidar ``returns``
     in this frame, each ``(N,)``; ``bearings (N, 2)`` the lowest and highest bearing of its returns, as
     ``FrameRecord.lidar_bearings``, or None) is a long vehicle whose side the lidar at ``ego_xy`` (G, m)
-    with angular step ``resolution`` (rad) sees (module docstring)."""
+    with angular step ``resolution`` (rad) sees (module docstring): ``side_shown`` of a long vehicle."""
+    return (np.asarray(length, dtype=float) >= LONG_VEHICLE_LENGTH) & side_shown(ego_xy, xy, yaw, length, width, returns,
+                                                                                 resolution, bearings)
+
+
+def side_shown(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.ndarray, width: np.ndarray,
+               returns: np.ndarray, resolution: float, bearings: np.ndarray | None = None) -> np.ndarray:
+    """Whether the lidar shows each vehicle's side whole, whatever its length (the arguments as
+    ``side_seen``'s): the side faces the lidar, subtends ``SIDE_MIN_RAYS`` rays sampled at most
+    ``SIDE_MAX_RAY_GAP`` apart, the vehicle shows all but ``SIDE_MISSING_SHARE`` (and one) of its
+    visible sides' returns and, with ``bearings``, they reach both ends of its outline's bearing span:
+    the frame shows its length."""
     ego = np.asarray(ego_xy, dtype=float).reshape(2)
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     c, s = np.cos(yaw), np.sin(yaw)
@@ -94,7 +105,7 @@ def side_seen(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.nd
         got = np.asarray(bearings, dtype=float).reshape(-1, 2)
         with np.errstate(invalid="ignore"):
             shown &= (got[:, 0] <= lo + END_RAYS * resolution) & (got[:, 1] >= hi - END_RAYS * resolution)
-    return (2.0 * half_l >= LONG_VEHICLE_LENGTH) & (np.abs(lat) > half_w) & (side_rays >= SIDE_MIN_RAYS) & dense & shown
+    return (np.abs(lat) > half_w) & (side_rays >= SIDE_MIN_RAYS) & dense & shown
 
 
 def length_errors(frames: list[FrameRecord], resolution: float) -> list[tuple[int, float, float, float | None]]:

@@ -40,6 +40,10 @@ the same measures over the vehicles driving against ``s`` (two-way roads; ``None
 ``oncoming_matched_pairs`` matched pairs.
 ``long_sides_seen``, ``long_length_within_1m``, ``long_length_err_max_m`` (extended trackers): the hard
 suite's target, a long vehicle's length 3 s after its side is first seen (``sim.evaluation.long_vehicles``).
+``length_shown_share``, ``pos_rmse_seen_length_shown_m``, ``pos_rmse_seen_length_unshown_m``,
+``length_rmse_seen_shown_m``, ``length_rmse_seen_unshown_m``, ``matched_pairs_seen``,
+``matched_pairs_seen_length_shown`` (extended trackers): the seen pairs split by whether the vehicle's
+side has been seen whole so far (``sim.evaluation.observability``).
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
 run to run; every other metric is bit-identical for the same scenario, seed and variant).
 
@@ -75,6 +79,7 @@ import numpy as np
 
 from sim.evaluation.dropouts import dropout_metrics, dropout_outcomes
 from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
+from sim.evaluation.observability import metrics as observability_metrics
 from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
@@ -787,8 +792,10 @@ and truth; ``run_recording`` passes a ``ReplayWorld``), default: ``spec``'s. Rai
             progress(k + 1, total)
     wall = time.perf_counter() - start
     metrics = summarize(records, switches.switches, wall_s=wall, extent=extent)
-    if extent:  # the hard suite's target: a long vehicle's length 3 s after its side is seen
-        metrics.update(long_vehicle_metrics(records, math.radians(rig_cfg.lidar.azimuth_step_deg)))
+    if extent:  # the hard suite's target: a long vehicle's length 3 s after its side is seen; errors by what was shown
+        resolution = math.radians(rig_cfg.lidar.azimuth_step_deg)
+        metrics.update(long_vehicle_metrics(records, resolution))
+        metrics.update(observability_metrics(records, resolution))
     metrics.update(cloud_score.metrics())
     if isinstance(world, ReplayWorld):
         metrics.update(world.info())

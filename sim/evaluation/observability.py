@@ -1,0 +1,77 @@
+"""Errors split by what the sensors have shown of each vehicle: its length, or not yet.
+
+A vehicle seen only from behind or ahead shows its width but not its length: the tracker holds the
+size prior's length, and the centre, half a length from the seen end, inherits half the length's error.
+How much of a run's position error is of that kind depends on the traffic's geometry (a queue
+followed in one lane shows few sides; overtakes and curves show many), so the run's seen pairs are
+split by whether the matched vehicle's length has been shown: a side seen whole
+(``sim.evaluation.long_vehicles.side_shown``: facing the lidar, densely sampled, all its returns, both
+ends of its bearing span reached) in this frame or an earlier one. Truth only decides the split; the
+tracker's own beliefs (its length variance) play no part.
+
+Keys (extended trackers; ``None`` where a part has no pair):
+
+- ``length_shown_share``: of the matched pairs on visible vehicles (those of ``pos_rmse_seen_m``), the
+  share whose vehicle has shown its length;
+- ``pos_rmse_seen_length_shown_m``, ``pos_rmse_seen_length_unshown_m``: ``pos_rmse_seen_m`` over each
+  part (m), whose squares, weighted by the parts' pair counts, add up to its square;
+- ``length_rmse_seen_shown_m``, ``length_rmse_seen_unshown_m``: the length RMSE over each part (m);
+- ``matched_pairs_seen``, ``matched_pairs_seen_length_shown``: the pair counts (for pooling runs).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim.evaluation.long_vehicles import side_shown
+from sim.evaluation.metrics import matched_errors
+
+if TYPE_CHECKING:
+    from sim.evaluation.records import FrameRecord
+
+
+def _rmse(values: np.ndarray) -> float | None:
+    return float(math.sqrt(np.mean(values**2))) if values.size else None
+
+
+def shown_pairs(frames: list[FrameRecord], resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per matched pair on a visible vehicle, over the frames in order: whether the vehicle has shown
+    its length (in this frame or an earlier one), and the pair's position and length errors (m)."""
+    shown_ids: set[int] = set()
+    flags, position, length = [], [], []
+    for f in frames:
+        snap = f.truth
+        if not len(snap.ids):
+            continue
+        now = side_shown((snap.ego.x, snap.ego.y), snap.xy, snap.yaw, snap.length, snap.width, f.lidar_points,
+                         resolution, f.lidar_bearings)
+        shown_ids.update(int(i) for i in snap.ids[now].tolist())
+        rows = np.flatnonzero(f.scored)[np.asarray(f.gospa.truth_index, dtype=int)]  # truth rows of the pairs
+        if not len(rows):
+            continue
+        err = matched_errors(f.truth_state[f.scored], f.track_state, f.gospa)
+        seen = f.visible[rows]
+        flags.append(np.array([int(i) in shown_ids for i in snap.ids[rows].tolist()], dtype=bool)[seen])
+        position.append(err.position[seen])
+        length.append(err.length[seen])
+    def stack(parts: list[np.ndarray], dtype: type) -> np.ndarray:
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype=dtype)
+    return stack(flags, bool), stack(position, float), stack(length, float)
+
+
+def metrics(frames: list[FrameRecord], resolution: float) -> dict[str, Any]:
+    """The keys of the module docstring for a run's scored ``frames``, the lidar's angular step
+    ``resolution`` (rad)."""
+    shown, position, length = shown_pairs(frames, resolution)
+    return {
+        "length_shown_share": float(shown.mean()) if shown.size else None,
+        "pos_rmse_seen_length_shown_m": _rmse(position[shown]),
+        "pos_rmse_seen_length_unshown_m": _rmse(position[~shown]),
+        "length_rmse_seen_shown_m": _rmse(length[shown]),
+        "length_rmse_seen_unshown_m": _rmse(length[~shown]),
+        "matched_pairs_seen": int(shown.size),
+        "matched_pairs_seen_length_shown": int(shown.sum()),
+    }
