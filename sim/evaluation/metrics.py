@@ -148,6 +148,12 @@ class MatchedErrors:
     across: np.ndarray
 
 
+def rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
+    """Root mean square of the arrays ``values`` taken together, times ``scale``; None without a value."""
+    arr = np.concatenate(values) if values else np.zeros(0)
+    return float(scale * np.sqrt(np.mean(arr**2))) if arr.size else None
+
+
 def matched_errors(truth: np.ndarray, estimate: np.ndarray, result: GospaResult, *, extent: bool = True) -> MatchedErrors:
     """Errors of the GOSPA-assigned pairs. ``truth`` and ``estimate`` rows are Cartesian views
     ``[x, y, v, psi, psi_dot, L, W]`` (the ``Track.cartesian`` order). ``extent=False`` (a point

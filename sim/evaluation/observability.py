@@ -21,26 +21,21 @@ Keys (extended trackers; ``None`` where a part has no pair):
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sim.evaluation.long_vehicles import side_shown
-from sim.evaluation.metrics import matched_errors
+from sim.evaluation.metrics import matched_errors, rmse
 
 if TYPE_CHECKING:
     from sim.evaluation.records import FrameRecord
 
 
-def _rmse(values: np.ndarray) -> float | None:
-    return float(math.sqrt(np.mean(values**2))) if values.size else None
-
-
 def shown_pairs(frames: list[FrameRecord], resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per matched pair on a visible vehicle, over the frames in order: whether the vehicle has shown
     its length (in this frame or an earlier one), and the pair's position and length errors (m)."""
-    shown_ids: set[int] = set()
+    shown_ids = np.zeros(0, dtype=np.int64)
     flags, position, length = [], [], []
     for f in frames:
         snap = f.truth
@@ -48,18 +43,18 @@ def shown_pairs(frames: list[FrameRecord], resolution: float) -> tuple[np.ndarra
             continue
         now = side_shown((snap.ego.x, snap.ego.y), snap.xy, snap.yaw, snap.length, snap.width, f.lidar_points,
                          resolution, f.lidar_bearings)
-        shown_ids.update(int(i) for i in snap.ids[now].tolist())
+        shown_ids = np.union1d(shown_ids, snap.ids[now])
         rows = np.flatnonzero(f.scored)[np.asarray(f.gospa.truth_index, dtype=int)]  # truth rows of the pairs
         if not len(rows):
             continue
         err = matched_errors(f.truth_state[f.scored], f.track_state, f.gospa)
         seen = f.visible[rows]
-        flags.append(np.array([int(i) in shown_ids for i in snap.ids[rows].tolist()], dtype=bool)[seen])
+        flags.append(np.isin(snap.ids[rows], shown_ids)[seen])
         position.append(err.position[seen])
         length.append(err.length[seen])
-    def stack(parts: list[np.ndarray], dtype: type) -> np.ndarray:
-        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype=dtype)
-    return stack(flags, bool), stack(position, float), stack(length, float)
+    if not flags:
+        return np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0)
+    return np.concatenate(flags), np.concatenate(position), np.concatenate(length)
 
 
 def metrics(frames: list[FrameRecord], resolution: float) -> dict[str, Any]:
@@ -68,10 +63,10 @@ def metrics(frames: list[FrameRecord], resolution: float) -> dict[str, Any]:
     shown, position, length = shown_pairs(frames, resolution)
     return {
         "length_shown_share": float(shown.mean()) if shown.size else None,
-        "pos_rmse_seen_length_shown_m": _rmse(position[shown]),
-        "pos_rmse_seen_length_unshown_m": _rmse(position[~shown]),
-        "length_rmse_seen_shown_m": _rmse(length[shown]),
-        "length_rmse_seen_unshown_m": _rmse(length[~shown]),
+        "pos_rmse_seen_length_shown_m": rmse([position[shown]]),
+        "pos_rmse_seen_length_unshown_m": rmse([position[~shown]]),
+        "length_rmse_seen_shown_m": rmse([length[shown]]),
+        "length_rmse_seen_unshown_m": rmse([length[~shown]]),
         "matched_pairs_seen": int(shown.size),
         "matched_pairs_seen_length_shown": int(shown.sum()),
     }

@@ -79,8 +79,8 @@ import numpy as np
 
 from sim.evaluation.dropouts import dropout_metrics, dropout_outcomes
 from sim.evaluation.long_vehicles import metrics as long_vehicle_metrics
+from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors, rmse
 from sim.evaluation.observability import metrics as observability_metrics
-from sim.evaluation.metrics import GOSPA_C, GOSPA_P, GospaResult, IdSwitchCounter, gospa, matched_errors
 from sim.evaluation.records import FrameRecord
 from sim.evaluation.variants import DEFAULT_VARIANT, check_variant, estimates_extent, variant_config, variant_factory
 from sim.sensors import ClutterConfig, RigConfig, RoadsideObjects, SensorRig, generate_roadside
@@ -529,11 +529,6 @@ def _mean(values: list[float] | np.ndarray) -> float | None:
     return float(arr.mean()) if arr.size else None
 
 
-def _rmse(values: list[np.ndarray], scale: float = 1.0) -> float | None:
-    arr = np.concatenate(values) if values else np.zeros(0)
-    return float(scale * math.sqrt(np.mean(arr**2))) if arr.size else None
-
-
 def _position_by_visibility(pos: list[np.ndarray], seen: list[np.ndarray], along: list[np.ndarray],
                             across: list[np.ndarray]) -> dict[str, float | int | None]:
     """``pos_rmse_m`` split by whether the matched vehicle is visible in that frame:
@@ -545,8 +540,8 @@ def _position_by_visibility(pos: list[np.ndarray], seen: list[np.ndarray], along
     vis = np.concatenate(seen).astype(bool) if seen else np.zeros(0, dtype=bool)
     lon = np.concatenate(along) if along else np.zeros(0)
     lat = np.concatenate(across) if across else np.zeros(0)
-    return {"pos_rmse_seen_m": _rmse([err[vis]]), "pos_rmse_seen_along_m": _rmse([lon[vis]]),
-            "pos_rmse_seen_across_m": _rmse([lat[vis]]), "pos_rmse_hidden_m": _rmse([err[~vis]]),
+    return {"pos_rmse_seen_m": rmse([err[vis]]), "pos_rmse_seen_along_m": rmse([lon[vis]]),
+            "pos_rmse_seen_across_m": rmse([lat[vis]]), "pos_rmse_hidden_m": rmse([err[~vis]]),
             "matched_pairs_hidden": int((~vis).sum())}
 
 
@@ -596,8 +591,8 @@ def oncoming_metrics(frames: list[FrameRecord], extent: bool = True) -> dict[str
         switches.update(f.truth.ids[truth_rows[oncoming]], labels)
     pairs = int(sum(len(e) for e in yaw))
     return {
-        "oncoming_yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
-        "oncoming_speed_rmse_mps": _rmse(speed),
+        "oncoming_yaw_rmse_deg": rmse(yaw, 180.0 / math.pi),
+        "oncoming_speed_rmse_mps": rmse(speed),
         "oncoming_id_switches": switches.switches if pairs else None,
         "oncoming_matched_pairs": pairs,
     }
@@ -639,12 +634,12 @@ def summarize(frames: list[FrameRecord], id_switches: int, *, wall_s: float | No
         "gospa_false_mean": _mean([f.gospa.false for f in frames]),
         "cardinality_error_mean": _mean(np.abs(n_est - n_truth)),
         "cardinality_bias_mean": _mean(n_est - n_truth),
-        "pos_rmse_m": _rmse(pos),
+        "pos_rmse_m": rmse(pos),
         **_position_by_visibility(pos, seen, along, across),
-        "yaw_rmse_deg": _rmse(yaw, 180.0 / math.pi),
-        "length_rmse_m": _rmse(length),
-        "width_rmse_m": _rmse(width),
-        "speed_rmse_mps": _rmse(speed),
+        "yaw_rmse_deg": rmse(yaw, 180.0 / math.pi),
+        "length_rmse_m": rmse(length),
+        "width_rmse_m": rmse(width),
+        "speed_rmse_mps": rmse(speed),
         "id_switches": int(id_switches),
         "gospa_visible_mean": _mean([f.gospa_visible.gospa for f in frames]),
         "gospa_visible_localization_mean": _mean([f.gospa_visible.localization for f in frames]),
