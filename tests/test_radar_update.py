@@ -76,7 +76,7 @@ def test_a_detection_stops_a_coasting_track(straight):
 
 
 @pytest.mark.parametrize("offset, reason", [((0.0, 2.5, 0.0), "next lane"), ((0.0, 0.0, -15.0), "velocity"),
-                                            ((9.0, 0.0, 0.0), "too far")])
+                                            ((12.0, 0.0, 0.0), "too far beyond the front")])
 def test_a_detection_that_does_not_fit_updates_nothing(straight, offset, reason):
     config, ut = TrackerConfig(), UnscentedTransform(TrackerConfig().ukf, n=8)
     mean, cov = coasting(straight, 50.0, 0.0, 8.0)
@@ -108,6 +108,48 @@ def test_a_detection_two_tracks_could_take_goes_to_the_nearer_alone(straight):
     each = update_coasting(means, covs, np.array([0, 1]), two, np.array([0, 1]), 0.0, EGO, straight, config, ut,
                            labels=np.array([7, 8]))
     assert dict(zip(each.component, each.detection)) == {0: 0, 1: 1}
+
+
+@pytest.mark.parametrize("n_car", [0.0, 3.0])
+def test_a_detection_moves_the_vehicle_not_its_length(straight, n_car):
+    # a coasting car of unmeasured length (4.6 +- 1.0 m) whose rear lies 1 m short of the prediction: the
+    # free update lengthens the car (its far end moves less than its rear); the held update keeps the
+    # length and width and their block of the covariance, and puts the point nearest the detection
+    # where the free update put it (the whole car moved): a point shows no side whole
+    ut = UnscentedTransform(TrackerConfig().ukf, n=8)
+    mean, cov = coasting(straight, 40.0, n_car, 10.0, sd_s=0.4)
+    cov[0, 5, 5] = 1.0
+    radar = detection_of(straight, 39.0, n_car, 10.0)
+    held_cfg = TrackerConfig()
+    free_cfg = dataclasses.replace(held_cfg, measurement=dataclasses.replace(held_cfg.measurement,
+                                                                            hold_unobserved_extent=False))
+    free = update_coasting(mean, cov, np.array([0]), radar, np.array([0]), 0.0, EGO, straight, free_cfg, ut)
+    held = update_coasting(mean, cov, np.array([0]), radar, np.array([0]), 0.0, EGO, straight, held_cfg, ut)
+    assert free.mean[0, 5] > 4.6 + 0.1  # without the hold, one point measures the length
+    np.testing.assert_allclose(held.mean[0, 5:7], mean[0, 5:7], atol=0.0)
+    np.testing.assert_allclose(held.cov[0, 5:7, 5:7], cov[0, 5:7, 5:7], atol=0.0)
+    np.testing.assert_allclose(held.cov[0, :5, :5], free.cov[0, :5, :5], atol=0.0)
+    z = np.array([radar.x[0], radar.y[0]])
+    on = [nearest_points(to_vehicle(r.mean[:, :7], EGO, straight), z)[0] for r in (free, held)]
+    np.testing.assert_allclose(on[1], on[0], atol=1e-9)
+    far = [r.mean[0, 0] + 0.5 * r.mean[0, 5] for r in (free, held)]
+    assert far[0] - far[1] > 0.05  # the far end moves with the car
+    assert np.all(np.linalg.eigvalsh(held.cov[0]) > 0)
+
+
+def test_a_detection_on_the_vehicle_does_not_move_it(straight):
+    # the radar reports the nearest *visible* point: of a car half hidden behind another, a point on its
+    # side, metres beyond its rear; inside the predicted rectangle it tells nothing of where the car is
+    # (taken for its point nearest the sensor it would pull the car 0.4 m forward), while its velocity still counts
+    config, ut = TrackerConfig(), UnscentedTransform(TrackerConfig().ukf, n=8)
+    mean, cov = coasting(straight, 40.0, 3.0, 10.0, sd_s=1.0)
+    side = to_vehicle(mean[:, :7], EGO, straight)
+    point = side.center[0] + np.array([-0.8, -0.95])  # on its right side, 1.5 m ahead of its rear
+    radar = RadarDetections(np.zeros(1), point[:1], point[1:], np.array([8.0]), np.array([0.0]))
+    res = update_coasting(mean, cov, np.array([0]), radar, np.array([0]), 0.0, EGO, straight, config, ut)
+    assert list(res.component) == [0]
+    assert abs(res.mean[0, 0] - 40.0) < 0.05 and abs(res.mean[0, 1] - 3.0) < 0.05, res.mean[0, :2]
+    assert res.mean[0, 2] < 9.5  # the velocity rows pull the speed towards the detection's 8 m/s
 
 
 def test_an_old_detection_is_moved_to_the_frame_time(straight):

@@ -236,7 +236,7 @@ class MeasurementConfig:
     radar_velocity_sigma: float = 0.5
     #: A detection that joined no cluster updates a coasting track it fits (fused only; default True).
     radar_only_update: bool = True
-    #: Std of a radar-only detection about the predicted rectangle's nearest point, per axis (m; default 2.0).
+    #: Std of a radar-only detection about the predicted rectangle's point nearest it, per axis (m; default 2.0).
     radar_position_sigma: float = 2.0
     #: A cluster is two-sided in the data when ``lambda_max / lambda_min`` of its points is below this (default 50.0).
     two_side_eigen_ratio: float = 50.0

@@ -7,14 +7,16 @@ seen by a radar mounted elsewhere on the ego (the bumper), and the radar then re
 velocity while the track coasts on a prediction that knows neither that the vehicle stopped nor that
 it sped up (a car stopping behind a bus while its coasting track drives on at its old speed).
 
-Model (``MeasurementConfig.radar_only_update``): a detection is the point of the vehicle's rectangle
-nearest the sensor plus noise, and its absolute velocity in E::
+Model (``MeasurementConfig.radar_only_update``): a detection ``z`` is a point of the vehicle plus noise,
+and its absolute velocity in E::
 
-    h(x) = [ p(x), v (cos psi_E, sin psi_E) ],   R = diag(sp^2, sp^2, sv^2, sv^2)
+    h(x; z) = [ p(x; z), v (cos psi_E, sin psi_E) ],   R = diag(sp^2, sp^2, sv^2, sv^2)
 
-with ``p(x)`` the rectangle's point nearest the E origin (``nearest_points``; the radar sits on the
-bumper, not at the origin, and reports the nearest *visible* point, so ``sp`` =
-``radar_position_sigma`` is wider than the sensor's own noise), ``sv = radar_velocity_sigma``. Only
+with ``p(x; z)`` the rectangle's point nearest the detection (``nearest_points``; ``z`` itself where it
+lies inside): the radar reports the nearest *visible* point of a vehicle, which on a vehicle half
+hidden behind another lies anywhere along its visible side, metres beyond the point nearest the
+sensor, so a detection tells where the vehicle is not, not which of its points it is. ``sp`` =
+``radar_position_sigma``, ``sv = radar_velocity_sigma``. Only
 the components of tracks (labels reported before) that no lidar cluster updated in this frame are
 candidates, only detections that joined no cluster and lie clear of the lidar's returns
 (``RADAR_ONLY_CLEARANCE``) and of the rectangles of the tracks updated in this frame are used, and a
@@ -27,7 +29,8 @@ other's detections, and a greedy choice would give one car's detection to its ne
 chosen track takes its pair with that detection; its weight is left as the lidar update made it (the
 detection refines where the vehicle is, not whether it exists: the GM-PHD's existence evidence stays
 the lidar's, and a radar false alarm cannot create or keep a track). One batched UKF update
-(``tracker.update.kalman_update``) over all gated pairs.
+(``tracker.update.kalman_update``) over all gated pairs. With ``MeasurementConfig.hold_unobserved_extent``
+the length and width keep their prior (``hold_extent``): one point shows no side whole.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from scipy.stats import chi2
 from tracker.config import TrackerConfig
 from tracker.frame import EgoState, RadarDetections
 from tracker.measurement import Rectangles, to_vehicle
+from tracker.motion import LENGTH, WIDTH, XI
 from tracker.road import Road
 from tracker.ukf import UnscentedTransform
 from tracker.update import kalman_update, state_wrapping
@@ -59,20 +63,55 @@ RADAR_ONLY_LATERAL = 1.0
 NOT_GATED = 1e9
 
 
-def nearest_points(rect: Rectangles) -> np.ndarray:
-    """The point ``(..., 2)`` of each rectangle nearest the E origin (the sensor); the origin itself
-    when it lies inside."""
+def nearest_in_body(rect: Rectangles, point: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The point of each rectangle nearest ``point`` (``(..., 2)`` in E, broadcast against the
+    rectangles; default the E origin, the sensor) in the rectangle's own axes: ``u`` along its length,
+    ``w`` across it, from its centre (m; ``point`` itself where it lies inside)."""
     c, s = np.cos(rect.psi), np.sin(rect.psi)
-    # the origin in each rectangle's own axes, clamped to the rectangle, and back to E
     ox, oy = -rect.center[..., 0], -rect.center[..., 1]
+    if point is not None:
+        ox, oy = ox + point[..., 0], oy + point[..., 1]
     u = np.clip(c * ox + s * oy, -0.5 * rect.length, 0.5 * rect.length)
     w = np.clip(-s * ox + c * oy, -0.5 * rect.width, 0.5 * rect.width)
+    return u, w
+
+
+def nearest_points(rect: Rectangles, point: np.ndarray | None = None) -> np.ndarray:
+    """The point ``(..., 2)`` of each rectangle nearest ``point`` (``nearest_in_body``; default the
+    E origin) in E."""
+    c, s = np.cos(rect.psi), np.sin(rect.psi)
+    u, w = nearest_in_body(rect, point)
     return np.stack([rect.center[..., 0] + c * u - s * w, rect.center[..., 1] + s * u + c * w], axis=-1)
 
 
-def radar_measurement(rect: Rectangles) -> np.ndarray:
-    """``h(x)`` ``(..., 4)`` of rectangles: nearest point and absolute velocity in E (module docstring)."""
-    return np.concatenate([nearest_points(rect), rect.velocity()], axis=-1)
+def radar_measurement(rect: Rectangles, point: np.ndarray | None = None) -> np.ndarray:
+    """``h(x)`` ``(..., 4)`` of rectangles: the point nearest the detection ``point`` (``(..., 2)``; the
+    nearest the sensor without one) and the absolute velocity in E (module docstring)."""
+    return np.concatenate([nearest_points(rect, point), rect.velocity()], axis=-1)
+
+
+def hold_extent(prior_mean: np.ndarray, prior_cov: np.ndarray, mean: np.ndarray, cov: np.ndarray,
+                rect: Rectangles, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Posteriors ``mean (U, D)``, ``cov (U, D, D)`` (``rect``: their rectangles in E) with the length
+    and width held at the prior's (``prior_mean``, ``prior_cov``), as the lidar update holds an extent
+    no side shows whole (``MeasurementConfig.hold_unobserved_extent``): one point shows no side whole.
+    The rectangle's point nearest the detection ``point (U, 2)`` stays where the update put it: on an
+    end (a long side), the centre moves by the change of half the length (width) along (across) the
+    body, ``(cos xi, sin xi)`` in the state's position slots as ``tracker.extent``'s moves; the
+    covariance is the Schmidt one (the ``L, W`` block the prior's, the rest the update's). Returns new
+    arrays."""
+    mean, cov = mean.copy(), cov.copy()
+    u, w = nearest_in_body(rect, point)
+    new_u = np.where(np.abs(u) >= 0.5 * rect.length - 1e-9, np.sign(u) * 0.5 * prior_mean[:, LENGTH], u)
+    new_w = np.where(np.abs(w) >= 0.5 * rect.width - 1e-9, np.sign(w) * 0.5 * prior_mean[:, WIDTH], w)
+    du, dw = u - new_u, w - new_w  # the centre's move in the body's axes (m)
+    c, s = np.cos(mean[:, XI]), np.sin(mean[:, XI])
+    mean[:, 0] += c * du - s * dw
+    mean[:, 1] += s * du + c * dw
+    ext = np.array([LENGTH, WIDTH])
+    mean[:, ext] = prior_mean[:, ext]
+    cov[:, ext[:, None], ext[None, :]] = prior_cov[:, ext[:, None], ext[None, :]]
+    return mean, cov
 
 
 @dataclass(frozen=True)
@@ -117,24 +156,27 @@ def update_coasting(
         return RadarOnlyResult.empty(dim)
     z = np.column_stack([radar.positions_at(t, free), radar.vx[free], radar.vy[free]])
     rect = to_vehicle(means[candidates], ego, road, config.coordinates)
-    # pre-gate on position: within the gating distance of the predicted rectangle's nearest point, and
-    # within RADAR_ONLY_LATERAL of it across the vehicle's heading (the vehicle's own lane)
+    # pre-gate on position: within the gating distance of the predicted rectangle, and within
+    # RADAR_ONLY_LATERAL across the vehicle's heading of its point nearest the sensor (its own lane)
+    rect_kf = Rectangles(rect.center[:, None, :], *(a[:, None] for a in (rect.psi, rect.v, rect.length, rect.width)))
+    on = nearest_points(rect_kf, z[None, :, :2])  # (K, F, 2)
     near = nearest_points(rect)
     dx, dy = z[None, :, 0] - near[:, None, 0], z[None, :, 1] - near[:, None, 1]  # (K, F)
     c, s = np.cos(rect.psi)[:, None], np.sin(rect.psi)[:, None]
     across = np.abs(-s * dx + c * dy)
-    comp, det = np.nonzero((np.hypot(dx, dy) <= config.gating.distance) & (across <= RADAR_ONLY_LATERAL))
+    gap = np.hypot(z[None, :, 0] - on[..., 0], z[None, :, 1] - on[..., 1])
+    comp, det = np.nonzero((gap <= config.gating.distance) & (across <= RADAR_ONLY_LATERAL))
     if len(comp) == 0:
         return RadarOnlyResult.empty(dim)
     wrapping = state_wrapping(road, config.coordinates)
     used, inverse = np.unique(comp, return_inverse=True)
     idx = candidates[used]
-    sigma = ut.sigma_points(means[idx], covs[idx], wrapping)  # (U, S, D)
-    z_sigma = radar_measurement(to_vehicle(sigma, ego, road, config.coordinates))  # (U, S, 4)
+    sigma = ut.sigma_points(means[idx], covs[idx], wrapping)[inverse]  # (P, S, D)
+    z_sigma = radar_measurement(to_vehicle(sigma, ego, road, config.coordinates), z[det, None, :2])  # (P, S, 4)
     m = config.measurement
     r = np.array([m.radar_position_sigma**2] * 2 + [m.radar_velocity_sigma**2] * 2)
     prior_m, prior_p = means[idx][inverse], covs[idx][inverse]
-    res = kalman_update(ut, sigma[inverse], prior_m, prior_p, z_sigma[inverse], z[det],
+    res = kalman_update(ut, sigma, prior_m, prior_p, z_sigma, z[det],
                         np.broadcast_to(r, (len(comp), RADAR_DIM)), wrapping=wrapping)
     gated = res.nis <= chi2.ppf(config.gating.probability, RADAR_DIM)
     if not gated.any():
@@ -156,4 +198,8 @@ def update_coasting(
     # per component, the pair of smallest normalised innovation
     order = pairs[np.lexsort((res.nis[pairs], comp[pairs]))]
     first = order[np.concatenate([[True], np.diff(comp[order]) != 0])]
-    return RadarOnlyResult(candidates[comp[first]], free[det[first]], res.mean[first], res.cov[first], res.nis[first])
+    post_m, post_p = res.mean[first], res.cov[first]
+    if m.hold_unobserved_extent:
+        post_m, post_p = hold_extent(prior_m[first], prior_p[first], post_m, post_p,
+                                     to_vehicle(post_m, ego, road, config.coordinates), z[det[first], :2])
+    return RadarOnlyResult(candidates[comp[first]], free[det[first]], post_m, post_p, res.nis[first])
