@@ -139,3 +139,7 @@ def test_readme_real_traffic_numbers_match_the_reference_outputs():
                 f"and it switches identities about {real['switches_per_1000']:.0f} times per 1,000 frames "
                 f"({standard['switches_per_1000']:.2f})")
     assert expected in text, f"README's real-traffic sentence differs from the reference outputs: {expected}"
+    split = (f"where a vehicle's side has been seen whole, the position error is {real['pos_shown']:.2f} m; on the "
+             f"{100 * (1 - real['shown_share']):.0f} % of seen pairs whose length was never shown (a queue followed in "
+             f"one lane), the centre inherits half the length prior's error, and it is {real['pos_unshown']:.2f} m")
+    assert split in text, f"README's length-shown sentence differs from the reference outputs: {split}"
