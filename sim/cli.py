@@ -267,6 +267,11 @@ def summary_table(metrics: dict) -> str:
         ("tracker ms per frame (median / p95)",
          f"{_fmt_value(m.get('tracker_ms_median'), 1)} / {_fmt_value(m.get('tracker_ms_p95'), 1)}"),
     ]
+    if m.get("length_shown_share") is not None:  # extended trackers: the seen pairs by whether the length was shown
+        rows.insert(rows.index(("yaw RMSE (deg)", _fmt_value(m.get("yaw_rmse_deg")))), (
+            "  visible: length shown / not shown (m; share shown)",
+            f"{_fmt_value(m.get('pos_rmse_seen_length_shown_m'))} / {_fmt_value(m.get('pos_rmse_seen_length_unshown_m'))}"
+            f" ({_fmt_value(m.get('length_shown_share'), 2)})"))
     if m.get("oncoming_matched_pairs"):  # a two-way road with traffic against s in view
         rows.insert(rows.index(("ID switches", _fmt_value(m.get("id_switches")))) + 1, (
             "oncoming vehicles: yaw (deg) / speed (m/s) RMSE, ID switches",

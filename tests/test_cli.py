@@ -233,6 +233,18 @@ def test_summary_table_shows_oncoming_vehicles_only_where_there_are_some():
     assert "0.61" in row and "0.14" in row
 
 
+def test_summary_table_splits_the_seen_position_by_whether_the_length_was_shown():
+    from sim.cli import summary_table
+
+    base = {"frames": 10, "yaw_rmse_deg": 0.4}
+    assert "length shown" not in summary_table(base)  # a point tracker: no split
+    text = summary_table({**base, "length_shown_share": 0.41, "pos_rmse_seen_length_shown_m": 0.114,
+                          "pos_rmse_seen_length_unshown_m": 0.472})
+    lines = text.splitlines()
+    row = next(i for i, line in enumerate(lines) if "length shown / not shown" in line)
+    assert "0.114 / 0.472 (0.41)" in lines[row] and lines[row + 1].startswith("yaw RMSE")
+
+
 def test_road_draws_and_summarises_a_route_through_a_lane_map(tmp_path, capsys):
     """``eot road``: the route's road over the map (road.png) and its summary (road.json); a start off every
     lanelet and a malformed flag are one-line usage errors."""
