@@ -58,7 +58,8 @@ def run_reference() -> dict[str, np.ndarray]:
     # absorb_overlap), no motorcycles among the vehicle classes (BirthConfig.classes), no one-point fragments joined to
     # the track they continue (ClusteringConfig.fragment_points), no joins of neighbouring rays at a grazing angle
     # (ClusteringConfig.grazing_angle), two-sidedness by the eigenvalue ratio alone (MeasurementConfig.
-    # two_side_min_residual; the window between two shadows needs the shadow flags): the reference guards the speed-ups
+    # two_side_min_residual, two_side_line_residual; the window between two shadows needs the shadow flags): the
+    # reference guards the speed-ups
     # against unintended changes of the model
     base = TrackerConfig()
     config = TrackerConfig(
@@ -67,7 +68,8 @@ def run_reference() -> dict[str, np.ndarray]:
                                   first_scan=False, same_frame=False, after_update_points=None,
                                   classes=tuple(c for c in base.birth.classes if c.name != "motorcycle")),
         measurement=dataclasses.replace(base.measurement, shadow_window=None, radar_gate=None, radar_only_update=False,
-                                        shadowed_lidar_sigma=None, two_side_min_residual=0.0),
+                                        shadowed_lidar_sigma=None, two_side_min_residual=0.0,
+                                        two_side_line_residual=None),
         motion=dataclasses.replace(base.motion, acceleration=False),
         detection=dataclasses.replace(base.detection, hidden_update_p_detection=None),
         clustering=dataclasses.replace(base.clustering, fragment_points=None, grazing_angle=None),

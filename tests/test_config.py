@@ -61,6 +61,7 @@ def test_defaults_are_the_documented_ones() -> None:
         (lambda: MotionConfig(manoeuvre_hold=-1.0), r"MotionConfig.manoeuvre_hold must be >= 0"),
         (lambda: MotionConfig(manoeuvre_memory=0.0), r"MotionConfig.manoeuvre_memory must be > 0"),
         (lambda: MeasurementConfig(two_side_min_residual=-0.01), r"MeasurementConfig.two_side_min_residual must be >= 0"),
+        (lambda: MeasurementConfig(two_side_line_residual=0.0), r"MeasurementConfig.two_side_line_residual must be > 0"),
         (lambda: MeasurementConfig(whole_min_points=1), r"MeasurementConfig.whole_min_points must be an integer >= 2"),
         (lambda: MeasurementConfig(whole_gate_sigmas=-1.0), r"MeasurementConfig.whole_gate_sigmas"),
         (lambda: MeasurementConfig(whole_gate_slack=float("nan")), r"MeasurementConfig.whole_gate_slack"),

@@ -471,6 +471,33 @@ def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
     # a real corner of as few returns: 0.5 m of rear and 0.4 m of side
     corner = cornered(np.array([[10.0, -0.5], [10.0, 0.0], [10.0, 0.5], [10.2, 0.5], [10.4, 0.5]]), EXACT)
     assert corner.two_sided
+    # a car beside the sensor, its front face nearly edge-on: 300 returns along 4.9 m of side, 7 across
+    # the 2.1 m face; the face's few points leave the eigenvalue ratio above 50, but no line passes
+    # within 0.15 m (RMS) of the points (MeasurementConfig.two_side_line_residual)
+    side = np.column_stack([np.linspace(-5.05, -0.2, 300), np.full(300, 2.15)])
+    front = np.column_stack([np.full(7, -0.15), np.linspace(4.2, 2.3, 7)])
+    grazing = np.vstack([front, side])
+    ratio = cornered(grazing, MeasurementConfig(two_side_line_residual=None))
+    assert ratio.eigen_ratio > 50 and not ratio.two_sided
+    beside = cornered(grazing, EXACT)
+    assert beside.two_sided and beside.eigen_ratio > 50
+    # the face and the side, each to where the fitted lines meet at the corner (-0.15, 2.15)
+    assert np.allclose(np.sort(beside.chord_len[1:]), [2.05, 4.9], atol=0.03)
+    # ... but two parked cars' sides one behind the other, 0.8 m apart across, are no corner
+    row = np.vstack([np.column_stack([np.linspace(-9.0, -4.6, 150), np.full(150, 2.95)]),
+                     np.column_stack([np.linspace(-4.0, 0.0, 150), np.full(150, 2.15)])])
+    offset = cornered(row, EXACT)
+    assert offset.eigen_ratio > 50 and np.sqrt(np.linalg.eigvalsh(np.cov(row.T, bias=True))[0]) > 0.15
+    assert not offset.two_sided
+    # ... nor, where the rays lie more than SPLIT_MAX_SPACING apart at the corner (a 0.2 deg lidar beyond
+    # 45 m), a face and a long side: there one vehicle's face and the next one's side in a row look alike
+    far = grazing * 25.0  # the same bearings, 25 times as far: the corner at 54 m, its rays 0.18 deg (0.17 m) apart
+    assert cornered(far, MeasurementConfig(two_side_line_residual=None)).eigen_ratio > 50
+    assert not cornered(far, EXACT).two_sided
+    # ... while a single side with 3 cm of range noise stays one line
+    rng = np.random.default_rng(0)
+    wall = np.column_stack([np.linspace(-5.0, 0.0, 300), 2.15 + 0.03 * rng.standard_normal(300)])
+    assert not cornered(wall, EXACT).two_sided
     # a prediction that shows only one side (straight ahead) overrules the data's L
     ahead = corners_of(np.array([12.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9]))
     st = build_structure(ClusterBatch.of([c]), np.array([0, 0]), np.stack([k, ahead]), EXACT)

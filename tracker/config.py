@@ -242,6 +242,8 @@ class MeasurementConfig:
     two_side_eigen_ratio: float = 50.0
     #: ... and the RMS distance of its points from their one fitted line exceeds this: range noise bends no face (m; default 0.05; 0: off).
     two_side_min_residual: float = 0.05
+    #: A cluster whose points lie farther than this (RMS) from one fitted line is two-sided whatever its eigenvalue ratio: a long dense side and a short face seen at grazing incidence (m; default 0.15; None: the ratio alone).
+    two_side_line_residual: float | None = 0.15
     #: A side covering at most this fraction of its predicted length is partially visible (MATLAB 0.6; default 0.9).
     partial_visibility: float = 0.9
     #: Larger clusters are thinned evenly in bearing to this many points before the update (default 60).
@@ -288,6 +290,8 @@ class MeasurementConfig:
         _check("MeasurementConfig", "radar_position_sigma", self.radar_position_sigma, low=0.0, low_open=True, unit="m")
         _check("MeasurementConfig", "two_side_eigen_ratio", self.two_side_eigen_ratio, low=1.0, low_open=True)
         _check("MeasurementConfig", "two_side_min_residual", self.two_side_min_residual, low=0.0, unit="m")
+        if self.two_side_line_residual is not None:
+            _check("MeasurementConfig", "two_side_line_residual", self.two_side_line_residual, low=0.0, low_open=True, unit="m")
         _check("MeasurementConfig", "partial_visibility", self.partial_visibility, low=0.0, high=1.0)
         if self.shadow_window is not None:
             _check("MeasurementConfig", "shadow_window", self.shadow_window, low=0.0, low_open=True)

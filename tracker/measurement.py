@@ -16,8 +16,10 @@ sensor is clockwise around the object, so the points run along a visible side ``
 ``K_k``, and a two-sided cluster covers side ``j`` then side ``j - 1`` through the corner ``K_j``. The
 cluster is two-sided in the data when it has at least ``min_points_two_sided`` points, the
 eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
-``two_side_eigen_ratio`` (50) and ``sqrt(lambda_min)``, the points' RMS distance from one fitted line,
-exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face are not a corner). Its
+``two_side_eigen_ratio`` (50) or ``sqrt(lambda_min)``, the points' RMS distance from one fitted line,
+exceeds ``two_side_line_residual`` (0.15 m: a long dense side and a few returns across a face seen
+edge-on), and ``sqrt(lambda_min)`` exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a
+short face are not a corner). Its
 corner index is the split minimising the total least-squares line-fit residual of the two parts (the
 paper: "least squares fitting lines"; the corner point belongs to both fits; all splits at once from
 prefix sums). Each part (or the whole cluster) gets a
@@ -114,6 +116,14 @@ MIN_CHORD = 1e-6
 #: corner point itself.
 CORNER_MIN_ANGLE = np.radians(30.0)
 CORNER_MAX_SHIFT = 0.5
+#: A cluster two-sided by ``MeasurementConfig.two_side_line_residual`` alone needs its two parts' fitted
+#: lines to meet at least this steeply (sine of 60 deg): a rectangle's corner, not two vehicles' sides
+#: one behind the other, offset across (parked cars in a row) ...
+SPLIT_MIN_SIN = math.sin(math.radians(60.0))
+#: ... and rays at most this far apart at the corner (m; the corner's range times the cluster's median
+#: bearing step: 45 m with a 0.2 deg lidar): farther, the sides of vehicles in a row seen at grazing
+#: incidence join into one cluster, and one vehicle's face with the next one's side looks like a corner.
+SPLIT_MAX_SPACING = 0.16
 #: Largest end gap (m) the end-gap correction assumes (a side seen at a grazing angle can have metres
 #: between rays; beyond this the correction is capped).
 MAX_END_GAP = 2.0
@@ -332,8 +342,9 @@ class Cluster:
 
 def prepare_settings(config: MeasurementConfig) -> tuple:
     """``prepare_kernel``'s settings, the arguments after its points and offsets."""
+    line_residual = math.inf if config.two_side_line_residual is None else float(config.two_side_line_residual)
     return (int(config.max_cluster_points), int(config.min_points_two_sided), float(config.two_side_eigen_ratio),
-            float(config.two_side_min_residual), MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
+            float(config.two_side_min_residual), line_residual, MIN_CHORD, math.sin(CORNER_MIN_ANGLE), CORNER_MAX_SHIFT, MAX_END_GAP)
 
 
 def finite_cluster_points(points: np.ndarray, velocity: np.ndarray | None = None
@@ -676,9 +687,19 @@ def _corner_split(pts: np.ndarray, n: int) -> int:
     return k_best
 
 
+@njit(inline="always")
+def _split_turns(pts: np.ndarray, n: int, k: int, min_sin: float) -> bool:
+    """Whether the total-least-squares lines of the bearing-sorted ``pts[0..k]`` and ``pts[k..n-1]``
+    meet at an angle whose sine is at least ``min_sin``."""
+    _, _, axx, ayy, axy = _mean_scatter(pts, 0, k)
+    _, _, bxx, byy, bxy = _mean_scatter(pts, k, n - 1)
+    phi = 0.5 * math.atan2(2.0 * axy, axx - ayy) - 0.5 * math.atan2(2.0 * bxy, bxx - byy)
+    return abs(math.sin(phi)) >= min_sin
+
+
 @njit
-def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord, sin_min_angle, max_shift,
-                   max_end_gap):
+def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual, min_chord, sin_min_angle,
+                   max_shift, max_end_gap):
     """The clusters ``flat[offsets[i]:offsets[i + 1]]`` (finite, non-empty) prepared, in padded arrays
     (kept points padded to the largest count a cluster may keep): ``(points, valid, part, proj,
     chord_start, chord_end, chord_dir, chord_len, end_margin, end_gap, two_sided, corner, eigen_ratio,
@@ -728,8 +749,21 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_c
         ratio = np.inf
         if n >= 2 and lam_min > 1e-15 * max(lam_max, 1e-300):
             ratio = lam_max / lam_min
-        two = n >= min_two and ratio < ratio_max and lam_min > min_residual * min_residual
-        k = _corner_split(pts, n) if two else -1
+        db = 0.0  # the median bearing step between neighbouring points (rad)
+        if n >= 2:
+            gaps = rel[1:] - rel[:-1]
+            gaps = gaps[np.argsort(gaps, kind="mergesort")]  # numpy.sort's values
+            db = gaps[(n - 1) // 2]
+        two = n >= min_two and lam_min > min_residual * min_residual
+        k = -1
+        if two and ratio >= ratio_max:  # a line by the ratio: a corner only if no line fits and the split is one
+            two = lam_min > line_residual * line_residual
+            if two:
+                k = _corner_split(pts, n)
+                two = (_split_turns(pts, n, k, SPLIT_MIN_SIN)
+                       and math.hypot(pts[k, 0], pts[k, 1]) * db <= SPLIT_MAX_SPACING)
+        if two and k < 0:
+            k = _corner_split(pts, n)
         # downsampling
         keep = np.zeros(n, dtype=np.bool_)
         if n > bound:
@@ -806,9 +840,6 @@ def prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_c
         margin = np.zeros((3, 2))
         half_gap = np.zeros((3, 2))
         if n >= 2:
-            gaps = rel[1:] - rel[:-1]
-            gaps = gaps[np.argsort(gaps, kind="mergesort")]  # numpy.sort's values
-            db = gaps[(n - 1) // 2]
             for s in range(3):
                 dist = abs(origin[s, 0] * direction[s, 1] - origin[s, 1] * direction[s, 0])
                 r2s = starts[s, 0] * starts[s, 0] + starts[s, 1] * starts[s, 1]

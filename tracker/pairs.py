@@ -197,7 +197,7 @@ def _selected(points, offsets, has_velocity, velocity, means, covs, comp, clu): 
 
 @njit
 def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu, bound,
-                          min_two, ratio_max, min_residual, min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan,
+                          min_two, ratio_max, min_residual, line_residual, min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan,
                           shadows, window, shadow_margin, max_range, range_margin, continuation, rays, offset, scale, wm, wc,
                           angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table,
                           bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent,
@@ -220,8 +220,8 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
     if not regular:
         return (IRREGULAR,) + _empty_result(len(comp), dim, 2) + (0, 0)
     (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
-     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord_prep,
-                                                 sin_min_angle, max_shift, max_end_gap, scan, shadows, window,
+     occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual,
+                                                 min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows, window,
                                                  shadow_margin, max_range, range_margin, continuation, rays, offset)
     count, width = points.shape[0], points.shape[1]
     centroid = np.empty((count, 2))

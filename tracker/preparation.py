@@ -238,8 +238,8 @@ class _Prepared:
 
 
 @njit
-def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord, sin_min_angle, max_shift,
-                         max_end_gap, scan, shadows, window, margin, max_range, range_margin, continuation, rays,
+def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual, min_chord,
+                         sin_min_angle, max_shift, max_end_gap, scan, shadows, window, margin, max_range, range_margin, continuation, rays,
                          offset):  # pragma: no cover - compiled
     """``prepare_kernel``'s arrays cut to the most points kept (as ``_prepare_finite`` cuts them),
     whether each cluster's chord is a single point, and the shadow flags of the clusters' ends in
@@ -249,8 +249,8 @@ def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual,
     Returns ``(points, valid, part, proj, chord_start, chord_end, chord_dir, chord_len, end_margin,
     end_gap, two_sided, single, kept_count, occluded, continued)``."""
     (points, valid, part, proj, starts, ends, direction, length, margin_out, half_gap, two, _corner, _ratio, _order,
-     kept_count) = prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, min_chord, sin_min_angle,
-                                  max_shift, max_end_gap)
+     kept_count) = prepare_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual,
+                                  min_chord, sin_min_angle, max_shift, max_end_gap)
     count = len(kept_count)
     m = kept_count.max()
     points = points[:, :m].copy()

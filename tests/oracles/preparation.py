@@ -13,7 +13,8 @@ import math
 import numpy as np
 
 from tracker.config import MeasurementConfig
-from tracker.measurement import CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, Cluster, finite_cluster_points
+from tracker.measurement import (CORNER_MAX_SHIFT, CORNER_MIN_ANGLE, MAX_END_GAP, MIN_CHORD, SPLIT_MAX_SPACING,
+                                 SPLIT_MIN_SIN, Cluster, finite_cluster_points)
 
 
 def _lambda_min(sxx: np.ndarray, syy: np.ndarray, sxy: np.ndarray) -> np.ndarray:
@@ -99,8 +100,16 @@ def prepare_cluster(
         root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
         lam_min, lam_max = 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
         ratio = lam_max / lam_min if lam_min > 1e-15 * max(lam_max, 1e-300) else math.inf
-    two = (n >= config.min_points_two_sided and ratio < config.two_side_eigen_ratio
-           and lam_min > config.two_side_min_residual**2)
+    two = n >= config.min_points_two_sided and lam_min > config.two_side_min_residual**2
+    if two and ratio >= config.two_side_eigen_ratio:  # a line by the ratio: a corner if no line fits, split at one
+        line = math.inf if config.two_side_line_residual is None else config.two_side_line_residual
+        two = lam_min > line**2
+        if two:
+            k = corner_index(pts)
+            (_, u), (_, v) = _line_fit(pts[: k + 1], np.array([1.0, 0.0])), _line_fit(pts[k:], np.array([1.0, 0.0]))
+            gaps = np.diff(rel)
+            db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])  # the median bearing step
+            two = abs(u[0] * v[1] - u[1] * v[0]) >= SPLIT_MIN_SIN and float(np.hypot(*pts[k])) * db <= SPLIT_MAX_SPACING
     keep = np.arange(n)
     corner = -1
     if two:
