@@ -242,7 +242,7 @@ class MeasurementConfig:
     two_side_eigen_ratio: float = 50.0
     #: ... and the RMS distance of its points from their one fitted line exceeds this: range noise bends no face (m; default 0.05; 0: off).
     two_side_min_residual: float = 0.05
-    #: A cluster whose points lie farther than this (RMS) from one fitted line is two-sided whatever its eigenvalue ratio: a long dense side and a short face seen at grazing incidence (m; default 0.15; None: the ratio alone).
+    #: A cluster whose points lie farther than this (RMS) from one fitted line is two-sided whatever its eigenvalue ratio, where its split is a near corner (``tracker.measurement.SPLIT_MIN_SIN``, ``SPLIT_MAX_SPACING``): a long dense side and a short face seen at grazing incidence (m; default 0.15; None: the ratio alone).
     two_side_line_residual: float | None = 0.15
     #: A side covering at most this fraction of its predicted length is partially visible (MATLAB 0.6; default 0.9).
     partial_visibility: float = 0.9
