@@ -491,7 +491,8 @@ def test_one_or_two_sided_decision_uses_data_and_prediction() -> None:
     assert not offset.two_sided
     # ... nor, where the rays lie more than SPLIT_MAX_SPACING apart at the corner (a 0.2 deg lidar beyond
     # 45 m), a face and a long side: there one vehicle's face and the next one's side in a row look alike
-    far = grazing * 25.0  # the same bearings, the L scaled 25 times: the corner at 54 m, its rays 0.18 deg (0.17 m) apart
+    # the same bearings, the L scaled 25 times: the corner at 54 m, its rays 0.18 deg (0.17 m) apart
+    far = grazing * 25.0
     assert cornered(far, MeasurementConfig(two_side_line_residual=None)).eigen_ratio > 50
     assert not cornered(far, EXACT).two_sided
     # ... while a single side with 3 cm of range noise stays one line

@@ -291,7 +291,8 @@ class MeasurementConfig:
         _check("MeasurementConfig", "two_side_eigen_ratio", self.two_side_eigen_ratio, low=1.0, low_open=True)
         _check("MeasurementConfig", "two_side_min_residual", self.two_side_min_residual, low=0.0, unit="m")
         if self.two_side_line_residual is not None:
-            _check("MeasurementConfig", "two_side_line_residual", self.two_side_line_residual, low=0.0, low_open=True, unit="m")
+            _check("MeasurementConfig", "two_side_line_residual", self.two_side_line_residual, low=0.0, low_open=True,
+                   unit="m")
         _check("MeasurementConfig", "partial_visibility", self.partial_visibility, low=0.0, high=1.0)
         if self.shadow_window is not None:
             _check("MeasurementConfig", "shadow_window", self.shadow_window, low=0.0, low_open=True)

@@ -18,8 +18,9 @@ cluster is two-sided in the data when it has at least ``min_points_two_sided`` p
 eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
 ``two_side_eigen_ratio`` (50) or ``sqrt(lambda_min)``, the points' RMS distance from one fitted line,
 exceeds ``two_side_line_residual`` (0.15 m: a long dense side and a few returns across a face seen
-edge-on; only where the corner split is a near corner, ``SPLIT_MIN_SIN`` and ``SPLIT_MAX_SPACING``), and ``sqrt(lambda_min)`` exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a
-short face are not a corner). Its
+edge-on; only where the corner split is a near corner, ``SPLIT_MIN_SIN`` and ``SPLIT_MAX_SPACING``),
+and ``sqrt(lambda_min)`` exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face
+are not a corner). Its
 corner index is the split minimising the total least-squares line-fit residual of the two parts (the
 paper: "least squares fitting lines"; the corner point belongs to both fits; all splits at once from
 prefix sums). Each part (or the whole cluster) gets a

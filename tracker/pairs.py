@@ -222,8 +222,8 @@ def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_al
         return (IRREGULAR,) + _empty_result(len(comp), dim, 2) + (0, 0)
     (points, valid, part, proj, starts, chord_end, direction, chord_len, margin_out, half_gap, two, single, kept_count,
      occluded, continued) = scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual,
-                                                 min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows, window,
-                                                 shadow_margin, max_range, range_margin, continuation, rays, offset)
+                                                 min_chord_prep, sin_min_angle, max_shift, max_end_gap, scan, shadows,
+                                                 window, shadow_margin, max_range, range_margin, continuation, rays, offset)
     count, width = points.shape[0], points.shape[1]
     centroid = np.empty((count, 2))
     not_free = np.zeros((count, 2), dtype=np.bool_)

@@ -100,6 +100,10 @@ def prepare_cluster(
         root = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
         lam_min, lam_max = 0.5 * (sxx + syy) - root, 0.5 * (sxx + syy) + root
         ratio = lam_max / lam_min if lam_min > 1e-15 * max(lam_max, 1e-300) else math.inf
+    db = 0.0  # the median bearing step between neighbouring points (rad)
+    if n >= 2:
+        gaps = np.diff(rel)
+        db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])
     two = n >= config.min_points_two_sided and lam_min > config.two_side_min_residual**2
     if two and ratio >= config.two_side_eigen_ratio:  # a line by the ratio: a corner if no line fits, split at one
         line = math.inf if config.two_side_line_residual is None else config.two_side_line_residual
@@ -107,9 +111,8 @@ def prepare_cluster(
         if two:
             k = corner_index(pts)
             (_, u), (_, v) = _line_fit(pts[: k + 1], np.array([1.0, 0.0])), _line_fit(pts[k:], np.array([1.0, 0.0]))
-            gaps = np.diff(rel)
-            db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])  # the median bearing step
-            two = abs(u[0] * v[1] - u[1] * v[0]) >= SPLIT_MIN_SIN and float(np.hypot(*pts[k])) * db <= SPLIT_MAX_SPACING
+            two = (abs(u[0] * v[1] - u[1] * v[0]) >= SPLIT_MIN_SIN
+                   and float(np.hypot(*pts[k])) * db <= SPLIT_MAX_SPACING)
     keep = np.arange(n)
     corner = -1
     if two:
@@ -151,8 +154,6 @@ def prepare_cluster(
     if n >= 2:
         # half the gap between rays at each free end: along a line at distance d from the sensor a
         # bearing step db moves the hit point by r^2 db / d (r: range of the end point)
-        gaps = np.diff(rel)
-        db = float(np.partition(gaps, len(gaps) // 2)[len(gaps) // 2])  # the median bearing step
         dist = np.abs(origin[:, 0] * direction[:, 1] - origin[:, 1] * direction[:, 0])  # (3,) line to sensor
         r2 = np.column_stack([(starts * starts).sum(axis=1), (ends * ends).sum(axis=1)])
         gap = r2 * db / np.maximum(dist, 1e-3)[:, None]
