@@ -351,7 +351,7 @@ def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_sid
     partially visible, anchored at the corner (``FROM_B`` / ``FROM_A``): no extent sd
     (the gate cannot be checked), no shadow flags, a far end in a shadow or continuing in another
     cluster (that part only), a blunt far end (half a ray gap above ``shadow_free_gap`` and the
-    predicted side going on less than two ray gaps beyond it), too few points per part, an sd too small
+    predicted side going on less than one ray gap beyond it), too few points per part, an sd too small
     for the shrink (that side only)."""
     moto = np.array([15.0, 3.5, 10.0, 0.0, 0.0, 2.2, 0.8])
     k = corners_of(moto)
@@ -377,14 +377,13 @@ def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_sid
     assert modes(batch) == [FROM_B, FROM_A]  # no shadow flags: nothing says an end is free
     assert modes(dataclasses.replace(free, occluded_end=np.array([[True, False]]))) == [FROM_B, FULL]
     assert modes(dataclasses.replace(free, continued_end=np.array([[False, True]]))) == [FULL, FROM_A]
-    # a far end with half a ray gap of 0.35 m (> shadow_free_gap) is still sharp: the predicted side goes
-    # on 2.3 m beyond the last return, where the next two rays (1.4 m) would have hit it; with 0.6 m
-    # (two rays: 2.4 m) it is blunt
+    # a far end with half a ray gap of 0.35 m or 1.1 m (> shadow_free_gap) is still sharp: the predicted
+    # side goes on 2.3 m beyond the last return, where the next ray (0.7 m, 2.2 m on) would have hit it;
+    # with 1.2 m (the next ray 2.4 m on, past the predicted end) it is blunt
     blunt = free.end_gap.copy()
-    blunt[0, 1, 0] = 0.35
-    assert modes(dataclasses.replace(free, end_gap=blunt)) == [FULL, FULL]
-    blunt[0, 1, 0] = 0.6
-    assert modes(dataclasses.replace(free, end_gap=blunt)) == [FROM_B, FULL]
+    for half_gap, expected in ((0.35, FULL), (1.1, FULL), (1.2, FROM_B)):
+        blunt[0, 1, 0] = half_gap
+        assert modes(dataclasses.replace(free, end_gap=blunt)) == [expected, FULL]
     assert modes(free, dataclasses.replace(config, whole_min_points=40)) == [FROM_B, FROM_A]
     assert modes(free, extent_sd=np.array([[0.2, 0.4]])) == [FROM_B, FULL]  # 2.3 m > 3 x 0.2 + 0.3
 

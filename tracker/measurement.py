@@ -136,8 +136,10 @@ GROWTH_MIN_EXCESS = 0.5
 GROWTH_SIGMAS = 2.0
 
 #: A part's far end is also sharp (a part shown whole to a sharp, free far end) when the predicted side goes
-#: on beyond its last return for at least this many ray gaps: so many rays along it returned nothing.
-MISSED_RAYS_SHARP = 2.0
+#: on beyond its last return for at least this many ray gaps: the next ray along it would have hit it and
+#: returned nothing there (a dropped return is no free end: a return further along the side's line makes
+#: the end continue, ``MeasurementConfig.continuation_rays``).
+MISSED_RAYS_SHARP = 1.0
 
 # structure modes of a part
 FULL, FROM_A, FROM_B, CENTRE, FIXED = range(5)
