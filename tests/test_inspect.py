@@ -26,6 +26,7 @@ from sim.evaluation.inspect import (
     inspect_run,
     load_run,
     summary_text,
+    vehicle_costs,
     write_inspection,
 )
 from sim.evaluation.metrics import gospa
@@ -216,6 +217,29 @@ def test_merge_heuristic_and_gospa_causes(tmp_path):
     assert (worst.t_start, worst.t_end) == (pytest.approx(0.2), pytest.approx(1.0))
     assert worst.dominant == "missed while visible" and worst.cost == pytest.approx(0.1 * float(np.sum(insp.data.gospa[2:11] ** 2)))
     assert "duplicate 22 % (label 12 on vehicle 2 0.2 s)" in worst.detail
+
+
+def test_vehicle_costs_split_the_run_cost_by_vehicle(tmp_path):
+    """The merge scene of the test above: vehicle 1 is tracked 0.2 m off for 5 frames (0.04 m^2 each) and
+    missed for 6 (12.5 m^2 each); vehicle 2 tracked 0.2 m off for 11 frames and duplicated for 2 (12.5 m^2
+    each); the clutter track (1 frame) is no vehicle's. Costs are m^2 s (frames of 0.1 s)."""
+    folder = _folder(tmp_path, {1: (50.0, 0.0), 2: (50.0, 3.5)},
+                     [(10, 0.0, 0.4, 50.2, 0.0), (11, 0.0, 1.0, 50.0, 3.3), (12, 0.2, 0.3, 51.0, 3.5),
+                      (13, 0.8, 0.8, 120.0, 40.0)])
+    insp = inspect_run(folder, threshold=0.5)
+    costs = vehicle_costs(insp)
+    assert [vid for vid, _, _ in costs] == [1, 2]
+    (_, c1, by1), (_, c2, by2) = costs
+    loc, missed, dup = (GOSPA_CAUSES.index(n) for n in ("localisation", "missed while visible", "duplicate"))
+    assert by1[loc] == pytest.approx(0.1 * 5 * 0.04) and by1[missed] == pytest.approx(0.1 * 6 * 12.5)
+    assert by2[loc] == pytest.approx(0.1 * 11 * 0.04) and by2[dup] == pytest.approx(0.1 * 2 * 12.5)
+    assert c1 == pytest.approx(by1.sum()) and c2 == pytest.approx(by2.sum())
+    total = 0.1 * float(np.sum(insp.data.gospa**2))
+    assert c1 + c2 + 0.1 * 12.5 == pytest.approx(total)  # and the clutter track's frame
+    text = summary_text(insp)
+    assert "missed while occluded, 0 % of it, left out" in text
+    assert f"vehicle   1: {100 * c1 / total:.0f} % (missed while visible 100 %)" in text
+    assert f"vehicle   2: {100 * c2 / total:.0f} % (duplicate 98 %, localisation 2 %)" in text
 
 
 def test_occluded_loss_and_never_tracked(tmp_path):

@@ -51,6 +51,12 @@ default 1); "occluded" is in range with fewer.
 - ``coasting`` (only with tracker events): assigned and visible, but its label ``missed`` (not
   updated) for at least ``COAST_MIN_FRAMES`` consecutive frames; cause *failed gate*.
 
+**Costliest vehicles** (``vehicle_costs``; ``summary_text`` prints them): each vehicle's share of the
+run's cost ``sum GOSPA^p dt``, from the attribution below (its localisation and missed parts and the
+tracks charged to it), split by cause: which vehicles the run's GOSPA is about. The printed ranking
+leaves out *missed while occluded* (a vehicle the lidar does not see), which on recorded traffic is
+most of the cost and says nothing of what the tracker made of what it saw.
+
 **Worst intervals** (``worst_intervals.csv``). Frames whose GOSPA reaches the threshold (default
 ``max(WORST_FLOOR_M, the WORST_QUANTILE quantile of the run's per-frame GOSPA)``, m) form runs;
 runs separated by at most ``WORST_GAP_FRAMES`` frames are joined; runs are ranked by their cost
@@ -108,6 +114,8 @@ WORST_GAP_FRAMES = 1
 EVENT_LEAD_S = 0.5
 #: A confirmation this late (s) after the first lidar point is listed with the intervals it falls in.
 SLOW_CONFIRM_S = 0.5
+#: The summary names at most this many vehicles, costliest first (``vehicle_costs``).
+COSTLIEST_COUNT = 5
 
 # states of a vehicle in a frame
 OUT_OF_RANGE, TRACKED, TRACKED_OCCLUDED, VISIBLE_UNTRACKED, OCCLUDED_UNTRACKED = range(5)
@@ -708,6 +716,24 @@ def attribute_gospa(d: RunData, assigned: np.ndarray) -> tuple[np.ndarray, np.nd
     return cost, arr
 
 
+def vehicle_costs(insp: Inspection) -> list[tuple[int, float, np.ndarray]]:
+    """The vehicles that carry the run's GOSPA cost: per vehicle id, the cost ``sum GOSPA^p dt`` (m^p s)
+    of the attribution items charged to it (``attribute_gospa``: its localisation and missed parts, and
+    the duplicate, displaced and outside-truth-set tracks nearest it) and that cost per cause (C,),
+    costliest first. Clutter (a track near no vehicle) is no vehicle's, so the vehicles' costs and the
+    clutter's add up to the run's."""
+    items = insp.items
+    mine = items[items[:, 2] >= 0]
+    out: list[tuple[int, float, np.ndarray]] = []
+    for vid in np.unique(mine[:, 2]).astype(int).tolist():
+        rows = mine[mine[:, 2] == vid]
+        by_cause = np.zeros(len(GOSPA_CAUSES))
+        np.add.at(by_cause, rows[:, 1].astype(int), rows[:, 4] * insp.data.dt)
+        out.append((vid, float(by_cause.sum()), by_cause))
+    out.sort(key=lambda row: (-row[1], row[0]))
+    return out
+
+
 def default_threshold(gospa: np.ndarray) -> float:
     """The worst-interval threshold (m): ``max(WORST_FLOOR_M, WORST_QUANTILE quantile of gospa)``."""
     return max(WORST_FLOOR_M, float(np.quantile(gospa, WORST_QUANTILE))) if len(gospa) else WORST_FLOOR_M
@@ -869,6 +895,21 @@ def summary_text(insp: Inspection) -> str:
     lines.append("vehicles:")
     lines += ["  " + vehicle_line(insp, int(v)) for v in insp.vehicles_in_range()]
     p = f"{d.p:g}"
+    total = float(insp.cause_cost.sum()) * d.dt
+    hidden = float(insp.cause_cost[:, C_MISSED_OCCLUDED].sum()) * d.dt
+    lines.append(f"costliest vehicles while seen (share of the run's cost sum GOSPA^{p} dt = {total:.1f} m^{p} s; "
+                 f"missed while occluded, {100.0 * hidden / total if total > 0 else 0.0:.0f} % of it, left out):")
+    seen = [(vid, cost - by_cause[C_MISSED_OCCLUDED], by_cause) for vid, cost, by_cause in vehicle_costs(insp)]
+    costly = sorted((row for row in seen if row[1] > 0.0), key=lambda row: (-row[1], row[0]))[:COSTLIEST_COUNT]
+    if not costly:
+        lines.append("  none: no vehicle carries any cost while seen")
+    for vid, cost, by_cause in costly:
+        by_cause = by_cause.copy()
+        by_cause[C_MISSED_OCCLUDED] = 0.0
+        order = np.argsort(-by_cause, kind="stable")
+        causes = ", ".join(f"{GOSPA_CAUSES[i]} {100.0 * by_cause[i] / cost:.0f} %" for i in order
+                           if by_cause[i] >= 0.01 * cost)  # the causes of at least 1 % of its cost
+        lines.append(f"  vehicle {vid:>3}: {100.0 * cost / total:.0f} % ({causes})")
     lines.append(f"worst GOSPA intervals (frames with GOSPA >= {insp.threshold:.2f} m; ranked by cost = sum GOSPA^{p} dt, "
                  f"m^{p} s):")
     if not insp.intervals:
@@ -1042,6 +1083,7 @@ def write_inspection(insp: Inspection, out: str | Path) -> dict[str, Path]:
 
 __all__ = [
     "COAST_MIN_FRAMES",
+    "COSTLIEST_COUNT",
     "EVENT_COLUMNS",
     "GOSPA_CAUSES",
     "INTERVAL_COLUMNS",
@@ -1065,6 +1107,7 @@ __all__ = [
     "load_run",
     "plot_events",
     "summary_text",
+    "vehicle_costs",
     "vehicle_line",
     "vehicle_states",
     "worst_intervals",
