@@ -59,8 +59,7 @@ def run_reference() -> dict[str, np.ndarray]:
     # the track they continue (ClusteringConfig.fragment_points), no joins of neighbouring rays at a grazing angle
     # (ClusteringConfig.grazing_angle), two-sidedness by the eigenvalue ratio alone (MeasurementConfig.
     # two_side_min_residual, two_side_line_residual; the window between two shadows needs the shadow flags): the
-    # reference guards the speed-ups
-    # against unintended changes of the model
+    # reference guards the speed-ups against unintended changes of the model
     base = TrackerConfig()
     config = TrackerConfig(
         reduction=dataclasses.replace(base.reduction, keep_threshold=None, drop_inside_updated=False, absorb_overlap=None),

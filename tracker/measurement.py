@@ -20,11 +20,10 @@ eigenvalue ratio ``lambda_max / lambda_min`` of its points' covariance is below
 exceeds ``two_side_line_residual`` (0.15 m: a long dense side and a few returns across a face seen
 edge-on; only where the corner split is a near corner, ``SPLIT_MIN_SIN`` and ``SPLIT_MAX_SPACING``),
 and ``sqrt(lambda_min)`` exceeds ``two_side_min_residual`` (0.05 m: a few noisy returns on a short face
-are not a corner). Its
-corner index is the split minimising the total least-squares line-fit residual of the two parts (the
-paper: "least squares fitting lines"; the corner point belongs to both fits; all splits at once from
-prefix sums). Each part (or the whole cluster) gets a
-total-least-squares line; its *chord* is the extent of the points' projections on that line, and
+are not a corner). Its corner index is the split minimising the total least-squares line-fit residual
+of the two parts (the paper: "least squares fitting lines"; the corner point belongs to both fits; all
+splits at once from prefix sums). Each part (or the whole cluster) gets a total-least-squares line; its
+*chord* is the extent of the points' projections on that line, and
 for a two-sided cluster the chords meet at the intersection of the two lines (the corner, less noisy
 than any single point). A point's position along its part is its projection on the line, in metres
 from the chord's start (``proj``). Departures from MATLAB, which spaces points by cumulative polyline

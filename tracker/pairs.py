@@ -198,8 +198,8 @@ def _selected(points, offsets, has_velocity, velocity, means, covs, comp, clu): 
 @njit
 def prepared_pairs_kernel(points_all, offsets_all, has_velocity_all, velocity_all, means_all, covs_all, comp, clu, bound,
                           min_two, ratio_max, min_residual, line_residual, min_chord_prep, sin_min_angle, max_shift,
-                          max_end_gap, scan,
-                          shadows, window, shadow_margin, max_range, range_margin, continuation, rays, offset, scale, wm, wc,
+                          max_end_gap, scan, shadows, window, shadow_margin, max_range, range_margin, continuation,
+                          rays, offset, scale, wm, wc,
                           angles, period_index, period, kind, ego_x, ego_y, ego_yaw, closed, length, ends, table,
                           bucket_cell, starts_next, inv_bucket, hops, nodes, weights, min_extent, min_apparent,
                           partial_visibility, free_gap, lidar_var, radar_var, use_radar, speed_row, min_chord,

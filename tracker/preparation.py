@@ -240,8 +240,7 @@ class _Prepared:
 @njit
 def scanned_batch_kernel(flat, offsets, bound, min_two, ratio_max, min_residual, line_residual, min_chord,
                          sin_min_angle, max_shift, max_end_gap, scan, shadows, window, margin, max_range, range_margin,
-                         continuation, rays,
-                         offset):  # pragma: no cover - compiled
+                         continuation, rays, offset):  # pragma: no cover - compiled
     """``prepare_kernel``'s arrays cut to the most points kept (as ``_prepare_finite`` cuts them),
     whether each cluster's chord is a single point, and the shadow flags of the clusters' ends in
     ``scan`` (``shadows``: ``occluded_ends`` of the bearing ends with ``window``, ``margin``,

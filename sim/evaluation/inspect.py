@@ -716,22 +716,21 @@ def attribute_gospa(d: RunData, assigned: np.ndarray) -> tuple[np.ndarray, np.nd
     return cost, arr
 
 
-def vehicle_costs(insp: Inspection) -> list[tuple[int, float, np.ndarray]]:
+def vehicle_costs(insp: Inspection, leave_out: Sequence[int] = ()) -> list[tuple[int, float, np.ndarray]]:
     """The vehicles that carry the run's GOSPA cost: per vehicle id, the cost ``sum GOSPA^p dt`` (m^p s)
     of the attribution items charged to it (``attribute_gospa``: its localisation and missed parts, and
     the duplicate, displaced and outside-truth-set tracks nearest it) and that cost per cause (C,),
-    costliest first. Clutter (a track near no vehicle) is no vehicle's, so the vehicles' costs and the
-    clutter's add up to the run's."""
-    items = insp.items
-    mine = items[items[:, 2] >= 0]
-    out: list[tuple[int, float, np.ndarray]] = []
-    for vid in np.unique(mine[:, 2]).astype(int).tolist():
-        rows = mine[mine[:, 2] == vid]
-        by_cause = np.zeros(len(GOSPA_CAUSES))
-        np.add.at(by_cause, rows[:, 1].astype(int), rows[:, 4] * insp.data.dt)
-        out.append((vid, float(by_cause.sum()), by_cause))
-    out.sort(key=lambda row: (-row[1], row[0]))
-    return out
+    costliest first; the causes ``leave_out`` (indices into ``GOSPA_CAUSES``) count as 0 and vehicles
+    left with none are dropped. Clutter (a track near no vehicle) is no vehicle's, so the vehicles'
+    costs and the clutter's add up to the run's."""
+    mine = insp.items[insp.items[:, 2] >= 0]
+    vids, row = np.unique(mine[:, 2].astype(int), return_inverse=True)
+    table = np.zeros((len(vids), len(GOSPA_CAUSES)))
+    np.add.at(table, (row, mine[:, 1].astype(int)), mine[:, 4] * insp.data.dt)
+    table[:, list(leave_out)] = 0.0
+    totals = table.sum(axis=1)
+    order = np.lexsort((vids, -totals))  # costliest first, ties by id
+    return [(int(vids[i]), float(totals[i]), table[i]) for i in order if totals[i] > 0.0]
 
 
 def default_threshold(gospa: np.ndarray) -> float:
@@ -899,13 +898,10 @@ def summary_text(insp: Inspection) -> str:
     hidden = float(insp.cause_cost[:, C_MISSED_OCCLUDED].sum()) * d.dt
     lines.append(f"costliest vehicles while seen (share of the run's cost sum GOSPA^{p} dt = {total:.1f} m^{p} s; "
                  f"missed while occluded, {100.0 * hidden / total if total > 0 else 0.0:.0f} % of it, left out):")
-    seen = [(vid, cost - by_cause[C_MISSED_OCCLUDED], by_cause) for vid, cost, by_cause in vehicle_costs(insp)]
-    costly = sorted((row for row in seen if row[1] > 0.0), key=lambda row: (-row[1], row[0]))[:COSTLIEST_COUNT]
+    costly = vehicle_costs(insp, leave_out=(C_MISSED_OCCLUDED,))[:COSTLIEST_COUNT]
     if not costly:
         lines.append("  none: no vehicle carries any cost while seen")
     for vid, cost, by_cause in costly:
-        by_cause = by_cause.copy()
-        by_cause[C_MISSED_OCCLUDED] = 0.0
         order = np.argsort(-by_cause, kind="stable")
         causes = ", ".join(f"{GOSPA_CAUSES[i]} {100.0 * by_cause[i] / cost:.0f} %" for i in order
                            if by_cause[i] >= 0.01 * cost)  # the causes of at least 1 % of its cost
