@@ -165,10 +165,12 @@ def test_tracker_events_give_coasting_and_merge(picks, tmp_path):
     assert f"merged label {b} into label {a}" in rows[1]["detail"]
 
 
-def _folder(tmp_path, truth, tracks, *, frames=11, dt=0.1, visible=None):
-    """A run folder by hand: ``truth[vid] = (x, y)`` fixed; ``tracks`` = (label, t0, t1, x, y) shown in
-    [t0, t1]; assignment and GOSPA by ``sim.evaluation.metrics.gospa``; ``visible[vid]`` (bool) default True."""
+def _folder(tmp_path, truth, tracks, *, frames=11, dt=0.1, visible=None, size=None):
+    """A run folder by hand: ``truth[vid] = (x, y)`` fixed, heading along x; ``tracks`` = (label, t0, t1, x,
+    y) shown in [t0, t1]; assignment and GOSPA by ``sim.evaluation.metrics.gospa``; ``visible[vid]`` (bool)
+    default True; ``size[vid] = (length, width)`` (m) default (4.5, 2.0)."""
     visible = visible or {}
+    size = size or {}
     ts, tk, tr = [], [], []
     ids = sorted(truth)
     for k in range(frames):
@@ -185,7 +187,8 @@ def _folder(tmp_path, truth, tracks, *, frames=11, dt=0.1, visible=None):
             tk.append([t, lb, 1.0, x, y, 20.0, 0.0, 0.0, 4.5, 2.0, x, x, y, 0.0, 0.0, int(a), 0])
         for v in ids:
             vis = visible.get(v, True)
-            tr.append([t, v, *truth[v], 0.0, 20.0, 0.0, 4.5, 2.0, truth[v][0], truth[v][1], 0.0, 1, int(vis), 20 if vis else 0])
+            tr.append([t, v, *truth[v], 0.0, 20.0, 0.0, *size.get(v, (4.5, 2.0)), truth[v][0], truth[v][1], 0.0, 1, int(vis),
+                       20 if vis else 0])
     for name, header, rows in (("timeseries.csv", TIMESERIES_COLUMNS, ts), ("tracks.csv", TRACK_COLUMNS, tk),
                                ("truth.csv", TRUTH_COLUMNS, tr)):
         with open(tmp_path / name, "w", newline="") as fh:
@@ -240,6 +243,28 @@ def test_vehicle_costs_split_the_run_cost_by_vehicle(tmp_path):
     assert "missed while occluded, 0 % of it, left out" in text
     assert f"vehicle   1: {100 * c1 / total:.0f} % (missed while visible 100 %)" in text
     assert f"vehicle   2: {100 * c2 / total:.0f} % (duplicate 98 %, localisation 2 %)" in text
+
+
+def test_a_track_on_a_long_trucks_body_is_charged_to_the_truck(tmp_path):
+    """A 19.8 m semi-trailer at x = 50 (body 40.1 .. 59.9 m) tracked with a car's rectangle on its rear:
+    the track's centre, at x = 42.5, is 7.5 m from the truck's centre (beyond the cut-off c = 5, so
+    unassigned) but inside its body, so it is the truck's *displaced track* and the truck's missed part
+    goes there too; 3.4 m behind the rear (x = 36.7) it is still on the truck, 3.6 m (x = 36.5) it is
+    clutter and the truck is *missed while visible*. The car beside, 4.5 m long, is tracked exactly."""
+    size = {1: (19.8, 2.6)}
+    for x, cause in ((42.5, "displaced track"), (36.7, "displaced track"), (36.5, "clutter")):
+        folder = tmp_path / f"x{x}"
+        folder.mkdir()
+        _folder(folder, {1: (50.0, 0.0), 2: (50.0, 3.5)}, [(10, 0.0, 1.0, x, 0.0), (11, 0.0, 1.0, 50.0, 3.5)],
+                size=size)
+        insp = inspect_run(folder, threshold=0.5)
+        c = {name: insp.cause_cost[:, i].sum() for i, name in enumerate(GOSPA_CAUSES)}
+        missed = "missed while visible"
+        assert c[cause] == pytest.approx(11 * (25.0 if cause == "displaced track" else 12.5)), x
+        assert c[missed] == pytest.approx(0.0 if cause == "displaced track" else 11 * 12.5), x
+        assert c["localisation"] == 0.0
+        (truck,) = [total for vid, total, _ in vehicle_costs(insp) if vid == 1]  # m^2 s, frames of 0.1 s
+        assert truck == pytest.approx(1.1 * (25.0 if cause == "displaced track" else 12.5)), x
 
 
 def test_occluded_loss_and_never_tracked(tmp_path):

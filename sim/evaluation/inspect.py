@@ -64,8 +64,10 @@ runs separated by at most ``WORST_GAP_FRAMES`` frames are joined; runs are ranke
 into the causes below) and the top ``WORST_COUNT`` are kept. Each frame's GOSPA^p is attributed:
 
 - *localisation*: the localisation part, per assigned (vehicle, track) pair ``d^p``;
-- each unassigned track (false part, ``c^p/2``) by its nearest vehicle centre within
-  ``NEAR_VEHICLE_M`` m: *duplicate* when that vehicle is scored and already has a track,
+- each unassigned track (false part, ``c^p/2``) by the vehicle whose body (its rectangle, ``truth.csv``'s
+  ``yaw``, ``length``, ``width``) is nearest its centre, within ``NEAR_VEHICLE_M`` m (0 inside the body:
+  a track on a long truck's rear, metres from its centre, is on the truck): *duplicate* when that
+  vehicle is scored and already has a track,
   *displaced track* when it is scored and has none (its missed part goes there too: the track is on
   the vehicle but beyond the cut-off), *outside truth set* when the vehicle is not scored (out of
   lidar range or off the road); with no vehicle that near, *clutter*;
@@ -102,8 +104,9 @@ LOSS_CONTEXT_S = 0.3
 OCCLUDED_FRACTION = 0.5
 #: With tracker events: consecutive frames (count) of ``missed`` while visible for a ``coasting`` event.
 COAST_MIN_FRAMES = 3
-#: An unassigned track whose centre is within this distance (m) of a vehicle's centre is on that vehicle.
-NEAR_VEHICLE_M = 6.0
+#: An unassigned track whose centre is within this distance (m) of a vehicle's body (its rectangle; 0
+#: inside) is on that vehicle: as far as 6 m from a car's centre reaches beyond its ends.
+NEAR_VEHICLE_M = 3.5
 #: Worst intervals: at most this many, over frames with GOSPA at least max(WORST_FLOOR_M (m), the
 #: WORST_QUANTILE quantile of the run's GOSPA); runs split by at most WORST_GAP_FRAMES frames join.
 WORST_COUNT = 5
@@ -157,7 +160,8 @@ class RunData:
 
     Per frame: ``gospa`` (m) and its parts ``localization``, ``missed``, ``false`` (m^p);
     ``ego_xy`` (F, 2) or ``None`` for old folders. Per frame and vehicle (F, V): ``present``,
-    ``scored``, ``visible``, ``points`` (lidar points), ``xy`` (F, V, 2; NaN when absent). Per track
+    ``scored``, ``visible``, ``points`` (lidar points), ``xy`` (F, V, 2; NaN when absent), ``yaw`` (rad),
+    ``length``, ``width`` (m; F, V; 0 where the folder has no such column: the body is its centre). Per track
     row: ``track_frame``, ``track_label``, ``track_xy`` (R, 2) and ``track_truth`` (assigned vehicle
     id, -1 none). ``tracker_events``: rows ``(frame, label, event, other_label)`` or ``None``.
     ``c`` (m), ``p``: the GOSPA settings; ``title``: scenario / variant / seed."""
@@ -183,7 +187,25 @@ class RunData:
     track_label: np.ndarray
     track_xy: np.ndarray
     track_truth: np.ndarray
+    yaw: np.ndarray | None = None
+    length: np.ndarray | None = None
+    width: np.ndarray | None = None
     tracker_events: list[tuple[int, int, str, int]] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("yaw", "length", "width"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.zeros(self.present.shape))
+
+    def body_distance(self, k: int, xy: np.ndarray) -> np.ndarray:
+        """Distances (U, V; m) from the points ``xy (U, 2)`` to the vehicles' bodies in frame ``k``: 0
+        inside a rectangle, ``inf`` for a vehicle absent there."""
+        offset = xy[:, None, :] - self.xy[k][None, :, :]
+        c, s = np.cos(self.yaw[k]), np.sin(self.yaw[k])
+        along = np.abs(offset[..., 0] * c + offset[..., 1] * s) - 0.5 * self.length[k]
+        across = np.abs(offset[..., 1] * c - offset[..., 0] * s) - 0.5 * self.width[k]
+        dist = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0))
+        return np.where(np.isnan(dist), np.inf, dist)
 
     @property
     def dt(self) -> float:
@@ -285,6 +307,11 @@ def load_run(folder: str | Path) -> RunData:
     points[frame, col] = _floats(tr, "lidar_points", tr_path, int)
     xy[frame, col, 0] = _floats(tr, "x", tr_path)
     xy[frame, col, 1] = _floats(tr, "y", tr_path)
+    body = {}
+    for name in ("yaw", "length", "width"):  # older folders lack them: bodies are then their centres
+        body[name] = np.zeros(shape)
+        if name in tr:
+            body[name][frame, col] = _floats(tr, name, tr_path)
 
     tk_path = root / "tracks.csv"
     tk = _read_table(tk_path, ["t", "label", "x", "y", "truth_id"])
@@ -315,7 +342,8 @@ def load_run(folder: str | Path) -> RunData:
         vehicle_ids=vehicle_ids, present=present, scored=scored, visible=visible, points=points, xy=xy,
         track_frame=track_frame[order], track_label=_floats(tk, "label", tk_path, int)[order],
         track_xy=np.column_stack([_floats(tk, "x", tk_path), _floats(tk, "y", tk_path)]).reshape(-1, 2)[order],
-        track_truth=track_truth[order], tracker_events=events,
+        track_truth=track_truth[order], yaw=body["yaw"], length=body["length"], width=body["width"],
+        tracker_events=events,
     )  # fmt: skip
 
 
@@ -693,8 +721,7 @@ def attribute_gospa(d: RunData, assigned: np.ndarray) -> tuple[np.ndarray, np.nd
         displaced = np.zeros(len(d.vehicle_ids), dtype=bool)
         free = ~hit
         if free.any():
-            dd = np.linalg.norm(txy[free][:, None, :] - d.xy[k][None, :, :], axis=2)  # (U, V), NaN absent
-            dd = np.where(np.isnan(dd), np.inf, dd)
+            dd = d.body_distance(k, txy[free])  # (U, V), inf absent
             near = np.argmin(dd, axis=1) if dd.shape[1] else np.zeros(len(dd), dtype=int)
             near_d = dd[np.arange(len(dd)), near] if dd.shape[1] else np.full(len(dd), np.inf)
             for lb, j, dj in zip(labels[free].tolist(), near.tolist(), near_d.tolist()):
