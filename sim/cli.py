@@ -272,6 +272,11 @@ def summary_table(metrics: dict) -> str:
             "  visible: length shown / not shown (m; share shown)",
             f"{_fmt_value(m.get('pos_rmse_seen_length_shown_m'))} / {_fmt_value(m.get('pos_rmse_seen_length_unshown_m'))}"
             f" ({_fmt_value(m.get('length_shown_share'), 2)})"))
+    if m.get("width_shown_share") is not None:  # ... and the width by whether an end was shown
+        rows.insert(rows.index(("ID switches", _fmt_value(m.get("id_switches")))), (
+            "  visible: width, end shown / not shown (m; share shown)",
+            f"{_fmt_value(m.get('width_rmse_seen_shown_m'))} / {_fmt_value(m.get('width_rmse_seen_unshown_m'))}"
+            f" ({_fmt_value(m.get('width_shown_share'), 2)})"))
     if m.get("oncoming_matched_pairs"):  # a two-way road with traffic against s in view
         rows.insert(rows.index(("ID switches", _fmt_value(m.get("id_switches")))) + 1, (
             "oncoming vehicles: yaw (deg) / speed (m/s) RMSE, ID switches",

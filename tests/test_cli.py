@@ -243,6 +243,12 @@ def test_summary_table_splits_the_seen_position_by_whether_the_length_was_shown(
     lines = text.splitlines()
     row = next(i for i, line in enumerate(lines) if "length shown / not shown" in line)
     assert "0.114 / 0.472 (0.41)" in lines[row] and lines[row + 1].startswith("yaw RMSE")
+    assert "width, end shown" not in text
+    text = summary_table({**base, "width_shown_share": 0.62, "width_rmse_seen_shown_m": 0.051,
+                          "width_rmse_seen_unshown_m": 0.262, "id_switches": 1})
+    lines = text.splitlines()
+    row = next(i for i, line in enumerate(lines) if "width, end shown / not shown" in line)
+    assert "0.051 / 0.262 (0.62)" in lines[row] and lines[row + 1].startswith("ID switches")
 
 
 def test_road_draws_and_summarises_a_route_through_a_lane_map(tmp_path, capsys):

@@ -138,18 +138,26 @@ def test_pooled_length_shown_split_and_its_table():
     suite and extended variant, none for a tracker without the split (a point tracker)."""
     from sim.studies.report import observability_table, pooled
 
-    def row(variant, seen, shown, pos_shown, pos_unshown, len_shown, len_unshown):
+    def row(variant, seen, shown, pos_shown, pos_unshown, len_shown, len_unshown, faces=None, w_shown=None,
+            w_unshown=None):
         return {"variant": variant, "frames": 10, "matched_pairs_seen": seen, "matched_pairs_seen_length_shown": shown,
                 "pos_rmse_seen_length_shown_m": pos_shown, "pos_rmse_seen_length_unshown_m": pos_unshown,
-                "length_rmse_seen_shown_m": len_shown, "length_rmse_seen_unshown_m": len_unshown}
+                "length_rmse_seen_shown_m": len_shown, "length_rmse_seen_unshown_m": len_unshown,
+                "matched_pairs_seen_width_shown": faces, "width_rmse_seen_shown_m": w_shown,
+                "width_rmse_seen_unshown_m": w_unshown}
 
-    rows = [row("curvilinear-fused", 100, 40, 0.1, 0.5, 0.05, 0.8), row("curvilinear-fused", 50, 30, 0.2, 0.3, 0.1, 0.6),
+    rows = [row("curvilinear-fused", 100, 40, 0.1, 0.5, 0.05, 0.8, 90, 0.03, 0.3),
+            row("curvilinear-fused", 50, 30, 0.2, 0.3, 0.1, 0.6, 10, 0.05, 0.2),
             row("stonesoup-gmphd", 80, 0, None, None, None, None) | {"matched_pairs_seen": None}]
     p = pooled(rows[:2])
     assert p["shown_share"] == pytest.approx(70 / 150)
     assert p["pos_shown"] == pytest.approx(((40 * 0.01 + 30 * 0.04) / 70) ** 0.5)
     assert p["pos_unshown"] == pytest.approx(((60 * 0.25 + 20 * 0.09) / 80) ** 0.5)
     assert p["length_unshown"] == pytest.approx(((60 * 0.64 + 20 * 0.36) / 80) ** 0.5)
-    assert pooled(rows[2:])["shown_share"] is None
+    assert p["width_shown_share"] == pytest.approx(100 / 150)
+    assert p["width_shown"] == pytest.approx(((90 * 0.03**2 + 10 * 0.05**2) / 100) ** 0.5)
+    assert p["width_unshown"] == pytest.approx(((10 * 0.3**2 + 40 * 0.2**2) / 50) ** 0.5)
+    assert pooled(rows[2:])["shown_share"] is None and pooled(rows[2:])["width_shown_share"] is None
     table = observability_table([("real", rows)], ["curvilinear-fused", "stonesoup-gmphd"])
     assert "| real | curvilinear-fused | 0.47 | " in table and "stonesoup-gmphd" not in table
+    assert table.splitlines()[2].endswith(" | 0.67 | 0.03 | 0.22 |")

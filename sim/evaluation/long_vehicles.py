@@ -108,6 +108,17 @@ def side_shown(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.n
     return (np.abs(lat) > half_w) & (side_rays >= SIDE_MIN_RAYS) & dense & shown
 
 
+def face_shown(ego_xy: np.ndarray, xy: np.ndarray, yaw: np.ndarray, length: np.ndarray, width: np.ndarray,
+               returns: np.ndarray, resolution: float, bearings: np.ndarray | None = None) -> np.ndarray:
+    """Whether the lidar shows each vehicle's width: ``side_shown``'s test of the end (front or rear)
+    facing it, the vehicle turned by a quarter turn so that its end is the side tested (the arguments as
+    ``side_shown``'s): the ego lies beyond that end, which subtends ``SIDE_MIN_RAYS`` rays sampled at
+    most ``SIDE_MAX_RAY_GAP`` apart, and the returns are all there and reach both ends of the outline's
+    bearing span."""
+    return side_shown(ego_xy, xy, np.asarray(yaw, dtype=float) + 0.5 * np.pi, width, length, returns, resolution,
+                      bearings)
+
+
 def length_errors(frames: list[FrameRecord], resolution: float) -> list[tuple[int, float, float, float | None]]:
     """Per long vehicle whose side is seen with ``LENGTH_DELAY`` of the run left: ``(truth id, time its
     side was first seen (s), its length (m), the assigned track's length error (m) LENGTH_DELAY later

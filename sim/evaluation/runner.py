@@ -43,7 +43,9 @@ suite's target, a long vehicle's length 3 s after its side is first seen (``sim.
 ``length_shown_share``, ``pos_rmse_seen_length_shown_m``, ``pos_rmse_seen_length_unshown_m``,
 ``length_rmse_seen_shown_m``, ``length_rmse_seen_unshown_m``, ``matched_pairs_seen``,
 ``matched_pairs_seen_length_shown`` (extended trackers): the seen pairs split by whether the vehicle's
-side has been seen whole so far (``sim.evaluation.observability``).
+side has been seen whole so far (``sim.evaluation.observability``); ``width_shown_share``,
+``width_rmse_seen_shown_m``, ``width_rmse_seen_unshown_m``, ``matched_pairs_seen_width_shown``: by whether
+an end (front or rear) has been seen whole, for the width.
 Tracker timings are wall-clock milliseconds of ``Tracker.step`` (``TIMING_KEYS``: they differ from
 run to run; every other metric is bit-identical for the same scenario, seed and variant).
 

@@ -355,10 +355,15 @@ def pooled(rows: Sequence[dict[str, Any]]) -> dict[str, float | None]:
     shown = np.array([value(r, "matched_pairs_seen_length_shown") for r in rows])
     unshown = seen_pairs - shown
     known = np.isfinite(seen_pairs) & np.isfinite(shown)
+    faces = np.array([value(r, "matched_pairs_seen_width_shown") for r in rows])  # ... and whether its width
+    known_faces = np.isfinite(seen_pairs) & np.isfinite(faces)
     return {"gospa_seen": mean("gospa_seen_mean"), "pos_seen": rms("pos_rmse_seen_m", seen),
             "shown_share": float(shown[known].sum() / seen_pairs[known].sum()) if known.any() and seen_pairs[known].sum() else None,
             "pos_shown": rms("pos_rmse_seen_length_shown_m", shown), "pos_unshown": rms("pos_rmse_seen_length_unshown_m", unshown),
             "length_shown": rms("length_rmse_seen_shown_m", shown), "length_unshown": rms("length_rmse_seen_unshown_m", unshown),
+            "width_shown_share": (float(faces[known_faces].sum() / seen_pairs[known_faces].sum())
+                                  if known_faces.any() and seen_pairs[known_faces].sum() else None),
+            "width_shown": rms("width_rmse_seen_shown_m", faces), "width_unshown": rms("width_rmse_seen_unshown_m", seen_pairs - faces),
             "yaw": rms("yaw_rmse_deg", pairs), "length": rms("length_rmse_m", pairs), "width": rms("width_rmse_m", pairs),
             "card_seen": mean("cardinality_error_seen_mean"),
             "switches_per_1000": 1000.0 * float(np.nansum([value(r, "id_switches") for r in rows])) / total if total else None,
@@ -383,10 +388,12 @@ def side_by_side_table(suites: Sequence[tuple[str, Sequence[dict[str, Any]]]], v
 
 def observability_table(suites: Sequence[tuple[str, Sequence[dict[str, Any]]]], variants: Sequence[str]) -> str:
     """One row per (suite, extended variant): the share of its seen pairs whose vehicle has shown its length
-    (a side seen whole, ``sim.evaluation.observability``), and the position and length RMSEs of both parts."""
+    (a side seen whole, ``sim.evaluation.observability``), and the position and length RMSEs of both parts;
+    the share whose vehicle has shown its width (an end seen whole), and the width RMSEs of both parts."""
     cols = (("shown_share", "length shown (share of seen pairs)"), ("pos_shown", "pos., shown (m)"),
             ("pos_unshown", "pos., not shown (m)"), ("length_shown", "length, shown (m)"),
-            ("length_unshown", "length, not shown (m)"))
+            ("length_unshown", "length, not shown (m)"), ("width_shown_share", "width shown (share)"),
+            ("width_shown", "width, shown (m)"), ("width_unshown", "width, not shown (m)"))
     out = ["| suite | variant | " + " | ".join(t for _, t in cols) + " |", "|---|---|" + "---|" * len(cols)]
     for name, rows in suites:
         for v in variants:
@@ -416,7 +423,8 @@ def _real_section(data: CompareData, variants: Sequence[str]) -> str:
             + side_by_side_table(suites, variants) + "\n"
             "A vehicle seen only from behind or ahead shows its width but not its length, and its centre, half a length "
             "from the seen end, inherits half the length prior's error. The seen pairs split by whether the vehicle's "
-            "side has been seen whole so far (truth geometry decides, not the tracker):\n\n"
+            "side has been seen whole so far, and, for the width (a vehicle seen only from the side), whether an end "
+            "has (truth geometry decides, not the tracker):\n\n"
             + observability_table(suites, variants) + "\n")
     return head + _suite_section(data.real_rows, "Real recorded traffic, per recording", "Each recording's runs.", metrics,
                                  variants)
