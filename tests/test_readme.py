@@ -143,3 +143,7 @@ def test_readme_real_traffic_numbers_match_the_reference_outputs():
              f"{100 * (1 - real['shown_share']):.0f} % of seen pairs whose length was never shown (a queue followed in "
              f"one lane), the centre inherits half the length prior's error, and it is {real['pos_unshown']:.2f} m")
     assert split in text, f"README's length-shown sentence differs from the reference outputs: {split}"
+    widths = (f"where an end has been seen whole, the width error is {real['width_shown']:.2f} m, and "
+              f"{real['width_unshown']:.2f} m on the {100 * (1 - real['width_shown_share']):.0f} % of seen pairs "
+              "whose end was never seen whole (a side seen, or an end only in part)")
+    assert widths in text, f"README's width-shown sentence differs from the reference outputs: {widths}"
