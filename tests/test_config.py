@@ -26,7 +26,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert (c.motion.coast_established_sigmas, c.motion.coast_established_time) == (2.0, 4.0)
     assert (c.motion.quiet_jerk, c.motion.manoeuvre_sigmas, c.motion.manoeuvre_hold) == (0.3, 2.0, 2.0)
     assert c.motion.manoeuvre_memory == 0.5
-    assert c.measurement.whole_min_points == 4
+    assert c.measurement.whole_min_points == 3
     assert c.reduction.same_label_along_length
     assert (c.birth.min_cluster_points_radar, c.birth.sparse_min_range, c.birth.min_cluster_points_fused) == (1, 70.0, 2)
     assert (c.birth.width_error_std, c.birth.width_error_vehicles) == (0.0, 3)

@@ -388,6 +388,28 @@ def test_each_part_of_a_two_sided_cluster_with_a_sharp_free_end_is_its_whole_sid
     assert modes(free, extent_sd=np.array([[0.2, 0.4]])) == [FROM_B, FULL]  # 2.3 m > 3 x 0.2 + 0.3
 
 
+def test_three_points_per_part_show_a_whole_side() -> None:
+    """The motorcycle of the test above seen with rays every 1.0 deg: 5 returns, 3 on each part (the corner
+    counted in both), both far ends sharp and free. Three points fix each part's line with one to spare,
+    so both parts are whole with the default ``whole_min_points`` (3); with 4 each stays partially
+    visible, anchored at the corner, and the car's predicted extent would never shrink to the
+    motorcycle's."""
+    moto = np.array([15.0, 3.5, 10.0, 0.0, 0.0, 2.2, 0.8])
+    k = corners_of(moto)
+    predicted = corners_of(moto + np.array([1.15, 0.5, 0.0, 0.0, 0.0, 2.3, 1.0]))[None]  # a car, the same corner
+    b = bearing(k)
+    pts, hit = rectangle_scan(k, np.arange(b[0] + 1e-4, b[2], np.radians(1.0)))
+    config = MeasurementConfig()
+    assert config.whole_min_points == 3 and hit.sum() == 5
+    batch = ClusterBatch.of([prepare_cluster(pts[hit], config)])
+    free = dataclasses.replace(batch, occluded_end=np.zeros((1, 2), dtype=bool))
+    sd = np.array([[1.0, 0.4]])
+    for points, expected in ((3, [FULL, FULL]), (4, [FROM_B, FROM_A])):
+        st = build_structure(free, np.array([0]), predicted, dataclasses.replace(config, whole_min_points=points),
+                             extent_sd=sd)
+        assert st.two_sided[0] and st.sides[0].tolist() == [3, 2] and st.mode[0].tolist() == expected, points
+
+
 def test_end_gap_correction_removes_the_length_bias_of_a_scanning_lidar() -> None:
     """Rays every 0.2 deg at random phase: the extreme returns lie inside the side's ends by up to one
     gap. With the correction the covered extent (chord + margins) is unbiased to 1 cm; without it the

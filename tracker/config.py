@@ -270,8 +270,8 @@ class MeasurementConfig:
     shadow_free_gap: float = 0.3
     #: Lidar std in the state update of an anchored part whose cluster borders a shadow (m; default 0.15; None: off).
     shadowed_lidar_sigma: float | None = 0.15
-    #: Fewest points each part needs to be whole at a sharp, free far end, the corner counted in both (default 4).
-    whole_min_points: int = 4
+    #: Fewest points each part needs to be whole at a sharp, free far end, the corner counted in both: two lines through three points each (default 3).
+    whole_min_points: int = 3
     #: A sharp part shown whole may shrink a side by at most this many std of its extent plus the slack (default 3.0).
     whole_gate_sigmas: float = 3.0
     #: Slack added to that gate (m; default 0.3).
