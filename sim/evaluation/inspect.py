@@ -90,6 +90,9 @@ from typing import Any
 
 import numpy as np
 
+from tracker.measurement import Rectangles
+from tracker.radar_update import nearest_points
+
 # -- thresholds (units in the names) ---------------------------------------------------------------
 #: A new label assigned within this time (s) of the old label's disappearance is a *newborn* replacement.
 REPLACE_WINDOW_S = 1.0
@@ -199,12 +202,10 @@ class RunData:
 
     def body_distance(self, k: int, xy: np.ndarray) -> np.ndarray:
         """Distances (U, V; m) from the points ``xy (U, 2)`` to the vehicles' bodies in frame ``k``: 0
-        inside a rectangle, ``inf`` for a vehicle absent there."""
-        offset = xy[:, None, :] - self.xy[k][None, :, :]
-        c, s = np.cos(self.yaw[k]), np.sin(self.yaw[k])
-        along = np.abs(offset[..., 0] * c + offset[..., 1] * s) - 0.5 * self.length[k]
-        across = np.abs(offset[..., 1] * c - offset[..., 0] * s) - 0.5 * self.width[k]
-        dist = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0))
+        inside a rectangle, ``inf`` for a vehicle absent there (the distance to each body's point nearest
+        the point, ``tracker.radar_update.nearest_points``)."""
+        body = Rectangles(self.xy[k], self.yaw[k], np.zeros(len(self.yaw[k])), self.length[k], self.width[k])
+        dist = np.linalg.norm(xy[:, None, :] - nearest_points(body, xy[:, None, :]), axis=-1)
         return np.where(np.isnan(dist), np.inf, dist)
 
     @property
