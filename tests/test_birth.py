@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tracker import EgoState, Road
-from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
+from tracker.birth import cluster_births, crossing_course, road_births, to_cartesian_gaussians
 from tracker.config import BirthConfig
 from tracker.measurement import rectangle_corners, rectangle_scan
 from tracker.track import curvilinear_to_cartesian
@@ -411,3 +411,38 @@ def test_cluster_birth_in_an_oncoming_lane_ignores_a_passing_vehicles_radar_velo
     for means in (own, passing):
         assert abs(abs(means[0, 3]) - np.pi) < 0.05 and means[0, 1] == pytest.approx(1.75, abs=0.3)
     assert own[0, 2] == pytest.approx(12.0, abs=0.1) and passing[0, 2] == 10.0
+
+
+@pytest.mark.parametrize("course_sign", [1.0, -1.0])
+def test_a_cluster_birth_crossing_the_road_heads_along_its_radar_course(course_sign):
+    """A 4.8 x 2 m car crossing a straight road 25 m ahead, its length across the road, its radar velocity
+    8 m/s across (either way): its birth heads +-pi/2 from the road, the way the radar says, with the
+    crossing side as its length and the radar's speed. Without the radar, or with it switched off, the
+    birth takes the quarter turn nearest the road: the 4.8 m side is then its width."""
+    road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
+    ego = EgoState(100.0, 0.0, 0.0, 10.0)
+    corners = to_local(rectangle_corners(np.array([125.0, 1.0]), np.array(course_sign * np.pi / 2), np.array(4.8),
+                                         np.array(2.0)), np.array([100.0, 0.0]), 0.0)
+    points, _ = rectangle_scan(corners, np.arange(-np.pi, np.pi, np.radians(0.2)))
+    velocity = np.array([0.3, course_sign * 8.0])
+    crossing, _ = cluster_births([points], [velocity], ego, road, BirthConfig())
+    assert crossing[0, 3] == pytest.approx(course_sign * np.pi / 2, abs=0.05)
+    assert crossing[0, 5] == pytest.approx(4.8, abs=0.2) and crossing[0, 6] == pytest.approx(2.0, abs=0.2)
+    assert crossing[0, 2] == pytest.approx(8.0, abs=0.1)
+    for velocities, cfg in (([None], BirthConfig()), ([velocity], BirthConfig(crossing_min_speed=None))):
+        along, _ = cluster_births([points], velocities, ego, road, cfg)
+        assert abs(along[0, 3]) < 0.05 and along[0, 6] >= 2.9  # the crossing side read as a width
+    # a slow radar velocity says little of the course: the road's direction
+    slow, _ = cluster_births([points], [velocity / 4.0], ego, road, BirthConfig())
+    assert abs(slow[0, 3]) < 0.05
+
+
+def test_crossing_course_only_for_a_fast_course_off_the_lane():
+    assert crossing_course(np.array([0.0, 8.0]), 0.0, 3.0) == pytest.approx(np.pi / 2)
+    assert crossing_course(np.array([8.0, 7.0]), 0.0, 3.0) is None  # 41 deg off: following the lane
+    assert crossing_course(np.array([8.0, 8.5]), 0.0, 3.0) == pytest.approx(np.arctan2(8.5, 8.0))
+    assert crossing_course(np.array([-8.0, 0.0]), np.pi, 3.0) is None  # an oncoming lane's own traffic
+    assert crossing_course(np.array([8.0, -1.0]), np.pi, 3.0) is None  # against it: another vehicle's detection
+    assert crossing_course(np.array([-8.0, 9.0]), 0.0, 3.0) == pytest.approx(np.arctan2(9.0, -8.0))  # 132 deg
+    assert crossing_course(np.array([0.0, 2.9]), 0.0, 3.0) is None
+    assert crossing_course(None, 0.0, 3.0) is None and crossing_course(np.array([0.0, 8.0]), 0.0, None) is None

@@ -9,7 +9,8 @@
   another object's shadow: then the missing half may lie on either side, a spread instead of a
   shift), the fit's axes turned by the quarter turn that puts the heading closest to the road
   direction (``|xi| <= pi/4``: vehicles drive along the road; a cluster of one or two points, or one
-  shorter than ``BirthConfig.min_oriented_extent`` on both sides, takes the lane's direction), and the
+  shorter than ``BirthConfig.min_oriented_extent`` on both sides, takes the lane's direction; a vehicle
+  whose radar course crosses the lane, ``crossing_course``, takes that course instead), and the
   speed from an associated radar
   detection when fused (on a two-way road, not from one that points more than ``BACKWARD_SPEED``
   against that heading: the detection of a vehicle passing in the other direction).
@@ -164,6 +165,22 @@ def shadow_side(shadowed_end: np.ndarray, free_end: np.ndarray, direction: np.nd
     return 0.0 if abs(along) < SHADOW_SIDE_MIN else float(np.sign(along))
 
 
+def crossing_course(velocity: np.ndarray | None, lane_heading: float, min_speed: float | None) -> float | None:
+    """The course (rad, in E) of a radar ``velocity (vx, vy)`` (E, m/s) where it is at least ``min_speed``
+    (m/s) and crosses the lane's direction ``lane_heading`` (rad, in E) at 45-135 deg: a vehicle that is not
+    following its lane (crossing it at an intersection, turning into a side street), whose heading the
+    lane does not give; ``None`` otherwise (no radar, too slow for the course to be known, along the lane,
+    whose direction is the better reference, or against it: the detection of a vehicle passing in the
+    other direction, ``BACKWARD_SPEED``)."""
+    if velocity is None or min_speed is None:
+        return None
+    speed = float(np.hypot(velocity[0], velocity[1]))
+    if speed < min_speed:
+        return None
+    course = float(np.arctan2(velocity[1], velocity[0]))
+    return course if 0.25 * np.pi < abs(float(wrap_angle(course - lane_heading))) < 0.75 * np.pi else None
+
+
 def _fewest_points(config: BirthConfig, points: np.ndarray, fused: bool) -> int:
     """The fewest points an unexplained cluster ``points (N, 2)`` (E, m) needs to seed a birth:
     ``min_cluster_points``; when a radar detection joined it, ``min_cluster_points_fused`` (if set, at
@@ -220,9 +237,13 @@ def cluster_births(
         # lane), swapping length and width for an odd quarter turn
         probe = to_global(fit.center[None, :], (ego.x, ego.y), ego.yaw)[0]
         s_fit, n_fit = road.to_frenet(probe)
-        theta_fit = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
+        theta_road = float(road.frame(np.array([s_fit]), extrapolate=True)[1][0])
         lane_xi = np.pi if road.two_way and int(road.lane_direction(s_fit, n_fit)) < 0 else 0.0
-        theta_fit += lane_xi
+        theta_fit = theta_road + lane_xi
+        course = crossing_course(vel, theta_fit - ego.yaw, config.crossing_min_speed)
+        if course is not None:  # not following its lane (crossing it): the radar's course is the direction
+            theta_fit = course + ego.yaw
+            lane_xi = float(wrap_angle(theta_fit - theta_road))
         if sparse_k or short_k:  # no orientation in one or two points, or a short cluster: the lane's direction
             psi_e = theta_fit - ego.yaw
         else:
@@ -273,7 +294,7 @@ def cluster_births(
         metric = [1.0 / max(1.0 - float(curvature[0]) * n, 0.1), 1.0]
         levers.append(rotate(shifts, ego.yaw - theta[0]) * metric)
         spreads.append(rotate(either, ego.yaw - theta[0]) * metric)
-        xi = lane_xi if sparse_k else float(wrap_angle(psi_e + ego.yaw - theta[0]))
+        xi = lane_xi if sparse_k and course is None else float(wrap_angle(psi_e + ego.yaw - theta[0]))
         along = None if vel is None else float(vel @ np.array([np.cos(psi_e), np.sin(psi_e)]))
         if along is not None and not (road.two_way and along < -BACKWARD_SPEED):
             speed, speed_std = along, None

@@ -450,6 +450,8 @@ class BirthConfig:
     min_cluster_points: int = 2
     #: A cluster whose fitted rectangle is shorter than this on both sides shows no orientation: its birth takes the lane's direction (m; default 1.0; 0: every fit's).
     min_oriented_extent: float = 1.0
+    #: A cluster birth whose joined radar velocity is at least this fast and crosses its lane's direction at 45-135 deg takes that course, not the lane's, as its heading's reference (crossing traffic; m/s; default 3.0; None: the lane's always).
+    crossing_min_speed: float | None = 3.0
     #: ... with a joined radar detection, beyond ``sparse_min_range`` (fused; default 1; None: ``min_cluster_points``).
     min_cluster_points_radar: int | None = 1
     #: ``min_cluster_points_radar`` applies to clusters whose every point is at least this far (m; default 70.0).
@@ -489,6 +491,8 @@ class BirthConfig:
         if self.after_update_points is not None:
             _check_int("BirthConfig", "after_update_points", self.after_update_points, 1)
         _check("BirthConfig", "min_oriented_extent", self.min_oriented_extent, low=0.0, unit="m")
+        if self.crossing_min_speed is not None:
+            _check("BirthConfig", "crossing_min_speed", self.crossing_min_speed, low=0.0, low_open=True, unit="m/s")
         if self.flow_speed_std is not None:
             _check("BirthConfig", "flow_speed_std", self.flow_speed_std, low=0.0, low_open=True, unit="m/s")
         if self.min_cluster_points_fused is not None:
