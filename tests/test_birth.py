@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tracker import EgoState, Road
-from tracker.birth import cluster_births, crossing_course, road_births, to_cartesian_gaussians
+from tracker.birth import cluster_births, road_births, to_cartesian_gaussians
 from tracker.config import BirthConfig
 from tracker.measurement import rectangle_corners, rectangle_scan
 from tracker.track import curvilinear_to_cartesian
@@ -435,14 +435,3 @@ def test_a_cluster_birth_crossing_the_road_heads_along_its_radar_course(course_s
     # a slow radar velocity says little of the course: the road's direction
     slow, _ = cluster_births([points], [velocity / 4.0], ego, road, BirthConfig())
     assert abs(slow[0, 3]) < 0.05
-
-
-def test_crossing_course_only_for_a_fast_course_off_the_lane():
-    assert crossing_course(np.array([0.0, 8.0]), 0.0, 3.0) == pytest.approx(np.pi / 2)
-    assert crossing_course(np.array([8.0, 7.0]), 0.0, 3.0) is None  # 41 deg off: following the lane
-    assert crossing_course(np.array([8.0, 8.5]), 0.0, 3.0) == pytest.approx(np.arctan2(8.5, 8.0))
-    assert crossing_course(np.array([-8.0, 0.0]), np.pi, 3.0) is None  # an oncoming lane's own traffic
-    assert crossing_course(np.array([8.0, -1.0]), np.pi, 3.0) is None  # against it: another vehicle's detection
-    assert crossing_course(np.array([-8.0, 9.0]), 0.0, 3.0) == pytest.approx(np.arctan2(9.0, -8.0))  # 132 deg
-    assert crossing_course(np.array([0.0, 2.9]), 0.0, 3.0) is None
-    assert crossing_course(None, 0.0, 3.0) is None and crossing_course(np.array([0.0, 8.0]), 0.0, None) is None

@@ -119,12 +119,14 @@ def test_two_cars_side_by_side_on_a_curve(curve):
 @pytest.mark.parametrize("limits", [True, False], ids=["limited", "unlimited"])
 def test_a_car_crossing_the_road_keeps_a_vehicle_s_size(limits):
     """A car crossing the road 35 m ahead of a standing ego (12 m across in 2 s, turned up to 87 deg
-    off the road): the road-aligned track follows it across by its width, which the update drives
-    towards zero. ``BirthConfig.min_length`` / ``min_width`` (1.5, 0.5 m) project every estimate back
-    onto the smallest vehicle; without them the width collapses."""
+    off the road), the radar's course not used (``BirthConfig.crossing_min_speed`` off): the
+    road-aligned track follows it across by its width, which the update drives towards zero.
+    ``BirthConfig.min_length`` / ``min_width`` (1.5, 0.5 m) project every estimate back onto the
+    smallest vehicle; without them the width collapses."""
     road = Road.from_curvature([(400.0, 0.0, 0.0)], lanes=4, lane_width=3.5)
     scene = Scene(road, Car(5.0, 1.75, 0.0), [Car(40.0, -6.0, 0.5, lane_change=(0.5, 2.0, 12.0))], radar=True)
-    birth = BirthConfig() if limits else BirthConfig(min_length=0.0, min_width=0.0)
+    birth = BirthConfig(crossing_min_speed=None)
+    birth = birth if limits else dataclasses.replace(birth, min_length=0.0, min_width=0.0)
     frames, _ = run(scene, dataclasses.replace(TrackerConfig(), birth=birth), 3.0)
     widths = np.array([t.width for tracks in frames for t in tracks])
     lengths = np.array([t.length for tracks in frames for t in tracks])
@@ -133,6 +135,33 @@ def test_a_car_crossing_the_road_keeps_a_vehicle_s_size(limits):
         assert widths.min() >= 0.5 - 1e-9 and lengths.min() >= 1.5 - 1e-9
     else:
         assert widths.min() < 0.1
+
+
+@pytest.mark.parametrize("crossing", [True, False], ids=["radar-course", "off"])
+def test_a_car_turning_across_the_road_is_turned_to_its_radar_course(crossing):
+    """The crossing car above with the radar's course used (the default): two frames after its course
+    turns across the road the track is turned a quarter turn to it (``tracker.course``) and follows the
+    car across under its first label, heading within 6 deg of the car's, its 4.8 x 2 m kept. Off, the
+    track keeps the road's heading, 70+ deg off, its width driven away from 2 m."""
+    road = Road.from_curvature([(400.0, 0.0, 0.0)], lanes=4, lane_width=3.5)
+    car = Car(40.0, -6.0, 0.5, lane_change=(0.5, 2.0, 12.0))
+    scene = Scene(road, Car(5.0, 1.75, 0.0), [car], radar=True)
+    birth = BirthConfig() if crossing else BirthConfig(crossing_min_speed=None)
+    frames, tracker = run(scene, dataclasses.replace(TrackerConfig(), birth=birth), 2.3)
+    crossing_frames = [(k, tracks) for k, tracks in enumerate(frames) if 1.0 <= k * DT <= 2.3]
+    assert all(len(tracks) == 1 for _, tracks in crossing_frames)
+    heading_error = np.array([abs(tracks[0].mean[3] - (car.pose(road, k * DT)[1] - road.heading(car.s_at(k * DT))))
+                              for k, tracks in crossing_frames])
+    widths = np.array([tracks[0].width for _, tracks in crossing_frames])
+    if crossing:
+        assert tracker.stats["turned_to_radar_course"] == 1
+        assert {tr.label for _, tracks in crossing_frames for tr in tracks} == {frames[0][0].label}
+        assert heading_error.max() < np.radians(6.0)
+        assert np.allclose([tracks[0].length for _, tracks in crossing_frames], 4.8, atol=0.3)
+        assert np.allclose(widths, 2.0, atol=0.3)
+    else:
+        assert tracker.stats["turned_to_radar_course"] == 0
+        assert heading_error.min() > np.radians(70.0) and np.abs(widths - 2.0).max() > 1.0
 
 
 def test_entering_car_confirmed_and_leaving_car_dropped_within_1s():

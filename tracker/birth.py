@@ -10,7 +10,7 @@
   shift), the fit's axes turned by the quarter turn that puts the heading closest to the road
   direction (``|xi| <= pi/4``: vehicles drive along the road; a cluster of one or two points, or one
   shorter than ``BirthConfig.min_oriented_extent`` on both sides, takes the lane's direction; a vehicle
-  whose radar course crosses the lane, ``crossing_course``, takes that course instead), and the
+  whose radar course crosses the lane, ``tracker.course.crossing_course``, takes that course instead), and the
   speed from an associated radar
   detection when fused (on a two-way road, not from one that points more than ``BACKWARD_SPEED``
   against that heading: the detection of a vehicle passing in the other direction).
@@ -27,6 +27,7 @@ import numpy as np
 
 from tracker.angles import wrap_angle
 from tracker.config import BirthConfig
+from tracker.course import crossing_course
 from tracker.detection import occluded_fraction
 from tracker.extent import class_arrays, class_length_prior
 from tracker.frame import EgoState
@@ -163,22 +164,6 @@ def shadow_side(shadowed_end: np.ndarray, free_end: np.ndarray, direction: np.nd
     apart along it (the shadow says nothing there)."""
     along = float((np.asarray(shadowed_end) - np.asarray(free_end)) @ direction)
     return 0.0 if abs(along) < SHADOW_SIDE_MIN else float(np.sign(along))
-
-
-def crossing_course(velocity: np.ndarray | None, lane_heading: float, min_speed: float | None) -> float | None:
-    """The course (rad, in E) of a radar ``velocity (vx, vy)`` (E, m/s) where it is at least ``min_speed``
-    (m/s) and crosses the lane's direction ``lane_heading`` (rad, in E) at 45-135 deg: a vehicle that is not
-    following its lane (crossing it at an intersection, turning into a side street), whose heading the
-    lane does not give; ``None`` otherwise (no radar, too slow for the course to be known, along the lane,
-    whose direction is the better reference, or against it: the detection of a vehicle passing in the
-    other direction, ``BACKWARD_SPEED``)."""
-    if velocity is None or min_speed is None:
-        return None
-    speed = float(np.hypot(velocity[0], velocity[1]))
-    if speed < min_speed:
-        return None
-    course = float(np.arctan2(velocity[1], velocity[0]))
-    return course if 0.25 * np.pi < abs(float(wrap_angle(course - lane_heading))) < 0.75 * np.pi else None
 
 
 def _fewest_points(config: BirthConfig, points: np.ndarray, fused: bool) -> int:

@@ -450,7 +450,7 @@ class BirthConfig:
     min_cluster_points: int = 2
     #: A cluster whose fitted rectangle is shorter than this on both sides shows no orientation: its birth takes the lane's direction (m; default 1.0; 0: every fit's).
     min_oriented_extent: float = 1.0
-    #: A cluster birth whose joined radar velocity is at least this fast and crosses its lane's direction at 45-135 deg takes that course, not the lane's, as its heading's reference (crossing traffic; m/s; default 3.0; None: the lane's always).
+    #: Crossing traffic (``tracker.course``): a cluster birth whose joined radar velocity is at least this fast and crosses its lane's direction at 45-135 deg takes that course as its heading's reference; a component whose own cluster's does so across its heading is turned a quarter turn to it (m/s; default 3.0; None: off).
     crossing_min_speed: float | None = 3.0
     #: ... with a joined radar detection, beyond ``sparse_min_range`` (fused; default 1; None: ``min_cluster_points``).
     min_cluster_points_radar: int | None = 1

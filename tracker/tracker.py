@@ -77,6 +77,7 @@ from tracker.cloud import CloudResult
 from tracker.clustering import (bearing_extremes, cluster_radar_ranges, fragment_owners,
                                 occluded_ends, points_in_rectangles, ray_partition, SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
+from tracker.course import TURN_FRAMES, TURN_TOLERANCE, agrees_along, crossing_course, turn_to_course
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
@@ -133,7 +134,8 @@ class Tracker:
     ``cluster_ends_occluded`` (ends of updating clusters next to another object's shadow),
     ``cluster_ends_continued`` (ends whose side goes on in another cluster, ``measurement.continuation_rays``),
     ``radar_velocities_rejected`` (fused clusters whose radar velocity no pair explains,
-    ``measurement.radar_gate``),
+    ``measurement.radar_gate``), ``turned_to_radar_course`` (components turned a quarter turn to their own
+    cluster's radar course across their heading, ``tracker.course``),
     ``covariances_repaired`` (posteriors lifted to positive definite, ``tracker.ukf.ensure_spd``),
     ``births_road``, ``births_cluster``, ``births_first_scan`` (``birth.first_scan``), ``births_same_frame``
     (``birth.same_frame``), ``births_after_update`` (``birth.after_update_points``), ``births_shadowed``
@@ -185,6 +187,7 @@ class Tracker:
         self.mixture = Mixture(np.zeros(0), np.zeros((0, self.dim)), np.zeros((0, self.dim, self.dim)), np.zeros(0, dtype=int))
         self.t: float | None = None
         self.stats: Counter[str] = Counter()
+        self._crossing_frames: dict[int, tuple[int, int]] = {}  # tracker.course: radar courses across a label's heading
         self.stage_seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         #: the 3-D pipeline's result for the last frame (``tracker.cloud.CloudResult``; None when its lidar was 2-D)
         self.last_cloud: CloudResult | None = None
@@ -708,6 +711,8 @@ class Tracker:
                     for k, v in enumerate(velocities):
                         if v is not None:
                             has_velocity[k], velocity[k] = True, v
+                    if rows is None:  # once per frame (not again in the second pass of births after the update)
+                        self._turn_to_courses(rect, comp, clu, velocities)
                 res, occluded, continued = update_clusters(mix.means, mix.covs, points, offsets, velocity, has_velocity,
                                                            comp, clu, self._scan, ego, self.road, cfg, self.ut)
                 if occluded is not None:  # MeasurementConfig.shadow_window
@@ -808,6 +813,39 @@ class Tracker:
             mix.covs[res.component] = post_cov
             self.stats["radar_only_updates"] += len(res.component)
             self._radar_updated.update(int(lab) for lab in mix.labels[res.component])
+
+    def _turn_to_courses(self, rect: Rectangles, comp: np.ndarray, clu: np.ndarray,
+                         velocities: list[np.ndarray | None]) -> None:
+        """Components whose pre-gated cluster is their own (it lies in their track's predicted rectangle)
+        and carries a radar course at nearly a right angle to their heading, their label's in
+        ``TURN_FRAMES`` consecutive frames, whose part along the heading agrees with their
+        speed (``tracker.course.agrees_along``), are turned by the quarter turn nearer it, in
+        place, before the update (``tracker.course``; ``BirthConfig.crossing_min_speed``); counted in
+        ``stats["turned_to_radar_course"]``."""
+        min_speed = self._sized.birth.crossing_min_speed
+        if min_speed is None or not len(comp):
+            return
+        mix = self.mixture
+        own = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp])
+        speed_var = self._sized.birth.speed_std**2
+        radar_var = self._sized.measurement.radar_velocity_sigma**2
+        frame = self.stats["frames"]
+        last = self._crossing_frames  # label -> (last frame with a crossing course, consecutive frames to it)
+        shown: dict[int, tuple[int, int]] = {}
+        turn = []
+        for c, k in zip(comp[own].tolist(), clu[own].tolist()):
+            vel = velocities[k]
+            course = crossing_course(vel, float(rect.psi[c]), min_speed, TURN_TOLERANCE)
+            if course is not None and agrees_along(mix.means[c], mix.covs[c], float(rect.psi[c]), vel, radar_var):
+                label = int(mix.labels[c])
+                before, count = last.get(label, (-2, 0))
+                shown[label] = (frame, count + 1 if before == frame - 1 else 1)
+                turn.append((c, course, float(np.hypot(*vel)), shown[label][1]))
+        self._crossing_frames = shown
+        for c, course, speed, frames in turn:
+            if frames >= TURN_FRAMES:
+                turn_to_course(mix.means[c], mix.covs[c], float(rect.psi[c]), course, speed, speed_var)
+                self.stats["turned_to_radar_course"] += 1
 
     def _plan_cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None], explained: np.ndarray) -> None:
         """Clusters that no component explained and that lie outside every reported track's rectangle

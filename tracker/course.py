@@ -1,0 +1,84 @@
+"""Vehicles that do not follow their lane: a radar course across it, and the quarter turn it resolves.
+
+A rectangle fitted to lidar points is ambiguous by quarter turns; the tracker resolves that by the
+lane (vehicles drive along their lane). A vehicle crossing the lane (at an intersection, turning into
+a side street) does not, and its outline alone cannot say so while only part of it is on the road. Its
+radar velocity can: a vehicle moves along its heading, so a course that crosses the reference heading
+(the lane's, at a birth; a track's, at an update) at 45-135 deg says the reference is a quarter turn
+off (``crossing_course``). A birth then takes that course as its reference (``tracker.birth``); a
+component whose own cluster's radar course crosses its heading at nearly a right angle in consecutive
+frames (``TURN_TOLERANCE``, ``TURN_FRAMES``), and whose speed agrees with that
+velocity's part along its heading (``agrees_along``: a crossing car tracked along the road shows ~0 m/s
+there; a detection not its own contradicts the speed the track knows), is turned by the quarter turn
+nearer that course (``turn_to_course``), heading the way the radar says, the longer extent its length,
+before the cluster updates it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tracker.angles import wrap_angle
+from tracker.motion import LENGTH, WIDTH
+
+#: Index of the heading (xi in road coordinates, psi in Cartesian ones) and of the speed in a state.
+HEADING, SPEED = 3, 2
+#: A track is turned only for a course within this of a right angle to its heading (rad; 30 deg): a
+#: quarter turn off, not a vehicle turning (whose heading the updates follow) nor a stray detection.
+TURN_TOLERANCE = np.pi / 6
+#: ... shown by its own clusters in this many consecutive frames (one stray radar detection turns nothing).
+TURN_FRAMES = 2
+#: Standard deviations within which a radar velocity's part along a component's heading must agree with its speed (``agrees_along``).
+AGREE_SIGMAS = 3.0
+
+
+def crossing_course(velocity: np.ndarray | None, heading: float, min_speed: float | None,
+                    tolerance: float = 0.25 * np.pi) -> float | None:
+    """The course (rad, in E) of a radar ``velocity (vx, vy)`` (E, m/s) where it is at least ``min_speed``
+    (m/s) and crosses the reference ``heading`` (rad, in E: a lane's direction, or a track's heading)
+    within ``tolerance`` (rad; default 45 deg: 45-135 deg) of a right angle: a vehicle that is not
+    following it, whose heading the reference does not give; ``None`` otherwise (no radar, too slow for
+    the course to be known to better than ~10 deg, along the reference, or against it: at a birth, the
+    detection of a vehicle passing in the other direction, ``tracker.birth.BACKWARD_SPEED``)."""
+    if velocity is None or min_speed is None:
+        return None
+    speed = float(np.hypot(velocity[0], velocity[1]))
+    if speed < min_speed:
+        return None
+    course = float(np.arctan2(velocity[1], velocity[0]))
+    return course if abs(abs(float(wrap_angle(course - heading))) - 0.5 * np.pi) < tolerance else None
+
+
+def agrees_along(mean: np.ndarray, cov: np.ndarray, heading: float, velocity: np.ndarray, radar_var: float,
+                 sigmas: float = AGREE_SIGMAS) -> bool:
+    """Whether the part of a radar ``velocity (vx, vy)`` (E, m/s) along a component's ``heading`` (rad, in
+    E) agrees with the component's speed ``mean[SPEED]`` within ``sigmas`` standard deviations (its
+    variance ``cov[SPEED, SPEED]`` plus the radar's ``radar_var``, m^2/s^2). A vehicle tracked a quarter
+    turn off, crossing the road, shows its tracked speed near 0 and a course across it; a detection
+    that is not the vehicle's (clutter, another vehicle's) contradicts a speed the track knows."""
+    along = float(velocity[0] * np.cos(heading) + velocity[1] * np.sin(heading))
+    return abs(along - float(mean[SPEED])) <= sigmas * float(np.sqrt(max(cov[SPEED, SPEED], 0.0) + radar_var))
+
+
+def turn_to_course(mean: np.ndarray, cov: np.ndarray, heading: float, course: float, speed: float,
+                   speed_var: float) -> None:
+    """Turn one component, ``mean (D,)`` and ``cov (D, D)`` in place, by the quarter turn from its
+    ``heading`` (rad, in E) nearer the radar ``course`` (rad, in E): the heading state moves by +-pi/2;
+    the longer of its two extents is its length (a road vehicle is longer than it is wide): where the
+    width was the longer (the crossing side read as a width: the track followed the vehicle's points
+    turned a quarter off), length and width and their rows and columns of ``cov`` are exchanged and the
+    rectangle stays where it was; otherwise (the vehicle turned under a track that kept its extent) the
+    rectangle turns with the heading about its centre. The speed becomes the radar's ``speed`` (m/s)
+    with variance ``speed_var`` (m^2/s^2), its correlations dropped (the old speed was along the wrong
+    axis)."""
+    turn = 0.5 * np.pi if float(wrap_angle(course - heading)) > 0.0 else -0.5 * np.pi
+    mean[HEADING] = float(wrap_angle(mean[HEADING] + turn))
+    if mean[WIDTH] > mean[LENGTH]:
+        order = np.arange(len(mean))
+        order[LENGTH], order[WIDTH] = WIDTH, LENGTH
+        mean[:] = mean[order]
+        cov[:] = cov[np.ix_(order, order)]
+    mean[SPEED] = speed
+    cov[SPEED, :] = 0.0
+    cov[:, SPEED] = 0.0
+    cov[SPEED, SPEED] = speed_var
