@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tracker.course import crossing_course, turn_to_course
+from tracker.course import TURN_TOLERANCE, agrees_along, crossing_course, crossing_courses, turn_to_course
 from tracker.measurement import rectangle_corners
 
 
@@ -18,6 +18,26 @@ def test_crossing_course_only_for_a_fast_course_off_the_reference():
     assert crossing_course(np.array([-8.0, 9.0]), 0.0, 3.0) == pytest.approx(np.arctan2(9.0, -8.0))  # 132 deg
     assert crossing_course(np.array([0.0, 2.9]), 0.0, 3.0) is None  # too slow for a course
     assert crossing_course(None, 0.0, 3.0) is None and crossing_course(np.array([0.0, 8.0]), 0.0, None) is None
+
+
+def test_crossing_courses_of_a_track_need_nearly_a_right_angle():
+    """At an update the course must lie within 30 deg of a right angle to the track's heading (0.3 rad
+    here): 65 and 115 deg off cross it, 55 and 125 deg do not; headings per row."""
+    angles = np.radians([65.0, 115.0, 55.0, 125.0, -70.0])
+    heading = np.array([0.3, 0.3, 0.3, 0.3, 0.3])
+    velocity = 8.0 * np.column_stack([np.cos(heading + angles), np.sin(heading + angles)])
+    out = crossing_courses(velocity, heading, 3.0, TURN_TOLERANCE)
+    np.testing.assert_allclose(out[[0, 1, 4]], np.arctan2(velocity[[0, 1, 4], 1], velocity[[0, 1, 4], 0]))
+    assert np.isnan(out[[2, 3]]).all()
+
+
+def test_a_radar_velocity_agrees_along_a_heading_within_three_sigmas():
+    """A track heading 0 at 0.2 m/s (variance 0.5): a radar velocity (0.5, 8) agrees (0.3 m/s off, the
+    bound 3 sqrt(0.5 + 0.25) = 2.6 m/s); (4, 8) does not (3.8 m/s off); nor does any crossing
+    detection on a track known to move at 11 m/s (a stray detection)."""
+    velocity = np.array([[0.5, 8.0], [4.0, 8.0], [0.5, 8.0]])
+    ok = agrees_along(np.array([0.2, 0.2, 11.0]), np.array([0.5, 0.5, 0.5]), np.zeros(3), velocity, 0.25)
+    assert ok.tolist() == [True, False, False]
 
 
 @pytest.mark.parametrize("course", [np.pi / 2 + 0.1, -np.pi / 2 - 0.1])

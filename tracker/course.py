@@ -5,7 +5,7 @@ lane (vehicles drive along their lane). A vehicle crossing the lane (at an inter
 a side street) does not, and its outline alone cannot say so while only part of it is on the road. Its
 radar velocity can: a vehicle moves along its heading, so a course that crosses the reference heading
 (the lane's, at a birth; a track's, at an update) at 45-135 deg says the reference is a quarter turn
-off (``crossing_course``). A birth then takes that course as its reference (``tracker.birth``); a
+off (``crossing_courses``). A birth then takes that course as its reference (``tracker.birth``); a
 component whose own cluster's radar course crosses its heading at nearly a right angle in consecutive
 frames (``TURN_TOLERANCE``, ``TURN_FRAMES``), and whose speed agrees with that
 velocity's part along its heading (``agrees_along``: a crossing car tracked along the road shows ~0 m/s
@@ -32,32 +32,40 @@ TURN_FRAMES = 2
 AGREE_SIGMAS = 3.0
 
 
-def crossing_course(velocity: np.ndarray | None, heading: float, min_speed: float | None,
-                    tolerance: float = 0.25 * np.pi) -> float | None:
-    """The course (rad, in E) of a radar ``velocity (vx, vy)`` (E, m/s) where it is at least ``min_speed``
-    (m/s) and crosses the reference ``heading`` (rad, in E: a lane's direction, or a track's heading)
-    within ``tolerance`` (rad; default 45 deg: 45-135 deg) of a right angle: a vehicle that is not
-    following it, whose heading the reference does not give; ``None`` otherwise (no radar, too slow for
-    the course to be known to better than ~10 deg, along the reference, or against it: at a birth, the
+def crossing_courses(velocity: np.ndarray, heading: np.ndarray, min_speed: float,
+                     tolerance: float = 0.25 * np.pi) -> np.ndarray:
+    """The courses (rad, in E) of radar velocities ``velocity (N, 2)`` (E, m/s) at least ``min_speed``
+    (m/s) fast that cross their reference ``heading (N,)`` (rad, in E: a lane's direction, or a track's
+    heading) within ``tolerance`` (rad; default 45 deg: 45-135 deg) of a right angle: vehicles not
+    following it, whose heading the reference does not give; NaN for the others (too slow for the
+    course to be known to better than ~10 deg, along the reference, or against it: at a birth, the
     detection of a vehicle passing in the other direction, ``tracker.birth.BACKWARD_SPEED``)."""
+    velocity = np.asarray(velocity, dtype=float).reshape(-1, 2)
+    course = np.arctan2(velocity[:, 1], velocity[:, 0])
+    off = np.abs(np.abs(wrap_angle(course - np.asarray(heading, dtype=float))) - 0.5 * np.pi)
+    crossing = (np.hypot(velocity[:, 0], velocity[:, 1]) >= min_speed) & (off < tolerance)
+    return np.where(crossing, course, np.nan)
+
+
+def crossing_course(velocity: np.ndarray | None, heading: float, min_speed: float | None) -> float | None:
+    """``crossing_courses`` of one radar ``velocity (vx, vy)`` and reference ``heading`` (45-135 deg);
+    ``None`` where it gives NaN, without a velocity or with ``min_speed`` None (off)."""
     if velocity is None or min_speed is None:
         return None
-    speed = float(np.hypot(velocity[0], velocity[1]))
-    if speed < min_speed:
-        return None
-    course = float(np.arctan2(velocity[1], velocity[0]))
-    return course if abs(abs(float(wrap_angle(course - heading))) - 0.5 * np.pi) < tolerance else None
+    course = float(crossing_courses(np.asarray(velocity, dtype=float)[None, :], np.array([heading]), min_speed)[0])
+    return None if np.isnan(course) else course
 
 
-def agrees_along(mean: np.ndarray, cov: np.ndarray, heading: float, velocity: np.ndarray, radar_var: float,
-                 sigmas: float = AGREE_SIGMAS) -> bool:
-    """Whether the part of a radar ``velocity (vx, vy)`` (E, m/s) along a component's ``heading`` (rad, in
-    E) agrees with the component's speed ``mean[SPEED]`` within ``sigmas`` standard deviations (its
-    variance ``cov[SPEED, SPEED]`` plus the radar's ``radar_var``, m^2/s^2). A vehicle tracked a quarter
-    turn off, crossing the road, shows its tracked speed near 0 and a course across it; a detection
-    that is not the vehicle's (clutter, another vehicle's) contradicts a speed the track knows."""
-    along = float(velocity[0] * np.cos(heading) + velocity[1] * np.sin(heading))
-    return abs(along - float(mean[SPEED])) <= sigmas * float(np.sqrt(max(cov[SPEED, SPEED], 0.0) + radar_var))
+def agrees_along(speed: np.ndarray, speed_var: np.ndarray, heading: np.ndarray, velocity: np.ndarray,
+                 radar_var: float, sigmas: float = AGREE_SIGMAS) -> np.ndarray:
+    """Whether the parts of radar velocities ``velocity (N, 2)`` (E, m/s) along components' ``heading
+    (N,)`` (rad, in E) agree with their ``speed (N,)`` within ``sigmas`` standard deviations (their
+    ``speed_var (N,)`` plus the radar's ``radar_var``, m^2/s^2). A vehicle tracked a quarter turn off,
+    crossing the road, shows its tracked speed near 0 and a course across it; a detection that is not
+    the vehicle's (clutter, another vehicle's) contradicts a speed the track knows."""
+    velocity = np.asarray(velocity, dtype=float).reshape(-1, 2)
+    along = velocity[:, 0] * np.cos(heading) + velocity[:, 1] * np.sin(heading)
+    return np.abs(along - speed) <= sigmas * np.sqrt(np.maximum(speed_var, 0.0) + radar_var)
 
 
 def turn_to_course(mean: np.ndarray, cov: np.ndarray, heading: float, course: float, speed: float,

@@ -77,7 +77,7 @@ from tracker.cloud import CloudResult
 from tracker.clustering import (bearing_extremes, cluster_radar_ranges, fragment_owners,
                                 occluded_ends, points_in_rectangles, ray_partition, SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
-from tracker.course import TURN_FRAMES, TURN_TOLERANCE, agrees_along, crossing_course, turn_to_course
+from tracker.course import SPEED, TURN_FRAMES, TURN_TOLERANCE, agrees_along, crossing_courses, turn_to_course
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
@@ -712,7 +712,7 @@ class Tracker:
                         if v is not None:
                             has_velocity[k], velocity[k] = True, v
                     if rows is None:  # once per frame (not again in the second pass of births after the update)
-                        self._turn_to_courses(rect, comp, clu, velocities)
+                        self._turn_to_courses(rect, comp, clu, velocity, has_velocity)
                 res, occluded, continued = update_clusters(mix.means, mix.covs, points, offsets, velocity, has_velocity,
                                                            comp, clu, self._scan, ego, self.road, cfg, self.ut)
                 if occluded is not None:  # MeasurementConfig.shadow_window
@@ -814,38 +814,38 @@ class Tracker:
             self.stats["radar_only_updates"] += len(res.component)
             self._radar_updated.update(int(lab) for lab in mix.labels[res.component])
 
-    def _turn_to_courses(self, rect: Rectangles, comp: np.ndarray, clu: np.ndarray,
-                         velocities: list[np.ndarray | None]) -> None:
+    def _turn_to_courses(self, rect: Rectangles, comp: np.ndarray, clu: np.ndarray, velocity: np.ndarray,
+                         has_velocity: np.ndarray) -> None:
         """Components whose pre-gated cluster is their own (it lies in their track's predicted rectangle)
-        and carries a radar course at nearly a right angle to their heading, their label's in
-        ``TURN_FRAMES`` consecutive frames, whose part along the heading agrees with their
-        speed (``tracker.course.agrees_along``), are turned by the quarter turn nearer it, in
-        place, before the update (``tracker.course``; ``BirthConfig.crossing_min_speed``); counted in
+        and carries a radar velocity (``velocity (C, 2)`` where ``has_velocity (C,)``, per cluster) whose
+        course lies at nearly a right angle to their heading, their label's in ``TURN_FRAMES``
+        consecutive frames, and whose part along the heading agrees with their speed
+        (``tracker.course.agrees_along``), are turned by the quarter turn nearer that course, in place,
+        before the update (``tracker.course``; ``BirthConfig.crossing_min_speed``); counted in
         ``stats["turned_to_radar_course"]``."""
         min_speed = self._sized.birth.crossing_min_speed
         if min_speed is None or not len(comp):
             return
         mix = self.mixture
-        own = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp])
-        speed_var = self._sized.birth.speed_std**2
-        radar_var = self._sized.measurement.radar_velocity_sigma**2
+        pick = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp]) & has_velocity[clu]
+        comp, vel = comp[pick], velocity[clu[pick]]
+        psi = rect.psi[comp]
+        course = crossing_courses(vel, psi, min_speed, TURN_TOLERANCE)
+        cross = ~np.isnan(course)
+        cross[cross] = agrees_along(mix.means[comp[cross], SPEED], mix.covs[comp[cross], SPEED, SPEED], psi[cross],
+                                    vel[cross], self._sized.measurement.radar_velocity_sigma**2)
         frame = self.stats["frames"]
         last = self._crossing_frames  # label -> (last frame with a crossing course, consecutive frames to it)
         shown: dict[int, tuple[int, int]] = {}
-        turn = []
-        for c, k in zip(comp[own].tolist(), clu[own].tolist()):
-            vel = velocities[k]
-            course = crossing_course(vel, float(rect.psi[c]), min_speed, TURN_TOLERANCE)
-            if course is not None and agrees_along(mix.means[c], mix.covs[c], float(rect.psi[c]), vel, radar_var):
-                label = int(mix.labels[c])
-                before, count = last.get(label, (-2, 0))
-                shown[label] = (frame, count + 1 if before == frame - 1 else 1)
-                turn.append((c, course, float(np.hypot(*vel)), shown[label][1]))
-        self._crossing_frames = shown
-        for c, course, speed, frames in turn:
-            if frames >= TURN_FRAMES:
-                turn_to_course(mix.means[c], mix.covs[c], float(rect.psi[c]), course, speed, speed_var)
+        for k in np.flatnonzero(cross).tolist():  # the few components showing a crossing course
+            label = int(mix.labels[comp[k]])
+            before, count = last.get(label, (-2, 0))
+            shown[label] = (frame, count + 1 if before == frame - 1 else 1)
+            if shown[label][1] >= TURN_FRAMES:
+                turn_to_course(mix.means[comp[k]], mix.covs[comp[k]], float(psi[k]), float(course[k]),
+                               float(np.hypot(*vel[k])), self._sized.birth.speed_std**2)
                 self.stats["turned_to_radar_course"] += 1
+        self._crossing_frames = shown
 
     def _plan_cluster_births(self, ego: EgoState, clusters: list[np.ndarray], velocities: list[np.ndarray | None], explained: np.ndarray) -> None:
         """Clusters that no component explained and that lie outside every reported track's rectangle
