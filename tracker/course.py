@@ -19,10 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from tracker.angles import wrap_angle
-from tracker.motion import LENGTH, WIDTH
-
-#: Index of the heading (xi in road coordinates, psi in Cartesian ones) and of the speed in a state.
-HEADING, SPEED = 3, 2
+from tracker.motion import LENGTH, V, WIDTH, XI
 #: A track is turned only for a course within this of a right angle to its heading (rad; 30 deg): a
 #: quarter turn off, not a vehicle turning (whose heading the updates follow) nor a stray detection.
 TURN_TOLERANCE = np.pi / 6
@@ -80,13 +77,13 @@ def turn_to_course(mean: np.ndarray, cov: np.ndarray, heading: float, course: fl
     with variance ``speed_var`` (m^2/s^2), its correlations dropped (the old speed was along the wrong
     axis)."""
     turn = 0.5 * np.pi if float(wrap_angle(course - heading)) > 0.0 else -0.5 * np.pi
-    mean[HEADING] = float(wrap_angle(mean[HEADING] + turn))
+    mean[XI] = float(wrap_angle(mean[XI] + turn))  # xi, or psi in the Cartesian state: the same row
     if mean[WIDTH] > mean[LENGTH]:
         order = np.arange(len(mean))
         order[LENGTH], order[WIDTH] = WIDTH, LENGTH
         mean[:] = mean[order]
         cov[:] = cov[np.ix_(order, order)]
-    mean[SPEED] = speed
-    cov[SPEED, :] = 0.0
-    cov[:, SPEED] = 0.0
-    cov[SPEED, SPEED] = speed_var
+    mean[V] = speed
+    cov[V, :] = 0.0
+    cov[:, V] = 0.0
+    cov[V, V] = speed_var

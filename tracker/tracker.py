@@ -77,12 +77,12 @@ from tracker.cloud import CloudResult
 from tracker.clustering import (bearing_extremes, cluster_radar_ranges, fragment_owners,
                                 occluded_ends, points_in_rectangles, ray_partition, SPLIT_MAX_CUTS)
 from tracker.config import TrackerConfig
-from tracker.course import SPEED, TURN_FRAMES, TURN_TOLERANCE, agrees_along, crossing_courses, turn_to_course
+from tracker.course import TURN_FRAMES, TURN_TOLERANCE, agrees_along, crossing_courses, turn_to_course
 from tracker.detection import cap_missed_weights, detection_model, nearest_range
 from tracker.frame import EgoState, Frame
 from tracker.identity import LostTracks
 from tracker.measurement import MIN_EXTENT, Rectangles, to_vehicle
-from tracker.motion import LENGTH, WIDTH, make_motion, predict, relax_acceleration
+from tracker.motion import LENGTH, V, WIDTH, make_motion, predict, relax_acceleration
 from tracker.point import PointTracker
 from tracker.preprocess import filter_points, lidar_points, nearest_per_ray
 from tracker.reduction import Mixture, absorb_overlapping, reduce, reduce_in_view
@@ -705,6 +705,8 @@ class Tracker:
             cluster_size = size
             self.stats["pairs_pre_gated"] += len(comp)
             if len(comp):
+                # a track's own cluster: its points lie in the track's predicted rectangle
+                own = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp])
                 has_velocity = np.zeros(len(clusters), dtype=bool)
                 velocity = np.zeros((len(clusters), 2))
                 if cfg.use_radar:
@@ -712,7 +714,7 @@ class Tracker:
                         if v is not None:
                             has_velocity[k], velocity[k] = True, v
                     if rows is None:  # once per frame (not again in the second pass of births after the update)
-                        self._turn_to_courses(rect, comp, clu, velocity, has_velocity)
+                        self._turn_to_courses(rect, comp[own], velocity[clu[own]], has_velocity[clu[own]])
                 res, occluded, continued = update_clusters(mix.means, mix.covs, points, offsets, velocity, has_velocity,
                                                            comp, clu, self._scan, ego, self.road, cfg, self.ut)
                 if occluded is not None:  # MeasurementConfig.shadow_window
@@ -722,10 +724,9 @@ class Tracker:
                 rejected = res.radar_rejected
                 self.stats["radar_velocities_rejected"] += len(np.unique(clu[rejected])) if rejected.any() else 0
                 inside = res.nis <= self._gate_table[np.minimum(res.dim, len(self._gate_table) - 1)]
-                # a track's own cluster (its points lie in its predicted rectangle) is associated by
-                # geometry: it updates the track even when the model fits it badly (a manoeuvre, partial
-                # occlusion), instead of the track coasting on a stale prediction until it is lost
-                own = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp])
+                # a track's own cluster is associated by geometry: it updates the track even when the
+                # model fits it badly (a manoeuvre, partial occlusion), instead of the track coasting on
+                # a stale prediction until it is lost
                 self.stats["own_clusters_past_gate"] += int((own & ~inside).sum())
                 inside |= own
                 comp, clu = comp[inside], clu[inside]
@@ -814,25 +815,22 @@ class Tracker:
             self.stats["radar_only_updates"] += len(res.component)
             self._radar_updated.update(int(lab) for lab in mix.labels[res.component])
 
-    def _turn_to_courses(self, rect: Rectangles, comp: np.ndarray, clu: np.ndarray, velocity: np.ndarray,
-                         has_velocity: np.ndarray) -> None:
-        """Components whose pre-gated cluster is their own (it lies in their track's predicted rectangle)
-        and carries a radar velocity (``velocity (C, 2)`` where ``has_velocity (C,)``, per cluster) whose
-        course lies at nearly a right angle to their heading, their label's in ``TURN_FRAMES``
-        consecutive frames, and whose part along the heading agrees with their speed
-        (``tracker.course.agrees_along``), are turned by the quarter turn nearer that course, in place,
-        before the update (``tracker.course``; ``BirthConfig.crossing_min_speed``); counted in
-        ``stats["turned_to_radar_course"]``."""
+    def _turn_to_courses(self, rect: Rectangles, comp: np.ndarray, velocity: np.ndarray, has_velocity: np.ndarray) -> None:
+        """Components ``comp`` paired with their track's own cluster, whose radar velocity is
+        ``velocity (P, 2)`` where ``has_velocity (P,)``: those whose course lies at nearly a right angle
+        to their heading, their label's in ``TURN_FRAMES`` consecutive frames, and whose part along the
+        heading agrees with their speed (``tracker.course.agrees_along``), are turned by the quarter turn
+        nearer that course, in place, before the update (``tracker.course``;
+        ``BirthConfig.crossing_min_speed``); counted in ``stats["turned_to_radar_course"]``."""
         min_speed = self._sized.birth.crossing_min_speed
-        if min_speed is None or not len(comp):
+        if min_speed is None:
             return
         mix = self.mixture
-        pick = (self._owned[clu] >= 0) & (self._owned[clu] == self._component_group[comp]) & has_velocity[clu]
-        comp, vel = comp[pick], velocity[clu[pick]]
+        comp, vel = comp[has_velocity], velocity[has_velocity]
         psi = rect.psi[comp]
         course = crossing_courses(vel, psi, min_speed, TURN_TOLERANCE)
         cross = ~np.isnan(course)
-        cross[cross] = agrees_along(mix.means[comp[cross], SPEED], mix.covs[comp[cross], SPEED, SPEED], psi[cross],
+        cross[cross] = agrees_along(mix.means[comp[cross], V], mix.covs[comp[cross], V, V], psi[cross],
                                     vel[cross], self._sized.measurement.radar_velocity_sigma**2)
         frame = self.stats["frames"]
         last = self._crossing_frames  # label -> (last frame with a crossing course, consecutive frames to it)
