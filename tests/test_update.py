@@ -454,7 +454,9 @@ def test_vehicle_classes_weigh_an_ambiguous_width():
 @pytest.mark.parametrize("max_width", [3.0, None], ids=["limited", "unlimited"])
 def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None:
     """Two vehicles' rears side by side form one 8 m line; with a loose width prior the update alone
-    makes the track ~8 m wide. With ``BirthConfig.max_width`` the width is projected back onto 3 m."""
+    makes the track metres wider than any vehicle (the line's excess over the predicted 2.5 m widens
+    the prior with the side nearest the sensor fixed: 5 m here, the sensor on the line's middle). With
+    ``BirthConfig.max_width`` the width is projected back onto 3 m."""
     from tracker.config import BirthConfig
 
     road = Road.from_curvature([(500.0, 0.0, 0.0)], lanes=3)
@@ -467,7 +469,7 @@ def test_an_estimate_wider_than_any_vehicle_is_projected_back(max_width) -> None
     config = dataclasses.replace(base, birth=BirthConfig(classes=None, max_width=max_width))
     post, _, _ = update(mean, cov, cluster, ego, road, config)
     if max_width is None:
-        assert post[6] > 6.0
+        assert post[6] > 4.5
     else:
         assert post[6] == pytest.approx(max_width)
 
@@ -735,6 +737,25 @@ def test_grow_extent_equals_the_oracle():
     empty = grow_extent(means[:0], covs[:0], dataclasses.replace(structure, sides=sides[:0], excess=excess[:0]),
                         corners[:0])
     assert empty[0].shape == (0,) and empty[1].shape == (0, dim, dim)
+
+
+def test_a_side_past_its_prediction_by_a_quarter_metre_and_a_standard_deviation_widens_the_prior():
+    """The chord is a lower bound of the side up to the range noise: a short side (a face) 0.3 m wider
+    than predicted, the width's sd 0.2 m, widens the prior (``GROWTH_MIN_EXCESS`` 0.25 m,
+    ``GROWTH_SIGMAS`` 1); 0.2 m does not. A long side with sd 1 m: 1.2 m does, 0.8 m does not."""
+    from tracker.measurement import Structure
+    from tracker.update import grow_extent
+
+    means = np.tile([30.0, 0.0, 10.0, 0.0, 0.0, 4.7, 1.9, 0.0], (4, 1))
+    covs = np.tile(np.diag([0.1, 0.1, 1.0, 0.01, 0.01, 1.0, 0.04, 0.1]), (4, 1, 1))
+    excess = np.array([[0.3, -np.inf], [0.2, -np.inf], [1.2, -np.inf], [0.8, -np.inf]])
+    sides = np.array([[2, 2], [2, 2], [1, 1], [1, 1]])  # the rear (a short side), then the right side (long)
+    corners = np.array([[[32.35, -0.95], [32.35, 0.95], [27.65, 0.95], [27.65, -0.95]]] * 4)
+    structure = Structure(*([None] * 7), two_sided=None, sides=sides, mode=None, radar=None, z=None, r=None,
+                          mask=None, factors=None, excess=excess)
+    grown, out = grow_extent(means, covs, structure, corners)
+    assert grown.tolist() == [True, False, True, False]
+    assert out[0, 6, 6] == pytest.approx(0.04 + 0.3**2) and out[2, 5, 5] == pytest.approx(1.0 + 1.2**2)
 
 
 @pytest.mark.parametrize("name", ["clothoid-open", "hermite-closed"])

@@ -130,9 +130,12 @@ MAX_END_GAP = 2.0
 
 #: A side's chord must exceed its predicted length by more than ``GROWTH_MIN_EXCESS`` (m) and by more
 #: than ``GROWTH_SIGMAS`` standard deviations of the extent to be evidence of a longer side, not noise:
-#: ``tracker.update.grow_extent`` then widens the prior.
-GROWTH_MIN_EXCESS = 0.5
-GROWTH_SIGMAS = 2.0
+#: ``tracker.update.grow_extent`` then widens the prior. The chord runs between returns on the side, so
+#: it is a lower bound of the side up to the range noise (a few centimetres); a quarter metre and one
+#: standard deviation of the prior are evidence enough to let the update learn the extent (the widening
+#: moves nothing by itself).
+GROWTH_MIN_EXCESS = 0.25
+GROWTH_SIGMAS = 1.0
 
 #: A part's far end is also sharp (a part shown whole to a sharp, free far end) when the predicted side goes
 #: on beyond its last return for at least this many ray gaps: the next ray along it would have hit it and
