@@ -1241,10 +1241,9 @@ def test_a_vans_side_past_its_tracks_front_joins_its_cluster(fragment_points):
     """The hard suite's emergency-brake, seed 4: a 6 m van ~50 m ahead in the next lane, born from its
     first scan with a car's length. Its side, seen at grazing incidence, returns a point every ~2 m:
     those past the predicted front were one-point clusters of their own, and the track learnt the van's
-    length over seconds (4.67 m at t = 0.1 s, 5.36 m at 0.2 s). With ``ClusteringConfig.fragment_points``
+    length frame by frame (4.67 m at t = 0.1 s, 5.80 m at 0.2 s). With ``ClusteringConfig.fragment_points``
     they join the van's cluster (within its rectangle stretched by 4 sd of its length at the far end),
-    and the track has 6.0-6.2 m from the first update; without, 4.7 m at the first. Without the joins of
-    neighbouring rays
+    and the track has 6.0-6.2 m from the first update. Without the joins of neighbouring rays
     (``grazing_angle``), which put the side in the birth's cluster itself (a birth of 4.9 m, 5.5 m at
     0.1 s: the birth takes the visible chord, the side's last ray gap unseen). The birth's prior length
     is pinned at 4.5 m: the default's 4.7 m rectangle already reaches the first return past the front,
